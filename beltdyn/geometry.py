@@ -1,0 +1,259 @@
+"""Belt path geometry: tangent lines, spans, wrap angles, belt length, and the L0 fit.
+
+Pure functions on numpy arrays. Conventions: x right, y up, angles counter-clockwise from +x.
+Pulleys are listed in belt order; span i runs from pulley i to pulley (i+1) mod n. The loop runs
+counter-clockwise (orientation o = +1) when the polygon of pulley centres is counter-clockwise or
+degenerate (two pulleys), clockwise (o = -1) otherwise. A pulley wrapped on the inside of the loop
+turns the belt in the loop's sense, a backside pulley in the opposite sense. With the signed radius
+rho = o * sigma * r (sigma = +1 inside, -1 backside) the tangent line of span i has direction
+t = (cos a, sin a) and right normal m = (sin a, -cos a) with
+
+    sin(a - b) = (rho_i - rho_{i+1}) / D,   d = c_{i+1} - c_i = D (cos b, sin b),
+
+tangent points c_i + rho_i m and c_{i+1} + rho_{i+1} m, span length sqrt(D^2 - (rho_i - rho_{i+1})^2).
+The belt length (paper Eq. 19, generalized) is the sum of span lengths and arc lengths r_j * wrap_j;
+its gradient with respect to the centre of pulley j is t_in - t_out (arriving minus departing span
+direction), which drives the Newton fit of the adjustable pulley (paper Eqs. 18-19).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import DriveConfig
+from .errors import ConfigError
+
+TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True, kw_only=True)
+class Layout:
+    """The belt path. Shapes: n pulleys, n spans (span i: pulley i -> pulley i+1)."""
+
+    names: tuple[str, ...]
+    center: np.ndarray  # (n, 2) m, solved centres
+    radius: np.ndarray  # (n,) m
+    side_sign: np.ndarray  # (n,) +1 inside, -1 backside
+    orientation: int  # +1 counter-clockwise loop, -1 clockwise
+    span_start: np.ndarray  # (n, 2) tangent point on pulley i, m
+    span_end: np.ndarray  # (n, 2) tangent point on pulley i+1, m
+    span_length: np.ndarray  # (n,) m
+    span_angle: np.ndarray  # (n,) direction of travel, rad
+    start_normal: np.ndarray  # (n, 2) outward unit normal of pulley i at span_start
+    end_normal: np.ndarray  # (n, 2) outward unit normal of pulley i+1 at span_end
+    wrap_angle: np.ndarray  # (n,) rad, >= 0
+    arc_length: np.ndarray  # (n,) m
+    belt_length: float  # m
+    adjust_offset: float = 0.0  # m, travel of the adjustable pulley along its slide from its given centre
+    adjust_index: int | None = None
+
+    @property
+    def n(self) -> int:
+        return len(self.names)
+
+    @property
+    def span_direction(self) -> np.ndarray:
+        """(n, 2) unit vectors of travel along each span."""
+        return np.column_stack([np.cos(self.span_angle), np.sin(self.span_angle)])
+
+    @property
+    def signed_wrap(self) -> np.ndarray:
+        """(n,) turning angle of the belt at each pulley, counter-clockwise positive."""
+        return self.orientation * self.side_sign * self.wrap_angle
+
+    def span_name(self, i: int) -> str:
+        return f"{self.names[i]}-{self.names[(i + 1) % self.n]}"
+
+
+class GeometryError(ValueError):
+    """An infeasible layout; `key` is the config key path at fault."""
+
+    def __init__(self, message: str, key: str) -> None:
+        super().__init__(message)
+        self.key = key
+
+
+def loop_orientation(center: np.ndarray) -> int:
+    """+1 if the polygon of centres is counter-clockwise or degenerate, -1 if clockwise."""
+    x, y = center[:, 0], center[:, 1]
+    area2 = float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+    scale = float(np.ptp(center, axis=0).max()) ** 2
+    return -1 if area2 < -1e-12 * max(scale, 1e-300) else 1
+
+
+def compute_layout(
+    center: np.ndarray,
+    radius: np.ndarray,
+    side_sign: np.ndarray,
+    names: tuple[str, ...],
+    *,
+    orientation: int | None = None,
+    check: bool = True,
+) -> Layout:
+    """Tangent points, spans, wraps and belt length for pulleys in belt order.
+
+    Raises GeometryError (with the key path) for overlapping pulleys, a missing tangent, a span that
+    cuts through another pulley, a pulley the belt does not touch, or a path that winds wrongly.
+    """
+    center = np.asarray(center, dtype=float)
+    radius = np.asarray(radius, dtype=float)
+    side_sign = np.asarray(side_sign, dtype=float)
+    n = len(radius)
+    o = loop_orientation(center) if orientation is None else orientation
+    if check:
+        for i in range(n):
+            for j in range(i + 1, n):
+                gap = math.dist(center[i], center[j]) - radius[i] - radius[j]
+                if gap < 0:
+                    raise GeometryError(
+                        f"pulleys '{names[i]}' and '{names[j]}' overlap by {-gap:.6g} m",
+                        f"pulleys[{j}].center")
+    rho = o * side_sign * radius
+    d = np.roll(center, -1, axis=0) - center
+    dist = np.hypot(d[:, 0], d[:, 1])
+    drho = rho - np.roll(rho, -1)
+    q = drho / dist
+    if check and np.any(np.abs(q) >= 1.0):
+        i = int(np.argmax(np.abs(q)))
+        raise GeometryError(
+            f"no tangent line from pulley '{names[i]}' to '{names[(i + 1) % n]}' "
+            f"(pulleys too close for these radii and sides)", f"pulleys[{(i + 1) % n}].center")
+    beta = np.arctan2(d[:, 1], d[:, 0])
+    alpha = beta + np.arcsin(np.clip(q, -1.0, 1.0))
+    m = np.column_stack([np.sin(alpha), -np.cos(alpha)])
+    start = center + rho[:, None] * m
+    end = np.roll(center, -1, axis=0) + np.roll(rho, -1)[:, None] * m
+    length = np.sqrt(np.maximum(dist**2 - drho**2, 0.0))
+    turn_sign = o * side_sign
+    alpha_in = np.roll(alpha, 1)
+    wrap = np.mod(turn_sign * (alpha - alpha_in), TWO_PI)
+    if check:
+        for j in range(n):
+            if wrap[j] < 1e-9 or wrap[j] > TWO_PI - 1e-9:
+                raise GeometryError(
+                    f"the belt does not wrap pulley '{names[j]}' (wrap angle {math.degrees(wrap[j]):.3g} deg);"
+                    f" check its side and position", f"pulleys[{j}].side")
+        total = float(np.sum(turn_sign * wrap))
+        if abs(total - o * TWO_PI) > 1e-6:
+            raise GeometryError(
+                f"the belt path winds {total / TWO_PI:.3g} times instead of once: "
+                "check the pulley order and sides", "pulleys")
+        for i in range(n):
+            for k in range(n):
+                if k in (i, (i + 1) % n):
+                    continue
+                gap = _segment_distance(center[k], start[i], end[i]) - radius[k]
+                if gap < -1e-12:
+                    raise GeometryError(
+                        f"span {names[i]}-{names[(i + 1) % n]} cuts through pulley '{names[k]}'",
+                        f"pulleys[{k}].center")
+    return Layout(
+        names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
+        span_start=start, span_end=end, span_length=length, span_angle=alpha,
+        start_normal=np.sign(rho)[:, None] * m, end_normal=np.sign(np.roll(rho, -1))[:, None] * m,
+        wrap_angle=wrap, arc_length=radius * wrap, belt_length=float(length.sum() + (radius * wrap).sum()),
+    )
+
+
+def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
+    ab = b - a
+    s = float(np.clip(np.dot(p - a, ab) / max(np.dot(ab, ab), 1e-300), 0.0, 1.0))
+    return float(np.hypot(*(a + s * ab - p)))
+
+
+def belt_length_gradient(layout: Layout, j: int) -> np.ndarray:
+    """dL/dc_j (2,): arriving span direction minus departing span direction at pulley j."""
+    t = layout.span_direction
+    return t[(j - 1) % layout.n] - t[j]
+
+
+def fit_adjustable(
+    center: np.ndarray,
+    radius: np.ndarray,
+    side_sign: np.ndarray,
+    names: tuple[str, ...],
+    *,
+    index: int,
+    direction: np.ndarray,
+    target_length: float,
+    slide_range: tuple[float, float] | None = None,
+    tol: float = 1e-13,
+    max_iter: int = 100,
+) -> Layout:
+    """Newton on the offset s along `direction` of pulley `index` until the belt length equals L0.
+
+    Backtracks when a step leaves the feasible region; raises GeometryError (key belt.length) when
+    L0 cannot be reached.
+    """
+    center = np.array(center, dtype=float)
+    direction = np.asarray(direction, dtype=float)
+    name = names[index]
+    try:
+        base = compute_layout(center, radius, side_sign, names)
+    except GeometryError as exc:
+        raise GeometryError(f"at the given centre of the adjustable pulley: {exc}", exc.key) from None
+    orientation = base.orientation
+
+    def layout_at(s: float) -> Layout:
+        c = center.copy()
+        c[index] = center[index] + s * direction
+        return compute_layout(c, radius, side_sign, names, orientation=orientation)
+
+    s, lay = 0.0, base
+    for _ in range(max_iter):
+        f = lay.belt_length - target_length
+        if abs(f) <= tol * target_length:
+            break
+        slope = float(belt_length_gradient(lay, index) @ direction)
+        if abs(slope) < 1e-9:
+            raise GeometryError(
+                f"moving pulley '{name}' along its slide does not change the belt length "
+                f"(slide_direction perpendicular to the belt pull)", f"pulleys[{index}].slide_direction")
+        step = -f / slope
+        for _ in range(60):
+            try:
+                trial = layout_at(s + step)
+            except GeometryError:
+                step *= 0.5
+                continue
+            if abs(trial.belt_length - target_length) < abs(f) or abs(step) < 1e-15:
+                break
+            step *= 0.5
+        else:
+            trial = None
+        if trial is None or abs(trial.belt_length - target_length) >= abs(f):
+            word = "short" if f > 0 else "long"
+            raise GeometryError(
+                f"L0 = {target_length:.6g} m is too {word}: moving pulley '{name}' along its slide "
+                f"cannot make the belt fit (closest belt length {lay.belt_length:.6g} m at offset {s:.6g} m)",
+                "belt.length")
+        s, lay = s + step, trial
+    else:
+        raise GeometryError(f"L0 fit did not converge (belt length {lay.belt_length:.9g} m)", "belt.length")
+    if slide_range is not None and not (slide_range[0] <= s <= slide_range[1]):
+        word = "short" if s * float(belt_length_gradient(lay, index) @ direction) < 0 else "long"
+        raise GeometryError(
+            f"L0 = {target_length:.6g} m is too {word} to reach along the slide of pulley '{name}': "
+            f"needs an offset of {s:.6g} m, slide_range is [{slide_range[0]:g}, {slide_range[1]:g}] m",
+            "belt.length")
+    return Layout(**{**lay.__dict__, "adjust_offset": s, "adjust_index": index})
+
+
+def layout_from_config(cfg: DriveConfig) -> Layout:
+    """The geometry of a drive: L0 fit when a pulley is adjustable, else the given centres."""
+    center = np.array([p.center for p in cfg.pulleys], dtype=float)
+    radius = np.array([p.radius for p in cfg.pulleys])
+    side = np.array([1.0 if p.side == "inside" else -1.0 for p in cfg.pulleys])
+    names = tuple(p.name for p in cfg.pulleys)
+    try:
+        a = cfg.adjustable_index
+        if a is None:
+            return compute_layout(center, radius, side, names)
+        p = cfg.pulleys[a]
+        return fit_adjustable(center, radius, side, names, index=a, direction=np.array(p.slide_direction),
+                              target_length=cfg.belt.length, slide_range=p.slide_range)
+    except GeometryError as exc:
+        raise ConfigError(str(exc), file=cfg.source, key=exc.key) from None

@@ -1,0 +1,186 @@
+"""Modal analysis about the static equilibrium (paper Eq. 26) and automatic mode classification.
+
+K_t = d(f_int + k_s q)/dq at the equilibrium, M the constant reduced mass matrix; the reduced
+generalized eigenproblem K_t phi = omega^2 M phi is solved densely (LAPACK, small models) or with
+ARPACK in shift-invert mode about a small negative shift (large models, lowest modes only).
+Rigid-body modes (omega ~ 0, e.g. the belt turning with all pulleys) are detected and excluded.
+
+Classification from the kinetic-energy distribution of each mass-normalized shape phi
+(phi^T M phi = 1): pulley rotation, pulley translation, and for each span the motion along its
+chord (longitudinal) and across it (transverse). Since M_e = M_s (x) I2, projecting the nodal
+vectors of a span on its unit direction t and normal n splits the span's kinetic energy exactly.
+The kind is the largest share ("mixed" when no share reaches 1/2); the order of a transverse mode is
+its half-wave count along the dominant span, of any other kind its rank within that kind.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import ancf
+from .errors import SolverError
+from .model import DriveModel
+
+KINDS = ("rotational", "translational", "longitudinal", "transverse")
+ORDINAL = {1: "st", 2: "nd", 3: "rd"}
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModalResult:
+    """Shapes: n_modes elastic modes (ascending), n_dof reduced coordinates."""
+
+    frequency: np.ndarray  # (n_modes,) Hz
+    shapes: np.ndarray  # (n_modes, n_dof) mass-normalized: phi^T M phi = 1
+    kind: tuple[str, ...]
+    order: np.ndarray  # (n_modes,) int
+    span: np.ndarray  # (n_modes,) int, 1-based span number, 0 if none
+    label: tuple[str, ...]
+    energy_share: np.ndarray  # (n_modes, 4) kinetic-energy shares, columns as KINDS
+    span_share: np.ndarray  # (n_modes, n_span) span (axial + transverse) share of the kinetic energy
+    n_rigid: int
+    rigid_frequency: np.ndarray  # (n_rigid,) Hz (numerically ~0)
+    solver: str
+
+
+def ordinal(n: int) -> str:
+    suffix = "th" if 10 <= n % 100 <= 20 else ORDINAL.get(n % 10, "th")
+    return f"{n}{suffix}"
+
+
+def solve_modes(model: DriveModel, q: np.ndarray, *, n_modes: int, solver: str = "auto") -> ModalResult:
+    """The lowest `n_modes` elastic modes about the equilibrium q."""
+    _, K = model.force_and_tangent(q)
+    M = model.mass
+    n = model.n_dof
+    use_dense = model.dense if solver == "auto" else solver == "dense"
+    n_want = min(n, n_modes + 6)
+    if use_dense:
+        from scipy.linalg import eigh
+
+        Kd = K if model.dense else K.toarray()
+        Md = M if model.dense else M.toarray()
+        try:
+            w, v = eigh(Kd, Md, subset_by_index=[0, n_want - 1], check_finite=False)
+        except np.linalg.LinAlgError as exc:
+            raise SolverError(f"dense eigen-solver failed: {exc}", analysis="modal") from None
+        name = "dense"
+    else:
+        from scipy.sparse import csc_matrix
+        from scipy.sparse.linalg import LinearOperator, eigsh, splu
+
+        Ks, Ms = (csc_matrix(K), csc_matrix(M))
+        scale = float(np.max(Ks.diagonal() / Ms.diagonal()))
+        sigma = -1e-9 * scale - 1.0
+        lu = splu((Ks - sigma * Ms).tocsc())
+        op = LinearOperator((n, n), matvec=lu.solve, dtype=float)
+        n_want = min(n_want, n - 2)
+        try:
+            w, v = eigsh(Ks, k=n_want, M=Ms, sigma=sigma, which="LM", OPinv=op, tol=1e-12)
+        except Exception as exc:  # ArpackNoConvergence and friends
+            raise SolverError(f"sparse shift-invert eigen-solver failed: {exc}", analysis="modal") from None
+        order = np.argsort(w)
+        w, v = w[order], v[:, order]
+        name = "sparse"
+    Kdiag = np.asarray(K.diagonal() if not model.dense else np.diag(K))
+    Mdiag = np.asarray(M.diagonal() if not model.dense else np.diag(M))
+    lam_max = float(np.max(Kdiag / Mdiag))
+    tol = max((2 * np.pi * 1e-4) ** 2, 1000 * np.finfo(float).eps * lam_max)
+    if np.any(w < -tol) :
+        i = int(np.argmin(w))
+        dof = model.dof_labels[int(np.argmax(np.abs(v[:, i])))]
+        raise SolverError(
+            f"the equilibrium is unstable: eigenvalue omega^2 = {w[i]:.4g} 1/s^2 < 0 (a compressed or "
+            f"slack span?)", analysis="modal", item=dof)
+    rigid = np.abs(w) <= tol
+    n_rigid = int(rigid.sum())
+    w_el, v_el = w[~rigid][:n_modes], v[:, ~rigid][:, :n_modes]
+    freq = np.sqrt(np.maximum(w_el, 0.0)) / (2 * np.pi)
+    shapes = v_el.T.copy()
+    kind, order, span, label, share, sshare = classify(model, shapes, freq)
+    return ModalResult(
+        frequency=freq, shapes=shapes, kind=kind, order=order, span=span, label=label, energy_share=share,
+        span_share=sshare, n_rigid=n_rigid, rigid_frequency=np.sqrt(np.abs(w[rigid])) / (2 * np.pi),
+        solver=name)
+
+
+def energy_shares(model: DriveModel, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Kinetic-energy shares of mass-normalized shapes (n_modes, n_dof).
+
+    Returns shares (n_modes, 4) [rotational, translational, longitudinal, transverse],
+    span_long (n_modes, n_span), span_trans (n_modes, n_span) and the transverse nodal motion
+    (n_modes, n_elem, 4) (normal component of the 4 element coordinate pairs).
+    """
+    el = model.elements
+    n_modes = shapes.shape[0]
+    qe = np.concatenate([shapes, np.zeros((n_modes, 1))], axis=1)[:, model.idx]  # (k, n_elem, m)
+    de = np.einsum("eim,kem->kei", model.T, qe).reshape(n_modes, el.n_elem, 4, 2)
+    t = model.reference_direction[model.elem_span]  # (n_elem, 2)
+    nrm = model.reference_normal[model.elem_span]
+    a = np.einsum("kejd,ed->kej", de, t)
+    b = np.einsum("kejd,ed->kej", de, nrm)
+    Ms = el.mass.reshape(el.n_elem, 4, 2, 4, 2)[:, :, 0, :, 0]  # (n_elem, 4, 4)
+    ka = np.einsum("kei,eij,kej->ke", a, Ms, a)
+    kb = np.einsum("kei,eij,kej->ke", b, Ms, b)
+    n_span = model.layout.n
+    span_long = np.zeros((n_modes, n_span))
+    span_trans = np.zeros((n_modes, n_span))
+    for s, els in enumerate(model.span_elements):
+        span_long[:, s] = ka[:, els].sum(axis=1)
+        span_trans[:, s] = kb[:, els].sum(axis=1)
+    rot = (shapes[:, model.rot_dof] ** 2 * model.pulley_inertia).sum(axis=1)
+    trans = np.zeros(n_modes)
+    for j, dofs in enumerate(model.trans_dof):
+        if dofs:
+            dirs = model.trans_dir[j]
+            disp = shapes[:, list(dofs)] @ dirs  # (k, 2)
+            trans += model.pulley_mass[j] * (disp**2).sum(axis=1)
+    shares = np.column_stack([rot, trans, span_long.sum(axis=1), span_trans.sum(axis=1)])
+    total = shares.sum(axis=1, keepdims=True)
+    total[total == 0] = 1.0
+    return shares / total, span_long / total, span_trans / total, b
+
+
+def half_waves(w: np.ndarray, threshold: float = 0.05) -> int:
+    """Half-wave count of a sampled transverse displacement: sign changes between significant samples + 1."""
+    big = np.abs(w) > threshold * np.abs(w).max()
+    s = np.sign(w[big])
+    return int(np.count_nonzero(s[1:] != s[:-1])) + 1
+
+
+def classify(model: DriveModel, shapes: np.ndarray, freq: np.ndarray):
+    """kind, order, span, label, energy shares and span shares of each mode."""
+    shares, span_long, span_trans, b = energy_shares(model, shapes)
+    n_modes = shapes.shape[0]
+    xi = np.linspace(0.0, 1.0, 9)[:-1]
+    s_fun, _, _ = ancf.shape_functions(xi, model.elements.length)  # (n_elem, 8, 4)
+    wsamp = np.einsum("epj,kej->kep", s_fun, b)  # (k, n_elem, 8) transverse displacement samples
+    kinds, orders, spans, labels = [], np.zeros(n_modes, dtype=int), np.zeros(n_modes, dtype=int), []
+    rank: dict[str, int] = {}
+    names = model.layout
+    for k in range(n_modes):
+        best = int(np.argmax(shares[k]))
+        kind = KINDS[best] if shares[k, best] >= 0.5 else "mixed"
+        span = 0
+        if kind == "transverse":
+            s = int(np.argmax(span_trans[k]))
+            span = s + 1
+            els = model.span_elements[s]
+            order = half_waves(wsamp[k, els].ravel())
+        else:
+            rank[kind] = rank.get(kind, 0) + 1
+            order = rank[kind]
+            if kind == "longitudinal":
+                s = int(np.argmax(span_long[k]))
+                if span_long[k, s] >= 0.8 * span_long[k].sum():
+                    span = s + 1
+        kinds.append(kind)
+        orders[k] = order
+        spans[k] = span
+        text = f"{ordinal(order)} {kind}"
+        if span:
+            text += f", span {span} ({names.span_name(span - 1)})"
+        labels.append(text)
+    span_share = span_long + span_trans
+    return tuple(kinds), orders, spans, tuple(labels), shares, span_share
