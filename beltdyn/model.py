@@ -26,7 +26,7 @@ from . import ancf
 from .config import DriveConfig
 from .geometry import Layout
 
-DENSE_LIMIT = 400  # models up to this many DOFs use dense linear algebra
+DENSE_LIMIT = 200  # models up to this many DOFs use dense linear algebra
 
 
 def _z_cross(n: np.ndarray) -> np.ndarray:
@@ -78,11 +78,20 @@ class DriveModel:
     pulley_mass: np.ndarray = field(default_factory=lambda: np.zeros(0))
     pulley_inertia: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
+    @property
+    def Tt(self) -> np.ndarray:
+        """(n_elem, m, 8) transposed element transformation (cached)."""
+        tt = self.__dict__.get("_Tt")
+        if tt is None:
+            tt = np.ascontiguousarray(self.T.transpose(0, 2, 1))
+            object.__setattr__(self, "_Tt", tt)
+        return tt
+
     # ------------------------------------------------------------------ coordinates
     def element_coordinates(self, q: np.ndarray) -> np.ndarray:
         """e (n_elem, 8) = e0 + T q[idx]."""
         qe = np.append(q, 0.0)[self.idx]
-        return self.e0 + np.einsum("eim,em->ei", self.T, qe)
+        return self.e0 + np.matmul(self.T, qe[:, :, None])[:, :, 0]
 
     def element_motion(self, v: np.ndarray) -> np.ndarray:
         """Element coordinate increments (n_elem, 8) for an increment v of q (no offset)."""
@@ -90,12 +99,12 @@ class DriveModel:
 
     def reduce_vector(self, fe: np.ndarray) -> np.ndarray:
         """sum_e T^T fe (n_elem, 8) -> (n_dof,)."""
-        fr = np.einsum("eim,ei->em", self.T, fe)
+        fr = np.matmul(self.Tt, fe[:, :, None])[:, :, 0]
         return np.bincount(self.idx.ravel(), weights=fr.ravel(), minlength=self.n_dof + 1)[: self.n_dof]
 
     def reduce_matrix(self, Ke: np.ndarray, diagonal: np.ndarray | None = None):
         """sum_e T^T Ke T (+ diag) -> dense (n_dof, n_dof) or CSR."""
-        Kr = np.einsum("eim,eij,ejn->emn", self.T, Ke, self.T, optimize=True)
+        Kr = np.matmul(np.matmul(self.Tt, Ke), self.T)
         return self.assemble(Kr, diagonal)
 
     def assemble(self, blocks: np.ndarray, diagonal: np.ndarray | None = None):
@@ -129,13 +138,17 @@ class DriveModel:
     def mean_tension_and_gradient(self, q: np.ndarray) -> tuple[float, np.ndarray]:
         """Length-weighted mean true axial force over all spans (N) and its gradient (n_dof,)."""
         el = self.elements
-        e = self.element_coordinates(q)
-        xi, w = _gauss01(el.n_gauss if hasattr(el, "n_gauss") else 5)
-        N = ancf.axial_force(el, e, xi)  # (n_elem, n_qp)
-        dN = ancf.axial_force_gradient(el, e, xi)  # (n_elem, n_qp, 8)
-        wl = w[None, :] * el.length[:, None]
+        E = self.element_coordinates(q).reshape(-1, 4, 2)
+        rp = np.matmul(el.dS, E)  # (n_elem, n_qp, 2) r' at the Gauss points
+        a2 = np.einsum("eqd,eqd->eq", rp, rp)
+        a = np.sqrt(a2)
+        eps = 0.5 * (a2 - 1.0)
+        N = el.EA[:, None] * eps * a
+        # dN/de = EA (a + eps / a) S'^T r'
+        c = el.wL * el.EA[:, None] * (a + eps / a)
+        g = np.einsum("eq,eqk,eqd->ekd", c, el.dS, rp).reshape(-1, 8)
         total = float(el.length.sum())
-        return float((wl * N).sum() / total), self.reduce_vector(np.einsum("eq,eqi->ei", wl, dN)) / total
+        return float((el.wL * N).sum() / total), self.reduce_vector(g) / total
 
     def span_end_tensions(self, q: np.ndarray) -> np.ndarray:
         """(n_span, 2) true axial force at the start and end of each span, N."""
@@ -152,11 +165,6 @@ class DriveModel:
             for d, v in zip(dofs, dirs):
                 c[j] += q[d] * v
         return c
-
-
-def _gauss01(n: int) -> tuple[np.ndarray, np.ndarray]:
-    x, w = np.polynomial.legendre.leggauss(n)
-    return 0.5 * (x + 1.0), 0.5 * w
 
 
 def build_model(cfg: DriveConfig, layout: Layout, *, prestrain_stretch: float = 1.0,
@@ -208,63 +216,50 @@ def build_model(cfg: DriveConfig, layout: Layout, *, prestrain_stretch: float = 
     n_dof = len(labels)
     pad = n_dof
 
-    # Elements: span-major.
+    # Elements: span-major. Per element, columns 0-3 / 4-7 carry the coordinates of its first / second
+    # node, 8-10 / 11-13 the joint DOFs of a span end; padding columns are squeezed out afterwards.
     lam = prestrain_stretch
     L_ref = layout.span_length / lam
     t_dir = layout.span_direction
     normals = np.column_stack([-t_dir[:, 1], t_dir[:, 0]])
     n_elem = n_p * n_e
-    m = 10
-    T = np.zeros((n_elem, 8, m))
-    idx = np.full((n_elem, m), pad, dtype=int)
-    e0 = np.zeros((n_elem, 8))
+    T = np.zeros((n_elem, 8, 14))
+    idx = np.full((n_elem, 14), pad, dtype=int)
     elem_span = np.repeat(np.arange(n_p), n_e)
     span_elements = tuple(np.arange(s * n_e, (s + 1) * n_e) for s in range(n_p))
-
-    def joint(j: int, point: np.ndarray, normal: np.ndarray) -> list[tuple[int, np.ndarray]]:
-        """(dof, d r_end / d q_dof) pairs for an end node on pulley j."""
-        R = layout.radius[j]
-        pairs = [(int(rot_dof[j]), R * _z_cross(normal))]
-        pairs += [(d, v) for d, v in zip(trans_dof[j], trans_dir[j])]
-        return pairs
-
+    frac = np.arange(n_e + 1) / n_e
+    e0 = np.zeros((n_elem, 8))
+    eye4 = np.eye(4)
     for s in range(n_p):
-        j0, j1 = s, (s + 1) % n_p
+        els = span_elements[s]
         a, b = layout.span_start[s], layout.span_end[s]
-        grad = lam * t_dir[s]
+        nodes = a + np.outer(frac, b - a)  # (n_e+1, 2)
+        e0[els, 0:2], e0[els, 4:6] = nodes[:-1], nodes[1:]
+        e0[els, 2:4] = e0[els, 6:8] = lam * t_dir[s]
         base = span_first_dof[s]
-        for k in range(n_e):
-            el = s * n_e + k
-            cols: dict[int, int] = {}
-
-            def col(dof: int) -> int:
-                if dof not in cols:
-                    cols[dof] = len(cols)
-                    idx[el, cols[dof]] = dof
-                return cols[dof]
-
-            for side, node in ((0, k), (1, k + 1)):
-                x = a + (b - a) * (node / n_e)
-                e0[el, 4 * side: 4 * side + 2] = x
-                e0[el, 4 * side + 2: 4 * side + 4] = grad
-                # node DOF offsets within the span block: node 0 -> gradients only (2), interior 4 each
-                if node == 0 or node == n_e:
-                    if node == 0:
-                        pairs, gdof = joint(j0, a, layout.start_normal[s]), base
-                    else:
-                        pairs, gdof = joint(j1, b, layout.end_normal[s]), base + 2 + 4 * (n_e - 1)
-                    for dof, v in pairs:
-                        c = col(dof)
-                        T[el, 4 * side, c] += v[0]
-                        T[el, 4 * side + 1, c] += v[1]
-                    for i in range(2):
-                        T[el, 4 * side + 2 + i, col(gdof + i)] = 1.0
-                else:
-                    ndof = base + 2 + 4 * (node - 1)
-                    for i in range(4):
-                        T[el, 4 * side + i, col(ndof + i)] = 1.0
+        node_dof = base + 2 + 4 * (np.arange(n_e + 1) - 1)  # first DOF of each node (interior nodes)
+        node_dof[0], node_dof[-1] = base - 2, base + 2 + 4 * (n_e - 1) - 2  # so that +2, +3 are gradients
+        for side, nodes_of in ((0, np.arange(n_e)), (1, np.arange(1, n_e + 1))):
+            cols = slice(4 * side, 4 * side + 4)
+            T[els, 4 * side: 4 * side + 4, cols] = eye4
+            idx[els, cols] = node_dof[nodes_of, None] + np.arange(4)
+        # End nodes: positions are dependent (joints), gradients stay independent.
+        for el, side, j, normal in ((els[0], 0, s, layout.start_normal[s]),
+                                    (els[-1], 1, (s + 1) % n_p, layout.end_normal[s])):
+            T[el, 4 * side: 4 * side + 2, 4 * side: 4 * side + 2] = 0.0
+            idx[el, 4 * side: 4 * side + 2] = pad
+            R = layout.radius[j]
+            pairs = [(int(rot_dof[j]), R * _z_cross(normal))]
+            pairs += list(zip(trans_dof[j], trans_dir[j]))
+            for k, (dof, v) in enumerate(pairs):
+                c = 8 + 3 * side + k
+                idx[el, c] = dof
+                T[el, 4 * side: 4 * side + 2, c] = v
+    order = np.argsort(idx == pad, axis=1, kind="stable")
+    idx = np.take_along_axis(idx, order, axis=1)
+    T = np.take_along_axis(T, order[:, None, :], axis=2)
     used = int((idx != pad).sum(axis=1).max())
-    T, idx = T[:, :, :used], idx[:, :used]
+    T, idx = np.ascontiguousarray(T[:, :, :used]), np.ascontiguousarray(idx[:, :used])
 
     el = ancf.make_elements(
         np.repeat(L_ref / n_e, n_e), cfg.belt.EA, cfg.belt.EI, cfg.belt.mass_per_length,

@@ -213,15 +213,14 @@ def _newton(residual, q, lam, opts, model, free, hist_r, hist_l):
         alpha = 1.0
         for _ in range(12):
             q_try = q + alpha * full
-            R_try, _, err_try = residual(q_try, lam, False)
-            if np.isfinite(err_try) and err_try < err * (1.0 - 1e-4 * alpha) or err_try <= opts.tolerance:
+            R_try, K_try, err_try = residual(q_try, lam, True)
+            if np.isfinite(err_try) and (err_try < err * (1.0 - 1e-4 * alpha) or err_try <= opts.tolerance):
                 break
             alpha *= 0.5
         else:
             worst = pos_labels[int(free[int(np.argmax(np.abs(R)))])]
             return False, q, (f"line search failed in Newton iteration {it + 1}", err, worst)
-        q = q_try
-        R, K, err = residual(q, lam, True)
+        q, R, K, err = q_try, R_try, K_try, err_try
         hist_r.append(err)
         hist_l.append(lam)
     if err <= opts.tolerance:

@@ -1,0 +1,292 @@
+"""Command-line interface: wires config -> geometry -> model -> analysis -> HDF5 and owns the console.
+
+Exit codes: 0 ok, 1 solver failure, 2 bad config or usage, 130 interrupted. No traceback for user
+errors. Heavy modules are imported inside the commands so that `beltdyn --help` starts fast.
+"""
+
+from __future__ import annotations
+
+import os
+
+# Small dense matrices are solved fastest single-threaded; users can still override.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import sys  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import List, Optional  # noqa: E402
+
+import typer  # noqa: E402
+
+from . import __version__  # noqa: E402
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    help="Dynamics of belt drives: ANCF belt spans on rigid pulleys.\n\n"
+    "Exit codes: 0 ok, 1 solver failure, 2 bad configuration or usage.",
+)
+
+ConfigArg = typer.Argument(..., help="TOML drive description.", show_default=False)
+OutOpt = typer.Option(None, "--output", "-o", help="HDF5 results file [default: results/<config stem>.h5].")
+SetOpt = typer.Option(None, "--set", help="Override a dotted config key: KEY=VALUE (TOML literal).", metavar="KEY=VALUE")
+ForceOpt = typer.Option(False, "--force", help="Replace a results file written for a different configuration.")
+
+
+def _console(stderr: bool = False):
+    from rich.console import Console
+
+    return Console(stderr=stderr, highlight=False, soft_wrap=True)
+
+
+def _fail(exc: BaseException) -> None:
+    from .errors import BeltdynError
+
+    err = _console(stderr=True)
+    if isinstance(exc, KeyboardInterrupt):
+        err.print("[bold red]interrupted[/]: no results file was changed")
+        raise typer.Exit(130)
+    assert isinstance(exc, BeltdynError)
+    from rich.text import Text
+
+    err.print(Text.assemble(("error", "bold red"), f": {exc}"))
+    raise typer.Exit(exc.exit_code)
+
+
+def _version(value: bool) -> None:
+    if value:
+        typer.echo(f"beltdyn {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def main(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version."),
+) -> None:
+    """beltdyn command-line tool."""
+
+
+class _Job:
+    """One command's pipeline state: config, output path, hash."""
+
+    def __init__(self, config: Path, output: Optional[Path], sets: Optional[List[str]], force: bool) -> None:
+        from .config import config_hash, load_config, resolved_toml
+
+        self.cfg = load_config(config, sets or [])
+        self.toml = resolved_toml(self.cfg)
+        self.sha = config_hash(self.cfg)
+        self.force = force
+        self.output = output if output is not None else Path("results") / f"{config.stem}.h5"
+        from .results_io import check_target
+
+        check_target(self.output, config_sha256=self.sha, force=force)
+        self.groups: list = []
+
+    def add(self, group) -> None:
+        self.groups.append(group)
+
+    def write(self) -> None:
+        from .results_io import write_groups
+
+        write_groups(self.output, self.groups, config_toml=self.toml, config_sha256=self.sha, force=self.force)
+
+
+def _run(body) -> None:
+    from .errors import BeltdynError
+
+    try:
+        body()
+    except (BeltdynError, KeyboardInterrupt) as exc:
+        _fail(exc)
+
+
+def _failed_group(name: str, exc: BaseException):
+    from .results_io import GroupData
+
+    return GroupData(name=name, coords={}, variables=(), status="failed", error=str(exc))
+
+
+@app.command()
+def geometry(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
+             force: bool = ForceOpt) -> None:
+    """Tangent points, spans, wrap angles, belt length and the L0 fit of the adjustable pulley."""
+
+    def body() -> None:
+        from .export import geometry_group
+        from .geometry import layout_from_config
+
+        job = _Job(config, output, set_, force)
+        layout = layout_from_config(job.cfg)
+        job.add(geometry_group(layout))
+        job.write()
+        _print_geometry(layout)
+        _console().print(f"wrote [bold]/geometry[/] to {job.output}")
+
+    _run(body)
+
+
+def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None):
+    from .errors import SolverError
+    from .export import geometry_group, modal_group, static_group
+    from .geometry import layout_from_config
+    from .static import model_from_config, solve_static
+
+    layout = layout_from_config(job.cfg)
+    job.add(geometry_group(layout))
+    model = model_from_config(job.cfg, layout)
+    stage = "static"
+    try:
+        res = solve_static(job.cfg, model)
+        job.add(static_group(model, res, job.cfg.tension.target))
+        mres = None
+        if modal:
+            from .modal import solve_modes
+
+            stage = "modal"
+            mres = solve_modes(model, res.q, n_modes=n_modes or job.cfg.modal.modes, solver=job.cfg.modal.solver)
+            job.add(modal_group(model, mres))
+    except SolverError as exc:
+        job.add(_failed_group(stage, exc))
+        job.write()
+        raise
+    job.write()
+    return layout, model, res, mres
+
+
+@app.command()
+def static(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
+           force: bool = ForceOpt) -> None:
+    """Nonlinear static equilibrium: span tensions, hub loads, solved pulley positions."""
+
+    def body() -> None:
+        job = _Job(config, output, set_, force)
+        layout, model, res, _ = _static_pipeline(job, modal=False)
+        _print_static(layout, model, res)
+        _console().print(f"wrote [bold]/geometry /static[/] to {job.output}")
+
+    _run(body)
+
+
+@app.command()
+def modal(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
+          force: bool = ForceOpt,
+          modes: Optional[int] = typer.Option(None, "--modes", min=1, help="Number of elastic modes [default: modal.modes].")) -> None:
+    """Natural frequencies and classified mode shapes about the static equilibrium."""
+
+    def body() -> None:
+        job = _Job(config, output, set_, force)
+        layout, model, res, mres = _static_pipeline(job, modal=True, n_modes=modes)
+        _print_static(layout, model, res)
+        _print_modal(mres)
+        _console().print(f"wrote [bold]/geometry /static /modal[/] to {job.output}")
+
+    _run(body)
+
+
+@app.command()
+def paper(outdir: Path = typer.Option(Path("results/paper"), "--outdir", help="Folder for the HDF5 files and tables.md."),
+          configs: Path = typer.Option(Path("configs/paper"), "--configs", help="Folder of the paper configs."),
+          force: bool = ForceOpt) -> None:
+    """Reproduce the paper's Tables 1 and 2: ours beside the paper's values."""
+
+    def body() -> None:
+        from .paper import CASES, compare, markdown_table
+
+        rows = []
+        for case in CASES:
+            job = _Job(configs / f"{case.config}.toml", outdir / f"{case.config}.h5", [], force)
+            layout, model, res, mres = _static_pipeline(job, modal=True)
+            rows += compare(case, mres)
+        _print_paper(rows)
+        outdir.mkdir(parents=True, exist_ok=True)
+        (outdir / "tables.md").write_text(markdown_table(rows), encoding="utf-8")
+        worst = max(abs(r.diff_theory_pct) for r in rows)
+        _console().print(f"24 modes, largest difference to the paper's theoretical values: {worst:.3f} %; "
+                         f"wrote {outdir / 'tables.md'}")
+
+    _run(body)
+
+
+# ------------------------------------------------------------------------------------ printing
+def _print_geometry(layout) -> None:
+    import math
+
+    from rich.table import Table
+
+    con = _console()
+    t = Table(title="Pulleys")
+    for col in ("pulley", "x (m)", "y (m)", "radius (m)", "side", "wrap (deg)", "arc (m)"):
+        t.add_column(col, justify="right" if col not in ("pulley", "side") else "left")
+    for j, name in enumerate(layout.names):
+        t.add_row(name, f"{layout.center[j, 0]:.7f}", f"{layout.center[j, 1]:.7f}", f"{layout.radius[j]:.5g}",
+                  "inside" if layout.side_sign[j] > 0 else "backside", f"{math.degrees(layout.wrap_angle[j]):.4f}",
+                  f"{layout.arc_length[j]:.7f}")
+    con.print(t)
+    s = Table(title="Spans")
+    for col in ("span", "length (m)", "angle (deg)"):
+        s.add_column(col, justify="right" if col != "span" else "left")
+    for i in range(layout.n):
+        s.add_row(layout.span_name(i), f"{layout.span_length[i]:.7f}", f"{math.degrees(layout.span_angle[i]):.4f}")
+    con.print(s)
+    extra = ""
+    if layout.adjust_index is not None:
+        extra = f"; adjustable pulley {layout.names[layout.adjust_index]} moved {layout.adjust_offset * 1e3:.4f} mm along its slide"
+    con.print(f"belt length {layout.belt_length:.10f} m{extra}")
+
+
+def _print_static(layout, model, res) -> None:
+    from rich.table import Table
+
+    con = _console()
+    t = Table(title=f"Static equilibrium ({res.iterations} Newton iterations, {model.n_dof} DOFs)")
+    for col in ("span", "tension start (N)", "tension end (N)"):
+        t.add_column(col, justify="right" if col != "span" else "left")
+    for i in range(layout.n):
+        t.add_row(layout.span_name(i), f"{res.span_tension[i, 0]:.4f}", f"{res.span_tension[i, 1]:.4f}")
+    con.print(t)
+    h = Table(title="Pulleys")
+    for col in ("pulley", "x (m)", "y (m)", "hub load x (N)", "hub load y (N)", "|hub load| (N)"):
+        h.add_column(col, justify="right" if col != "pulley" else "left")
+    for j, name in enumerate(layout.names):
+        h.add_row(name, f"{res.pulley_center[j, 0]:.7f}", f"{res.pulley_center[j, 1]:.7f}", f"{res.hub_load[j, 0]:.3f}",
+                  f"{res.hub_load[j, 1]:.3f}", f"{float((res.hub_load[j] ** 2).sum()) ** 0.5:.3f}")
+    con.print(h)
+    con.print(f"mean span tension {res.mean_tension:.6f} N; driver torque {res.driver_torque:.4g} N m; "
+              f"adjustable pulley offset {res.adjust_offset * 1e3:.4f} mm")
+
+
+def _print_modal(mres) -> None:
+    from rich.table import Table
+
+    con = _console()
+    t = Table(title=f"Modes ({mres.solver} solver; {mres.n_rigid} rigid-body mode(s) excluded)")
+    for col in ("mode", "frequency (Hz)", "modal shape", "rot", "trans", "long", "transv"):
+        t.add_column(col, justify="left" if col == "modal shape" else "right")
+    for k in range(len(mres.frequency)):
+        sh = mres.energy_share[k]
+        t.add_row(str(k + 1), f"{mres.frequency[k]:.3f}", mres.label[k], *(f"{x:.2f}" for x in sh))
+    con.print(t)
+
+
+def _print_paper(rows) -> None:
+    from rich.table import Table
+
+    con = _console()
+    t = Table(title="Paper Tables 1 and 2: theoretical (paper), experimental (paper), beltdyn")
+    for col in ("case", "mode", "modal shape", "paper theory (Hz)", "paper exp. (Hz)", "beltdyn (Hz)",
+                "vs theory (%)", "vs exp. (%)"):
+        t.add_column(col, justify="right" if "Hz" in col or "%" in col or col == "mode" else "left")
+    for r in rows:
+        t.add_row(r.case, str(r.mode), r.shape, f"{r.theory:.1f}", "-" if r.experiment is None else f"{r.experiment:.1f}",
+                  f"{r.ours:.3f}", f"{r.diff_theory_pct:+.3f}",
+                  "-" if r.diff_experiment_pct is None else f"{r.diff_experiment_pct:+.2f}")
+    con.print(t)
+
+
+def run() -> None:  # pragma: no cover - console-script shim for python -m
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(app())

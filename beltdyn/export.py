@@ -1,0 +1,103 @@
+"""Result dataclasses -> HDF5 group descriptions (names, dimensions, units; DESIGN section 4).
+
+No h5py here: `results_io` writes what these functions describe.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import Layout
+from .modal import KINDS, ModalResult
+from .model import DriveModel
+from .results_io import GroupData, Variable
+from .static import StaticResult
+
+XY = ["x", "y"]
+
+
+def geometry_group(layout: Layout) -> GroupData:
+    spans = [layout.span_name(i) for i in range(layout.n)]
+    return GroupData(
+        name="geometry",
+        coords={"pulley": list(layout.names), "component": XY, "span": spans},
+        variables=(
+            Variable(name="pulley_center", data=layout.center, dims=("pulley", "component"), units="m",
+                     description="solved pulley centres (the adjustable pulley placed so that the belt fits L0)"),
+            Variable(name="pulley_radius", data=layout.radius, dims=("pulley",), units="m"),
+            Variable(name="side", data=["inside" if s > 0 else "backside" for s in layout.side_sign],
+                     dims=("pulley",), units="1", description="side of the belt that touches the pulley"),
+            Variable(name="wrap_angle", data=layout.wrap_angle, dims=("pulley",), units="rad"),
+            Variable(name="arc_length", data=layout.arc_length, dims=("pulley",), units="m"),
+            Variable(name="span_length", data=layout.span_length, dims=("span",), units="m"),
+            Variable(name="span_angle", data=layout.span_angle, dims=("span",), units="rad",
+                     description="direction of belt travel along the span, counter-clockwise from +x"),
+            Variable(name="span_start", data=layout.span_start, dims=("span", "component"), units="m",
+                     description="tangent point where the span leaves its first pulley"),
+            Variable(name="span_end", data=layout.span_end, dims=("span", "component"), units="m",
+                     description="tangent point where the span reaches its second pulley"),
+            Variable(name="belt_length", data=np.array(layout.belt_length), dims=(), units="m"),
+        ),
+        attrs={"orientation": "counter-clockwise" if layout.orientation > 0 else "clockwise",
+               "adjust_offset_m": float(layout.adjust_offset)},
+    )
+
+
+def static_group(model: DriveModel, res: StaticResult, target: float | None) -> GroupData:
+    lay = model.layout
+    spans = [lay.span_name(i) for i in range(lay.n)]
+    return GroupData(
+        name="static",
+        coords={"pulley": list(lay.names), "component": XY, "span": spans, "end": ["start", "end"],
+                "dof": list(model.dof_labels), "iteration": np.arange(1, len(res.residual_history) + 1)},
+        variables=(
+            Variable(name="span_tension", data=res.span_tension, dims=("span", "end"), units="N",
+                     description="true axial force at the start and end of each span"),
+            Variable(name="mean_tension", data=np.array(res.mean_tension), dims=(), units="N",
+                     description="length-weighted mean span tension"),
+            Variable(name="hub_load", data=res.hub_load, dims=("pulley", "component"), units="N",
+                     description="force of the belt on each pulley (bearing load without the pulley's weight)"),
+            Variable(name="hub_load_magnitude", data=np.hypot(*res.hub_load.T), dims=("pulley",), units="N"),
+            Variable(name="pulley_center", data=res.pulley_center, dims=("pulley", "component"), units="m"),
+            Variable(name="pulley_rotation", data=res.pulley_rotation, dims=("pulley",), units="rad"),
+            Variable(name="driver_torque", data=np.array(res.driver_torque), dims=(), units="N m",
+                     description="torque the driver pulley's support applies to hold it"),
+            Variable(name="adjust_offset", data=np.array(res.adjust_offset), dims=(), units="m",
+                     description="travel of the adjustable pulley from its given centre"),
+            Variable(name="q", data=res.q, dims=("dof",), units="1",
+                     description="independent coordinates from the reference state (m, rad or 1)"),
+            Variable(name="spring_preload", data=res.spring_preload, dims=("dof",), units="N"),
+            Variable(name="residual", data=res.residual_history, dims=("iteration",), units="1",
+                     description="scaled residual norm after each Newton iteration"),
+            Variable(name="load_factor", data=res.load_factor_history, dims=("iteration",), units="1"),
+        ),
+        attrs={"iterations": int(res.iterations), "tension_mode": res.tension_mode,
+               "tension_target_N": float(target) if target is not None else float("nan"),
+               "n_dof": int(model.n_dof)},
+    )
+
+
+def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
+    lay = model.layout
+    return GroupData(
+        name="modal",
+        coords={"mode": np.arange(1, len(res.frequency) + 1), "dof": list(model.dof_labels),
+                "energy_kind": list(KINDS), "belt_span": [lay.span_name(i) for i in range(lay.n)],
+                "rigid": np.arange(1, res.n_rigid + 1)},
+        variables=(
+            Variable(name="frequency", data=res.frequency, dims=("mode",), units="Hz"),
+            Variable(name="kind", data=list(res.kind), dims=("mode",), units="1"),
+            Variable(name="order", data=res.order.astype(np.int64), dims=("mode",), units="1",
+                     description="half-wave count for transverse modes, rank within the kind otherwise"),
+            Variable(name="span", data=res.span.astype(np.int64), dims=("mode",), units="1",
+                     description="1-based span number of the mode, 0 if none"),
+            Variable(name="label", data=list(res.label), dims=("mode",), units="1"),
+            Variable(name="energy_share", data=res.energy_share, dims=("mode", "energy_kind"), units="1",
+                     description="share of the modal kinetic energy"),
+            Variable(name="span_share", data=res.span_share, dims=("mode", "belt_span"), units="1"),
+            Variable(name="shape", data=res.shapes, dims=("mode", "dof"), units="1",
+                     description="mass-normalized mode shapes, phi^T M phi = 1, in the DOF units"),
+            Variable(name="rigid_frequency", data=res.rigid_frequency, dims=("rigid",), units="Hz"),
+        ),
+        attrs={"n_rigid": int(res.n_rigid), "solver": res.solver, "n_dof": int(model.n_dof)},
+    )
