@@ -74,7 +74,8 @@ def _gauss01(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a, dtype=float)
+    """A read-only C-contiguous copy (never freezes an array the caller still owns)."""
+    a = np.array(a, dtype=float, order="C", copy=True)
     a.setflags(write=False)
     return a
 

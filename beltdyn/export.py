@@ -68,7 +68,7 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
                      description="independent coordinates from the reference state (m, rad or 1)"),
             Variable(name="spring_preload", data=res.spring_preload, dims=("dof",), units="N"),
             Variable(name="residual", data=res.residual_history, dims=("iteration",), units="1",
-                     description="scaled residual norm after each Newton iteration"),
+                     description="residual norm divided by the allowed residual (converged <= 1) after each Newton iteration"),
             Variable(name="load_factor", data=res.load_factor_history, dims=("iteration",), units="1"),
         ),
         attrs={"iterations": int(res.iterations), "tension_mode": res.tension_mode,

@@ -150,13 +150,25 @@ class DriveModel:
         total = float(el.length.sum())
         return float((el.wL * N).sum() / total), self.reduce_vector(g) / total
 
-    def span_end_tensions(self, q: np.ndarray) -> np.ndarray:
-        """(n_span, 2) true axial force at the start and end of each span, N."""
+    def span_end_tensions(self, q: np.ndarray, gravity: np.ndarray | None = None) -> np.ndarray:
+        """(n_span, 2) axial force at the start and end of each span, N, from the joint reactions.
+
+        The pulley holds each end node with the force F = f_int - f_ext (node position rows); the span
+        pulls the start node along its tangent t and the end node against it, so N_start = -F . t and
+        N_end = F . t with t = r'/|r'| at the node. Unlike strain recovery (EA eps |r'| at the element
+        end), this is exact for the discrete equilibrium even where the strain is tiny.
+        """
+        el = self.elements
         e = self.element_coordinates(q)
+        F = ancf.internal_forces(el, e)
+        if gravity is not None:
+            F = F - ancf.gravity_forces(el, gravity)
         first = np.array([s[0] for s in self.span_elements])
         last = np.array([s[-1] for s in self.span_elements])
-        N0 = ancf.axial_force(self.elements, e, np.array([0.0]))[first, 0]
-        N1 = ancf.axial_force(self.elements, e, np.array([1.0]))[last, 0]
+        t0 = e[first, 2:4] / np.linalg.norm(e[first, 2:4], axis=1, keepdims=True)
+        t1 = e[last, 6:8] / np.linalg.norm(e[last, 6:8], axis=1, keepdims=True)
+        N0 = -np.einsum("sd,sd->s", F[first, 0:2], t0)
+        N1 = np.einsum("sd,sd->s", F[last, 4:6], t1)
         return np.column_stack([N0, N1])
 
     def pulley_centers(self, q: np.ndarray) -> np.ndarray:

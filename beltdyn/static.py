@@ -29,14 +29,14 @@ class StaticResult:
 
     q: np.ndarray  # (n_dof,) independent coordinates at equilibrium
     spring_preload: np.ndarray  # (n_dof,) bearing spring preload p (N)
-    span_tension: np.ndarray  # (n, 2) true axial force at the start/end of each span, N
+    span_tension: np.ndarray  # (n, 2) axial force at the start/end of each span (joint reactions), N
     mean_tension: float  # N, length-weighted mean over all spans
     hub_load: np.ndarray  # (n, 2) force of the belt on each pulley, N
     pulley_center: np.ndarray  # (n, 2) m
     pulley_rotation: np.ndarray  # (n,) rad
     driver_torque: float  # N m, torque the driver's support applies to hold it
     adjust_offset: float  # m, total travel of the adjustable pulley from its given centre
-    residual_history: np.ndarray  # (n_iter,) scaled residual norm after each Newton iteration
+    residual_history: np.ndarray  # (n_iter,) residual norm / allowed residual after each Newton iteration
     load_factor_history: np.ndarray  # (n_iter,) load factor of each iteration
     iterations: int
     tension_mode: str
@@ -123,110 +123,194 @@ def _null_dof(K, dense: bool, free: np.ndarray, labels: tuple[str, ...]) -> str:
     return labels[int(free[int(np.argmax(np.abs(vec)))])]
 
 
-def solve_static(cfg: DriveConfig, model: DriveModel) -> StaticResult:
-    """Static equilibrium of the drive (raises SolverError naming step, residual and DOF)."""
-    n = model.n_dof
-    opts = cfg.static
-    target = cfg.tension.target
-    adjust = target is not None and cfg.tension.mode == "adjust"
-    driver_dof = int(model.rot_dof[cfg.driver_index])
-    a_dof = model.trans_dof[cfg.adjustable_index][0] if adjust else -1
-    free = np.array([i for i in range(n) if i != driver_dof])
-    pos = {d: i for i, d in enumerate(free)}
-    q = np.zeros(n)
-    if adjust:
-        q = _predictor(model, stretch_for_tension(target, cfg.belt.EA), a_dof, driver_dof)
-    f_g = model.gravity_force
-    preload = np.zeros(n)
-    hist_r: list[float] = []
-    hist_l: list[float] = []
+class _Fail(Exception):
+    """A failed Newton solve: message, scaled residual, DOF label at fault."""
 
-    def residual(q: np.ndarray, lam: float, with_tangent: bool):
-        if with_tangent:
-            f, K = model.force_and_tangent(q)
-        else:
-            f, K = model.internal_force(q), None
-        R = f - preload - lam * f_g
-        scale = max(abs(target) if target else 0.0, float(np.abs(lam * f_g).max(initial=0.0)),
-                    1e-9 * float(model.elements.EA[0]))
-        if adjust:
-            T, dT = model.mean_tension_and_gradient(q)
-            R[a_dof] = (T - target)
-            if K is not None:
-                if model.dense:
-                    K = K.copy()
-                    K[a_dof, :] = dT
-                else:
-                    from scipy.sparse import csr_matrix, diags
+    def __init__(self, message: str, err: float, dof: str) -> None:
+        super().__init__(message)
+        self.err, self.dof = err, dof
 
-                    keep = np.ones(n)
-                    keep[a_dof] = 0.0
-                    row = csr_matrix((dT, (np.full(n, a_dof), np.arange(n))), shape=(n, n))
-                    K = (diags(keep) @ K + row).tocsr()
+
+def _submatrix(K, rows: np.ndarray, cols: np.ndarray, dense: bool):
+    return K[np.ix_(rows, cols)] if dense else K[rows][:, cols]
+
+
+class _Problem:
+    """The static equations of one drive: residual, Jacobian and Newton with line search.
+
+    Residuals are scaled by the allowed residual, tolerance * force scale + a round-off floor
+    (eps_GL = (r'.r' - 1)/2 loses ~machine epsilon, times EA, summed over elements), so that
+    err <= 1 means converged.
+    """
+
+    def __init__(self, cfg: DriveConfig, model: DriveModel) -> None:
+        self.model, self.opts = model, cfg.static
+        self.target = cfg.tension.target
+        self.adjust = self.target is not None and cfg.tension.mode == "adjust"
+        self.driver = int(model.rot_dof[cfg.driver_index])
+        self.a = model.trans_dof[cfg.adjustable_index][0] if self.adjust else -1
+        self.preload = np.zeros(model.n_dof)
+        self.noise = 1e3 * np.finfo(float).eps * float(model.elements.EA.max()) * np.sqrt(model.elements.n_elem)
+        self.history: list[tuple[float, float]] = []
+        self.has_load = bool(np.any(model.gravity_force != 0.0))
+
+    def allowed(self, lam: float) -> float:
+        scale = max(abs(self.target) if self.target else 0.0,
+                    float(np.abs(lam * self.model.gravity_force).max(initial=0.0)),
+                    1e-9 * float(self.model.elements.EA.max()))
+        return self.opts.tolerance * scale + self.noise
+
+    def evaluate(self, q: np.ndarray, lam: float, free: np.ndarray, bordered: bool):
+        """Scaled residual on `free`, its Jacobian, and err = max|R| / allowed."""
+        m = self.model
+        f, K = m.force_and_tangent(q)
+        R = f - self.preload - lam * m.gravity_force
+        if bordered:  # the slide equation of the adjustable pulley becomes T(q) = target
+            T, dT = m.mean_tension_and_gradient(q)
+            R[self.a] = T - self.target
+            if m.dense:
+                K = K.copy()
+                K[self.a, :] = dT
+            else:
+                from scipy.sparse import csr_matrix, diags
+
+                keep = np.ones(m.n_dof)
+                keep[self.a] = 0.0
+                row = csr_matrix((dT, (np.full(m.n_dof, self.a), np.arange(m.n_dof))), shape=K.shape)
+                K = (diags(keep) @ K + row).tocsr()
         Rf = R[free]
-        if K is not None:
-            K = K[np.ix_(free, free)] if model.dense else K[free][:, free]
-        return Rf, K, float(np.abs(Rf).max()) / scale
+        return Rf, _submatrix(K, free, free, m.dense), float(np.abs(Rf).max(initial=0.0)) / self.allowed(lam)
 
-    steps = opts.load_steps
-    lam_done = 0.0
-    dlam = 1.0 / steps
-    it_total = 0
-    has_load = bool(np.any(f_g != 0.0))
-    if not has_load:
-        lam_done, dlam = 0.0, 1.0
-    while lam_done < 1.0 - 1e-14:
-        lam = min(1.0, lam_done + dlam)
-        q_start = q.copy()
-        ok, q, err_msg = _newton(residual, q, lam, opts, model, free, hist_r, hist_l)
-        it_total = len(hist_r)
-        if ok:
-            lam_done = lam
-            dlam = min(dlam * 2.0, 1.0 - lam_done) if lam_done < 1.0 else dlam
-            continue
-        q = q_start
-        if not has_load or dlam < 1.0 / 64:
-            raise SolverError(err_msg[0], analysis="static", step=f"load factor {lam:.4g}",
-                              residual=err_msg[1], item=err_msg[2])
-        dlam *= 0.5
-    # Spring preload of the adjustable pulley: its slide equation holds with p.
-    f = model.internal_force(q)
-    if adjust:
-        preload[a_dof] = f[a_dof] - f_g[a_dof]
-    return _result(cfg, model, q, preload, hist_r, hist_l, it_total, driver_dof)
+    def newton(self, q: np.ndarray, lam: float, free: np.ndarray, *, bordered: bool = False,
+               max_iterations: int | None = None) -> np.ndarray:
+        m = self.model
+        labels = m.dof_labels
+        n_max = self.opts.max_iterations if max_iterations is None else max_iterations
+        R, K, err = self.evaluate(q, lam, free, bordered)
+        for it in range(n_max):
+            if err <= 1.0:
+                return q
+            try:
+                dq = _solve(K, -R, m.dense)
+            except (np.linalg.LinAlgError, RuntimeError):
+                dof = _null_dof(K, m.dense, free, labels)
+                raise _Fail(f"singular tangent stiffness in Newton iteration {it + 1} "
+                            f"(no stiffness against a motion of '{dof}')", err, dof) from None
+            alpha = 1.0
+            for _ in range(12):
+                q_try = q.copy()
+                q_try[free] += alpha * dq
+                R_t, K_t, err_t = self.evaluate(q_try, lam, free, bordered)
+                if np.isfinite(err_t) and (err_t < err * (1.0 - 1e-4 * alpha) or err_t <= 1.0):
+                    break
+                alpha *= 0.5
+            else:
+                raise _Fail(f"line search failed in Newton iteration {it + 1}", err,
+                            labels[int(free[int(np.argmax(np.abs(R)))])])
+            q, R, K, err = q_try, R_t, K_t, err_t
+            self.history.append((err, lam))
+        if err <= 1.0:
+            return q
+        raise _Fail(f"Newton did not converge in {n_max} iterations", err,
+                    labels[int(free[int(np.argmax(np.abs(R)))])])
+
+    def continuation(self, q: np.ndarray, free: np.ndarray, *, bordered: bool = False) -> np.ndarray:
+        """Load stepping on the weight, halving the increment on failure."""
+        if not self.has_load:
+            return self.newton(q, 1.0, free, bordered=bordered)
+        lam_done, dlam = 0.0, 1.0 / self.opts.load_steps
+        while lam_done < 1.0:
+            lam = min(1.0, lam_done + dlam)
+            try:
+                q = self.newton(q, lam, free, bordered=bordered)
+            except _Fail as fail:
+                if dlam < 1.0 / 1024:
+                    fail.lam = lam  # type: ignore[attr-defined]
+                    raise
+                dlam *= 0.5
+                continue
+            lam_done, dlam = lam, 2.0 * dlam
+        return q
+
+    def tension_loop(self, q: np.ndarray) -> np.ndarray:
+        """Outer Newton on the adjustable pulley's slide offset s: equilibrium at fixed s inside,
+        T(s) = target outside, with dT/ds from the equilibrium's sensitivity K_ff dq_f/ds = -K_fs."""
+        m, a = self.model, self.a
+        inner = np.array([i for i in range(m.n_dof) if i not in (self.driver, a)])
+        q = self.continuation(q, inner)
+        tol_T = self.opts.tolerance * abs(self.target) + self.noise
+        for it in range(self.opts.max_iterations):
+            T, dT = m.mean_tension_and_gradient(q)
+            g = T - self.target
+            if abs(g) <= tol_T:
+                return q
+            _, K = m.force_and_tangent(q)
+            Kff = _submatrix(K, inner, inner, m.dense)
+            Kfa = _submatrix(K, inner, np.array([a]), m.dense)
+            Kfa = np.asarray(Kfa.todense() if not m.dense else Kfa).ravel()
+            try:
+                dqf = _solve(Kff, -Kfa, m.dense)
+            except (np.linalg.LinAlgError, RuntimeError):
+                dof = _null_dof(Kff, m.dense, inner, m.dof_labels)
+                raise _Fail("singular tangent stiffness in the tension iteration", abs(g) / tol_T, dof) from None
+            slope = float(dT[a] + dT[inner] @ dqf)
+            if not abs(slope) > 1e-12 * float(m.elements.EA.max()):
+                raise _Fail(f"the span tension does not change when the adjustable pulley moves "
+                            f"(dT/ds = {slope:.3g} N/m)",
+                            abs(g) / tol_T, m.dof_labels[a])
+            step = -g / slope
+            for _ in range(40):
+                q_try = q.copy()
+                q_try[a] += step
+                q_try[inner] += step * dqf
+                try:
+                    q_new = self.newton(q_try, 1.0, inner)
+                except _Fail:
+                    step *= 0.5
+                    continue
+                T_new, _ = m.mean_tension_and_gradient(q_new)
+                if T_new > 0.0:
+                    break
+                step *= 0.5
+            else:
+                raise _Fail(f"tension iteration {it + 1}: no equilibrium found near slide offset {q[a]:.6g} m",
+                            abs(g) / tol_T, m.dof_labels[a])
+            q = q_new
+            self.history.append((abs(T_new - self.target) / tol_T, 1.0))
+        raise _Fail(f"tension iteration did not converge in {self.opts.max_iterations} iterations",
+                    abs(g) / tol_T, m.dof_labels[a])
 
 
-def _newton(residual, q, lam, opts, model, free, hist_r, hist_l):
-    pos_labels = model.dof_labels
-    R, K, err = residual(q, lam, True)
-    for it in range(opts.max_iterations):
-        if err <= opts.tolerance:
-            return True, q, None
-        try:
-            dq = _solve(K, -R, model.dense)
-        except (np.linalg.LinAlgError, RuntimeError):
-            dof = _null_dof(K, model.dense, free, pos_labels)
-            return False, q, (f"singular tangent stiffness in Newton iteration {it + 1} "
-                              f"(no stiffness against a motion of '{dof}')", err, dof)
-        full = np.zeros(model.n_dof)
-        full[free] = dq
-        alpha = 1.0
-        for _ in range(12):
-            q_try = q + alpha * full
-            R_try, K_try, err_try = residual(q_try, lam, True)
-            if np.isfinite(err_try) and (err_try < err * (1.0 - 1e-4 * alpha) or err_try <= opts.tolerance):
-                break
-            alpha *= 0.5
+def solve_static(cfg: DriveConfig, model: DriveModel) -> StaticResult:
+    """Static equilibrium of the drive (raises SolverError naming step, residual and DOF).
+
+    Tension mode "adjust": a bordered Newton on (equilibrium, T = target) from the linear axial
+    predictor, which converges in one or two iterations for taut spans; if it fails (sagging spans,
+    strong nonlinearity), an outer Newton on the slide offset around inner equilibrium solves with
+    load stepping on the weight. Other modes: equilibrium with load stepping.
+    """
+    prob = _Problem(cfg, model)
+    n = model.n_dof
+    free = np.array([i for i in range(n) if i != prob.driver])
+    try:
+        if prob.adjust:
+            q0 = _predictor(model, stretch_for_tension(prob.target, cfg.belt.EA), prob.a, prob.driver)
+            try:
+                q = prob.newton(q0, 1.0, free, bordered=True, max_iterations=8)
+            except _Fail:
+                prob.history.clear()
+                q = prob.tension_loop(q0)
         else:
-            worst = pos_labels[int(free[int(np.argmax(np.abs(R)))])]
-            return False, q, (f"line search failed in Newton iteration {it + 1}", err, worst)
-        q, R, K, err = q_try, R_try, K_try, err_try
-        hist_r.append(err)
-        hist_l.append(lam)
-    if err <= opts.tolerance:
-        return True, q, None
-    worst = pos_labels[int(free[int(np.argmax(np.abs(R)))])]
-    return False, q, (f"Newton did not converge in {opts.max_iterations} iterations", err, worst)
+            q = prob.continuation(np.zeros(n), free)
+    except _Fail as fail:
+        lam = getattr(fail, "lam", 1.0)
+        raise SolverError(f"{fail} (residual scaled so that 1 means converged)", analysis="static",
+                          step=f"load factor {lam:.4g}", residual=fail.err, item=fail.dof) from None
+    if prob.adjust:  # the bearing spring's preload follows from the adjustable pulley's slide equation
+        f = model.internal_force(q)
+        prob.preload[prob.a] = f[prob.a] - model.gravity_force[prob.a]
+    hist = np.array(prob.history).reshape(-1, 2)
+    return _result(cfg, model, q, prob.preload, hist[:, 0], hist[:, 1], len(hist), prob.driver)
 
 
 def _result(cfg, model, q, preload, hist_r, hist_l, iterations, driver_dof) -> StaticResult:
@@ -246,7 +330,7 @@ def _result(cfg, model, q, preload, hist_r, hist_l, iterations, driver_dof) -> S
     a = cfg.adjustable_index
     offset = lay.adjust_offset + (float(q[model.trans_dof[a][0]]) if a is not None else 0.0)
     return StaticResult(
-        q=q, spring_preload=preload, span_tension=model.span_end_tensions(q), mean_tension=T_mean,
+        q=q, spring_preload=preload, span_tension=model.span_end_tensions(q, np.asarray(cfg.model.gravity, dtype=float)), mean_tension=T_mean,
         hub_load=hub, pulley_center=model.pulley_centers(q), pulley_rotation=q[model.rot_dof].copy(),
         driver_torque=float(f[driver_dof]), adjust_offset=offset,
         residual_history=np.array(hist_r), load_factor_history=np.array(hist_l), iterations=iterations,
