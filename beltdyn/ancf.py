@@ -149,7 +149,9 @@ def _broadcast_property(name: str, value, n: int) -> np.ndarray:
     return a
 
 
-def make_elements(length, EA, EI, rho, *, curvature: str = "linear", n_gauss: int = 5) -> ElementSet:
+def make_elements(
+    length, EA, EI, rho, *, curvature: str = "linear", n_gauss: int = 5
+) -> ElementSet:
     """Build an `ElementSet` and precompute its quadrature tables and constant matrices.
 
     Parameters
@@ -252,7 +254,9 @@ def make_elements(length, EA, EI, rho, *, curvature: str = "linear", n_gauss: in
     )
 
 
-def shape_functions(xi: np.ndarray, length: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def shape_functions(
+    xi: np.ndarray, length: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Shape functions of Eq. 3 and their x-derivatives.
 
     Parameters
@@ -421,7 +425,10 @@ def internal_forces_and_tangent(el: ElementSet, e: np.ndarray) -> tuple[np.ndarr
 
 
 def strain_energy(el: ElementSet, e: np.ndarray) -> np.ndarray:
-    """Element strain energy U_l + U_t (Eq. 13 plus Eq. 16 or the quadratic form of Eq. 17), (n_elem,)."""
+    """Element strain energy U_l + U_t, shape (n_elem,).
+
+    Eq. 13 plus Eq. 16 ("exact") or the quadratic form 1/2 e^T K_bend e of Eq. 17 ("linear").
+    """
     e = _check_e(el, e)
     n = e.shape[0]
     E = e.reshape(n, 4, 2)
@@ -454,7 +461,10 @@ def slopes(el: ElementSet, e: np.ndarray, xi: np.ndarray) -> np.ndarray:
 
 
 def axial_strain(el: ElementSet, e: np.ndarray, xi: np.ndarray) -> np.ndarray:
-    """Green-Lagrange axial strain eps = (r'.r' - 1)/2 (Eq. 12) at ``xi`` (n_pts,), (n_elem, n_pts)."""
+    """Green-Lagrange axial strain eps = (r'.r' - 1)/2 (Eq. 12) at ``xi`` (n_pts,).
+
+    Returns shape (n_elem, n_pts).
+    """
     rp = slopes(el, e, xi)
     return 0.5 * (np.einsum("npi,npi->np", rp, rp) - 1.0)
 

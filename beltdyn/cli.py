@@ -50,7 +50,10 @@ def _fail(exc: BaseException) -> None:
     assert isinstance(exc, BeltdynError)
     from rich.text import Text
 
-    err.print(Text.assemble(("error", "bold red"), f": {exc}"))
+    # One line always: line breaks and other control characters (from a quoted TOML key, a --set
+    # value) are shown escaped.
+    message = "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in str(exc))
+    err.print(Text.assemble(("error", "bold red"), f": {message}"))
     raise typer.Exit(exc.exit_code)
 
 

@@ -414,7 +414,8 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>") -> DriveCon
             norm = math.hypot(dx, dy)
             if norm == 0:
                 raise chk.fail(f"{key}.slide_direction", "must not be the zero vector")
-            vals["slide_direction"] = (dx / norm, dy / norm)
+            if abs(norm - 1.0) > 4 * 2.0**-52:  # a unit vector (to rounding) is kept as given, so that
+                vals["slide_direction"] = (dx / norm, dy / norm)  # the resolved TOML round-trips
         if support == "fixed" and "bearing_stiffness" in vals and any(vals["bearing_stiffness"]):
             raise chk.fail(f"{key}.bearing_stiffness", "a fixed-centre pulley has no bearing spring; "
                            "use support = \"slide\" or \"bearing\"")

@@ -95,6 +95,13 @@ def solve_modes(model: DriveModel, q: np.ndarray, *, n_modes: int, solver: str =
             f"slack span?)", analysis="modal", item=dof)
     rigid = np.abs(w) <= tol
     n_rigid = int(rigid.sum())
+    if n_rigid > 1:  # beyond the belt turning with the pulleys: a mechanism (no stiffness somewhere)
+        vec = v[:, np.flatnonzero(rigid)[1]]
+        dof = model.dof_labels[int(np.argmax(np.abs(vec) * np.sqrt(Mdiag)))]
+        raise SolverError(
+            f"{n_rigid} zero-frequency modes: besides the belt turning with the pulleys the drive is a "
+            f"mechanism (no stiffness: slack belt without bending stiffness, or a free support)",
+            analysis="modal", item=dof)
     w_el, v_el = w[~rigid][:n_modes], v[:, ~rigid][:, :n_modes]
     freq = np.sqrt(np.maximum(w_el, 0.0)) / (2 * np.pi)
     shapes = v_el.T.copy()

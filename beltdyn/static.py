@@ -154,6 +154,10 @@ class _Problem:
         self.history: list[tuple[float, float]] = []
         self.has_load = bool(np.any(model.gravity_force != 0.0))
 
+    def tension_tolerance(self) -> float:
+        """Allowed error of the mean tension: relative tolerance + round-off of EA eps (~EA * eps)."""
+        return self.opts.tolerance * abs(self.target) + 100 * np.finfo(float).eps * float(self.model.elements.EA.max())
+
     def allowed(self, lam: float) -> float:
         scale = max(abs(self.target) if self.target else 0.0,
                     float(np.abs(lam * self.model.gravity_force).max(initial=0.0)),
@@ -179,7 +183,10 @@ class _Problem:
                 row = csr_matrix((dT, (np.full(m.n_dof, self.a), np.arange(m.n_dof))), shape=K.shape)
                 K = (diags(keep) @ K + row).tocsr()
         Rf = R[free]
-        return Rf, _submatrix(K, free, free, m.dense), float(np.abs(Rf).max(initial=0.0)) / self.allowed(lam)
+        scaled = np.abs(R) / self.allowed(lam)
+        if bordered:
+            scaled[self.a] = abs(R[self.a]) / self.tension_tolerance()
+        return Rf, _submatrix(K, free, free, m.dense), float(scaled[free].max(initial=0.0))
 
     def newton(self, q: np.ndarray, lam: float, free: np.ndarray, *, bordered: bool = False,
                max_iterations: int | None = None) -> np.ndarray:
@@ -238,7 +245,7 @@ class _Problem:
         m, a = self.model, self.a
         inner = np.array([i for i in range(m.n_dof) if i not in (self.driver, a)])
         q = self.continuation(q, inner)
-        tol_T = self.opts.tolerance * abs(self.target) + self.noise
+        tol_T = self.tension_tolerance()
         for it in range(self.opts.max_iterations):
             T, dT = m.mean_tension_and_gradient(q)
             g = T - self.target
