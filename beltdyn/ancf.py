@@ -38,6 +38,7 @@ exactly.  The exact-curvature energy density u = EI/2 c^2/A^3 (c = r'^T J r'', J
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -67,10 +68,16 @@ _N_GAUSS_CONST = 4
 _MAX_GAUSS = 64
 
 
+@functools.lru_cache(maxsize=None)
 def _gauss01(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Legendre points and weights on [0, 1] (weights sum to 1)."""
+    """Gauss-Legendre points and weights on [0, 1] (weights sum to 1); cached, read-only."""
     x, w = np.polynomial.legendre.leggauss(n)
-    return 0.5 * (x + 1.0), 0.5 * w
+    return _readonly(0.5 * (x + 1.0)), _readonly(0.5 * w)
+
+
+def _kron_i2(a: np.ndarray, m2: np.ndarray) -> np.ndarray:
+    """(..., 4, 4) (x) (2, 2) -> (..., 8, 8) with index order (a, i, b, j)."""
+    return (a[..., :, None, :, None] * m2[None, :, None, :]).reshape(*a.shape[:-2], 8, 8)
 
 
 def _readonly(a: np.ndarray) -> np.ndarray:
@@ -203,10 +210,10 @@ def make_elements(
     _, D, D2 = shape_functions(xi_q, L)
     wL = w_q[None, :] * L[:, None]
     DD = D[:, :, :, None] * D[:, :, None, :]  # (n, q, 4, 4)
-    PQ = np.einsum("nqab,ij->nqaibj", DD, eye2).reshape(n, n_gauss, 64)
+    PQ = _kron_i2(DD, eye2).reshape(n, n_gauss, 64)
     if curvature == "exact":
         DD2 = D[:, :, :, None] * D2[:, :, None, :]
-        Q = np.einsum("nqab,ij->nqaibj", DD2, J).reshape(n, n_gauss, 8, 8)
+        Q = _kron_i2(DD2, J)
         Q = (Q + np.swapaxes(Q, 2, 3)).reshape(n, n_gauss, 64)
         PQ = np.concatenate((PQ, Q), axis=1)
         D2_8 = np.repeat(D2, 2, axis=-1)
@@ -219,11 +226,11 @@ def make_elements(
     s_c, _, d2_c = shape_functions(xi_c, L)
     wL_c = w_c[None, :] * L[:, None]
     m4 = np.einsum("nq,nqa,nqb->nab", wL_c * rho_[:, None], s_c, s_c)
-    mass = np.einsum("nab,ij->naibj", m4, eye2).reshape(n, 8, 8)
+    mass = _kron_i2(m4, eye2)
     grav = np.einsum("nq,nqa->na", wL_c * rho_[:, None], s_c)
     if curvature == "linear":
         kb4 = np.einsum("nq,nqa,nqb->nab", wL_c * EI_[:, None], d2_c, d2_c)
-        K_bend = np.einsum("nab,ij->naibj", kb4, eye2).reshape(n, 8, 8)
+        K_bend = _kron_i2(kb4, eye2)
     else:
         K_bend = np.zeros((n, 8, 8))
 
@@ -276,35 +283,15 @@ def shape_functions(
         raise ValueError(f"length must be 1-D (n_elem,), got shape {L.shape}")
     x2 = xi * xi
     x3 = x2 * xi
-    Lc = L[:, None]
-    one = np.ones_like(xi)[None, :]
-    s = np.stack(
-        np.broadcast_arrays(
-            one * (1.0 - 3.0 * x2 + 2.0 * x3),
-            Lc * (xi - 2.0 * x2 + x3),
-            one * (3.0 * x2 - 2.0 * x3),
-            Lc * (x3 - x2),
-        ),
-        axis=-1,
-    )
-    ds = np.stack(
-        np.broadcast_arrays(
-            (6.0 * x2 - 6.0 * xi) / Lc,
-            one * (1.0 - 4.0 * xi + 3.0 * x2),
-            (6.0 * xi - 6.0 * x2) / Lc,
-            one * (3.0 * x2 - 2.0 * xi),
-        ),
-        axis=-1,
-    )
-    d2s = np.stack(
-        np.broadcast_arrays(
-            (12.0 * xi - 6.0) / (Lc * Lc),
-            (6.0 * xi - 4.0) / Lc,
-            (6.0 - 12.0 * xi) / (Lc * Lc),
-            (6.0 * xi - 2.0) / Lc,
-        ),
-        axis=-1,
-    )
+    # Unit-element tables in xi, then the powers of L that Eq. 3 and d/dx = (1/L) d/dxi bring.
+    s_u = np.column_stack([1.0 - 3.0 * x2 + 2.0 * x3, xi - 2.0 * x2 + x3, 3.0 * x2 - 2.0 * x3, x3 - x2])
+    ds_u = np.column_stack([6.0 * x2 - 6.0 * xi, 1.0 - 4.0 * xi + 3.0 * x2, 6.0 * xi - 6.0 * x2, 3.0 * x2 - 2.0 * xi])
+    d2s_u = np.column_stack([12.0 * xi - 6.0, 6.0 * xi - 4.0, 6.0 - 12.0 * xi, 6.0 * xi - 2.0])
+    one = np.ones_like(L)
+    inv = 1.0 / L
+    s = s_u[None, :, :] * np.column_stack([one, L, one, L])[:, None, :]
+    ds = ds_u[None, :, :] * np.column_stack([inv, one, inv, one])[:, None, :]
+    d2s = d2s_u[None, :, :] * np.column_stack([inv * inv, inv, inv * inv, inv])[:, None, :]
     return s, ds, d2s
 
 

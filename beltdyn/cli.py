@@ -71,12 +71,14 @@ def main(
 
 
 class _Job:
-    """One command's pipeline state: config, output path, hash."""
+    """One command's pipeline state: config, layout, output path, hash."""
 
     def __init__(self, config: Path, output: Optional[Path], sets: Optional[List[str]], force: bool) -> None:
         from .config import config_hash, load_config, resolved_toml
+        from .geometry import layout_from_config
 
         self.cfg = load_config(config, sets or [])
+        self.layout = layout_from_config(self.cfg)  # geometric config errors come before the output check
         self.toml = resolved_toml(self.cfg)
         self.sha = config_hash(self.cfg)
         self.force = force
@@ -117,10 +119,9 @@ def geometry(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Op
 
     def body() -> None:
         from .export import geometry_group
-        from .geometry import layout_from_config
 
         job = _Job(config, output, set_, force)
-        layout = layout_from_config(job.cfg)
+        layout = job.layout
         job.add(geometry_group(layout))
         job.write()
         _print_geometry(layout)
@@ -132,10 +133,9 @@ def geometry(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Op
 def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None):
     from .errors import SolverError
     from .export import geometry_group, modal_group, static_group
-    from .geometry import layout_from_config
     from .static import model_from_config, solve_static
 
-    layout = layout_from_config(job.cfg)
+    layout = job.layout
     job.add(geometry_group(layout))
     model = model_from_config(job.cfg, layout)
     stage = "static"

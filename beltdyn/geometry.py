@@ -79,8 +79,9 @@ class GeometryError(ValueError):
 def loop_orientation(center: np.ndarray) -> int:
     """+1 if the polygon of centres is counter-clockwise or degenerate, -1 if clockwise."""
     x, y = center[:, 0], center[:, 1]
-    area2 = float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
-    scale = float(np.ptp(center, axis=0).max()) ** 2
+    nxt = np.arange(1, len(x) + 1) % len(x)
+    area2 = float(np.dot(x, y[nxt]) - np.dot(x[nxt], y))
+    scale = float((center.max(axis=0) - center.min(axis=0)).max()) ** 2
     return -1 if area2 < -1e-12 * max(scale, 1e-300) else 1
 
 
@@ -112,9 +113,11 @@ def compute_layout(
                         f"pulleys '{names[i]}' and '{names[j]}' overlap by {-gap:.6g} m",
                         f"pulleys[{j}].center")
     rho = o * side_sign * radius
-    d = np.roll(center, -1, axis=0) - center
+    nxt = np.arange(1, n + 1) % n
+    prv = np.arange(-1, n - 1) % n
+    d = center[nxt] - center
     dist = np.hypot(d[:, 0], d[:, 1])
-    drho = rho - np.roll(rho, -1)
+    drho = rho - rho[nxt]
     q = drho / dist
     if check and np.any(np.abs(q) >= 1.0):
         i = int(np.argmax(np.abs(q)))
@@ -125,10 +128,10 @@ def compute_layout(
     alpha = beta + np.arcsin(np.clip(q, -1.0, 1.0))
     m = np.column_stack([np.sin(alpha), -np.cos(alpha)])
     start = center + rho[:, None] * m
-    end = np.roll(center, -1, axis=0) + np.roll(rho, -1)[:, None] * m
+    end = center[nxt] + rho[nxt][:, None] * m
     length = np.sqrt(np.maximum(dist**2 - drho**2, 0.0))
     turn_sign = o * side_sign
-    alpha_in = np.roll(alpha, 1)
+    alpha_in = alpha[prv]
     wrap = np.mod(turn_sign * (alpha - alpha_in), TWO_PI)
     if check:
         for j in range(n):
@@ -153,7 +156,7 @@ def compute_layout(
     return Layout(
         names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
         span_start=start, span_end=end, span_length=length, span_angle=alpha,
-        start_normal=np.sign(rho)[:, None] * m, end_normal=np.sign(np.roll(rho, -1))[:, None] * m,
+        start_normal=np.sign(rho)[:, None] * m, end_normal=np.sign(rho[nxt])[:, None] * m,
         wrap_angle=wrap, arc_length=radius * wrap, belt_length=float(length.sum() + (radius * wrap).sum()),
     )
 

@@ -46,6 +46,7 @@ class Pattern:
     slot: np.ndarray | None = None
     indices: np.ndarray | None = None
     indptr: np.ndarray | None = None
+    diag_slot: np.ndarray | None = None
     nnz: int = 0
 
 
@@ -87,6 +88,15 @@ class DriveModel:
             object.__setattr__(self, "_Tt", tt)
         return tt
 
+    def sampling_table(self, n_pts: int) -> np.ndarray:
+        """(n_elem, n_pts, 4) shape functions s1..s4 at xi = 0, 1/n_pts, ... (cached)."""
+        key = f"_samp{n_pts}"
+        tab = self.__dict__.get(key)
+        if tab is None:
+            tab, _, _ = ancf.shape_functions(np.arange(n_pts) / n_pts, self.elements.length)
+            object.__setattr__(self, key, tab)
+        return tab
+
     # ------------------------------------------------------------------ coordinates
     def element_coordinates(self, q: np.ndarray) -> np.ndarray:
         """e (n_elem, 8) = e0 + T q[idx]."""
@@ -119,12 +129,9 @@ class DriveModel:
 
         keep = pat.slot >= 0
         data = np.bincount(pat.slot[keep], weights=blocks.ravel()[keep], minlength=pat.nnz)
-        K = csr_matrix((data, pat.indices, pat.indptr), shape=(n, n))
         if diagonal is not None:
-            from scipy.sparse import diags
-
-            K = (K + diags(diagonal)).tocsr()
-        return K
+            data[pat.diag_slot] += diagonal
+        return csr_matrix((data, pat.indices, pat.indptr), shape=(n, n))
 
     # ------------------------------------------------------------------ forces
     def internal_force(self, q: np.ndarray) -> np.ndarray:
@@ -317,8 +324,9 @@ def _make_pattern(idx: np.ndarray, n: int, *, sparse: bool) -> Pattern:
     indptr = np.zeros(n + 1, dtype=np.int64)
     np.add.at(indptr, r + 1, 1)
     indptr = np.cumsum(indptr)
+    diag_slot = np.searchsorted(keys, diag_keys)
     return Pattern(n=n, flat=flat, slot=slot, indices=c.astype(np.int32), indptr=indptr.astype(np.int32),
-                   nnz=len(keys))
+                   diag_slot=diag_slot, nnz=len(keys))
 
 
 def stretch_for_tension(tension: float, EA: float) -> float:

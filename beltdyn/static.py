@@ -87,40 +87,69 @@ def _predictor(model: DriveModel, stretch: float, adjust_dof: int, driver_dof: i
     # Straight chords between the moved end nodes.
     e = model.element_coordinates(q)
     n_e = len(model.span_elements[0])
+    frac = np.arange(1, n_e) / n_e
     for s, (e_first, e_last) in enumerate(ends):
         a, b = e[e_first, 0:2], e[e_last, 4:6]
         grad = (b - a) / model.reference_length[s]
+        els = model.span_elements[s]
         sl = model.span_dof_slices[s]
-        block = np.zeros(sl.stop - sl.start)
-        block[0:2] = grad - model.e0[e_first, 2:4]
-        for node in range(1, n_e):
-            x_ref = model.e0[model.span_elements[s][node], 0:2]
-            block[2 + 4 * (node - 1): 4 + 4 * (node - 1)] = a + (b - a) * node / n_e - x_ref
-            block[4 + 4 * (node - 1): 6 + 4 * (node - 1)] = grad - model.e0[model.span_elements[s][node], 2:4]
-        block[-2:] = grad - model.e0[e_last, 6:8]
+        nodes = np.empty((n_e - 1, 4))
+        nodes[:, 0:2] = a + np.outer(frac, b - a) - model.e0[els[1:], 0:2]
+        nodes[:, 2:4] = grad - model.e0[els[1:], 2:4]
+        block = np.concatenate([grad - model.e0[e_first, 2:4], nodes.ravel(), grad - model.e0[e_last, 6:8]])
         q[sl] = block
     return q
 
 
-def _solve(K, rhs: np.ndarray, dense: bool) -> np.ndarray:
+def _pin(K, pinned: np.ndarray, dense: bool):
+    """Hold the `pinned` DOFs: their rows and columns become those of the identity (in place)."""
+    if dense:
+        K[pinned, :] = 0.0
+        K[:, pinned] = 0.0
+        K[pinned, pinned] = 1.0
+        return K
+    rows = np.repeat(np.arange(K.shape[0]), np.diff(K.indptr))
+    hold = np.zeros(K.shape[0], dtype=bool)
+    hold[pinned] = True
+    K.data[hold[rows] | hold[K.indices]] = 0.0
+    K.data[hold[rows] & (rows == K.indices)] = 1.0  # the pattern always holds the diagonal
+    return K
+
+
+def _solve(K, rhs: np.ndarray, dense: bool, rank1=None) -> np.ndarray:
+    """Solve K x = rhs, or (K + e_a u^T) x = rhs for rank1 = (a, u) (Sherman-Morrison, sparse)."""
     if dense:
         return np.linalg.solve(K, rhs)
-    from scipy.sparse.linalg import spsolve
+    from scipy.sparse.linalg import splu
 
-    with np.errstate(all="ignore"):
-        x = spsolve(K.tocsc(), rhs)
+    try:
+        lu = splu(K.tocsc())
+    except RuntimeError as exc:  # "Factor is exactly singular"
+        raise np.linalg.LinAlgError(str(exc)) from None
+    if rank1 is None:
+        x = lu.solve(rhs)
+    else:
+        a, u = rank1
+        ea = np.zeros_like(rhs)
+        ea[a] = 1.0
+        y, z = lu.solve(rhs), lu.solve(ea)
+        denom = 1.0 + float(u @ z)
+        if abs(denom) < 1e-14 * (1.0 + abs(float(u @ z))):
+            raise np.linalg.LinAlgError("singular bordered system")
+        x = y - z * (float(u @ y) / denom)
     if not np.all(np.isfinite(x)):
         raise np.linalg.LinAlgError("singular matrix")
     return x
 
 
-def _null_dof(K, dense: bool, free: np.ndarray, labels: tuple[str, ...]) -> str:
+def _null_dof(K, dense: bool, labels: tuple[str, ...], rank1=None) -> str:
     """Label of the DOF with the largest share of the (near-)null vector of K."""
-    Kd = K if dense else K.toarray()
-    Kd = 0.5 * (Kd + Kd.T)
-    w, v = np.linalg.eigh(Kd)
-    vec = v[:, int(np.argmin(np.abs(w)))]
-    return labels[int(free[int(np.argmax(np.abs(vec)))])]
+    Kd = np.array(K) if dense else K.toarray()
+    if rank1 is not None:
+        Kd[rank1[0], :] += rank1[1]
+    w, v = np.linalg.eig(Kd) if rank1 is not None else np.linalg.eigh(0.5 * (Kd + Kd.T))
+    vec = np.real(v[:, int(np.argmin(np.abs(w)))])
+    return labels[int(np.argmax(np.abs(vec)))]
 
 
 class _Fail(Exception):
@@ -131,16 +160,13 @@ class _Fail(Exception):
         self.err, self.dof = err, dof
 
 
-def _submatrix(K, rows: np.ndarray, cols: np.ndarray, dense: bool):
-    return K[np.ix_(rows, cols)] if dense else K[rows][:, cols]
-
-
 class _Problem:
     """The static equations of one drive: residual, Jacobian and Newton with line search.
 
-    Residuals are scaled by the allowed residual, tolerance * force scale + a round-off floor
-    (eps_GL = (r'.r' - 1)/2 loses ~machine epsilon, times EA, summed over elements), so that
-    err <= 1 means converged.
+    Held ("pinned") DOFs keep their value: their residual rows are zero and their Jacobian rows and
+    columns those of the identity. Residuals are scaled by the allowed residual, tolerance * force
+    scale + a round-off floor (eps_GL = (r'.r' - 1)/2 loses ~machine epsilon, times EA, summed over
+    elements), so that err <= 1 means converged.
     """
 
     def __init__(self, cfg: DriveConfig, model: DriveModel) -> None:
@@ -164,72 +190,70 @@ class _Problem:
                     1e-9 * float(self.model.elements.EA.max()))
         return self.opts.tolerance * scale + self.noise
 
-    def evaluate(self, q: np.ndarray, lam: float, free: np.ndarray, bordered: bool):
-        """Scaled residual on `free`, its Jacobian, and err = max|R| / allowed."""
+    def evaluate(self, q: np.ndarray, lam: float, pinned: np.ndarray, bordered: bool):
+        """Residual (pinned rows zero), Jacobian, err = max scaled |R|, and the bordered rank-1 term."""
         m = self.model
         f, K = m.force_and_tangent(q)
         R = f - self.preload - lam * m.gravity_force
+        scaled = np.abs(R) / self.allowed(lam)
+        rank1 = None
         if bordered:  # the slide equation of the adjustable pulley becomes T(q) = target
             T, dT = m.mean_tension_and_gradient(q)
             R[self.a] = T - self.target
+            scaled[self.a] = abs(R[self.a]) / self.tension_tolerance()
             if m.dense:
-                K = K.copy()
                 K[self.a, :] = dT
             else:
-                from scipy.sparse import csr_matrix, diags
+                row = K.getrow(self.a).toarray().ravel()
+                rank1 = (self.a, dT - row)
+        R[pinned] = 0.0
+        scaled[pinned] = 0.0
+        K = _pin(K, pinned, m.dense)
+        if rank1 is not None:
+            rank1[1][pinned] = 0.0
+            # the pinned identity row of `a` (if any) is untouched by pinning only other DOFs
+        return R, K, float(scaled.max(initial=0.0)), rank1
 
-                keep = np.ones(m.n_dof)
-                keep[self.a] = 0.0
-                row = csr_matrix((dT, (np.full(m.n_dof, self.a), np.arange(m.n_dof))), shape=K.shape)
-                K = (diags(keep) @ K + row).tocsr()
-        Rf = R[free]
-        scaled = np.abs(R) / self.allowed(lam)
-        if bordered:
-            scaled[self.a] = abs(R[self.a]) / self.tension_tolerance()
-        return Rf, _submatrix(K, free, free, m.dense), float(scaled[free].max(initial=0.0))
-
-    def newton(self, q: np.ndarray, lam: float, free: np.ndarray, *, bordered: bool = False,
+    def newton(self, q: np.ndarray, lam: float, pinned: np.ndarray, *, bordered: bool = False,
                max_iterations: int | None = None) -> np.ndarray:
         m = self.model
         labels = m.dof_labels
         n_max = self.opts.max_iterations if max_iterations is None else max_iterations
-        R, K, err = self.evaluate(q, lam, free, bordered)
+        R, K, err, rank1 = self.evaluate(q, lam, pinned, bordered)
         for it in range(n_max):
             if err <= 1.0:
                 return q
             try:
-                dq = _solve(K, -R, m.dense)
+                dq = _solve(K, -R, m.dense, rank1)
             except (np.linalg.LinAlgError, RuntimeError):
-                dof = _null_dof(K, m.dense, free, labels)
+                dof = _null_dof(K, m.dense, labels, rank1)
                 raise _Fail(f"singular tangent stiffness in Newton iteration {it + 1} "
                             f"(no stiffness against a motion of '{dof}')", err, dof) from None
             alpha = 1.0
             for _ in range(12):
-                q_try = q.copy()
-                q_try[free] += alpha * dq
-                R_t, K_t, err_t = self.evaluate(q_try, lam, free, bordered)
+                q_try = q + alpha * dq
+                R_t, K_t, err_t, r1_t = self.evaluate(q_try, lam, pinned, bordered)
                 if np.isfinite(err_t) and (err_t < err * (1.0 - 1e-4 * alpha) or err_t <= 1.0):
                     break
                 alpha *= 0.5
             else:
                 raise _Fail(f"line search failed in Newton iteration {it + 1}", err,
-                            labels[int(free[int(np.argmax(np.abs(R)))])])
-            q, R, K, err = q_try, R_t, K_t, err_t
+                            labels[int(np.argmax(np.abs(R)))])
+            q, R, K, err, rank1 = q_try, R_t, K_t, err_t, r1_t
             self.history.append((err, lam))
         if err <= 1.0:
             return q
-        raise _Fail(f"Newton did not converge in {n_max} iterations", err,
-                    labels[int(free[int(np.argmax(np.abs(R)))])])
+        raise _Fail(f"Newton did not converge in {n_max} iterations", err, labels[int(np.argmax(np.abs(R)))])
 
-    def continuation(self, q: np.ndarray, free: np.ndarray, *, bordered: bool = False) -> np.ndarray:
+    def continuation(self, q: np.ndarray, pinned: np.ndarray, *, bordered: bool = False) -> np.ndarray:
         """Load stepping on the weight, halving the increment on failure."""
         if not self.has_load:
-            return self.newton(q, 1.0, free, bordered=bordered)
+            return self.newton(q, 1.0, pinned, bordered=bordered)
         lam_done, dlam = 0.0, 1.0 / self.opts.load_steps
         while lam_done < 1.0:
             lam = min(1.0, lam_done + dlam)
             try:
-                q = self.newton(q, lam, free, bordered=bordered)
+                q = self.newton(q, lam, pinned, bordered=bordered)
             except _Fail as fail:
                 if dlam < 1.0 / 1024:
                     fail.lam = lam  # type: ignore[attr-defined]
@@ -243,8 +267,8 @@ class _Problem:
         """Outer Newton on the adjustable pulley's slide offset s: equilibrium at fixed s inside,
         T(s) = target outside, with dT/ds from the equilibrium's sensitivity K_ff dq_f/ds = -K_fs."""
         m, a = self.model, self.a
-        inner = np.array([i for i in range(m.n_dof) if i not in (self.driver, a)])
-        q = self.continuation(q, inner)
+        pinned = np.array([self.driver, a])
+        q = self.continuation(q, pinned)
         tol_T = self.tension_tolerance()
         for it in range(self.opts.max_iterations):
             T, dT = m.mean_tension_and_gradient(q)
@@ -252,15 +276,15 @@ class _Problem:
             if abs(g) <= tol_T:
                 return q
             _, K = m.force_and_tangent(q)
-            Kff = _submatrix(K, inner, inner, m.dense)
-            Kfa = _submatrix(K, inner, np.array([a]), m.dense)
-            Kfa = np.asarray(Kfa.todense() if not m.dense else Kfa).ravel()
+            col = np.asarray(K[:, a]).ravel() if m.dense else K.getcol(a).toarray().ravel()
+            col[pinned] = 0.0
+            K = _pin(K, pinned, m.dense)
             try:
-                dqf = _solve(Kff, -Kfa, m.dense)
+                dqf = _solve(K, -col, m.dense)
             except (np.linalg.LinAlgError, RuntimeError):
-                dof = _null_dof(Kff, m.dense, inner, m.dof_labels)
+                dof = _null_dof(K, m.dense, m.dof_labels)
                 raise _Fail("singular tangent stiffness in the tension iteration", abs(g) / tol_T, dof) from None
-            slope = float(dT[a] + dT[inner] @ dqf)
+            slope = float(dT[a] + dT @ dqf)
             if not abs(slope) > 1e-12 * float(m.elements.EA.max()):
                 raise _Fail(f"the span tension does not change when the adjustable pulley moves "
                             f"(dT/ds = {slope:.3g} N/m)",
@@ -269,9 +293,9 @@ class _Problem:
             for _ in range(40):
                 q_try = q.copy()
                 q_try[a] += step
-                q_try[inner] += step * dqf
+                q_try += step * dqf
                 try:
-                    q_new = self.newton(q_try, 1.0, inner)
+                    q_new = self.newton(q_try, 1.0, pinned)
                 except _Fail:
                     step *= 0.5
                     continue
@@ -298,17 +322,17 @@ def solve_static(cfg: DriveConfig, model: DriveModel) -> StaticResult:
     """
     prob = _Problem(cfg, model)
     n = model.n_dof
-    free = np.array([i for i in range(n) if i != prob.driver])
+    pinned = np.array([prob.driver])
     try:
         if prob.adjust:
             q0 = _predictor(model, stretch_for_tension(prob.target, cfg.belt.EA), prob.a, prob.driver)
             try:
-                q = prob.newton(q0, 1.0, free, bordered=True, max_iterations=8)
+                q = prob.newton(q0, 1.0, pinned, bordered=True, max_iterations=8)
             except _Fail:
                 prob.history.clear()
                 q = prob.tension_loop(q0)
         else:
-            q = prob.continuation(np.zeros(n), free)
+            q = prob.continuation(np.zeros(n), pinned)
     except _Fail as fail:
         lam = getattr(fail, "lam", 1.0)
         raise SolverError(f"{fail} (residual scaled so that 1 means converged)", analysis="static",
