@@ -1,0 +1,363 @@
+"""Tests of bad input at the command line (the issue's "Bad input" acceptance criteria), `--set`
+overrides, the resolved-TOML round trip and config hash, output-file protection, --help/--version.
+
+The broken drive descriptions live in tests/data/bad/: each is a small variation of the smoke
+two-pulley config (configs/smoke/two_pulley.toml) whose first line is a comment saying what is
+broken. The real CLI runs in a subprocess with cwd=tmp_path; the two runs of one case (fresh output
+path / existing results file) run concurrently to keep the file fast.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tomllib
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import beltdyn
+from beltdyn.config import config_from_dict, config_hash, load_config, resolved_toml, with_overrides
+from beltdyn.errors import ConfigError
+from beltdyn.geometry import layout_from_config
+from beltdyn.results_io import read_root_attrs
+
+ROOT = Path(__file__).resolve().parents[1]
+BAD = Path(__file__).resolve().parent / "data" / "bad"
+SMOKE = ROOT / "configs" / "smoke" / "two_pulley.toml"
+ALL_CONFIGS = sorted((ROOT / "configs").glob("*/*.toml"))
+
+_SCRIPT = Path(sys.executable).parent / "beltdyn"
+BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
+
+# file stem -> (key path named in the message (None: a TOML syntax error has no key), fragments the
+# message must also contain). Key paths are as the user sees them (a line break shown as "\n").
+BAD_CASES: dict[str, tuple[str | None, list[str]]] = {
+    "toml_syntax_error": (None, ["TOML syntax error", "at line 24"]),
+    "missing_belt": ("belt", ["missing table [belt]"]),
+    "missing_belt_EA": ("belt.EA", ["missing key"]),
+    "missing_pulley_inertia": ("pulleys[1].inertia", ["missing key"]),
+    "wrong_type_string_radius": ("pulleys[0].radius", ["must be a number", "'0.0375'"]),
+    "wrong_type_bool_string": ("pulleys[0].adjustable", ["must be true or false", "'true'"]),
+    "wrong_type_float_int": ("mesh.elements_per_span", ["must be an integer", "2.5"]),
+    "wrong_length_vector": ("pulleys[1].center", ["must be a list of 2 numbers"]),
+    "negative_radius": ("pulleys[1].radius", ["must be > 0", "-0.1016"]),
+    "zero_mass": ("pulleys[1].mass", ["must be > 0", "got 0"]),
+    "negative_EI": ("belt.EI", ["must be >= 0", "-0.02"]),
+    "negative_tension": ("tension.target", ["must be > 0", "-200"]),
+    "nan_value": ("belt.EA", ["must be finite", "nan"]),
+    "inf_value": ("pulleys[1].center[0]", ["must be finite", "inf"]),
+    "unknown_key_typo": ("pulleys[1].radiu", ["unknown key 'radiu'", "did you mean 'radius'?"]),
+    "unknown_key_with_newline": ("pulleys[1].radius\n", ["unknown key", "did you mean 'radius'?"]),
+    "unknown_table_typo": ("tensoin", ["unknown key 'tensoin'", "did you mean 'tension'?"]),
+    "bad_support_name": ("pulleys[0].support", ["must be one of", "'slider'"]),
+    "bad_curvature_choice": ("model.curvature", ["must be one of", "'quadratic'"]),
+    "empty_pulley_list": ("pulleys", ["need at least 2 pulleys, got 0"]),
+    "single_pulley": ("pulleys", ["need at least 2 pulleys, got 1"]),
+    "duplicate_pulley_names": ("pulleys[1].name", ["duplicate pulley name 'A'"]),
+    "two_adjustable": ("pulleys[1].adjustable", ["only one pulley may be adjustable"]),
+    "adjustable_without_slide": ("pulleys[0].adjustable", ['needs support = "slide"']),
+    "zero_slide_direction": ("pulleys[0].slide_direction", ["must not be the zero vector"]),
+    "bad_slide_range": ("pulleys[0].slide_range", ["min < max"]),
+    "overlapping_pulleys": ("pulleys[1].center", ["'A' and 'C' overlap"]),
+    "L0_too_short": ("belt.length", ["L0 = 0.5 m is too short"]),
+    "L0_too_long_for_slide": ("belt.length", ["L0 = 1.9 m is too long to reach along the slide", "slide_range"]),
+    "span_cuts_through_pulley": ("pulleys[2].center", ["span A-C cuts through pulley 'B'"]),
+}
+
+# Representative cases also run through `static` and `modal` (syntax, value check, unknown key,
+# and a failure found only by the geometry stage).
+PIPELINE_SUBSET = ["toml_syntax_error", "negative_radius", "unknown_key_typo", "L0_too_long_for_slide"]
+
+# Bad --set on the good smoke config: (command, assignment, key path named, fragments).
+BAD_SETS = [
+    ("geometry", "tension.target", "--set tension.target", ["expected KEY=VALUE"]),
+    ("geometry", "tension.targt=400", "tension.targt", ["unknown key 'targt'", "did you mean 'target'?"]),
+    ("geometry", "pulleys[0].radius=abc", "pulleys[0].radius", ["must be a number, got 'abc'"]),
+    ("geometry", "pulleys[5].radius=1", "--set pulleys[5].radius=1", ["index 5 out of range (have 2)"]),
+    ("geometry", "belt.EA=1.2.3", "--set belt.EA=1.2.3", ["'1.2.3' is not a TOML literal"]),
+    ("geometry", "belt.EA=nan", "belt.EA", ["must be finite"]),
+    ("static", "pulleys.Z.mass=1", "--set pulleys.Z.mass=1", ["no entry named 'Z'"]),
+    ("modal", "frobnicate=1", "--set frobnicate=1", ["unknown key 'frobnicate'"]),
+]
+
+
+# ------------------------------------------------------------------------------------- helpers
+def _env() -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "TTY_COMPATIBLE", "CLICOLOR_FORCE")}
+    env["NO_COLOR"] = "1"
+    return env
+
+
+def run_cli(*calls: tuple[list[str], Path]) -> list[subprocess.CompletedProcess]:
+    """Run `beltdyn ARGS` for each (args, cwd) concurrently; results in the same order."""
+    procs = [(args, subprocess.Popen([*BELTDYN, *args], cwd=cwd, env=_env(), text=True,
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE)) for args, cwd in calls]
+    out = []
+    for args, p in procs:
+        stdout, stderr = p.communicate(timeout=120)
+        out.append(subprocess.CompletedProcess([*BELTDYN, *args], p.returncode, stdout, stderr))
+    return out
+
+
+def sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def shown(key: str) -> str:
+    """A key path as the one-line console message shows it."""
+    return key.replace("\n", "\\n")
+
+
+def assert_rejected(proc: subprocess.CompletedProcess, file: str, key: str | None, fragments: list[str]) -> str:
+    """Exit 2, no traceback, nothing on stdout, one stderr line `error: FILE: KEY: message`."""
+    everything = proc.stdout + proc.stderr
+    assert "Traceback" not in everything, everything
+    assert proc.returncode == 2, everything
+    assert proc.stdout.strip() == "", everything
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, proc.stderr
+    line = lines[0]
+    prefix = f"error: {file}: " + (f"{shown(key)}: " if key is not None else "")
+    assert line.startswith(prefix), f"{line!r} does not start with {prefix!r}"
+    for fragment in fragments:
+        assert fragment in line, f"{fragment!r} not in {line!r}"
+    return line
+
+
+def check_rejected_both_ways(tmp_path: Path, good_results: Path, args: list[str], *, file: str, key: str | None,
+                             fragments: list[str], force_on_existing: bool = False) -> None:
+    """Run `args` twice: with `-o out.h5` (no file there: none may be created, no temp file left) and
+    with `-o existing.h5` (a valid results file there: its bytes, inode and mtime must not change)."""
+    fresh, old = tmp_path / "fresh", tmp_path / "old"
+    fresh.mkdir()
+    old.mkdir()
+    existing = old / "existing.h5"
+    shutil.copy2(good_results, existing)
+    before, stat_before = sha256(existing), existing.stat()
+    extra = ["--force"] if force_on_existing else []
+    r_fresh, r_old = run_cli(([*args, "-o", "out.h5"], fresh), ([*args, "-o", "existing.h5", *extra], old))
+    for r in (r_fresh, r_old):
+        assert_rejected(r, file, key, fragments)
+    assert not (fresh / "out.h5").exists()
+    assert sorted(os.listdir(fresh)) == [], "files created by a rejected run"  # no output, no *.tmp*, no results/
+    assert sorted(os.listdir(old)) == ["existing.h5"], "files created by a rejected run"
+    assert sha256(existing) == before
+    stat_after = existing.stat()
+    assert (stat_after.st_ino, stat_after.st_mtime_ns) == (stat_before.st_ino, stat_before.st_mtime_ns)
+
+
+@pytest.fixture(scope="session")
+def good_results(tmp_path_factory) -> Path:
+    """A valid results file written by a good `geometry` run of the smoke config."""
+    d = tmp_path_factory.mktemp("good")
+    (r,) = run_cli((["geometry", str(SMOKE), "-o", "good.h5"], d))
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert read_root_attrs(d / "good.h5")["config_sha256"] == config_hash(load_config(SMOKE))
+    return d / "good.h5"
+
+
+# ---------------------------------------------------------------------------------- bad files
+def test_bad_files_are_all_listed_and_documented():
+    # Checks: every file in tests/data/bad is a listed case (none silently untested), there are at
+    # least 18, and each starts with a comment line saying what is broken.
+    files = sorted(p.stem for p in BAD.glob("*.toml"))
+    assert files == sorted(BAD_CASES)
+    assert len(files) >= 18
+    for stem in files:
+        first = (BAD / f"{stem}.toml").read_text(encoding="utf-8").splitlines()[0]
+        assert first.startswith("# BROKEN: ") and len(first) > len("# BROKEN: ") + 5, stem
+
+
+@pytest.mark.parametrize("stem", sorted(BAD_CASES))
+def test_bad_file_raises_config_error_in_process(stem):
+    # Checks: loading (and, for geometric faults, laying out) each broken file raises ConfigError
+    # whose .file is the path and whose .key is the expected key path, and nothing else.
+    key, fragments = BAD_CASES[stem]
+    path = BAD / f"{stem}.toml"
+    with pytest.raises(ConfigError) as info:
+        layout_from_config(load_config(path))
+    assert info.value.file == str(path)
+    assert info.value.key == (key or "")
+    for fragment in fragments:
+        assert fragment in str(info.value)
+
+
+@pytest.mark.parametrize("stem", sorted(BAD_CASES))
+def test_bad_file_geometry_cli(stem, tmp_path, good_results):
+    # Checks for `beltdyn geometry BROKEN.toml`: exit 2, one-line stderr naming the file and the key
+    # path, no traceback, no output file or temp file created, an existing results file untouched.
+    key, fragments = BAD_CASES[stem]
+    path = BAD / f"{stem}.toml"
+    check_rejected_both_ways(tmp_path, good_results, ["geometry", str(path)], file=str(path), key=key,
+                             fragments=fragments)
+
+
+@pytest.mark.parametrize("command", ["static", "modal"])
+@pytest.mark.parametrize("stem", PIPELINE_SUBSET)
+def test_bad_file_static_and_modal_cli(command, stem, tmp_path, good_results):
+    # Checks the same as the geometry test for `static` and `modal` on a representative subset;
+    # on the existing file the run also passes --force, which must not make a bad run touch it.
+    key, fragments = BAD_CASES[stem]
+    path = BAD / f"{stem}.toml"
+    check_rejected_both_ways(tmp_path, good_results, [command, str(path)], file=str(path), key=key,
+                             fragments=fragments, force_on_existing=True)
+
+
+@pytest.mark.parametrize(("command", "assignment", "key", "fragments"), BAD_SETS,
+                         ids=[f"{c}:{a}" for c, a, _, _ in BAD_SETS])
+def test_bad_set_cli(command, assignment, key, fragments, tmp_path, good_results):
+    # Checks a bad `--set` (no '=', unknown key, wrong type, index out of range, not a TOML literal,
+    # NaN, unknown pulley name, unknown top-level key) on the good smoke config: exit 2, one line
+    # naming the config file and the key (or the --set assignment), no traceback, no file touched.
+    check_rejected_both_ways(tmp_path, good_results, [command, str(SMOKE), "--set", assignment],
+                             file=str(SMOKE), key=key, fragments=fragments)
+
+
+def test_missing_config_file(tmp_path, good_results):
+    # Checks: a missing config file (relative path, default output path) and a directory given as
+    # the config exit 2 with the path in a one-line message; no results/ folder or file is created.
+    (tmp_path / "a_dir.toml").mkdir()
+    r_missing, r_dir = run_cli((["geometry", "nope.toml"], tmp_path), (["static", "a_dir.toml", "-o", "x.h5"], tmp_path))
+    assert_rejected(r_missing, "nope.toml", None, ["file not found"])
+    assert_rejected(r_dir, "a_dir.toml", None, ["cannot read"])
+    assert sorted(os.listdir(tmp_path)) == ["a_dir.toml"]
+
+
+# ---------------------------------------------------------------------------------- --set works
+def test_set_overrides_change_the_loaded_values():
+    # Checks: --set by dotted key, by list index, by pulley name and by numeric dotted index take
+    # effect; a bare word is a string; an integer literal for a float key gives a float; nothing else changes.
+    base = load_config(SMOKE)
+    cfg = load_config(SMOKE, ["tension.target=400", "pulleys[0].radius=0.04", "pulleys.C.mass=8.0",
+                              "model.curvature=exact", "pulleys.1.inertia=0.03"])
+    assert cfg.tension.target == 400.0 and isinstance(cfg.tension.target, float)
+    assert cfg.pulleys[0].radius == 0.04
+    assert cfg.pulleys[1].mass == 8.0
+    assert cfg.model.curvature == "exact"
+    assert cfg.pulleys[1].inertia == 0.03
+    expected = replace(base, tension=replace(base.tension, target=400.0), model=replace(base.model, curvature="exact"),
+                       pulleys=(replace(base.pulleys[0], radius=0.04),
+                                replace(base.pulleys[1], mass=8.0, inertia=0.03)))
+    assert cfg == expected
+    # later --set of the same key wins
+    assert load_config(SMOKE, ["tension.target=300", "tension.target=250"]).tension.target == 250.0
+
+
+def test_set_reaches_the_cli_and_other_config_is_refused_unless_force(tmp_path, good_results):
+    # Checks: writing into an existing results file of a different configuration (here: the same file
+    # with two --set overrides) is refused with exit 2, a one-line message naming the output file,
+    # and the file unchanged; with --force it succeeds and the file then records the overridden
+    # configuration's hash (so repeated --set reached the CLI); the same configuration is then
+    # accepted without --force.
+    out = tmp_path / "res.h5"
+    shutil.copy2(good_results, out)
+    before = sha256(out)
+    sets = ["--set", "tension.target=300", "--set", "pulleys.C.mass=8.0"]
+    (refused,) = run_cli((["geometry", str(SMOKE), *sets, "-o", "res.h5"], tmp_path))
+    line = assert_rejected(refused, "res.h5", None, ["holds results of a different configuration", "--force"])
+    assert "Traceback" not in line
+    assert sha256(out) == before
+    assert sorted(os.listdir(tmp_path)) == ["res.h5"]
+
+    (forced,) = run_cli((["geometry", str(SMOKE), *sets, "-o", "res.h5", "--force"], tmp_path))
+    assert forced.returncode == 0, forced.stdout + forced.stderr
+    assert sha256(out) != before
+    new_hash = config_hash(load_config(SMOKE, ["tension.target=300", "pulleys.C.mass=8.0"]))
+    assert read_root_attrs(out)["config_sha256"] == new_hash
+    assert new_hash != config_hash(load_config(SMOKE))
+
+    (same,) = run_cli((["static", str(SMOKE), *sets, "-o", "res.h5"], tmp_path))
+    assert same.returncode == 0, same.stdout + same.stderr
+    assert sorted(os.listdir(tmp_path)) == ["res.h5"]
+
+
+# ------------------------------------------------------------------- resolved TOML and hashing
+@pytest.mark.parametrize("path", ALL_CONFIGS, ids=[f"{p.parent.name}/{p.name}" for p in ALL_CONFIGS])
+def test_resolved_toml_round_trips(path):
+    # Checks: config_from_dict(tomllib.loads(resolved_toml(cfg))) == cfg (ignoring `source`) and the
+    # hash is the same, for every shipped config.
+    cfg = load_config(path)
+    back = config_from_dict(tomllib.loads(resolved_toml(cfg)))
+    assert replace(back, source=cfg.source) == cfg
+    assert config_hash(back) == config_hash(cfg)
+    assert resolved_toml(back) == resolved_toml(cfg)
+
+
+_finite = st.floats(min_value=-1e3, max_value=1e3, allow_nan=False, allow_infinity=False)
+
+
+@settings(max_examples=150, deadline=None)
+@given(direction=st.tuples(_finite, _finite).filter(lambda v: math.hypot(*v) > 1e-12),
+       stiffness=st.tuples(st.floats(0, 1e9), st.floats(0, 1e9)),
+       title=st.text(max_size=20),
+       target=st.floats(min_value=1e-3, max_value=1e4))
+def test_resolved_toml_round_trips_property(direction, stiffness, title, target):
+    # Checks the round trip and hash stability for arbitrary slide directions (normalized on input:
+    # re-normalizing the resolved unit vector must not change it; [1, 1] used to), bearing
+    # stiffness pairs, titles with any characters and tension targets.
+    raw = tomllib.loads(SMOKE.read_text(encoding="utf-8"))
+    raw["title"] = title
+    raw["tension"]["target"] = target
+    raw["pulleys"][0]["slide_direction"] = list(direction)
+    raw["pulleys"][1].update(support="bearing", bearing_stiffness=list(stiffness))
+    cfg = config_from_dict(raw)
+    back = config_from_dict(tomllib.loads(resolved_toml(cfg)))
+    assert back == cfg
+    assert config_hash(back) == config_hash(cfg)
+    assert with_overrides(cfg, []) == cfg
+
+
+def test_slide_direction_one_one_round_trips():
+    # Checks the regression behind the config.py fix: slide_direction = [1, 1] survives the resolved
+    # TOML, with_overrides and the hash unchanged (the results file's config_sha256 must be
+    # reproducible from its own stored config).
+    cfg = load_config(SMOKE, ["pulleys[0].slide_direction=[1.0, 1.0]"])
+    assert math.isclose(math.hypot(*cfg.pulleys[0].slide_direction), 1.0, rel_tol=0, abs_tol=1e-15)
+    back = config_from_dict(tomllib.loads(resolved_toml(cfg)))
+    assert back.pulleys[0].slide_direction == cfg.pulleys[0].slide_direction
+    assert config_hash(back) == config_hash(cfg)
+    assert config_hash(with_overrides(cfg, [])) == config_hash(cfg)
+
+
+def test_config_hash_stable_and_sensitive(tmp_path):
+    # Checks: the hash is the same on reloading, for a copy at another path, and for the resolved
+    # TOML written out (comments, key order and defaults do not matter); it changes when any value
+    # changes, even slightly, and when a default is overridden by a different value.
+    cfg = load_config(SMOKE)
+    h = config_hash(cfg)
+    assert len(h) == 64 and h == config_hash(load_config(SMOKE))
+    copy = tmp_path / "copy.toml"
+    shutil.copyfile(SMOKE, copy)
+    assert config_hash(load_config(copy)) == h
+    resolved = tmp_path / "resolved.toml"
+    resolved.write_text(resolved_toml(cfg), encoding="utf-8")
+    assert config_hash(load_config(resolved)) == h
+    assert config_hash(load_config(SMOKE, ["static.tolerance=1e-10"])) == h  # the default, made explicit
+    changed = {config_hash(with_overrides(cfg, [a])) for a in
+               ["tension.target=400", "pulleys[1].mass=7.82691", "model.curvature=exact", "mesh.elements_per_span=3",
+                "title=other", "belt.length=1.7924"]}
+    assert len(changed) == 6 and h not in changed
+
+
+# --------------------------------------------------------------------------- help and version
+def test_help_and_version(tmp_path):
+    # Checks: `beltdyn --help` and `beltdyn geometry --help` exit 0 and list the commands / options;
+    # `beltdyn --version` prints "beltdyn <version>".
+    top, geo, ver = run_cli((["--help"], tmp_path), (["geometry", "--help"], tmp_path), (["--version"], tmp_path))
+    for r in (top, geo, ver):
+        assert r.returncode == 0, r.stdout + r.stderr
+        assert "Traceback" not in r.stdout + r.stderr
+    for command in ("geometry", "static", "modal", "paper"):
+        assert command in top.stdout
+    for option in ("--output", "--set", "--force"):
+        assert option in geo.stdout
+    assert ver.stdout.strip() == f"beltdyn {beltdyn.__version__}"
+    assert os.listdir(tmp_path) == []
