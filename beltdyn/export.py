@@ -5,13 +5,17 @@ No h5py here: `results_io` writes what these functions describe.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from .geometry import Layout
-from .modal import KINDS, ModalResult
-from .model import DriveModel
 from .results_io import GroupData, Variable
-from .static import StaticResult
+
+if TYPE_CHECKING:  # keep `beltdyn geometry` from importing the solvers
+    from .geometry import Layout
+    from .modal import ModalResult
+    from .model import DriveModel
+    from .static import StaticResult
 
 XY = ["x", "y"]
 
@@ -78,6 +82,8 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
 
 
 def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
+    from .modal import KINDS
+
     lay = model.layout
     return GroupData(
         name="modal",

@@ -55,7 +55,7 @@ def solve_modes(model: DriveModel, q: np.ndarray, *, n_modes: int, solver: str =
     M = model.mass
     n = model.n_dof
     use_dense = model.dense if solver == "auto" else solver == "dense"
-    n_want = min(n, n_modes + 6)
+    n_want = min(n, n_modes + 2)  # one rigid mode is expected; more raise a mechanism error
     if use_dense:
         from scipy.linalg import eigh
 
