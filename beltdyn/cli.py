@@ -37,7 +37,10 @@ ForceOpt = typer.Option(False, "--force", help="Replace a results file written f
 def _console(stderr: bool = False):
     from rich.console import Console
 
-    return Console(stderr=stderr, highlight=False, soft_wrap=True)
+    con = Console(stderr=stderr, highlight=False, soft_wrap=True)
+    if not con.is_terminal:  # piped or captured (make, CI): wide enough for the tables
+        con = Console(stderr=stderr, highlight=False, soft_wrap=True, width=130)
+    return con
 
 
 def _fail(exc: BaseException) -> None:

@@ -33,17 +33,17 @@ def _m(mode, theory, experiment, kind, order) -> PaperMode:
 
 
 CASES = (
-    PaperCase(name="Table 1, T = 200 N", config="bench_T200", modes=(
+    PaperCase(name="T1, 200 N", config="bench_T200", modes=(
         _m(1, 30.5, 30.3, "transverse", 1), _m(2, 61.3, 61.1, "transverse", 2),
         _m(3, 92.4, 92.4, "transverse", 3), _m(4, 100.8, None, "rotational", 1),
         _m(5, 124.2, 125.2, "transverse", 4), _m(6, 156.7, 159.2, "transverse", 5),
         _m(7, 178.5, None, "translational", 1), _m(8, 190.3, 194.9, "transverse", 6))),
-    PaperCase(name="Table 1, T = 400 N", config="bench_T400", modes=(
+    PaperCase(name="T1, 400 N", config="bench_T400", modes=(
         _m(1, 43.2, 43.1, "transverse", 1), _m(2, 86.6, 86.5, "transverse", 2),
         _m(3, 101.0, None, "rotational", 1), _m(4, 130.3, 130.1, "transverse", 3),
         _m(5, 174.4, 175.0, "transverse", 4), _m(6, 178.6, None, "translational", 1),
         _m(7, 219.1, 220.0, "transverse", 5), _m(8, 264.5, 266.8, "transverse", 6))),
-    PaperCase(name="Table 2, EI = 100 N m^2", config="bench_EI100", modes=(
+    PaperCase(name="T2, EI 100", config="bench_EI100", modes=(
         _m(1, 100.8, None, "rotational", 1), _m(2, 105.4, None, "transverse", 1),
         _m(3, 178.5, None, "translational", 1), _m(4, 408.3, None, "transverse", 2),
         _m(5, 761.7, None, "longitudinal", 1), _m(6, 769.6, None, "longitudinal", 2),
