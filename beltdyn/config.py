@@ -68,6 +68,7 @@ class Pulley:
 @dataclass(frozen=True, kw_only=True)
 class Tension:
     """target: static span tension (N) reached as `mode` says; None: the geometry alone decides.
+    Default mode: "adjust" when a pulley is adjustable, else "prestrain".
 
     mode "adjust": spans stress-free in the L0 geometry, the adjustable pulley moved along its slide
     until the mean span tension equals the target (the paper's bench). mode "prestrain": pulley
@@ -441,6 +442,8 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>") -> DriveCon
     tables = {}
     for tname, spec in _TABLES.items():
         tables[tname] = chk.table(tname, raw.get(tname, {}), spec)
+    if "mode" not in tables["tension"]:  # default: move the adjustable pulley if there is one
+        tables["tension"]["mode"] = "adjust" if adjustable else "prestrain"
     tension = Tension(**tables["tension"])
     if tension.target is not None and tension.mode == "adjust" and not adjustable:
         raise chk.fail("tension.mode", "mode \"adjust\" needs one pulley with adjustable = true "

@@ -100,12 +100,18 @@ def solve_modes(model: DriveModel, q: np.ndarray, *, n_modes: int, solver: str =
     rigid = np.abs(w) <= tol
     n_rigid = int(rigid.sum())
     if n_rigid > 1:  # beyond the belt turning with the pulleys: a mechanism (no stiffness somewhere)
-        vec = v[:, np.flatnonzero(rigid)[1]]
-        dof = model.dof_labels[int(np.argmax(np.abs(vec) * np.sqrt(Mdiag)))]
+        # kinetic energy of the zero modes per model item (a span or a pulley): the largest is at fault
+        energy = (v[:, rigid] ** 2 * Mdiag[:, None]).sum(axis=1)
+        items = [" ".join(lab.split()[:2]) for lab in model.dof_labels]
+        totals: dict[str, float] = {}
+        for item, e in zip(items, energy):
+            totals[item] = totals.get(item, 0.0) + float(e)
+        worst = max(totals, key=totals.get)
+        dof = max((k for k in range(n) if items[k] == worst), key=lambda k: energy[k])
         raise SolverError(
             f"{n_rigid} zero-frequency modes: besides the belt turning with the pulleys the drive is a "
             f"mechanism (no stiffness: slack belt without bending stiffness, or a free support)",
-            analysis="modal", item=dof)
+            analysis="modal", item=f"{worst} ({model.dof_labels[dof]})")
     w_el, v_el = w[~rigid][:n_modes], v[:, ~rigid][:, :n_modes]
     freq = np.sqrt(np.maximum(w_el, 0.0)) / (2 * np.pi)
     shapes = v_el.T.copy()
