@@ -112,6 +112,100 @@ class ModalOptions:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Signal:
+    """A scalar time function: ramp(t) * (constant + amplitude sin(2 pi frequency t + phase)), or a
+    table (time s, value) linearly interpolated (held constant outside). ramp(t) = min(t / ramp_time, 1)."""
+
+    constant: float = 0.0
+    amplitude: float = 0.0
+    frequency: float = 0.0
+    phase: float = 0.0
+    ramp_time: float = 0.0
+    table: str = ""
+    table_time: tuple[float, ...] = field(default=(), repr=False, compare=False)
+    table_value: tuple[float, ...] = field(default=(), repr=False, compare=False)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Rotation:
+    """Prescribed rotation of one pulley (counter-clockwise rad). The mean speed (rad/s) is reached
+    by a linear speed ramp over ramp_time; on top, a harmonic fluctuation of the angle (amplitude, rad)
+    or of the speed (speed_amplitude, rad/s) at `frequency` Hz, faded in smoothly over fluctuation_ramp s."""
+
+    pulley: str
+    speed: float = 0.0
+    ramp_time: float = 0.0
+    amplitude: float = 0.0
+    speed_amplitude: float = 0.0
+    frequency: float = 0.0
+    phase: float = 0.0
+    fluctuation_ramp: float = 0.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class Load:
+    """An applied torque (N m, on the pulley's rotation) or hub force (N, x and y, on its support)."""
+
+    pulley: str
+    kind: str  # "torque" | "hub_force"
+    signals: tuple[Signal, ...]  # one (torque) or two (x, y)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Record:
+    pulley_angles: bool = True
+    pulley_speeds: bool = True
+    span_tension: bool = True
+    hub_load: bool = True
+    bearing_force: bool = True
+    midspan_displacement: bool = True
+    energy: bool = True
+    full_state: bool = False
+
+
+@dataclass(frozen=True, kw_only=True)
+class Damping:
+    """Rayleigh C = rayleigh_mass M + rayleigh_stiffness K_t(static) (1/s, s); belt material damping
+    (Kelvin-Voigt retardation times, s): axial force EA (eps + belt_axial d eps/dt), bending EI likewise."""
+
+    rayleigh_mass: float = 0.0
+    rayleigh_stiffness: float = 0.0
+    belt_axial: float = 0.0
+    belt_bending: float = 0.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class SpectrumOptions:
+    enabled: bool = True
+    start: float = 0.0
+    window: str = "hann"
+    peaks: int = 8
+
+
+@dataclass(frozen=True, kw_only=True)
+class TransientOptions:
+    """Generalized-alpha time integration (Chung-Hulbert) of the nonlinear drive.
+
+    duration, step, output_interval in s; rho_inf the spectral radius at infinite frequency (1: no
+    numerical damping); start "static" (equilibrium) or "rest" (the stress-free reference state).
+    """
+
+    duration: float = 1.0
+    step: float = 1e-4
+    min_step: float = 1e-9
+    output_interval: float = 1e-3
+    rho_inf: float = 0.9
+    start: str = "static"
+    tolerance: float = 1e-8
+    max_iterations: int = 12
+    record: Record = field(default_factory=Record)
+    damping: Damping = field(default_factory=Damping)
+    spectrum: SpectrumOptions = field(default_factory=SpectrumOptions)
+    rotation: tuple[Rotation, ...] = ()
+    loads: tuple[Load, ...] = ()
+
+
+@dataclass(frozen=True, kw_only=True)
 class DriveConfig:
     belt: Belt
     pulleys: tuple[Pulley, ...]
@@ -120,6 +214,7 @@ class DriveConfig:
     model: ModelOptions = field(default_factory=ModelOptions)
     static: StaticOptions = field(default_factory=StaticOptions)
     modal: ModalOptions = field(default_factory=ModalOptions)
+    transient: TransientOptions | None = None
     title: str = ""
     source: str = ""  # file the config came from (not part of the resolved TOML)
 
@@ -176,7 +271,35 @@ _TABLES = {
     },
     "modal": {"modes": ("posint", 12), "solver": ("choice", ("auto", "dense", "sparse"))},
 }
-_TOP_KEYS = ["title", "belt", "pulleys", *_TABLES]
+_TRANSIENT_KEYS = {
+    "duration": ("posfloat", 1.0),
+    "step": ("posfloat", 1e-4),
+    "min_step": ("posfloat", 1e-9),
+    "output_interval": ("posfloat", 1e-3),
+    "rho_inf": ("unit", 0.9),
+    "start": ("choice", ("static", "rest")),
+    "tolerance": ("posfloat", 1e-8),
+    "max_iterations": ("posint", 12),
+}
+_TRANSIENT_SUB = {
+    "record": {k: ("bool", None) for k in ("pulley_angles", "pulley_speeds", "span_tension", "hub_load",
+                                          "bearing_force", "midspan_displacement", "energy", "full_state")},
+    "damping": {k: ("nonnegfloat", 0.0) for k in ("rayleigh_mass", "rayleigh_stiffness", "belt_axial",
+                                                 "belt_bending")},
+    "spectrum": {"enabled": ("bool", True), "start": ("nonnegfloat", 0.0),
+                 "window": ("choice", ("hann", "rect", "flattop")), "peaks": ("posint", 8)},
+}
+_ROTATION_KEYS = {
+    "pulley": ("str", None), "speed": ("float", 0.0), "ramp_time": ("nonnegfloat", 0.0),
+    "amplitude": ("float", 0.0), "speed_amplitude": ("float", 0.0), "frequency": ("nonnegfloat", 0.0),
+    "phase": ("float", 0.0), "fluctuation_ramp": ("nonnegfloat", 0.0),
+}
+_SIGNAL_KEYS = {"constant": ("float", 0.0), "amplitude": ("float", 0.0), "frequency": ("nonnegfloat", 0.0),
+                "phase": ("float", 0.0), "ramp_time": ("nonnegfloat", 0.0), "table": ("str", None)}
+_LOAD_KEYS = {"torque": {"pulley": ("str", None), **_SIGNAL_KEYS},
+              "hub_force": {"pulley": ("str", None), **_SIGNAL_KEYS, "constant": ("vec2", None),
+                            "amplitude": ("vec2", None)}}
+_TOP_KEYS = ["title", "belt", "pulleys", *_TABLES, "transient"]
 _REQUIRED_PULLEY = ("name", "center", "radius", "mass", "inertia")
 
 
@@ -211,6 +334,11 @@ class _Checker:
         return value
 
     def value(self, key: str, kind: str, arg: Any, value: Any) -> Any:
+        if kind == "unit":
+            x = self.number(key, value)
+            if not 0.0 <= x <= 1.0:
+                raise self.fail(key, f"must be in [0, 1], got {_num(x)}")
+            return x
         if kind in ("float", "posfloat", "nonnegfloat", "posfloat?"):
             x = self.number(key, value)
             if kind in ("posfloat", "posfloat?") and not x > 0:
@@ -223,6 +351,8 @@ class _Checker:
                 raise self.fail(key, f"must be an integer, got {_show(value)}")
             if value < 1:
                 raise self.fail(key, f"must be >= 1, got {value}")
+            return value
+        if kind == "table":
             return value
         if kind == "str":
             if not isinstance(value, str) or not value.strip():
@@ -448,7 +578,11 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>") -> DriveCon
     if tension.target is not None and tension.mode == "adjust" and not adjustable:
         raise chk.fail("tension.mode", "mode \"adjust\" needs one pulley with adjustable = true "
                        "(or use mode = \"prestrain\")")
+    transient = None
+    if "transient" in raw:
+        transient = _parse_transient(chk, raw["transient"], names, pulleys, file)
     cfg = DriveConfig(
+        transient=transient,
         belt=belt,
         pulleys=tuple(pulleys),
         tension=tension,
@@ -460,6 +594,140 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>") -> DriveCon
         source=file,
     )
     return cfg
+
+
+def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int) -> tuple[tuple, ...]:
+    """CSV (comma or whitespace separated, '#' comments): time, value(s); path relative to the config."""
+    base = Path(file).parent if file and not file.startswith("<") else Path(".")
+    path = (base / name) if not Path(name).is_absolute() else Path(name)
+    try:
+        lines = path.read_text(encoding="utf-8").splitlines()
+    except OSError as exc:
+        raise chk.fail(key, f"cannot read table '{name}': {exc.strerror or exc}") from None
+    rows = []
+    for i, line in enumerate(lines, 1):
+        line = line.split("#", 1)[0].strip()
+        if not line:
+            continue
+        parts = [p for p in re.split(r"[,\s;]+", line) if p]
+        try:
+            vals = [float(p) for p in parts]
+        except ValueError:
+            if not rows:  # a header line
+                continue
+            raise chk.fail(key, f"table '{name}' line {i}: not numbers: {line!r}") from None
+        if len(vals) != 1 + n_values or not all(math.isfinite(v) for v in vals):
+            raise chk.fail(key, f"table '{name}' line {i}: expected {1 + n_values} finite numbers (time, "
+                                f"value{'s' if n_values > 1 else ''}), got {line!r}")
+        rows.append(vals)
+    if len(rows) < 2:
+        raise chk.fail(key, f"table '{name}' needs at least 2 rows")
+    cols = tuple(zip(*rows))
+    if any(b <= a for a, b in zip(cols[0], cols[0][1:])):
+        raise chk.fail(key, f"table '{name}': times must increase")
+    return cols
+
+
+def _pulley_index(chk: _Checker, key: str, name: Any, names: list[str]) -> int:
+    if not isinstance(name, str) or name not in names:
+        raise chk.fail(key, f"no pulley named {_show(name)}; pulleys are {', '.join(names)}")
+    return names.index(name)
+
+
+def _parse_transient(chk: _Checker, raw: Any, names: list[str], pulleys: list[Pulley], file: str) -> TransientOptions:
+    spec = {**_TRANSIENT_KEYS, **{k: ("table", None) for k in _TRANSIENT_SUB},
+            "rotation": ("list", None), "torque": ("list", None), "hub_force": ("list", None)}
+    if not isinstance(raw, dict):
+        raise chk.fail("transient", "must be a table")
+    for name in raw:
+        if name not in spec:
+            raise chk.unknown(f"transient.{name}", name, list(spec))
+    top = chk.table("transient", {k: v for k, v in raw.items() if k in _TRANSIENT_KEYS}, _TRANSIENT_KEYS)
+    subs = {k: chk.table(f"transient.{k}", raw.get(k, {}), v) for k, v in _TRANSIENT_SUB.items()}
+    record = Record(**subs["record"])
+    damping = Damping(**subs["damping"])
+    spectrum = SpectrumOptions(**subs["spectrum"])
+
+    def entries(kind: str) -> list[dict]:
+        lst = raw.get(kind, [])
+        if not isinstance(lst, list) or not all(isinstance(x, dict) for x in lst):
+            raise chk.fail(f"transient.{kind}", f"must be an array of tables [[transient.{kind}]]")
+        return lst
+
+    rotations = []
+    for i, r in enumerate(entries("rotation")):
+        key = f"transient.rotation[{i}]"
+        vals = chk.table(key, r, _ROTATION_KEYS)
+        if "pulley" not in vals:
+            raise chk.fail(f"{key}.pulley", "missing key")
+        _pulley_index(chk, f"{key}.pulley", vals["pulley"], names)
+        if vals.get("amplitude", 0.0) and vals.get("speed_amplitude", 0.0):
+            raise chk.fail(f"{key}.speed_amplitude", "give either amplitude (angle) or speed_amplitude, not both")
+        if (vals.get("amplitude", 0.0) or vals.get("speed_amplitude", 0.0)) and not vals.get("frequency", 0.0) > 0:
+            raise chk.fail(f"{key}.frequency", "a fluctuation needs frequency > 0")
+        rotations.append(Rotation(**vals))
+    if len(rotations) > 1:
+        raise chk.fail("transient.rotation[1]", "only one pulley rotation can be prescribed")
+    loads = []
+    for kind in ("torque", "hub_force"):
+        n_val = 1 if kind == "torque" else 2
+        for i, r in enumerate(entries(kind)):
+            key = f"transient.{kind}[{i}]"
+            vals = chk.table(key, r, _LOAD_KEYS[kind])
+            if "pulley" not in vals:
+                raise chk.fail(f"{key}.pulley", "missing key")
+            j = _pulley_index(chk, f"{key}.pulley", vals["pulley"], names)
+            if kind == "hub_force" and pulleys[j].support == "fixed":
+                raise chk.fail(f"{key}.pulley", f"pulley '{vals['pulley']}' has a fixed centre: a hub force "
+                                                f"on it goes straight into the ground (give it a slide or bearing)")
+            if vals.get("amplitude") and any(vals["amplitude"] if n_val == 2 else [vals["amplitude"]]) \
+                    and not vals.get("frequency", 0.0) > 0:
+                raise chk.fail(f"{key}.frequency", "a harmonic load needs frequency > 0")
+            tab: tuple[tuple, ...] = ()
+            if vals.get("table"):
+                tab = _read_table(chk, f"{key}.table", vals["table"], file, n_val)
+            sigs = []
+            for c in range(n_val):
+                pick = (lambda v: v) if n_val == 1 else (lambda v, c=c: v[c])
+                sigs.append(Signal(
+                    constant=pick(vals.get("constant", 0.0 if n_val == 1 else (0.0, 0.0))),
+                    amplitude=pick(vals.get("amplitude", 0.0 if n_val == 1 else (0.0, 0.0))),
+                    frequency=vals.get("frequency", 0.0), phase=vals.get("phase", 0.0),
+                    ramp_time=vals.get("ramp_time", 0.0), table=vals.get("table", ""),
+                    table_time=tab[0] if tab else (), table_value=tab[1 + c] if tab else ()))
+            loads.append(Load(pulley=vals["pulley"], kind=kind, signals=tuple(sigs)))
+    opts = TransientOptions(**top, record=record, damping=damping, spectrum=spectrum,
+                            rotation=tuple(rotations), loads=tuple(loads))
+    if opts.output_interval < opts.step:
+        raise chk.fail("transient.output_interval", f"must be >= transient.step ({opts.step:g} s)")
+    if opts.min_step > opts.step:
+        raise chk.fail("transient.min_step", f"must be <= transient.step ({opts.step:g} s)")
+    return opts
+
+
+def _transient_to_dict(t: TransientOptions) -> dict[str, Any]:
+    out: dict[str, Any] = {k: getattr(t, k) for k in _TRANSIENT_KEYS}
+    out["record"] = {f.name: getattr(t.record, f.name) for f in fields(t.record)}
+    out["damping"] = {f.name: getattr(t.damping, f.name) for f in fields(t.damping)}
+    out["spectrum"] = {f.name: getattr(t.spectrum, f.name) for f in fields(t.spectrum)}
+    out["rotation"] = [{f.name: getattr(r, f.name) for f in fields(r)} for r in t.rotation]
+    for kind in ("torque", "hub_force"):
+        items = []
+        for load in t.loads:
+            if load.kind != kind:
+                continue
+            s0 = load.signals[0]
+            d: dict[str, Any] = {"pulley": load.pulley}
+            if kind == "torque":
+                d.update(constant=s0.constant, amplitude=s0.amplitude)
+            else:
+                d.update(constant=[x.constant for x in load.signals], amplitude=[x.amplitude for x in load.signals])
+            d.update(frequency=s0.frequency, phase=s0.phase, ramp_time=s0.ramp_time)
+            if s0.table:
+                d["table"] = s0.table
+            items.append(d)
+        out[kind] = items
+    return out
 
 
 def config_to_dict(cfg: DriveConfig) -> dict[str, Any]:
@@ -489,6 +757,8 @@ def config_to_dict(cfg: DriveConfig) -> dict[str, Any]:
         obj = getattr(cfg, tname)
         out[tname] = {f.name: clean(getattr(obj, f.name)) for f in fields(obj)
                       if getattr(obj, f.name) is not None}
+    if cfg.transient is not None:
+        out["transient"] = _transient_to_dict(cfg.transient)
     return out
 
 
