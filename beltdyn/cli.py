@@ -190,6 +190,160 @@ def modal(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
     _run(body)
 
 
+SPECTRUM_SERIES = ("span_tension", "hub_load", "bearing_force", "midspan_displacement", "pulley_speed", "driver_torque")
+
+
+@app.command()
+def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
+              force: bool = ForceOpt,
+              duration: Optional[float] = typer.Option(None, "--duration", min=0.0, help="Simulated time, s [default: transient.duration]."),
+              step: Optional[float] = typer.Option(None, "--step", min=0.0, help="Time step, s [default: transient.step].")) -> None:
+    """Nonlinear time response (generalized-alpha) with streamed histories and their spectra."""
+
+    def body() -> None:
+        sets = list(set_ or [])
+        if duration is not None:
+            sets.append(f"transient.duration={duration!r}")
+        if step is not None:
+            sets.append(f"transient.step={step!r}")
+        job = _Job(config, output, sets, force)
+        cfg = job.cfg
+        if cfg.transient is None:
+            from .errors import ConfigError
+
+            raise ConfigError("no [transient] table: add one (duration, step, excitations)", file=cfg.source,
+                              key="transient")
+        spec_opts = cfg.transient.spectrum
+        layout, model, res, mres = _static_pipeline(job, modal=spec_opts.enabled)
+        _run_transient(job, model, res, mres)
+
+    _run(body)
+
+
+def _run_transient(job: "_Job", model, res, mres) -> None:
+    import numpy as np
+
+    from .results_io import GroupData, StreamWriter, Variable
+    from .transient import prepare, run_transient
+
+    cfg = job.cfg
+    opts = cfg.transient
+    setup = prepare(cfg, model, res)
+    shapes = {name: len(v) for name, v in setup.coords.items()}
+    series = {s.name: (tuple(shapes[d] for d in s.dims), s.units, s.dims) for s in setup.series}
+    keep = {s.name for s in setup.series if s.name in SPECTRUM_SERIES} if opts.spectrum.enabled else set()
+    kept: dict[str, list] = {name: [] for name in keep}
+    kept_t: list = []
+    con = _console()
+    attrs = {"rho_inf": opts.rho_inf, "step_s": opts.step, "duration_s": opts.duration,
+             "output_interval_s": opts.output_interval, "start": opts.start}
+    with StreamWriter(job.output, "transient", series=series, coords=setup.coords, attrs=attrs,
+                      config_toml=job.toml, config_sha256=job.sha, force=True) as writer:
+        def sink(t, batch):
+            writer.append(t, batch)
+            if keep:
+                sel = t >= opts.spectrum.start
+                kept_t.append(t[sel])
+                for name in keep:
+                    kept[name].append(batch[name][sel])
+
+        progress, update = _progress_bar(con, opts.duration)
+        with progress:
+            summary = run_transient(cfg, model, res, sink=sink, progress=update)
+        ev = summary.slack_events
+        writer.set_attrs(steps=summary.steps, refactorizations=summary.refactorizations,
+                         step_halvings=summary.step_halvings, smallest_step_s=summary.min_step,
+                         n_slack_events=int(len(ev)))
+        spans = [model.layout.span_name(i) for i in range(model.layout.n)]
+        if len(ev):
+            writer.add_subgroup(GroupData(
+                name="slack_events", coords={"event": np.arange(1, len(ev) + 1)},
+                variables=(Variable(name="event_time", data=ev[:, 0], dims=("event",), units="s"),
+                           Variable(name="event_span", data=[spans[int(i)] for i in ev[:, 1]], dims=("event",), units="1"),
+                           Variable(name="slack", data=ev[:, 2].astype(np.int8), dims=("event",), units="1",
+                                    description="1: the span went slack (compressed), 0: taut again"),
+                           Variable(name="min_force", data=ev[:, 3], dims=("event",), units="N"))))
+        peaks = []
+        if keep and kept_t and sum(len(x) for x in kept_t) >= 8:
+            peaks = _spectra(writer, setup, kept_t, kept, mres, opts)
+    _print_transient(con, summary, spans, peaks, setup.excitation_frequency)
+    con.print(f"wrote [bold]/transient[/] ({summary.n_outputs} samples) to {job.output}")
+
+
+def _progress_bar(con, duration: float):
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    progress = Progress(TextColumn("transient"), BarColumn(), TextColumn("t = {task.completed:.4f} / {task.total:g} s"),
+                        TimeRemainingColumn(), console=con, disable=not con.is_terminal, transient=True)
+    task = progress.add_task("transient", total=duration)
+
+    def update(t: float) -> None:
+        progress.update(task, completed=t)
+
+    return progress, update
+
+
+def _spectra(writer, setup, kept_t, kept, mres, opts):
+    import numpy as np
+
+    from .results_io import GroupData, Variable
+    from .spectrum import amplitude_spectrum, find_peaks
+
+    t = np.concatenate(kept_t)
+    variables, peaks, freq = [], [], None
+    modal_f = mres.frequency if mres is not None else None
+    for s in setup.series:
+        if s.name not in kept:
+            continue
+        values = np.concatenate(kept[s.name])
+        spec = amplitude_spectrum(t, values, start=opts.spectrum.start, window=opts.spectrum.window)
+        freq = spec.frequency
+        variables.append(Variable(name=s.name, data=spec.amplitude, dims=("frequency", *s.dims), units=s.units,
+                                  description=f"single-sided amplitude spectrum ({spec.window} window)"))
+        labels = _channel_labels(s, setup.coords)
+        peaks.append((s.name, s.units, find_peaks(spec, labels=labels, n_peaks=opts.spectrum.peaks,
+                                                  excitation_frequency=setup.excitation_frequency,
+                                                  modal_frequencies=modal_f)))
+    if freq is not None:
+        writer.add_subgroup(GroupData(name="spectrum", coords={"frequency": freq}, coord_units={"frequency": "Hz"},
+                                      variables=tuple(variables)))
+    return peaks
+
+
+def _channel_labels(series, coords) -> list[str]:
+    import itertools
+
+    if not series.dims:
+        return [series.name]
+    axes = [coords[d] for d in series.dims]
+    return [f"{series.name}[{', '.join(map(str, combo))}]" for combo in itertools.product(*axes)]
+
+
+def _print_transient(con, summary, spans, peaks, f_exc) -> None:
+    from rich.table import Table
+
+    con.print(f"transient {summary.status}: {summary.steps} steps to t = {summary.final_time:.6g} s, "
+              f"{summary.refactorizations} refactorizations, {summary.step_halvings} step halvings "
+              f"(smallest step {summary.min_step:.3g} s)")
+    for t, s, slack, fmin in summary.slack_events:
+        con.print(f"  span {spans[int(s)]} {'went slack' if slack else 'taut again'} at t = {t:.6g} s "
+                  f"(min axial force {fmin:.4g} N)")
+    if not peaks:
+        return
+    # the largest peaks of each recorded quantity (amplitudes in that quantity's units)
+    tbl = Table(title="Dominant spectral peaks" + (f" (excitation {f_exc:g} Hz)" if f_exc else ""))
+    for col in ("channel", "frequency (Hz)", "amplitude", "harmonic", "nearest mode (Hz)", "vs mode (%)"):
+        tbl.add_column(col, justify="left" if col == "channel" else "right")
+    for name, units, plist in peaks:
+        top = max((p.amplitude for p in plist), default=0.0)
+        for p in [p for p in plist if p.amplitude >= 1e-6 * top][:4]:  # drop round-off ripples
+            tbl.add_row(p.channel, f"{p.frequency:.3f}", f"{p.amplitude:.4g} {units}",
+                        str(p.harmonic) if p.harmonic else "-",
+                        f"{p.mode_frequency:.3f}" if p.nearest_mode else "-",
+                        f"{p.mode_distance_pct:+.2f}" if p.nearest_mode else "-")
+    con.print(tbl)
+
+
 @app.command()
 def paper(outdir: Path = typer.Option(Path("results/paper"), "--outdir", help="Folder for the HDF5 files and tables.md."),
           configs: Path = typer.Option(Path("configs/paper"), "--configs", help="Folder of the paper configs."),
