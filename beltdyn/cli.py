@@ -48,7 +48,8 @@ def _fail(exc: BaseException) -> None:
 
     err = _console(stderr=True)
     if isinstance(exc, KeyboardInterrupt):
-        err.print("[bold red]interrupted[/]: no results file was changed")
+        err.print("[bold red]interrupted[/]: finished groups are unchanged; a running transient keeps its "
+                  "samples so far, marked 'interrupted'")
         raise typer.Exit(130)
     assert isinstance(exc, BeltdynError)
     from rich.text import Text
