@@ -698,8 +698,6 @@ def _parse_transient(chk: _Checker, raw: Any, names: list[str], pulleys: list[Pu
             loads.append(Load(pulley=vals["pulley"], kind=kind, signals=tuple(sigs)))
     opts = TransientOptions(**top, record=record, damping=damping, spectrum=spectrum,
                             rotation=tuple(rotations), loads=tuple(loads))
-    if opts.output_interval < opts.step:
-        raise chk.fail("transient.output_interval", f"must be >= transient.step ({opts.step:g} s)")
     if opts.min_step > opts.step:
         raise chk.fail("transient.min_step", f"must be <= transient.step ({opts.step:g} s)")
     return opts

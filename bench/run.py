@@ -57,6 +57,44 @@ def pipeline(cfg):
     return model, solve_modes(model, st.q, n_modes=cfg.modal.modes, solver=cfg.modal.solver)
 
 
+def static_of(cfg):
+    from beltdyn.static import model_from_config, solve_static
+
+    model = model_from_config(cfg)
+    return model, solve_static(cfg, model)
+
+
+def step_study() -> list[tuple[str, ...]]:
+    """Time step against accuracy and cost: bearing force on A over 0.2 s of the small-excitation
+    bench, against a converged reference at dt = 3.125e-6 s (rho_inf = 1, so no numerical damping)."""
+    import numpy as np
+
+    from beltdyn.config import load_config
+    from beltdyn.transient import run_transient
+
+    small = ROOT / "configs" / "examples" / "bench_transient_small.toml"
+
+    def history(dt: float) -> tuple[np.ndarray, float]:
+        cfg = load_config(small, ["transient.duration=0.2", f"transient.step={dt!r}", "transient.output_interval=4e-4",
+                                  "transient.rho_inf=1.0", "transient.rotation[0].fluctuation_ramp=0.02"])
+        model, st = static_of(cfg)
+        got = []
+        run_transient(cfg, model, st, sink=lambda t, b: got.append(b["bearing_force"][:, 0, 0]))
+        t0 = time.perf_counter()
+        got.clear()
+        run_transient(cfg, model, st, sink=lambda t, b: got.append(b["bearing_force"][:, 0, 0]))
+        return np.concatenate(got), time.perf_counter() - t0
+
+    ref, _ = history(3.125e-6)
+    ref = ref - ref.mean()
+    rows = []
+    for dt in (8e-4, 4e-4, 2e-4, 1e-4, 5e-5, 2.5e-5):
+        h, wall = history(dt)
+        err = np.abs((h - h.mean()) - ref).max() / np.abs(ref).max()
+        rows.append((f"{dt:g}", f"{err:.2e}", f"{wall * 1e3:.0f} ms"))
+    return rows
+
+
 def main() -> None:
     from beltdyn.config import load_config
 
@@ -97,12 +135,40 @@ def main() -> None:
     growth = per_dof[-1] / per_dof[1]
     add("memory per DOF, 400 vs 40 el/span", f"x {growth:.2f}", "~ constant (linear growth)", growth < 2.0)
 
+    # --- transient (issue 4): 1 s simulated at dt = 1e-4 s, in process after the numba warm-up
+    from beltdyn.transient import run_transient
+
+    small = ROOT / "configs" / "examples" / "bench_transient_small.toml"
+    for n_el, target in ((10, 0.4), (40, 1.5)):
+        cfg = load_config(small, [f"mesh.elements_per_span={n_el}", "transient.duration=1.0", "transient.step=1e-4",
+                                  "transient.output_interval=1e-3"])
+        model, st = static_of(cfg)
+        run_transient(cfg, model, st, sink=lambda t, b: None)
+        t = median_time(lambda: run_transient(cfg, model, st, sink=lambda t, b: None), repeats=3, warmup=0)
+        add(f"transient 1 s at dt = 1e-4 s, {n_el} el/span ({model.n_dof} DOFs, outputs every 1 ms)",
+            f"{t:.3f} s", f"<= {target} s", t <= target)
+    peaks = []
+    for duration in (0.5, 2.0):
+        cfg = load_config(small, [f"transient.duration={duration}"])
+        model, st = static_of(cfg)
+        tracemalloc.start()
+        run_transient(cfg, model, st, sink=lambda t, b: None)
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+    add("transient peak memory, 0.5 s vs 2 s simulated", f"{peaks[0] / 1e6:.2f} MB vs {peaks[1] / 1e6:.2f} MB",
+        "flat in duration", peaks[1] < 1.2 * peaks[0])
+
     width = [max(len(r[i]) for r in rows + [("benchmark", "measured", "target", "")]) for i in range(4)]
     line = "  ".join("{:<%d}" % w for w in width)
     print(line.format("benchmark", "measured", "target", ""))
     print(line.format(*("-" * w for w in width)))
     for r in rows:
         print(line.format(*r))
+    print()
+    print("Transient step study: bearing force on A (0.2 s, 45 Hz rotation of C), error against dt = 3.125e-6 s")
+    print(f"{'dt (s)':>10}  {'max rel. error':>14}  {'wall':>8}")
+    for dt, err, wall in step_study():
+        print(f"{dt:>10}  {err:>14}  {wall:>8}")
 
 
 if __name__ == "__main__":
