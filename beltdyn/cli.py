@@ -134,6 +134,42 @@ def geometry(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Op
     _run(body)
 
 
+def _refined_modal(job: "_Job", n_modes: int, rtol: float) -> None:
+    import numpy as np
+    from rich.table import Table
+
+    from .config import config_hash, resolved_toml
+    from .export import geometry_group, modal_group, static_group
+    from .sweep import refine_mesh
+
+    (cfg, model, st, md), ref = refine_mesh(job.cfg, n_modes=n_modes, rtol=rtol)
+    # the results belong to the chosen mesh: record that configuration
+    job.cfg, job.toml, job.sha = cfg, resolved_toml(cfg), config_hash(cfg)
+    from .results_io import check_target
+
+    check_target(job.output, config_sha256=job.sha, force=job.force)
+    job.add(geometry_group(model.layout))
+    job.add(static_group(model, st, cfg.tension.target))
+    group = modal_group(model, md)
+    attrs = dict(group.attrs, rtol=rtol, chosen_elements_per_span=int(ref.elements[ref.chosen]),
+                 mesh_converged=int(ref.converged), estimated_error=float(np.nanmax(ref.estimate[ref.chosen])))
+    job.add(type(group)(name=group.name, coords=group.coords, variables=group.variables, attrs=attrs))
+    job.write()
+    con = _console()
+    tbl = Table(title=f"Mesh refinement to rtol = {rtol:g}: estimated relative error per mode")
+    tbl.add_column("el/span", justify="right")
+    for lab in ref.labels:
+        tbl.add_column(lab, justify="right")
+    for i, n_el in enumerate(ref.elements):
+        mark = " <- chosen" if i == ref.chosen else ""
+        tbl.add_row(f"{n_el}{mark}", *[f"{ref.estimate[i, j]:.1e}" for j in range(len(ref.labels))])
+    con.print(tbl)
+    _print_modal(md)
+    state = "meets" if ref.converged else "does NOT meet (mesh limit reached)"
+    con.print(f"chosen mesh: {ref.elements[ref.chosen]} elements per span; it {state} rtol = {rtol:g} "
+              f"(largest estimate {np.nanmax(ref.estimate[ref.chosen]):.2e}); wrote {job.output}")
+
+
 def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None):
     from .errors import SolverError
     from .export import geometry_group, modal_group, static_group
@@ -178,11 +214,16 @@ def static(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Opti
 @app.command()
 def modal(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
           force: bool = ForceOpt,
-          modes: Optional[int] = typer.Option(None, "--modes", min=1, help="Number of elastic modes [default: modal.modes].")) -> None:
+          modes: Optional[int] = typer.Option(None, "--modes", min=1, help="Number of elastic modes [default: modal.modes]."),
+          rtol: Optional[float] = typer.Option(None, "--rtol", min=0.0,
+                                               help="Refine mesh.elements_per_span (doubling) until the modes' estimated relative error is below RTOL; the cheapest such mesh is used.")) -> None:
     """Natural frequencies and classified mode shapes about the static equilibrium."""
 
     def body() -> None:
         job = _Job(config, output, set_, force)
+        if rtol is not None:
+            _refined_modal(job, modes or job.cfg.modal.modes, rtol)
+            return
         layout, model, res, mres = _static_pipeline(job, modal=True, n_modes=modes)
         _print_static(layout, model, res)
         _print_modal(mres)
@@ -343,6 +384,115 @@ def _print_transient(con, summary, spans, peaks, f_exc) -> None:
                         f"{p.mode_frequency:.3f}" if p.nearest_mode else "-",
                         f"{p.mode_distance_pct:+.2f}" if p.nearest_mode else "-")
     con.print(tbl)
+
+
+@app.command()
+def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
+          force: bool = ForceOpt,
+          param: Optional[List[str]] = typer.Option(None, "--param", metavar="KEY=SPEC",
+                                                    help="Swept key: a list 0.02,1,100; a range 100:600:26; a log range 0.02:100:9:log."),
+          analysis: Optional[str] = typer.Option(None, "--analysis", help="static | modal | transient [default: modal]."),
+          zip_: bool = typer.Option(False, "--zip", help="Zip the parameter lists instead of the grid product."),
+          workers: Optional[int] = typer.Option(None, "--workers", min=1, help="Local processes [default: the core count]."),
+          scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask distributed scheduler address."),
+          resume: bool = typer.Option(False, "--resume", help="Continue an interrupted sweep from its journal."),
+          modes: Optional[int] = typer.Option(None, "--modes", min=1, help="Tracked modes [default: modal.modes].")) -> None:
+    """A grid (or zip) of cases in parallel, modes tracked across the grid by MAC."""
+
+    def body() -> None:
+        from .sweep import Journal, assemble, make_spec, run_sweep
+
+        job = _Job(config, output, set_, force)
+        cfg = job.cfg
+        params = []
+        for item in param or []:
+            if "=" not in item:
+                from .errors import ConfigError
+
+                raise ConfigError("expected KEY=SPEC", file=cfg.source, key=f"--param {item}")
+            k, v = item.split("=", 1)
+            params.append((k.strip(), v.strip()))
+        zip_flag = zip_
+        kind = analysis
+        if not params and cfg.sweep is not None:
+            params = list(cfg.sweep.params)
+            zip_flag = zip_flag or cfg.sweep.zip
+            kind = kind or cfg.sweep.analysis
+        spec = make_spec(cfg, params, analysis=kind or "modal", zip_=zip_flag, n_modes=modes)
+        journal = Journal(job.output)
+        con = _console()
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+        bar = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=con,
+                       disable=not con.is_terminal, transient=True)
+        task = bar.add_task("sweep", total=spec.n_cases)
+        try:
+            with bar:
+                run_sweep(cfg, spec, journal=journal, resume=resume, workers=workers, scheduler=scheduler,
+                          progress=lambda k, n: bar.update(task, completed=k))
+        except KeyboardInterrupt:
+            n_done = len(journal.done()) if journal.exists() else 0
+            _console(stderr=True).print(f"sweep interrupted: {n_done} of {spec.n_cases} cases are journaled in "
+                                        f"{journal.dir}; continue with --resume")
+            raise
+        result = assemble(spec, journal)
+        from .export import sweep_group
+
+        job.add(sweep_group(cfg, result))
+        job.write()
+        journal.remove()
+        _print_sweep(con, result)
+        con.print(f"wrote [bold]/sweep[/] ({spec.n_cases} cases, {int(result.failed.sum())} failed) to {job.output}")
+
+    _run(body)
+
+
+def _print_sweep(con, result) -> None:
+    import numpy as np
+    from rich.table import Table
+
+    from .sweep import richardson
+
+    spec = result.spec
+    keys = [p.key for p in spec.params]
+    n = spec.n_cases
+    show = list(range(n)) if n <= 24 else sorted(set(np.linspace(0, n - 1, 24).round().astype(int)))
+    tbl = Table(title=f"Sweep: {spec.analysis}, {n} cases" + (" (every case)" if n <= 24 else " (a selection)"))
+    for k in keys:
+        tbl.add_column(k, justify="right")
+    n_show = 0
+    if result.frequency is not None:
+        n_show = min(6, result.frequency.shape[1])
+        for j in range(n_show):
+            tbl.add_column(f"{result.label[j]} (Hz)" if j < len(result.label) else f"mode {j + 1}", justify="right")
+    elif "mean_tension" in result.extras:
+        tbl.add_column("mean tension (N)", justify="right")
+    tbl.add_column("wall (ms)", justify="right")
+    for i in show:
+        row = [f"{v:g}" if isinstance(v, (int, float)) else str(v) for v in result.values[i]]
+        if result.failed[i]:
+            row += ["failed"] + [""] * (n_show - 1 if n_show else 0)
+        elif result.frequency is not None:
+            row += [f"{result.frequency[i, j]:.3f}" for j in range(n_show)]
+        elif "mean_tension" in result.extras:
+            row.append(f"{result.extras['mean_tension'][i]:.3f}")
+        row.append(f"{result.wall_time[i] * 1e3:.1f}")
+        tbl.add_row(*row)
+    con.print(tbl)
+    if result.frequency is not None and keys == ["mesh.elements_per_span"] and n >= 2 and not result.failed.any():
+        elements = np.array([v[0] for v in result.values], dtype=float)
+        f_inf, est, p = richardson(result.frequency, elements)
+        conv = Table(title="Mesh convergence: Richardson-extrapolated error estimate per mode")
+        conv.add_column("el/span", justify="right")
+        for j in range(n_show):
+            conv.add_column(result.label[j], justify="right")
+        conv.add_column("wall (ms)", justify="right")
+        for i in range(n):
+            conv.add_row(str(int(elements[i])), *[f"{est[i, j]:.1e}" for j in range(n_show)],
+                         f"{result.wall_time[i] * 1e3:.1f}")
+        conv.add_row("f_inf (Hz)", *[f"{f_inf[j]:.4f}" for j in range(n_show)], "")
+        conv.add_row("order p", *[f"{p[j]:.2f}" for j in range(n_show)], "")
+        con.print(conv)
 
 
 @app.command()

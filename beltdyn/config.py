@@ -206,6 +206,15 @@ class TransientOptions:
 
 
 @dataclass(frozen=True, kw_only=True)
+class SweepTable:
+    """[sweep]: analysis, zip, and params = {"dotted.key" = "SPEC" or [values]} (see `beltdyn sweep`)."""
+
+    analysis: str = "modal"
+    zip: bool = False
+    params: tuple[tuple[str, str], ...] = ()
+
+
+@dataclass(frozen=True, kw_only=True)
 class DriveConfig:
     belt: Belt
     pulleys: tuple[Pulley, ...]
@@ -215,6 +224,7 @@ class DriveConfig:
     static: StaticOptions = field(default_factory=StaticOptions)
     modal: ModalOptions = field(default_factory=ModalOptions)
     transient: TransientOptions | None = None
+    sweep: SweepTable | None = None
     title: str = ""
     source: str = ""  # file the config came from (not part of the resolved TOML)
 
@@ -299,7 +309,7 @@ _SIGNAL_KEYS = {"constant": ("float", 0.0), "amplitude": ("float", 0.0), "freque
 _LOAD_KEYS = {"torque": {"pulley": ("str", None), **_SIGNAL_KEYS},
               "hub_force": {"pulley": ("str", None), **_SIGNAL_KEYS, "constant": ("vec2", None),
                             "amplitude": ("vec2", None)}}
-_TOP_KEYS = ["title", "belt", "pulleys", *_TABLES, "transient"]
+_TOP_KEYS = ["title", "belt", "pulleys", *_TABLES, "transient", "sweep"]
 _REQUIRED_PULLEY = ("name", "center", "radius", "mass", "inertia")
 
 
@@ -581,7 +591,11 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>") -> DriveCon
     transient = None
     if "transient" in raw:
         transient = _parse_transient(chk, raw["transient"], names, pulleys, file)
+    sweep = None
+    if "sweep" in raw:
+        sweep = _parse_sweep(chk, raw["sweep"])
     cfg = DriveConfig(
+        sweep=sweep,
         transient=transient,
         belt=belt,
         pulleys=tuple(pulleys),
@@ -703,6 +717,23 @@ def _parse_transient(chk: _Checker, raw: Any, names: list[str], pulleys: list[Pu
     return opts
 
 
+def _parse_sweep(chk: _Checker, raw: Any) -> SweepTable:
+    vals = chk.table("sweep", raw, {"analysis": ("choice", ("static", "modal", "transient")), "zip": ("bool", False),
+                                    "params": ("table", None)})
+    params = vals.pop("params", {})
+    if not isinstance(params, dict):
+        raise chk.fail("sweep.params", "must be a table of \"dotted.key\" = \"SPEC\" or [values]")
+    out = []
+    for key, spec in params.items():
+        if isinstance(spec, list):
+            spec = ",".join(str(x).lower() if isinstance(x, bool) else (f'"{x}"' if isinstance(x, str) else repr(x))
+                            for x in spec)
+        if not isinstance(spec, str):
+            raise chk.fail(f"sweep.params.{key}", f"must be a SPEC string or a list, got {_show(spec)}")
+        out.append((key, spec))
+    return SweepTable(**vals, params=tuple(out))
+
+
 def _transient_to_dict(t: TransientOptions) -> dict[str, Any]:
     out: dict[str, Any] = {k: getattr(t, k) for k in _TRANSIENT_KEYS}
     out["record"] = {f.name: getattr(t.record, f.name) for f in fields(t.record)}
@@ -757,6 +788,8 @@ def config_to_dict(cfg: DriveConfig) -> dict[str, Any]:
                       if getattr(obj, f.name) is not None}
     if cfg.transient is not None:
         out["transient"] = _transient_to_dict(cfg.transient)
+    if cfg.sweep is not None:
+        out["sweep"] = {"analysis": cfg.sweep.analysis, "zip": cfg.sweep.zip, "params": dict(cfg.sweep.params)}
     return out
 
 

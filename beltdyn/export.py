@@ -107,3 +107,66 @@ def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
         ),
         attrs={"n_rigid": int(res.n_rigid), "solver": res.solver, "n_dof": int(model.n_dof)},
     )
+
+
+def sweep_group(cfg, result) -> GroupData:
+    """/sweep: a `case` axis, the swept parameters as per-case variables, tracked frequencies."""
+    import json
+
+    from .sweep import var_name
+
+    spec = result.spec
+    n = spec.n_cases
+    names = [p.name for p in cfg.pulleys]
+    spans = [f"{names[i]}-{names[(i + 1) % len(names)]}" for i in range(len(names))]
+    coords: dict = {"case": np.arange(1, n + 1)}
+    variables = []
+    for k, p in enumerate(spec.params):
+        vals = [v[k] for v in result.values]
+        numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in vals)
+        variables.append(Variable(name=f"param_{var_name(p.key)}", data=np.array(vals, dtype=float) if numeric
+                                  else [str(v) for v in vals], dims=("case",), units="1",
+                                  description=f"swept key {p.key}"))
+    variables += [
+        Variable(name="wall_time", data=result.wall_time, dims=("case",), units="s",
+                 description="wall time of the case in its worker (not reproducible)"),
+        Variable(name="failed", data=result.failed, dims=("case",), units="1", description="1: the case failed"),
+        Variable(name="error", data=result.errors, dims=("case",), units="1"),
+    ]
+    if result.frequency is not None:
+        k = result.frequency.shape[1]
+        coords["mode"] = np.arange(1, k + 1)
+        variables += [
+            Variable(name="frequency", data=result.frequency, dims=("case", "mode"), units="Hz",
+                     description="tracked natural frequencies (NaN for failed cases)"),
+            Variable(name="label", data=[str(x) for x in result.label] + [""] * (k - len(result.label)),
+                     dims=("mode",), units="1", description="classification of each tracked mode at the first case"),
+            Variable(name="kind", data=result.kind.astype(str), dims=("case", "mode"), units="1"),
+            Variable(name="order", data=result.order, dims=("case", "mode"), units="1"),
+            Variable(name="span", data=result.span, dims=("case", "mode"), units="1"),
+            Variable(name="mac", data=result.mac, dims=("case", "mode"), units="1",
+                     description="MAC with the tracked mode of the parent case (1 at the first case)"),
+        ]
+    dims_of = {"mean_tension": ((), "N"), "span_tension": (("belt_span", "end"), "N"),
+               "hub_load": (("pulley", "component"), "N"), "pulley_center": (("pulley", "component"), "m"),
+               "n_slack_events": ((), "1")}
+    for key, arr in result.extras.items():
+        base = key.replace("_first_harmonic", "").replace("_half_range", "")
+        if key in dims_of:
+            dims, units = dims_of[key]
+        elif base == "span_tension":
+            dims, units = ("belt_span", "end"), "N"
+        elif base == "hub_load":
+            dims, units = ("pulley", "component"), "N"
+        elif base == "bearing_force":
+            dims, units = ("bearing", "component"), "N"
+            coords["bearing"] = [p.name for p in cfg.pulleys if p.support != "fixed"]
+        else:
+            continue
+        variables.append(Variable(name=key, data=arr, dims=("case", *dims), units=units))
+    coords.update({"belt_span": spans, "end": ["start", "end"], "pulley": names, "component": ["x", "y"]})
+    used = {d for v in variables for d in v.dims}
+    coords = {d: c for d, c in coords.items() if d in used}
+    return GroupData(name="sweep", coords=coords, variables=tuple(variables),
+                     attrs={"analysis": spec.analysis, "zip": int(spec.zip), "shape": json.dumps(list(spec.shape)),
+                            "params": json.dumps(spec.to_json()["params"]), "n_failed": int(result.failed.sum())})

@@ -1,0 +1,521 @@
+"""Parameter sweeps: grids of cases run in parallel, journaled as they finish, modes tracked by MAC.
+
+A sweep is a base configuration plus parameters (dotted keys with value lists), combined as a grid
+(C order, the last parameter fastest) or zipped. Each case is the base configuration with the
+overrides applied (`config.with_overrides`), analysed by a top-level, picklable worker function, so
+the same code runs in a local process pool and on Dask workers.
+
+Mode tracking: every case has a parent, its neighbour one step back along the last axis that moved
+(a spanning tree of the grid). The tracked modes of the parent are matched to the modes of the case
+by the modal assurance criterion MAC_ij = (phi_i^T M phi_j)^2 of mass-normalized shapes (M of the
+case), with an optimal one-to-one assignment (linear_sum_assignment), so crossings and the
+near-degenerate upper/lower span pairs keep their identity. Where the DOF counts differ (a mesh
+sweep) the match is by classification (kind, order, span), then by frequency.
+
+Journal: `<output>.sweep/` holds `spec.json` (what the sweep is) and one `case-NNNNNN.npz` per
+finished case, each written atomically; `--resume` skips the cases found there. The final /sweep
+group is assembled from the journal, so an interrupted and resumed sweep gives the same file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import re
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from .config import DriveConfig, config_hash, resolved_toml
+from .errors import ConfigError
+
+ANALYSES = ("static", "modal", "transient")
+SAFETY = 1.25  # safety factor of the Richardson error estimate (Roache's grid convergence index)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Param:
+    key: str
+    values: tuple[Any, ...]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SweepSpec:
+    params: tuple[Param, ...]
+    analysis: str
+    zip: bool
+    n_modes: int
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return (len(self.params[0].values),) if self.zip else tuple(len(p.values) for p in self.params)
+
+    @property
+    def n_cases(self) -> int:
+        return int(np.prod(self.shape))
+
+    def case_values(self, index: int) -> tuple[Any, ...]:
+        if self.zip:
+            return tuple(p.values[index] for p in self.params)
+        multi = np.unravel_index(index, self.shape)
+        return tuple(p.values[int(i)] for p, i in zip(self.params, multi))
+
+    def parent(self, index: int) -> int:
+        """Neighbour one step back along the last axis that moved; -1 for the first case."""
+        if index == 0:
+            return -1
+        if self.zip:
+            return index - 1
+        multi = list(np.unravel_index(index, self.shape))
+        for axis in range(len(multi) - 1, -1, -1):
+            if multi[axis] > 0:
+                multi[axis] -= 1
+                return int(np.ravel_multi_index(multi, self.shape))
+        return -1
+
+    def to_json(self) -> dict:
+        return {"params": [{"key": p.key, "values": list(p.values)} for p in self.params],
+                "analysis": self.analysis, "zip": self.zip, "n_modes": self.n_modes}
+
+
+_NUM = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+def parse_values(key: str, spec: str, *, where: str = "--param") -> tuple[Any, ...]:
+    """'0.02,1,100' (list), '100:600:26' (26 values from 100 to 600), '0.02:100:9:log' (log-spaced)."""
+    spec = spec.strip()
+    m = re.fullmatch(rf"({_NUM}):({_NUM}):(\d+)(?::(lin|log))?", spec)
+    if m:
+        a, b, n, kind = float(m.group(1)), float(m.group(2)), int(m.group(3)), m.group(4) or "lin"
+        if n < 1:
+            raise ConfigError("a range needs at least 1 value", key=f"{where} {key}={spec}")
+        if kind == "log":
+            if a <= 0 or b <= 0:
+                raise ConfigError("a log range needs positive bounds", key=f"{where} {key}={spec}")
+            vals = np.geomspace(a, b, n)
+        else:
+            vals = np.linspace(a, b, n)
+        if key.endswith("elements_per_span"):
+            return tuple(int(round(v)) for v in vals)
+        return tuple(float(v) for v in vals)
+    import tomllib
+
+    out = []
+    for item in spec.split(","):
+        item = item.strip()
+        if not item:
+            raise ConfigError("empty value in the list", key=f"{where} {key}={spec}")
+        try:
+            out.append(tomllib.loads(f"v = {item}")["v"])
+        except tomllib.TOMLDecodeError:
+            if re.fullmatch(r"[A-Za-z_][A-Za-z0-9_\-]*", item):
+                out.append(item)
+            else:
+                raise ConfigError(f"'{item}' is not a TOML literal", key=f"{where} {key}={spec}") from None
+    return tuple(out)
+
+
+def make_spec(cfg: DriveConfig, params: list[tuple[str, str]], *, analysis: str, zip_: bool,
+              n_modes: int | None = None) -> SweepSpec:
+    """Validate the sweep: every key settable (checked on the first case) and, zipped, equal lengths."""
+    from .config import with_overrides
+
+    if analysis not in ANALYSES:
+        raise ConfigError(f"must be one of {', '.join(ANALYSES)}, got {analysis!r}", file=cfg.source, key="--analysis")
+    if not params:
+        raise ConfigError("give at least one --param KEY=SPEC (or a [sweep] table)", file=cfg.source, key="--param")
+    ps = tuple(Param(key=k, values=parse_values(k, v)) for k, v in params)
+    keys = [p.key for p in ps]
+    if len(set(keys)) != len(keys):
+        raise ConfigError("a key is swept twice", file=cfg.source, key="--param")
+    if zip_ and len({len(p.values) for p in ps}) > 1:
+        raise ConfigError("--zip needs value lists of equal length: "
+                          + ", ".join(f"{p.key} has {len(p.values)}" for p in ps), file=cfg.source, key="--param")
+    if analysis == "transient" and cfg.transient is None:
+        raise ConfigError("a transient sweep needs a [transient] table", file=cfg.source, key="transient")
+    spec = SweepSpec(params=ps, analysis=analysis, zip=zip_, n_modes=n_modes or cfg.modal.modes)
+    for p in ps:  # every value must make a valid configuration key
+        with_overrides(cfg, [_assign(p.key, p.values[0])])
+    return spec
+
+
+def _assign(key: str, value: Any) -> str:
+    import tomli_w
+
+    text = tomli_w.dumps({"v": value}).strip()[len("v = "):]
+    return f"{key}={text}"
+
+
+def spec_hash(cfg: DriveConfig, spec: SweepSpec) -> str:
+    return hashlib.sha256((config_hash(cfg) + json.dumps(spec.to_json(), sort_keys=True)).encode()).hexdigest()
+
+
+# ------------------------------------------------------------------------------------ the worker
+def run_case(base_toml: str, source: str, assignments: list[str], analysis: str, n_modes: int) -> dict:
+    """One case, self-contained (picklable arguments, plain-dict result) for any executor."""
+    import tomllib
+
+    from .config import apply_override, config_from_dict
+    from .errors import BeltdynError
+
+    t0 = time.perf_counter()
+    out: dict[str, Any] = {"failed": 0, "error": ""}
+    try:
+        raw = tomllib.loads(base_toml)
+        for a in assignments:
+            apply_override(raw, a, file=source)
+        cfg = config_from_dict(raw, file=source)
+        from .static import model_from_config, solve_static
+
+        model = model_from_config(cfg)
+        st = solve_static(cfg, model)
+        out["mean_tension"] = st.mean_tension
+        out["span_tension"] = st.span_tension
+        out["hub_load"] = st.hub_load
+        out["pulley_center"] = st.pulley_center
+        if analysis == "modal":
+            from .modal import solve_modes
+
+            md = solve_modes(model, st.q, n_modes=n_modes + 4, solver=cfg.modal.solver)
+            out["frequency"] = md.frequency
+            out["shapes"] = md.shapes
+            out["mshapes"] = np.asarray((model.mass @ md.shapes.T).T)
+            out["kind"] = np.array(md.kind)
+            out["order"] = md.order
+            out["span"] = md.span
+            out["label"] = np.array(md.label)
+        elif analysis == "transient":
+            out.update(_transient_case(cfg, model, st))
+    except BeltdynError as exc:
+        out = {"failed": 1, "error": str(exc)}
+    out["wall_time"] = time.perf_counter() - t0
+    return out
+
+
+def _transient_case(cfg, model, st) -> dict:
+    """Steady-state amplitudes (first harmonic of the excitation, and half peak-to-peak) of the
+    span tensions, hub loads and bearing forces after transient.spectrum.start."""
+    from .spectrum import amplitude_spectrum, harmonic_content
+    from .transient import prepare, run_transient
+
+    setup = prepare(cfg, model, st)
+    keep = ("span_tension", "hub_load", "bearing_force")
+    got: dict[str, list] = {k: [] for k in keep if any(s.name == k for s in setup.series)}
+    times: list = []
+
+    def sink(t, batch):
+        sel = t >= cfg.transient.spectrum.start
+        times.append(t[sel])
+        for k in got:
+            got[k].append(batch[k][sel])
+
+    summary = run_transient(cfg, model, st, sink=sink, setup=setup)
+    t = np.concatenate(times)
+    out: dict[str, Any] = {"n_slack_events": len(summary.slack_events)}
+    for k, parts in got.items():
+        x = np.concatenate(parts)
+        out[f"{k}_half_range"] = 0.5 * (x.max(axis=0) - x.min(axis=0))
+        if setup.excitation_frequency and len(t) >= 8:
+            spec = amplitude_spectrum(t, x, start=t[0])
+            out[f"{k}_first_harmonic"] = harmonic_content(spec, setup.excitation_frequency, n_harmonics=1)[0]
+    return out
+
+
+def _run_chunk(base_toml: str, source: str, items: list[tuple[int, list[str]]], analysis: str, n_modes: int):
+    return [(i, run_case(base_toml, source, a, analysis, n_modes)) for i, a in items]
+
+
+# ------------------------------------------------------------------------------------ the journal
+class Journal:
+    """`<output>.sweep/`: spec.json and case-NNNNNN.npz files, each written atomically."""
+
+    def __init__(self, output: Path) -> None:
+        self.dir = Path(str(output) + ".sweep")
+
+    def exists(self) -> bool:
+        return (self.dir / "spec.json").exists()
+
+    def start(self, spec_json: dict, digest: str) -> None:
+        self.dir.mkdir(parents=True, exist_ok=True)
+        tmp = self.dir / "spec.json.tmp"
+        tmp.write_text(json.dumps({"sha256": digest, "spec": spec_json}, indent=1))
+        os.replace(tmp, self.dir / "spec.json")
+
+    def digest(self) -> str:
+        return json.loads((self.dir / "spec.json").read_text())["sha256"]
+
+    def done(self) -> set[int]:
+        return {int(p.stem.split("-")[1]) for p in self.dir.glob("case-*.npz")}
+
+    def write(self, index: int, result: dict) -> None:
+        tmp = self.dir / f"case-{index:06d}.tmp.npz"
+        arrays = {k: np.asarray(v) for k, v in result.items()}
+        np.savez(tmp, **arrays)
+        os.replace(tmp, self.dir / f"case-{index:06d}.npz")
+
+    def read(self, index: int) -> dict:
+        with np.load(self.dir / f"case-{index:06d}.npz", allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+
+    def remove(self) -> None:
+        for p in self.dir.glob("*"):
+            p.unlink()
+        self.dir.rmdir()
+
+
+# ------------------------------------------------------------------------------------ running
+Progress = Callable[[int, int], None]
+
+
+def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bool = False,
+              workers: int | None = None, scheduler: str | None = None,
+              progress: Progress | None = None) -> None:
+    """Run the missing cases of the sweep, journaling each as it finishes (any order)."""
+    digest = spec_hash(cfg, spec)
+    if journal.exists():
+        if not resume:
+            raise ConfigError(f"an unfinished sweep is journaled in {journal.dir}: continue it with --resume "
+                              f"(or remove the folder)", file=cfg.source, key="--resume")
+        if journal.digest() != digest:
+            raise ConfigError(f"{journal.dir} belongs to a different sweep or configuration; remove it to start over",
+                              file=cfg.source, key="--resume")
+    else:
+        journal.start(spec.to_json(), digest)
+    done = journal.done()
+    todo = [i for i in range(spec.n_cases) if i not in done]
+    base = resolved_toml(cfg)
+    items = [(i, [_assign(p.key, v) for p, v in zip(spec.params, spec.case_values(i))]) for i in todo]
+    if progress:
+        progress(len(done), spec.n_cases)
+    if not items:
+        return
+    n_workers = workers or os.cpu_count() or 1
+    chunk = max(1, min(16, math.ceil(len(items) / (4 * n_workers))))
+    chunks = [items[k:k + chunk] for k in range(0, len(items), chunk)]
+    finished = len(done)
+    if scheduler:
+        from distributed import Client, as_completed
+
+        with Client(scheduler) as client:
+            futures = [client.submit(_run_chunk, base, cfg.source, c, spec.analysis, spec.n_modes, pure=False)
+                       for c in chunks]
+            try:
+                for fut in as_completed(futures):
+                    for i, res in fut.result():
+                        journal.write(i, res)
+                        finished += 1
+                    if progress:
+                        progress(finished, spec.n_cases)
+            finally:
+                client.cancel(futures)
+        return
+    if n_workers == 1:
+        for c in chunks:
+            for i, res in _run_chunk(base, cfg.source, c, spec.analysis, spec.n_modes):
+                journal.write(i, res)
+                finished += 1
+            if progress:
+                progress(finished, spec.n_cases)
+        return
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
+
+    with ProcessPoolExecutor(max_workers=n_workers, mp_context=mp.get_context("fork")) as pool:
+        futures = [pool.submit(_run_chunk, base, cfg.source, c, spec.analysis, spec.n_modes) for c in chunks]
+        try:
+            for fut in cf_completed(futures):
+                for i, res in fut.result():
+                    journal.write(i, res)
+                    finished += 1
+                if progress:
+                    progress(finished, spec.n_cases)
+        except BaseException:
+            for f in futures:
+                f.cancel()
+            raise
+
+
+# ------------------------------------------------------------------------------------ assembly
+@dataclass(frozen=True, kw_only=True)
+class SweepResult:
+    spec: SweepSpec
+    values: list[tuple]  # per case
+    failed: np.ndarray  # (n_cases,) int8
+    errors: list[str]
+    wall_time: np.ndarray  # (n_cases,) s
+    frequency: np.ndarray | None  # (n_cases, n_track) Hz, tracked
+    kind: np.ndarray | None  # (n_cases, n_track) str
+    order: np.ndarray | None
+    span: np.ndarray | None
+    label: np.ndarray | None  # (n_track,) labels at the first case
+    mac: np.ndarray | None  # (n_cases, n_track) MAC with the parent's tracked mode (1 for the root)
+    extras: dict[str, np.ndarray]  # per-case static / transient quantities (n_cases, ...)
+
+
+def assemble(spec: SweepSpec, journal: Journal) -> SweepResult:
+    from scipy.optimize import linear_sum_assignment
+
+    n = spec.n_cases
+    cases = [journal.read(i) for i in range(n)]
+    failed = np.array([int(c["failed"]) for c in cases], dtype=np.int8)
+    errors = [str(c["error"]) for c in cases]
+    wall = np.array([float(c["wall_time"]) for c in cases])
+    extras: dict[str, np.ndarray] = {}
+    ok = [c for c in cases if not int(c["failed"])]
+    if ok:
+        for key in ok[0]:
+            if key in ("failed", "error", "wall_time", "frequency", "shapes", "mshapes", "kind", "order", "span", "label"):
+                continue
+            shape = np.asarray(ok[0][key]).shape
+            arr = np.full((n, *shape), np.nan)
+            for i, c in enumerate(cases):
+                if not int(c["failed"]) and key in c:
+                    arr[i] = c[key]
+            extras[key] = arr
+    freq = kind = order = span = label = mac = None
+    if spec.analysis == "modal":
+        k = spec.n_modes
+        freq = np.full((n, k), np.nan)
+        kind = np.full((n, k), "", dtype=object)
+        order = np.zeros((n, k), dtype=np.int64)
+        span = np.zeros((n, k), dtype=np.int64)
+        mac = np.full((n, k), np.nan)
+        pick: dict[int, np.ndarray] = {}
+        for i in range(n):
+            c = cases[i]
+            if int(c["failed"]):
+                continue
+            p = spec.parent(i)
+            while p >= 0 and int(cases[p]["failed"]):
+                p = spec.parent(p)
+            m = len(c["frequency"])
+            if p < 0 or p not in pick:
+                sel = np.arange(min(k, m))
+                macs = np.ones(len(sel))
+            else:
+                cp = cases[p]
+                prev = pick[p]
+                if cp["shapes"].shape[1] == c["shapes"].shape[1]:
+                    M = (cp["shapes"][prev] @ c["mshapes"].T) ** 2  # (k, m)
+                else:  # different meshes: match by classification, then frequency
+                    M = np.zeros((len(prev), m))
+                    for a, j in enumerate(prev):
+                        for b in range(m):
+                            same = (cp["kind"][j] == c["kind"][b] and cp["order"][j] == c["order"][b]
+                                    and cp["span"][j] == c["span"][b])
+                            M[a, b] = (1.0 if same else 0.0) + 1e-3 / (1.0 + abs(cp["frequency"][j] - c["frequency"][b]))
+                rows, cols = linear_sum_assignment(-M)
+                sel = np.empty(len(prev), dtype=np.int64)
+                sel[rows] = cols
+                macs = M[rows, cols][np.argsort(rows)]
+            pick[i] = sel
+            kk = len(sel)
+            freq[i, :kk] = c["frequency"][sel]
+            kind[i, :kk] = c["kind"][sel]
+            order[i, :kk] = c["order"][sel]
+            span[i, :kk] = c["span"][sel]
+            mac[i, :kk] = np.minimum(macs, 1.0)
+        first = next((c for c in cases if not int(c["failed"])), None)
+        label = np.array(first["label"][: k]) if first is not None else np.array([])
+    return SweepResult(spec=spec, values=[spec.case_values(i) for i in range(n)], failed=failed, errors=errors,
+                       wall_time=wall, frequency=freq, kind=kind, order=order, span=span, label=label, mac=mac,
+                       extras=extras)
+
+
+def var_name(key: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_]", "_", key).strip("_")
+
+
+# ------------------------------------------------------------------------------------ convergence
+def richardson(frequency: np.ndarray, elements: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per mode: extrapolated frequency, error estimate of each mesh, observed order.
+
+    frequency (n_mesh, n_mode) on meshes with elements per span `elements` (increasing). With
+    h = 1/elements, the observed order p from the three finest meshes (capped to [1, 4], 4 being the
+    order of cubic Hermite elements for eigenfrequencies, so the estimate is never optimistic), then
+    f_inf = f_n + (f_n - f_{n-1}) / (r^p - 1) and the estimate of mesh k is
+    SAFETY * |f_k - f_inf| / f_inf with Roache's three-grid safety factor 1.25 (grid convergence index).
+    """
+    f = np.asarray(frequency, dtype=float)
+    e = np.asarray(elements, dtype=float)
+    n_mesh, n_mode = f.shape
+    order = np.full(n_mode, 4.0)
+    if n_mesh >= 3:
+        r1, r2 = e[-2] / e[-3], e[-1] / e[-2]
+        d1, d2 = f[-2] - f[-3], f[-1] - f[-2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            p = np.log(np.abs(d1 / d2)) / np.log(0.5 * (r1 + r2))
+        order = np.where(np.isfinite(p), np.clip(p, 1.0, 4.0), 4.0)
+    if n_mesh >= 2:
+        r = e[-1] / e[-2]
+        f_inf = f[-1] + (f[-1] - f[-2]) / (r ** order - 1.0)
+    else:
+        f_inf = f[-1].copy()
+    est = SAFETY * np.abs(f - f_inf) / np.abs(f_inf)
+    return f_inf, est, order
+
+
+# ------------------------------------------------------------------------------------ --rtol
+@dataclass(frozen=True, kw_only=True)
+class Refinement:
+    """Meshes tried (elements per span), tracked frequencies (n_mesh, n_modes), error estimates, choice."""
+
+    elements: np.ndarray
+    frequency: np.ndarray
+    estimate: np.ndarray
+    order: np.ndarray
+    labels: tuple[str, ...]
+    chosen: int  # index into elements
+    converged: bool
+
+
+def _keys(md) -> list[tuple]:
+    return [(md.kind[k], int(md.order[k]), int(md.span[k])) for k in range(len(md.frequency))]
+
+
+def refine_mesh(cfg: DriveConfig, *, n_modes: int, rtol: float, max_elements: int = 640):
+    """Double elements_per_span from the configured mesh until the Richardson error estimate of each
+    of the first n_modes modes (matched by kind, order and span) is <= rtol; return the cheapest mesh
+    whose estimate meets it, with its model, static and modal results, and the Refinement record.
+    At least three meshes are computed, so that the estimate rests on an observed order."""
+    from .config import with_overrides
+    from .modal import solve_modes
+    from .static import model_from_config, solve_static
+
+    n_el = cfg.mesh.elements_per_span
+    runs, elements = [], []
+    while True:
+        c = with_overrides(cfg, [f"mesh.elements_per_span={n_el}"])
+        model = model_from_config(c)
+        st = solve_static(c, model)
+        md = solve_modes(model, st.q, n_modes=n_modes + 6, solver=c.modal.solver)
+        runs.append((c, model, st, md))
+        elements.append(n_el)
+        # the modes wanted are the first n_modes of the finest mesh; coarser meshes matched by label
+        ref_keys = _keys(md)[:n_modes]
+        labels = tuple(md.label[:n_modes])
+        f = np.full((len(runs), n_modes), np.nan)
+        for i, run in enumerate(runs):
+            keys = _keys(run[3])
+            for j, key in enumerate(ref_keys):
+                if key in keys:
+                    f[i, j] = run[3].frequency[keys.index(key)]
+        if len(elements) >= 3 and np.all(np.isfinite(f[-3:])):  # three meshes: an observed order
+            f_inf, est, p = richardson(f, np.array(elements, dtype=float))
+            if np.all(est[-1] <= rtol):
+                ok = [i for i in range(len(elements)) if np.all(est[i] <= rtol)]
+                i = ok[0]
+                ref = Refinement(elements=np.array(elements), frequency=f, estimate=est, order=p, labels=labels,
+                                 chosen=i, converged=True)
+                return runs[i], ref
+        if 2 * n_el > max_elements:
+            est = richardson(f, np.array(elements, dtype=float))[1] if len(elements) >= 2 else np.full_like(f, np.nan)
+            ref = Refinement(elements=np.array(elements), frequency=f, estimate=est, order=np.full(n_modes, np.nan),
+                             labels=labels, chosen=len(elements) - 1, converged=False)
+            return runs[-1], ref
+        n_el *= 2
