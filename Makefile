@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: test test-slow test-all paper bench clean
+.PHONY: test test-slow test-all paper bench trade clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -23,6 +23,15 @@ test-all: $(STAMP)
 
 paper: $(STAMP)
 	$(BIN)/beltdyn paper --outdir results/paper --configs configs/paper --force
+	@echo "Paper Fig. 3b as data: natural frequencies against belt tension, 100 to 600 N"
+	$(BIN)/beltdyn sweep configs/paper/bench_T200.toml --param tension.target=100:600:26 --modes 14 \
+		-o results/paper/fig3b_tension_sweep.h5 --force
+	@echo "Paper Table 2 as data: the influence of EI from 0.02 to 100 N m^2 (T = 200 N)"
+	$(BIN)/beltdyn sweep configs/paper/bench_T200.toml --param belt.EI=0.02:100:9:log --modes 12 \
+		-o results/paper/ei_sweep.h5 --force
+
+trade: $(STAMP)
+	$(BIN)/python bench/trade.py README.md
 
 bench: $(STAMP)
 	$(BIN)/python bench/run.py

@@ -38,6 +38,7 @@ exactly.  The exact-curvature energy density u = EI/2 c^2/A^3 (c = r'^T J r'', J
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from dataclasses import dataclass, field
 
@@ -156,7 +157,7 @@ def _broadcast_property(name: str, value, n: int) -> np.ndarray:
     return a
 
 
-def make_elements(
+def _make_elements_all(
     length, EA, EI, rho, *, curvature: str = "linear", n_gauss: int = 5
 ) -> ElementSet:
     """Build an `ElementSet` and precompute its quadrature tables and constant matrices.
@@ -480,3 +481,45 @@ def axial_force_gradient(el: ElementSet, e: np.ndarray, xi: np.ndarray) -> np.nd
     lam = np.sqrt(A)
     coef = el.EA[:, None] * (lam + 0.5 * (A - 1.0) / lam)
     return ((coef[..., None] * D)[:, :, :, None] * rp[:, :, None, :]).reshape(n, -1, 8)
+
+
+def make_elements(length, EA, EI, rho, *, curvature: str = "linear", n_gauss: int = 5) -> ElementSet:
+    """Build an `ElementSet` and precompute its quadrature tables and constant matrices.
+
+    Parameters
+    ----------
+    length : array_like, (n_elem,)
+        Reference (undeformed) element lengths L > 0 [m].
+    EA, EI, rho : float or array_like (n_elem,)
+        Axial stiffness EA > 0 [N], bending stiffness EI >= 0 [N m^2], mass per unit reference
+        length rho >= 0 [kg/m]; scalars are broadcast to all elements.
+    curvature : str
+        "linear" (Eq. 17, default), "exact" (Eq. 15-16) or "none" (no bending energy).
+    n_gauss : int
+        Gauss points per element for the axial term (5 integrate it exactly; fewer points give
+        reduced integration) and for the exact-curvature term.
+
+    Elements with identical (L, EA, EI, rho) — all the elements of a uniformly meshed span — share
+    their tables: they are computed once per distinct element and gathered.
+
+    Raises
+    ------
+    ValueError
+        On a bad shape, a non-finite or out-of-range value, or an unknown curvature model.
+    """
+    L = np.asarray(length, dtype=float)
+    scalar = all(np.ndim(x) == 0 for x in (EA, EI, rho))
+    if L.ndim != 1 or L.shape[0] < 8 or not scalar or not np.all(np.isfinite(L)):
+        return _make_elements_all(length, EA, EI, rho, curvature=curvature, n_gauss=n_gauss)
+    uniq, inverse = np.unique(L, return_inverse=True)
+    if len(uniq) == L.shape[0]:
+        return _make_elements_all(length, EA, EI, rho, curvature=curvature, n_gauss=n_gauss)
+    base = _make_elements_all(uniq, EA, EI, rho, curvature=curvature, n_gauss=n_gauss)
+    inverse = inverse.ravel()
+    fields_ = {}
+    for f in dataclasses.fields(base):
+        value = getattr(base, f.name)
+        if isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == len(uniq):
+            value = _readonly(value[inverse])
+        fields_[f.name] = value
+    return ElementSet(**fields_)

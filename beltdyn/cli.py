@@ -429,7 +429,7 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
         try:
             with bar:
                 run_sweep(cfg, spec, journal=journal, resume=resume, workers=workers, scheduler=scheduler,
-                          progress=lambda k, n: bar.update(task, completed=k))
+                          progress=lambda k, n: bar.update(task, completed=k), restart=force)
         except KeyboardInterrupt:
             n_done = len(journal.done()) if journal.exists() else 0
             _console(stderr=True).print(f"sweep interrupted: {n_done} of {spec.n_cases} cases are journaled in "

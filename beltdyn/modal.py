@@ -71,17 +71,21 @@ def solve_modes(model: DriveModel, q: np.ndarray, *, n_modes: int, solver: str =
             raise SolverError(f"dense eigen-solver failed: {exc}", analysis="modal") from None
         name = "dense"
     else:
-        from scipy.sparse import csc_matrix
         from scipy.sparse.linalg import LinearOperator, eigsh, splu
 
-        Ks, Ms = (csc_matrix(K), csc_matrix(M))
+        Ks = K.tocsr() if not model.dense else K
+        Ms = M.tocsr() if not model.dense else M
+        from scipy.sparse import csr_matrix
+
+        Ks, Ms = csr_matrix(Ks), csr_matrix(Ms)
         scale = float(np.max(Ks.diagonal() / Ms.diagonal()))
         sigma = -1e-9 * scale - 1.0
-        lu = splu((Ks - sigma * Ms).tocsc())
+        lu = splu((Ks - sigma * Ms).T)  # symmetric: the transpose of CSR is the CSC SuperLU wants
         op = LinearOperator((n, n), matvec=lu.solve, dtype=float)
+        m_op = LinearOperator((n, n), matvec=Ms.dot, dtype=float)
         n_want = min(n_want, n - 2)
         try:
-            w, v = eigsh(Ks, k=n_want, M=Ms, sigma=sigma, which="LM", OPinv=op, tol=1e-12)
+            w, v = eigsh(Ks, k=n_want, M=m_op, sigma=sigma, which="LM", OPinv=op, tol=1e-12)
         except Exception as exc:  # ArpackNoConvergence and friends
             raise SolverError(f"sparse shift-invert eigen-solver failed: {exc}", analysis="modal") from None
         order = np.argsort(w)

@@ -263,9 +263,9 @@ class Journal:
             return {k: z[k] for k in z.files}
 
     def remove(self) -> None:
-        for p in self.dir.glob("*"):
-            p.unlink()
-        self.dir.rmdir()
+        import shutil
+
+        shutil.rmtree(self.dir, ignore_errors=True)
 
 
 # ------------------------------------------------------------------------------------ running
@@ -274,9 +274,12 @@ Progress = Callable[[int, int], None]
 
 def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bool = False,
               workers: int | None = None, scheduler: str | None = None,
-              progress: Progress | None = None) -> None:
-    """Run the missing cases of the sweep, journaling each as it finishes (any order)."""
+              progress: Progress | None = None, restart: bool = False) -> None:
+    """Run the missing cases of the sweep, journaling each as it finishes (any order).
+    restart discards an existing journal (--force without --resume)."""
     digest = spec_hash(cfg, spec)
+    if journal.exists() and restart and not resume:
+        journal.remove()
     if journal.exists():
         if not resume:
             raise ConfigError(f"an unfinished sweep is journaled in {journal.dir}: continue it with --resume "

@@ -135,6 +135,10 @@ def main() -> None:
     growth = per_dof[-1] / per_dof[1]
     add("memory per DOF, 400 vs 40 el/span", f"x {growth:.2f}", "~ constant (linear growth)", growth < 2.0)
 
+    # --- sweep (issue 5): 1000 tension cases, modal, 10 el/span, local process pool (whole process)
+    t = cli_time(["sweep", str(PAPER), "--param", "tension.target=100:600:1000", "-o", "s.h5", "--force"], repeats=3)
+    add("beltdyn sweep, 1000 tension cases, modal (process wall, 2 workers)", f"{t:.2f} s", "<= 10 s", t <= 10.0)
+
     # --- transient (issue 4): 1 s simulated at dt = 1e-4 s, in process after the numba warm-up
     from beltdyn.transient import run_transient
 

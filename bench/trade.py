@@ -1,0 +1,129 @@
+"""`make trade`: the speed/accuracy trade, measured, written into the README between markers.
+
+Three knobs a user turns: the mesh (elements per span), the model fidelity (bending on or off:
+curvature "linear" or "none"), and the transient time step. For each: the error against a converged
+reference and the wall time. Usage: python bench/trade.py README.md
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import re  # noqa: E402
+import statistics  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "configs" / "paper"
+START, END = "<!-- trade:start -->", "<!-- trade:end -->"
+
+
+def timed(fn, repeats=5):
+    fn()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return out, statistics.median(times)
+
+
+def modal_run(cfg, n_modes):
+    from beltdyn.modal import solve_modes
+    from beltdyn.static import model_from_config, solve_static
+
+    model = model_from_config(cfg)
+    return solve_modes(model, solve_static(cfg, model).q, n_modes=n_modes)
+
+
+def keyed(md):
+    return {(md.kind[k], int(md.order[k]), int(md.span[k])): md.frequency[k] for k in range(len(md.frequency))}
+
+
+def mesh_table(n_modes: int = 12) -> list[str]:
+    from beltdyn.config import load_config
+    from beltdyn.sweep import richardson
+
+    base = load_config(PAPER / "bench_T200.toml")
+    ref = modal_run(load_config(PAPER / "bench_T200.toml", ["mesh.elements_per_span=320"]), n_modes + 8)
+    ref_keys = list(keyed(ref))[:n_modes]
+    ref_f = np.array([keyed(ref)[k] for k in ref_keys])
+    meshes = [2, 3, 4, 6, 8, 12, 16, 24, 32, 64]
+    rows, freqs = [], []
+    for n_el in meshes:
+        cfg = load_config(PAPER / "bench_T200.toml", [f"mesh.elements_per_span={n_el}"])
+        md, t = timed(lambda: modal_run(cfg, n_modes + 8))
+        kd = keyed(md)
+        f = np.array([kd.get(k, np.nan) for k in ref_keys])
+        freqs.append(f)
+        rows.append((n_el, t, f))
+    f_all = np.array(freqs)
+    est = np.full_like(f_all, np.nan)
+    for i in range(2, len(meshes)):
+        sub = f_all[: i + 1]
+        if np.all(np.isfinite(sub[-3:])):
+            est[i] = richardson(sub, np.array(meshes[: i + 1], dtype=float))[1][-1]
+    lines = [f"Mesh (paper bench, T = 200 N; the {n_modes} lowest modes against 320 elements per span):", "",
+             "| el/span | DOFs | max error, 12 modes | max Richardson estimate | static + modal wall |",
+             "|---:|---:|---:|---:|---:|"]
+    for i, (n_el, t, f) in enumerate(rows):
+        err = np.abs(f - ref_f) / ref_f
+        e_txt = f"{np.nanmax(err):.1e}" if np.all(np.isfinite(err)) else f"{np.nanmax(err):.1e} (a mode missing)"
+        s_txt = f"{np.nanmax(est[i]):.1e}" if np.all(np.isfinite(est[i])) else "-"
+        lines.append(f"| {n_el} | {8 * n_el + 3} | {e_txt} | {s_txt} | {t * 1e3:.2f} ms |")
+    return lines
+
+
+def bending_table() -> list[str]:
+    from beltdyn.config import load_config
+
+    lines = ["", "Model fidelity: bending on (curvature \"linear\", paper Eq. 17) or off (a string, \"none\"), "
+             "10 el/span, 8 lowest modes matched by kind and order:", "",
+             "| EI (N m^2) | bending | max change of the 8 modes | static + modal wall |", "|---:|---|---:|---:|"]
+    for EI in (0.02, 1.0, 100.0):
+        runs = {}
+        for curv in ("linear", "none"):
+            cfg = load_config(PAPER / "bench_T200.toml", [f"belt.EI={EI}", f"model.curvature={curv}"])
+            md, t = timed(lambda: modal_run(cfg, 16))
+            runs[curv] = (keyed(md), t)
+        keys = [k for k in list(runs["linear"][0])[:8]]
+        diffs = [abs(runs["none"][0].get(k, np.nan) - runs["linear"][0][k]) / runs["linear"][0][k] for k in keys]
+        d = np.nanmax(diffs) if np.any(np.isfinite(diffs)) else np.nan
+        lines.append(f"| {EI:g} | linear | reference | {runs['linear'][1] * 1e3:.2f} ms |")
+        lines.append(f"| {EI:g} | none | {100 * d:.2f} % | {runs['none'][1] * 1e3:.2f} ms |")
+    return lines
+
+
+def step_table() -> list[str]:
+    sys.path.insert(0, str(ROOT / "bench"))
+    from run import step_study
+
+    lines = ["", "Transient time step (bearing force on A, 0.2 s of a 45 Hz rotation of C, rho_inf = 1), against "
+             "dt = 3.125e-6 s:", "", "| dt (s) | max rel. error | wall |", "|---:|---:|---:|"]
+    for dt, err, wall in step_study():
+        lines.append(f"| {dt} | {err} | {wall} |")
+    return lines
+
+
+def main() -> None:
+    readme = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "README.md"
+    lines = mesh_table() + bending_table() + step_table()
+    block = "\n".join([START, *lines, END])
+    print("\n".join(lines))
+    text = readme.read_text(encoding="utf-8")
+    if START in text and END in text:
+        text = re.sub(re.escape(START) + r".*?" + re.escape(END), lambda m: block, text, flags=re.S)
+    else:
+        text = text.rstrip() + "\n\n## The speed/accuracy trade (`make trade`)\n\n" + block + "\n"
+    readme.write_text(text, encoding="utf-8")
+
+
+if __name__ == "__main__":
+    main()
