@@ -294,6 +294,7 @@ def _run_transient(job: "_Job", model, res, mres) -> None:
             summary = run_transient(cfg, model, res, sink=sink, progress=update)
         ev = summary.slack_events
         writer.set_attrs(steps=summary.steps, refactorizations=summary.refactorizations,
+                         energy_balance_error=summary.energy_error,
                          step_halvings=summary.step_halvings, smallest_step_s=summary.min_step,
                          n_slack_events=int(len(ev)))
         spans = [model.layout.span_name(i) for i in range(model.layout.n)]
@@ -366,10 +367,16 @@ def _print_transient(con, summary, spans, peaks, f_exc) -> None:
 
     con.print(f"transient {summary.status}: {summary.steps} steps to t = {summary.final_time:.6g} s, "
               f"{summary.refactorizations} refactorizations, {summary.step_halvings} step halvings "
-              f"(smallest step {summary.min_step:.3g} s)")
-    for t, s, slack, fmin in summary.slack_events:
+              f"(smallest step {summary.min_step:.3g} s); energy balance error {summary.energy_error:.2e} "
+              f"of the energy exchanged")
+    ev = summary.slack_events
+    for t, s, slack, fmin in ev[:8]:
         con.print(f"  span {spans[int(s)]} {'went slack' if slack else 'taut again'} at t = {t:.6g} s "
                   f"(min axial force {fmin:.4g} N)")
+    if len(ev) > 8:
+        n_slack = int(ev[:, 2].sum())
+        con.print(f"  ... {len(ev)} slack/taut events in all ({n_slack} times a span went slack); "
+                  f"all are in /transient/slack_events")
     if not peaks:
         return
     # the largest peaks of each recorded quantity (amplitudes in that quantity's units)

@@ -75,7 +75,7 @@ class TransientSummary:
     slack_events: np.ndarray  # (k, 4): time, span index, 1 slack / 0 taut again, min 2nd PK force (N)
     message: str = ""
     n_outputs: int = 0
-    energy_error: float = 0.0  # max |balance error| / max(kinetic + strain) over the outputs
+    energy_error: float = 0.0  # max |balance error| / largest energy exchanged (recorded outputs)
 
 
 def _belt_travel(model: DriveModel) -> np.ndarray:
@@ -302,6 +302,8 @@ class _Derived:
     static: StaticResult
     energy0: float = field(default=0.0)
     mid: tuple = field(default=())
+    worst_balance: float = field(default=0.0)  # max |balance error| so far, J
+    exchanged: float = field(default=0.0)  # max |kinetic + strain - initial| and |work| so far, J
 
     def __post_init__(self) -> None:
         m = self.model
@@ -495,6 +497,11 @@ def run_transient(cfg: DriveConfig, model: DriveModel, static: StaticResult, *, 
             if first and "energy" in batch_out:
                 derived.energy0 = float(batch_out["energy"][0, 0] + batch_out["energy"][0, 1])
                 batch_out["energy"][:, 4] -= derived.energy0
+            if "energy" in batch_out:
+                e = batch_out["energy"]
+                derived.worst_balance = max(derived.worst_balance, float(np.abs(e[:, 4]).max()))
+                derived.exchanged = max(derived.exchanged, float(np.abs(e[:, 0] + e[:, 1] - derived.energy0).max()),
+                                        float(np.abs(e[:, 2]).max()), float(np.abs(e[:, 3]).max()))
             first = False
             sink(out_t[:take].copy(), batch_out)
             delivered += take
@@ -553,4 +560,5 @@ def run_transient(cfg: DriveConfig, model: DriveModel, static: StaticResult, *, 
     ev = events[: int(n_events[0])].copy()
     return TransientSummary(status=status, steps=steps, refactorizations=refactors, step_halvings=halvings,
                             final_time=float(th[0]), min_step=float(min_h), slack_events=ev, message=message,
-                            n_outputs=delivered)
+                            n_outputs=delivered,
+                            energy_error=derived.worst_balance / derived.exchanged if derived.exchanged > 0 else 0.0)
