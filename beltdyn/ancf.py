@@ -160,26 +160,7 @@ def _broadcast_property(name: str, value, n: int) -> np.ndarray:
 def _make_elements_all(
     length, EA, EI, rho, *, curvature: str = "linear", n_gauss: int = 5
 ) -> ElementSet:
-    """Build an `ElementSet` and precompute its quadrature tables and constant matrices.
-
-    Parameters
-    ----------
-    length : array_like, (n_elem,)
-        Reference (undeformed) element lengths L > 0 [m].
-    EA, EI, rho : float or array_like (n_elem,)
-        Axial stiffness EA > 0 [N], bending stiffness EI >= 0 [N m^2], mass per unit reference
-        length rho >= 0 [kg/m]; scalars are broadcast to all elements.
-    curvature : str
-        "linear" (Eq. 17, default), "exact" (Eq. 15-16) or "none" (no bending energy).
-    n_gauss : int
-        Gauss points per element for the axial term (5 integrate it exactly; fewer points give
-        reduced integration) and for the exact-curvature term.
-
-    Raises
-    ------
-    ValueError
-        On a bad shape, a non-finite or out-of-range value, or an unknown curvature model.
-    """
+    """`make_elements` computing every element's tables (the parameters and errors are its)."""
     L = np.asarray(length, dtype=float)
     if L.ndim != 1 or L.shape[0] == 0:
         raise ValueError(f"length must be a non-empty 1-D array, got shape {L.shape}")

@@ -250,10 +250,16 @@ class Journal:
         return json.loads((self.dir / "spec.json").read_text())["sha256"]
 
     def done(self) -> set[int]:
-        return {int(p.stem.split("-")[1]) for p in self.dir.glob("case-*.npz")}
+        """Finished cases (a case-NNNNNN.tmp.npz left by an interrupted write does not count)."""
+        found = set()
+        for p in self.dir.glob("case-*.npz"):
+            m = re.fullmatch(r"case-(\d+)\.npz", p.name)
+            if m:
+                found.add(int(m.group(1)))
+        return found
 
     def write(self, index: int, result: dict) -> None:
-        tmp = self.dir / f"case-{index:06d}.tmp.npz"
+        tmp = self.dir / f"case-{index:06d}.tmp.npz"  # renamed into place only when complete
         arrays = {k: np.asarray(v) for k, v in result.items()}
         np.savez(tmp, **arrays)
         os.replace(tmp, self.dir / f"case-{index:06d}.npz")
@@ -301,42 +307,39 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
     chunk = max(1, min(16, math.ceil(len(items) / (4 * n_workers))))
     chunks = [items[k:k + chunk] for k in range(0, len(items), chunk)]
     finished = len(done)
+
+    def record(results: list[tuple[int, dict]]) -> None:
+        nonlocal finished
+        for i, res in results:
+            journal.write(i, res)
+            finished += 1
+        if progress:
+            progress(finished, spec.n_cases)
+
+    args = (base, cfg.source)
     if scheduler:
         from distributed import Client, as_completed
 
         with Client(scheduler) as client:
-            futures = [client.submit(_run_chunk, base, cfg.source, c, spec.analysis, spec.n_modes, pure=False)
-                       for c in chunks]
+            futures = [client.submit(_run_chunk, *args, c, spec.analysis, spec.n_modes, pure=False) for c in chunks]
             try:
                 for fut in as_completed(futures):
-                    for i, res in fut.result():
-                        journal.write(i, res)
-                        finished += 1
-                    if progress:
-                        progress(finished, spec.n_cases)
+                    record(fut.result())
             finally:
                 client.cancel(futures)
         return
     if n_workers == 1:
         for c in chunks:
-            for i, res in _run_chunk(base, cfg.source, c, spec.analysis, spec.n_modes):
-                journal.write(i, res)
-                finished += 1
-            if progress:
-                progress(finished, spec.n_cases)
+            record(_run_chunk(*args, c, spec.analysis, spec.n_modes))
         return
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
 
     with ProcessPoolExecutor(max_workers=n_workers, mp_context=mp.get_context("fork")) as pool:
-        futures = [pool.submit(_run_chunk, base, cfg.source, c, spec.analysis, spec.n_modes) for c in chunks]
+        futures = [pool.submit(_run_chunk, *args, c, spec.analysis, spec.n_modes) for c in chunks]
         try:
             for fut in cf_completed(futures):
-                for i, res in fut.result():
-                    journal.write(i, res)
-                    finished += 1
-                if progress:
-                    progress(finished, spec.n_cases)
+                record(fut.result())
         except BaseException:
             for f in futures:
                 f.cancel()
