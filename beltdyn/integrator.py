@@ -150,7 +150,8 @@ def smoothstep(t, tr):
 def rotation_state(rot, t):
     """Prescribed rotation: (nominal angle, speed, acceleration), (fluctuation angle, speed, acceleration).
 
-    rot = [speed Omega, ramp T_r, angle amplitude A, speed amplitude B, frequency f, phase phi, fade T_f].
+    rot = [speed Omega, ramp T_r, angle amplitude A, speed amplitude B, frequency f, phase phi, fade T_f,
+           static angle offset] (the offset is added to the prescribed DOF by the caller).
     Nominal: speed ramps linearly to Omega over T_r. Fluctuation: w(t) * A sin(wt + phi) for an angle
     amplitude, or the angle whose speed is w(t) * B sin(wt + phi) (integrated analytically, zero at t=0
     for the unfaded part), w(t) the smoothstep fade-in over T_f.
@@ -302,7 +303,7 @@ def run_steps(state, K, mats, fac, opts, out_t, out_q, out_v, out_a, out_w, n_ou
             v1[i] = v[i] + h * a[i]
         if pdof >= 0:
             g, gd, gdd = rotation_state(rot, t1)[3:]
-            q1[pdof] = g
+            q1[pdof] = rot[7] + g  # the static rotation plus the prescribed fluctuation
             v1[pdof] = gd
             a1[pdof] = gdd
         converged = False
@@ -310,7 +311,7 @@ def run_steps(state, K, mats, fac, opts, out_t, out_q, out_v, out_a, out_w, n_ou
         it = 0
         res = np.inf
         worst = 0
-        while it < max_iter:
+        while True:  # at most max_iter corrections; the residual after the last one is checked
             _forces(q1, v1, t1, K, f_el, f_dmp, F1, min_force, sig_val)
             csr_matvec(M_ptr, M_idx, M_dat, a1, Ma)
             if C_ptr.shape[0] > 1:
@@ -344,6 +345,8 @@ def run_steps(state, K, mats, fac, opts, out_t, out_q, out_v, out_a, out_w, n_ou
             if res <= tol:
                 converged = True
                 break
+            if it >= max_iter:
+                break
             if mode == 0:
                 band_solve(cb, perm, R, dq, work)
             else:
@@ -369,6 +372,14 @@ def run_steps(state, K, mats, fac, opts, out_t, out_q, out_v, out_a, out_w, n_ou
             if fresh > 0.0:
                 return HALVE
             return REFACTOR
+        # the step is accepted only if all of its output samples fit in the buffer
+        n_pend = 0
+        tt = th[2]
+        while tt <= t1 + 1e-6 * h:
+            n_pend += 1
+            tt += dt_out
+        if n_out[0] + n_pend > B:
+            return BUFFER_FULL
         fresh = 0.0
         # accepted: energy accounting (trapezoid) and outputs
         W_old, D_old = th[3], th[4]
@@ -389,7 +400,7 @@ def run_steps(state, K, mats, fac, opts, out_t, out_q, out_v, out_a, out_w, n_ou
         W_new = W_old + h * p_ext
         D_new = D_old + h * p_dis
         # outputs at t_next_out in (t, t1]
-        while th[2] <= t1 + 1e-6 * h and n_out[0] < B:
+        while th[2] <= t1 + 1e-6 * h:
             tau = th[2]
             s = (tau - t) / h
             h00 = 2 * s ** 3 - 3 * s ** 2 + 1
@@ -451,7 +462,7 @@ def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.
     T = np.zeros((0, 8, 1))
     kernel = (T, np.zeros((0, 1), dtype=np.int64), np.zeros((0, 8)), np.zeros((0, 1, 4)), np.zeros((0, 1)),
               np.zeros(0), np.zeros((0, 8, 8)), 0.0, 0.0, np.zeros(0, dtype=np.int64), 0, np.diag(K).astype(float),
-              np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(7), -1, 0.0, np.zeros(0, dtype=np.int64), np.zeros(0),
+              np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(8), -1, 0.0, np.zeros(0, dtype=np.int64), np.zeros(0),
               np.zeros(0, dtype=np.int64), np.zeros((0, 5)), np.zeros(1, dtype=np.int64), np.zeros(0), np.zeros(0))
 
     def csr(A):

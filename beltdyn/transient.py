@@ -130,13 +130,14 @@ def prepare(cfg: DriveConfig, model: DriveModel, static: StaticResult) -> Transi
     n = model.n_dof
     u_nom = _belt_travel(model)
     # prescribed rotation
-    rot = np.zeros(7)
+    rot = np.zeros(8)
     pdof, nom_scale, f_exc = -1, 0.0, None
     if opts.rotation:
         r = opts.rotation[0]
         j = names.index(r.pulley)
         pdof = int(model.rot_dof[j])
-        rot[:] = (r.speed, r.ramp_time, r.amplitude, r.speed_amplitude, r.frequency, r.phase, r.fluctuation_ramp)
+        rot[:] = (r.speed, r.ramp_time, r.amplitude, r.speed_amplitude, r.frequency, r.phase, r.fluctuation_ramp,
+                  static.q[pdof] if opts.start == "static" else 0.0)
         nom_scale = 1.0 / u_nom[pdof] if (r.speed != 0.0) else 0.0
         f_exc = r.frequency if (r.amplitude or r.speed_amplitude) else None
     # applied loads: one channel per (signal, DOF)
@@ -446,7 +447,7 @@ def run_transient(cfg: DriveConfig, model: DriveModel, static: StaticResult, *, 
     q, v = setup.q0.copy(), setup.v0.copy()
     if setup.pdof >= 0:
         st = itg.rotation_state(setup.rotation, 0.0)
-        q[setup.pdof], v[setup.pdof] = st[3], st[4]
+        q[setup.pdof], v[setup.pdof] = setup.rotation[7] + st[3], st[4]
     # consistent initial acceleration: M a0 = F(0) - C v0 - f(q0, v0) on the free DOFs
     f_el, f_dmp = np.zeros(n + 1), np.zeros(n + 1)
     F = np.zeros(n)
@@ -463,15 +464,19 @@ def run_transient(cfg: DriveConfig, model: DriveModel, static: StaticResult, *, 
         rhs -= Md[:, setup.pdof] * a[setup.pdof]
     a[free] = np.linalg.solve(Md[np.ix_(free, free)], rhs[free])
     f0 = np.concatenate([f_el[:n] + f_dmp[:n], f_dmp[:n]])
-    Rd0 = float((Md @ a)[setup.pdof] + f_el[setup.pdof] + f_dmp[setup.pdof] - F[setup.pdof]) if setup.pdof >= 0 else 0.0
+    Cv0 = np.asarray(setup.C @ v).ravel() if setup.C is not None else np.zeros(n)
+    Rd0 = (float((Md @ a)[setup.pdof] + Cv0[setup.pdof] + f_el[setup.pdof] + f_dmp[setup.pdof] - F[setup.pdof])
+           if setup.pdof >= 0 else 0.0)
     th = np.array([0.0, opts.step, 0.0, 0.0, 0.0, Rd0, 0.0])  # t, h, next output, W, D, reaction, steps
     state = (q, v, a, f0, F.copy(), th)
     derived = _Derived(cfg=cfg, model=model, setup=setup, static=static)
     n_span = model.layout.n
-    events = np.zeros((1000, 4))
+    events = np.zeros((2000 * max(model.layout.n, 1) + 8, 4))  # room for one call's transitions (2000 steps)
+    all_events: list[np.ndarray] = []
     n_events = np.zeros(1, dtype=np.int64)
     slack = np.zeros(n_span)
     info = np.zeros(4)
+    batch = max(batch, int(math.ceil(opts.step / opts.output_interval)) + 2)  # a step's samples always fit
     out_t = np.zeros(batch)
     out_q = np.zeros((batch, n))
     out_v = np.zeros((batch, n))
@@ -492,6 +497,7 @@ def run_transient(cfg: DriveConfig, model: DriveModel, static: StaticResult, *, 
         nonlocal delivered, first
         k = int(n_out[0])
         take = min(k, n_total_out - delivered)
+        n_out[0] = 0  # counted as delivered before the sink runs: an interrupt inside it cannot repeat them
         if take > 0:
             batch_out = derived.compute(out_t[:take], out_q[:take], out_v[:take], out_a[:take], out_w[:take])
             if first and "energy" in batch_out:
@@ -503,9 +509,8 @@ def run_transient(cfg: DriveConfig, model: DriveModel, static: StaticResult, *, 
                 derived.exchanged = max(derived.exchanged, float(np.abs(e[:, 0] + e[:, 1] - derived.energy0).max()),
                                         float(np.abs(e[:, 2]).max()), float(np.abs(e[:, 3]).max()))
             first = False
-            sink(out_t[:take].copy(), batch_out)
             delivered += take
-        n_out[0] = 0
+            sink(out_t[:take].copy(), batch_out)
 
     status, message = "complete", ""
     try:
@@ -513,6 +518,9 @@ def run_transient(cfg: DriveConfig, model: DriveModel, static: StaticResult, *, 
             code = itg.run_steps(state, K, mats, fac, np.array([am, af, beta, gamma, opts.tolerance, opts.max_iterations,
                                                                  opts.duration, opts.output_interval, 2000, fresh]),
                                  out_t, out_q, out_v, out_a, out_w, n_out, events, n_events, slack, info)
+            if n_events[0]:
+                all_events.append(events[: int(n_events[0])].copy())
+                n_events[0] = 0
             if th[6] > steps:
                 fresh = 0.0
             steps = int(th[6])
@@ -557,7 +565,7 @@ def run_transient(cfg: DriveConfig, model: DriveModel, static: StaticResult, *, 
         status = "interrupted"
         drain()
         raise
-    ev = events[: int(n_events[0])].copy()
+    ev = np.concatenate(all_events) if all_events else np.zeros((0, 4))
     return TransientSummary(status=status, steps=steps, refactorizations=refactors, step_halvings=halvings,
                             final_time=float(th[0]), min_step=float(min_h), slack_events=ev, message=message,
                             n_outputs=delivered,

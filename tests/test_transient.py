@@ -212,8 +212,10 @@ def test_slack_span_is_reported_and_results_finite():
 @pytest.mark.parametrize("rho", [0.0, 1.0])
 @pytest.mark.parametrize("step,duration", [(1e-6, 2e-3), (1e-2, 0.3)])
 def test_extreme_steps_and_rho(rho, step, duration):
-    # dt from 1e-6 to 1e-2 s and rho_inf 0 and 1 under the small excitation: finite results, the
-    # energy balance closes for rho_inf = 1 within 1e-3 of the energy exchanged (1e-2 at dt = 1e-2).
+    # dt from 1e-6 to 1e-2 s and rho_inf 0 and 1 under the small excitation: finite results; at
+    # dt = 1e-6 with rho_inf = 1 the energy balance closes within 1e-3 of the energy exchanged (its
+    # error is O(h^2) for the nonlinear forces; at dt = 1e-2 the 100 Hz rotational mode has w h ~ 6,
+    # outside the resolved range, so only finiteness and completion are asserted there).
     tr = excitation(1e-3)
     tr.update(duration=duration, step=step, output_interval=max(step, duration / 200), rho_inf=rho,
               damping={}, min_step=min(step, 1e-9))
@@ -222,10 +224,11 @@ def test_extreme_steps_and_rho(rho, step, duration):
     for name, arr in out.items():
         assert np.all(np.isfinite(arr)), name
     assert out["time"][-1] == pytest.approx(duration, rel=1e-9)
-    if rho == 1.0:
+    assert summary.status == "complete"
+    if rho == 1.0 and step < 1e-4:
         e = out["energy"]
         exchanged = np.ptp(e[:, 0]) + np.ptp(e[:, 1]) + np.abs(e[:, 2]).max()
-        assert np.abs(e[:, 4]).max() <= (1e-2 if step > 1e-3 else 1e-3) * exchanged
+        assert np.abs(e[:, 4]).max() <= 1e-3 * exchanged
 
 
 def test_unrecoverable_failure_names_time_and_dof():
@@ -290,3 +293,34 @@ def test_transient_interrupt_keeps_steps(tmp_path):
         assert len(g["time"]) > 10
         assert len(g["span_tension"]) == len(g["time"])
     assert not list(tmp_path.glob("*.tmp*"))
+
+
+def test_static_start_with_prescribed_rotation_stays_at_rest():
+    # The prescribed pulley (C) is not the static driver (A): its static rotation is kept, so with a
+    # zero fluctuation the drive stays at its equilibrium: kinetic energy < 1e-12 J (round-off and the
+    # Newton tolerance; dropping the static rotation gave a 2.7e-5 J kick), bearing force constant to 1e-6 N.
+    cfg = load_config(ROOT / "configs/examples/bench_transient_small.toml",
+                      ["transient.rotation[0].amplitude=0.0", "transient.duration=0.05", "transient.spectrum.enabled=false"])
+    _, st, summary, out = collect(cfg)
+    assert abs(st.q[model_from_config(cfg).rot_dof[1]]) > 1e-6  # C does turn in the static solution
+    assert out["energy"][:, 0].max() < 1e-12
+    assert np.ptp(out["bearing_force"][:, 0, 0]) < 1e-6
+
+
+@pytest.mark.parametrize("batch", [3, 1_000_000])
+def test_outputs_do_not_depend_on_the_buffer(batch):
+    # Ten output samples per step (interval 1e-5 s, step 1e-4 s): every sample is produced once, at
+    # its time, whatever the buffer size (against a huge buffer, bitwise).
+    cfg = load_config(ROOT / "configs/examples/bench_transient_small.toml",
+                      ["transient.duration=0.01", "transient.output_interval=1e-5", "transient.spectrum.enabled=false",
+                       "transient.rotation[0].fluctuation_ramp=0.0"])
+    model = model_from_config(cfg)
+    st = solve_static(cfg, model)
+    runs = []
+    for b in (batch, 1_000_000):
+        got = []
+        run_transient(cfg, model, st, sink=lambda t, d: got.append((t, d["driver_torque"])), batch=b)
+        runs.append((np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got])))
+    assert len(runs[0][0]) == 1001
+    np.testing.assert_allclose(runs[0][0], np.arange(1001) * 1e-5, atol=1e-12)
+    np.testing.assert_array_equal(runs[0][1], runs[1][1])
