@@ -449,6 +449,10 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
         job.write()
         journal.remove()
         _print_sweep(con, result)
+        if result.failed.all():
+            from .errors import SolverError
+
+            raise SolverError(f"all {spec.n_cases} cases failed (first: {result.errors[0]})", analysis="sweep")
         con.print(f"wrote [bold]/sweep[/] ({spec.n_cases} cases, {int(result.failed.sum())} failed) to {job.output}")
 
     _run(body)
@@ -487,8 +491,15 @@ def _print_sweep(con, result) -> None:
         tbl.add_row(*row)
     con.print(tbl)
     if result.frequency is not None and keys == ["mesh.elements_per_span"] and n >= 2 and not result.failed.any():
-        elements = np.array([v[0] for v in result.values], dtype=float)
-        f_inf, est, p = richardson(result.frequency, elements)
+        # distinct meshes, coarse to fine (a range may round to repeated or unordered counts)
+        elements_all = np.array([v[0] for v in result.values], dtype=float)
+        uniq, first_idx = np.unique(elements_all, return_index=True)
+        if len(uniq) < 2:
+            return
+        sel = first_idx[np.argsort(uniq)]
+        elements = elements_all[sel]
+        f_inf, est, p = richardson(result.frequency[sel], elements)
+        n = len(sel)
         conv = Table(title="Mesh convergence: Richardson-extrapolated error estimate per mode")
         conv.add_column("el/span", justify="right")
         for j in range(n_show):
@@ -496,7 +507,7 @@ def _print_sweep(con, result) -> None:
         conv.add_column("wall (ms)", justify="right")
         for i in range(n):
             conv.add_row(str(int(elements[i])), *[f"{est[i, j]:.1e}" for j in range(n_show)],
-                         f"{result.wall_time[i] * 1e3:.1f}")
+                         f"{result.wall_time[sel[i]] * 1e3:.1f}")
         conv.add_row("f_inf (Hz)", *[f"{f_inf[j]:.4f}" for j in range(n_show)], "")
         conv.add_row("order p", *[f"{p[j]:.2f}" for j in range(n_show)], "")
         con.print(conv)

@@ -122,6 +122,7 @@ class Signal:
     phase: float = 0.0
     ramp_time: float = 0.0
     table: str = ""
+    table_sha256: str = ""  # of the table file's bytes: the table's content is part of the configuration
     table_time: tuple[float, ...] = field(default=(), repr=False, compare=False)
     table_value: tuple[float, ...] = field(default=(), repr=False, compare=False)
 
@@ -305,7 +306,8 @@ _ROTATION_KEYS = {
     "phase": ("float", 0.0), "fluctuation_ramp": ("nonnegfloat", 0.0),
 }
 _SIGNAL_KEYS = {"constant": ("float", 0.0), "amplitude": ("float", 0.0), "frequency": ("nonnegfloat", 0.0),
-                "phase": ("float", 0.0), "ramp_time": ("nonnegfloat", 0.0), "table": ("str", None)}
+                "phase": ("float", 0.0), "ramp_time": ("nonnegfloat", 0.0), "table": ("str", None),
+                "table_sha256": ("str", None)}
 _LOAD_KEYS = {"torque": {"pulley": ("str", None), **_SIGNAL_KEYS},
               "hub_force": {"pulley": ("str", None), **_SIGNAL_KEYS, "constant": ("vec2", None),
                             "amplitude": ("vec2", None)}}
@@ -610,14 +612,21 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>") -> DriveCon
     return cfg
 
 
-def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int) -> tuple[tuple, ...]:
-    """CSV (comma or whitespace separated, '#' comments): time, value(s); path relative to the config."""
+def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int,
+                expect_sha: str | None = None) -> tuple[str, tuple[tuple, ...]]:
+    """CSV (comma or whitespace separated, '#' comments): time, value(s); path relative to the config.
+    Returns the sha256 of the file's bytes and the columns; expect_sha (from a resolved configuration)
+    must match, so results never mix two versions of a table."""
     base = Path(file).parent if file and not file.startswith("<") else Path(".")
     path = (base / name) if not Path(name).is_absolute() else Path(name)
     try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except OSError as exc:
-        raise chk.fail(key, f"cannot read table '{name}': {exc.strerror or exc}") from None
+        data = path.read_bytes()
+        lines = data.decode("utf-8").splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise chk.fail(key, f"cannot read table '{name}': {getattr(exc, 'strerror', None) or exc}") from None
+    sha = hashlib.sha256(data).hexdigest()
+    if expect_sha and expect_sha != sha:
+        raise chk.fail(key, f"table '{name}' changed since this configuration was resolved (sha256 differs)")
     rows = []
     for i, line in enumerate(lines, 1):
         line = line.split("#", 1)[0].strip()
@@ -639,7 +648,7 @@ def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int) ->
     cols = tuple(zip(*rows))
     if any(b <= a for a, b in zip(cols[0], cols[0][1:])):
         raise chk.fail(key, f"table '{name}': times must increase")
-    return cols
+    return sha, cols
 
 
 def _pulley_index(chk: _Checker, key: str, name: Any, names: list[str]) -> int:
@@ -698,8 +707,11 @@ def _parse_transient(chk: _Checker, raw: Any, names: list[str], pulleys: list[Pu
                     and not vals.get("frequency", 0.0) > 0:
                 raise chk.fail(f"{key}.frequency", "a harmonic load needs frequency > 0")
             tab: tuple[tuple, ...] = ()
+            sha = ""
             if vals.get("table"):
-                tab = _read_table(chk, f"{key}.table", vals["table"], file, n_val)
+                sha, tab = _read_table(chk, f"{key}.table", vals["table"], file, n_val, vals.get("table_sha256"))
+            elif vals.get("table_sha256"):
+                raise chk.fail(f"{key}.table_sha256", "given without a table")
             sigs = []
             for c in range(n_val):
                 pick = (lambda v: v) if n_val == 1 else (lambda v, c=c: v[c])
@@ -707,11 +719,14 @@ def _parse_transient(chk: _Checker, raw: Any, names: list[str], pulleys: list[Pu
                     constant=pick(vals.get("constant", 0.0 if n_val == 1 else (0.0, 0.0))),
                     amplitude=pick(vals.get("amplitude", 0.0 if n_val == 1 else (0.0, 0.0))),
                     frequency=vals.get("frequency", 0.0), phase=vals.get("phase", 0.0),
-                    ramp_time=vals.get("ramp_time", 0.0), table=vals.get("table", ""),
+                    ramp_time=vals.get("ramp_time", 0.0), table=vals.get("table", ""), table_sha256=sha,
                     table_time=tab[0] if tab else (), table_value=tab[1 + c] if tab else ()))
             loads.append(Load(pulley=vals["pulley"], kind=kind, signals=tuple(sigs)))
     opts = TransientOptions(**top, record=record, damping=damping, spectrum=spectrum,
                             rotation=tuple(rotations), loads=tuple(loads))
+    if spectrum.enabled and spectrum.start >= opts.duration:
+        raise chk.fail("transient.spectrum.start", f"must be < transient.duration ({opts.duration:g} s), got "
+                                                   f"{spectrum.start:g}; or set transient.spectrum.enabled = false")
     if opts.min_step > opts.step:
         raise chk.fail("transient.min_step", f"must be <= transient.step ({opts.step:g} s)")
     return opts
@@ -754,6 +769,7 @@ def _transient_to_dict(t: TransientOptions) -> dict[str, Any]:
             d.update(frequency=s0.frequency, phase=s0.phase, ramp_time=s0.ramp_time)
             if s0.table:
                 d["table"] = s0.table
+                d["table_sha256"] = s0.table_sha256
             items.append(d)
         out[kind] = items
     return out

@@ -35,6 +35,7 @@ from .config import DriveConfig, config_hash, resolved_toml
 from .errors import ConfigError
 
 ANALYSES = ("static", "modal", "transient")
+MAC_LOST = 0.5  # below this MAC a tracked mode counts as lost (it left the computed modes)
 SAFETY = 1.25  # safety factor of the Richardson error estimate (Roache's grid convergence index)
 
 
@@ -193,6 +194,8 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
             out.update(_transient_case(cfg, model, st))
     except BeltdynError as exc:
         out = {"failed": 1, "error": str(exc)}
+    except Exception as exc:  # a defect in one case must not take the sweep down: record it
+        out = {"failed": 1, "error": f"{type(exc).__name__}: {exc}"}
     out["wall_time"] = time.perf_counter() - t0
     return out
 
@@ -224,6 +227,20 @@ def _transient_case(cfg, model, st) -> dict:
             spec = amplitude_spectrum(t, x, start=t[0])
             out[f"{k}_first_harmonic"] = harmonic_content(spec, setup.excitation_frequency, n_harmonics=1)[0]
     return out
+
+
+def _connect(address: str, cfg: DriveConfig):
+    """A Dask client, or a usage error naming --scheduler (before anything is journaled)."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ConfigError("Dask is not installed: pip install 'beltdyn[dask]'", file=cfg.source,
+                          key="--scheduler") from None
+    try:
+        return Client(address, timeout=10)
+    except (OSError, ValueError, TypeError) as exc:
+        raise ConfigError(f"cannot reach the Dask scheduler {address!r}: {exc}", file=cfg.source,
+                          key="--scheduler") from None
 
 
 def _run_chunk(base_toml: str, source: str, items: list[tuple[int, list[str]]], analysis: str, n_modes: int):
@@ -284,6 +301,7 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
     """Run the missing cases of the sweep, journaling each as it finishes (any order).
     restart discards an existing journal (--force without --resume)."""
     digest = spec_hash(cfg, spec)
+    client = _connect(scheduler, cfg) if scheduler else None
     if journal.exists() and restart and not resume:
         journal.remove()
     if journal.exists():
@@ -317,10 +335,10 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
             progress(finished, spec.n_cases)
 
     args = (base, cfg.source)
-    if scheduler:
-        from distributed import Client, as_completed
+    if client is not None:
+        from distributed import as_completed
 
-        with Client(scheduler) as client:
+        with client:
             futures = [client.submit(_run_chunk, *args, c, spec.analysis, spec.n_modes, pure=False) for c in chunks]
             try:
                 for fut in as_completed(futures):
@@ -397,35 +415,44 @@ def assemble(spec: SweepSpec, journal: Journal) -> SweepResult:
             if int(c["failed"]):
                 continue
             p = spec.parent(i)
-            while p >= 0 and int(cases[p]["failed"]):
+            while p >= 0 and p not in pick:  # a failed neighbour: go further back along the tree
                 p = spec.parent(p)
+            if p < 0 and pick:  # the root failed: the nearest earlier tracked case
+                p = max(pick)
             m = len(c["frequency"])
-            if p < 0 or p not in pick:
-                sel = np.arange(min(k, m))
-                macs = np.ones(len(sel))
+            if p < 0:
+                sel = np.arange(k) if m >= k else np.r_[np.arange(m), np.full(k - m, -1)]
+                macs = np.where(sel >= 0, 1.0, np.nan)
             else:
                 cp = cases[p]
                 prev = pick[p]
+                alive = np.flatnonzero(prev >= 0)
                 if cp["shapes"].shape[1] == c["shapes"].shape[1]:
-                    M = (cp["shapes"][prev] @ c["mshapes"].T) ** 2  # (k, m)
+                    # MAC_ij = (phi_p^T M_c phi_c)(phi_c^T M_p phi_p): the usual MAC when the mass
+                    # matrices are equal, and insensitive to a change of mass scale between the cases
+                    M = np.abs((cp["shapes"][prev[alive]] @ c["mshapes"].T) * (cp["mshapes"][prev[alive]] @ c["shapes"].T))
                 else:  # different meshes: match by classification, then frequency
-                    M = np.zeros((len(prev), m))
-                    for a, j in enumerate(prev):
+                    M = np.zeros((len(alive), m))
+                    for a, j in enumerate(prev[alive]):
                         for b in range(m):
                             same = (cp["kind"][j] == c["kind"][b] and cp["order"][j] == c["order"][b]
                                     and cp["span"][j] == c["span"][b])
                             M[a, b] = (1.0 if same else 0.0) + 1e-3 / (1.0 + abs(cp["frequency"][j] - c["frequency"][b]))
                 rows, cols = linear_sum_assignment(-M)
-                sel = np.empty(len(prev), dtype=np.int64)
-                sel[rows] = cols
-                macs = M[rows, cols][np.argsort(rows)]
+                sel = np.full(k, -1, dtype=np.int64)
+                macs = np.full(k, np.nan)
+                for r, col in zip(rows, cols):
+                    if M[r, col] >= MAC_LOST:  # else the mode left the computed window: lost from here on
+                        sel[alive[r]] = col
+                        macs[alive[r]] = M[r, col]
             pick[i] = sel
-            kk = len(sel)
-            freq[i, :kk] = c["frequency"][sel]
-            kind[i, :kk] = c["kind"][sel]
-            order[i, :kk] = c["order"][sel]
-            span[i, :kk] = c["span"][sel]
-            mac[i, :kk] = np.minimum(macs, 1.0)
+            ok = sel >= 0
+            freq[i, ok] = c["frequency"][sel[ok]]
+            kind[i, ok] = c["kind"][sel[ok]]
+            kind[i, ~ok] = "lost"
+            order[i, ok] = c["order"][sel[ok]]
+            span[i, ok] = c["span"][sel[ok]]
+            mac[i, ok] = np.minimum(macs[ok], 1.0)
         first = next((c for c in cases if not int(c["failed"])), None)
         label = np.array(first["label"][: k]) if first is not None else np.array([])
     return SweepResult(spec=spec, values=[spec.case_values(i) for i in range(n)], failed=failed, errors=errors,

@@ -212,3 +212,43 @@ def test_transient_sweep_resonance_curve(tmp_path):
     amp = res.extras["bearing_force_first_harmonic"][:, 0, 0]
     assert not res.failed.any() and np.all(np.isfinite(amp))
     assert np.argmax(amp) == 1
+
+
+def test_mac_is_insensitive_to_a_mass_scale(tmp_path):
+    # Halving the belt's mass per length changes the mass matrix, not the mode shapes of the spans:
+    # the normalized MAC stays ~1 (it would read 0.5 without the normalization).
+    res = sweep(tmp_path, [("belt.mass_per_length", "0.2,0.1,0.05")], n_modes=6)
+    assert np.nanmin(res.mac[1:, :4]) > 0.9
+
+
+def test_modes_leaving_the_window_are_lost_not_mislabelled(tmp_path):
+    # EI from 0.02 to 100 N m^2: high transverse modes climb past the computed window; they become
+    # "lost" (NaN) from there on instead of being filled with another kind of mode.
+    res = sweep(tmp_path, [("belt.EI", "0.02:100:9:log")], n_modes=12)
+    for j in range(res.frequency.shape[1]):
+        kinds = set(res.kind[:, j])
+        assert kinds <= {res.kind[0, j], "lost"}, (j, kinds)
+        lost = res.kind[:, j] == "lost"
+        assert np.all(np.isnan(res.frequency[lost, j]))
+        if lost.any():  # once lost, lost for good
+            assert lost[np.argmax(lost):].all()
+
+
+def test_failed_root_case_keeps_tracking_consistent(tmp_path):
+    # A 2 x 2 grid whose first row fails (overlapping pulleys): the two good cases are tracked from one
+    # another, so each column keeps one kind/order/span.
+    res = sweep(tmp_path, [("pulleys[1].radius", "0.7,0.1016"), ("tension.target", "200,400")], n_modes=9)
+    assert list(res.failed) == [1, 1, 0, 0]
+    for j in range(res.frequency.shape[1]):
+        assert res.kind[2, j] == res.kind[3, j] and res.order[2, j] == res.order[3, j], j
+
+
+def test_unreachable_scheduler_is_a_usage_error(tmp_path):
+    # A bad --scheduler address: exit 2 naming --scheduler, no traceback, nothing journaled.
+    pytest.importorskip("distributed")
+    r = subprocess.run([*BELTDYN, "sweep", str(BENCH), "--param", "tension.target=200,300", "--scheduler",
+                        "notanaddress", "-o", str(tmp_path / "x.h5")], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 2, r.stderr
+    assert "--scheduler" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "x.h5.sweep").exists() and not (tmp_path / "x.h5").exists()

@@ -324,3 +324,36 @@ def test_outputs_do_not_depend_on_the_buffer(batch):
     assert len(runs[0][0]) == 1001
     np.testing.assert_allclose(runs[0][0], np.arange(1001) * 1e-5, atol=1e-12)
     np.testing.assert_array_equal(runs[0][1], runs[1][1])
+
+
+def test_torque_table_content_is_part_of_the_configuration(tmp_path):
+    # A CSV torque table: interpolated into the load; its sha256 goes into the resolved configuration,
+    # and re-reading that configuration after the file changed is refused (results never mix tables).
+    from beltdyn.config import config_from_dict, resolved_toml
+    from beltdyn.errors import ConfigError
+    import tomllib
+
+    table = tmp_path / "torque.csv"
+    table.write_text("# time (s), torque (N m)\n0.0, 0.0\n0.01, 2.0\n1.0, 2.0\n")
+    cfg_path = tmp_path / "drive.toml"
+    cfg_path.write_text(BENCH.read_text() + '\n[transient]\nduration = 0.02\nstep = 1e-4\n'
+                        '[transient.spectrum]\nenabled = false\n[[transient.torque]]\npulley = "A"\ntable = "torque.csv"\n')
+    cfg = load_config(cfg_path)
+    sig = cfg.transient.loads[0].signals[0]
+    assert sig.table_time == (0.0, 0.01, 1.0) and len(sig.table_sha256) == 64
+    resolved = tomllib.loads(resolved_toml(cfg))
+    assert resolved["transient"]["torque"][0]["table_sha256"] == sig.table_sha256
+    config_from_dict(resolved, file=str(cfg_path))  # unchanged: fine
+    table.write_text("0.0, 0.0\n0.01, 3.0\n1.0, 3.0\n")
+    with pytest.raises(ConfigError, match="changed"):
+        config_from_dict(resolved, file=str(cfg_path))
+    # the load acts: pulley A spins up under 2 N m with nothing holding it but the belt and C
+    _, _, summary, out = collect(cfg)
+    assert out["pulley_speed"][-1, 0] != 0.0 and np.all(np.isfinite(out["pulley_speed"]))
+
+
+def test_spectrum_window_after_the_end_is_a_config_error():
+    from beltdyn.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="transient.spectrum.start"):
+        load_config(ROOT / "configs/examples/bench_transient_small.toml", ["transient.duration=0.5"])
