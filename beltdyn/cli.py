@@ -274,8 +274,6 @@ def _run_transient(job: "_Job", model, res, mres) -> None:
     shapes = {name: len(v) for name, v in setup.coords.items()}
     series = {s.name: (tuple(shapes[d] for d in s.dims), s.units, s.dims) for s in setup.series}
     keep = {s.name for s in setup.series if s.name in SPECTRUM_SERIES} if opts.spectrum.enabled else set()
-    kept: dict[str, list] = {name: [] for name in keep}
-    kept_t: list = []
     con = _console()
     attrs = {"rho_inf": opts.rho_inf, "step_s": opts.step, "duration_s": opts.duration,
              "output_interval_s": opts.output_interval, "start": opts.start}
@@ -283,11 +281,6 @@ def _run_transient(job: "_Job", model, res, mres) -> None:
                       config_toml=job.toml, config_sha256=job.sha, force=True) as writer:
         def sink(t, batch):
             writer.append(t, batch)
-            if keep:
-                sel = t >= opts.spectrum.start
-                kept_t.append(t[sel])
-                for name in keep:
-                    kept[name].append(batch[name][sel])
 
         progress, update = _progress_bar(con, opts.duration)
         with progress:
@@ -307,8 +300,12 @@ def _run_transient(job: "_Job", model, res, mres) -> None:
                                     description="1: the span went slack (compressed), 0: taut again"),
                            Variable(name="min_force", data=ev[:, 3], dims=("event",), units="N"))))
         peaks = []
-        if keep and kept_t and sum(len(x) for x in kept_t) >= 8:
-            peaks = _spectra(writer, setup, kept_t, kept, mres, opts)
+        if keep:  # the spectrum window is read back from the file: nothing is kept while streaming
+            t_all = writer.read("time")
+            first = int(np.searchsorted(t_all, opts.spectrum.start - 1e-9 * opts.output_interval))
+            if len(t_all) - first >= 8:
+                kept = {name: writer.read(name, first) for name in keep}
+                peaks = _spectra(writer, setup, t_all[first:], kept, mres, opts)
     _print_transient(con, summary, spans, peaks, setup.excitation_frequency)
     con.print(f"wrote [bold]/transient[/] ({summary.n_outputs} samples) to {job.output}")
 
@@ -326,19 +323,16 @@ def _progress_bar(con, duration: float):
     return progress, update
 
 
-def _spectra(writer, setup, kept_t, kept, mres, opts):
-    import numpy as np
-
+def _spectra(writer, setup, t, kept, mres, opts):
     from .results_io import GroupData, Variable
     from .spectrum import amplitude_spectrum, find_peaks
 
-    t = np.concatenate(kept_t)
     variables, peaks, freq = [], [], None
     modal_f = mres.frequency if mres is not None else None
     for s in setup.series:
         if s.name not in kept:
             continue
-        values = np.concatenate(kept[s.name])
+        values = kept[s.name]
         spec = amplitude_spectrum(t, values, start=opts.spectrum.start, window=opts.spectrum.window)
         freq = spec.frequency
         variables.append(Variable(name=s.name, data=spec.amplitude, dims=("frequency", *s.dims), units=s.units,

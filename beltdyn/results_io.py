@@ -413,6 +413,14 @@ class StreamWriter:
         except OSError as exc:
             raise OutputError(f"{self._path}: cannot append to /{self._name}: {exc}") from exc
 
+    def read(self, name: str, start_row: int = 0) -> np.ndarray:
+        """The rows of series `name` (or "time") appended so far, from `start_row` (reads the file,
+        so a caller need not keep its own copy while streaming)."""
+        self._check_open()
+        self._drain()
+        ds = self._tds if name == _TIME_DIM else self._sds[name]
+        return ds[start_row:]
+
     def set_attrs(self, **attrs) -> None:
         """Set group attributes (str, int, float; bool is stored as int8). `status`/`error` are
         reserved: use `close`."""
