@@ -310,11 +310,8 @@ def _exact_terms(el: ElementSet, rp: np.ndarray, E: np.ndarray) -> tuple[np.ndar
     return rpp, c
 
 
-def internal_forces(el: ElementSet, e: np.ndarray) -> np.ndarray:
-    """Generalized elastic forces f = dU/de = Q_l + Q_t (Eq. 14 plus Eq. 17 or Eq. 16), (n_elem, 8).
-
-    ``e`` is (n_elem, 8) element coordinates (Eq. 4-6).
-    """
+def _axial_terms(el: ElementSet, e: np.ndarray):
+    """Checked e, n_elem, E (n, 4, 2), r' (n, q, 2) and its components, A = r'.r', s = w L EA eps."""
     e = _check_e(el, e)
     n = e.shape[0]
     E = e.reshape(n, 4, 2)
@@ -322,7 +319,15 @@ def internal_forces(el: ElementSet, e: np.ndarray) -> np.ndarray:
     r0 = rp[..., 0]
     r1 = rp[..., 1]
     A = r0 * r0 + r1 * r1
-    s = el._half_wEA * (A - 1.0)  # w L EA eps
+    return e, n, E, rp, r0, r1, A, el._half_wEA * (A - 1.0)
+
+
+def internal_forces(el: ElementSet, e: np.ndarray) -> np.ndarray:
+    """Generalized elastic forces f = dU/de = Q_l + Q_t (Eq. 14 plus Eq. 17 or Eq. 16), (n_elem, 8).
+
+    ``e`` is (n_elem, 8) element coordinates (Eq. 4-6).
+    """
+    e, n, E, rp, r0, r1, A, s = _axial_terms(el, e)
     if el.curvature == "exact":
         rpp, c = _exact_terms(el, rp, E)
         iA = 1.0 / A
@@ -346,14 +351,7 @@ def internal_forces_and_tangent(el: ElementSet, e: np.ndarray) -> tuple[np.ndarr
     Returns ``f`` (n_elem, 8) = dU/de and ``K`` (n_elem, 8, 8) = df/de (symmetric), for element
     coordinates ``e`` (n_elem, 8).  Both are new arrays owned by the caller.
     """
-    e = _check_e(el, e)
-    n = e.shape[0]
-    E = e.reshape(n, 4, 2)
-    rp = el.dS @ E  # (n, q, 2)
-    r0 = rp[..., 0]
-    r1 = rp[..., 1]
-    A = r0 * r0 + r1 * r1
-    s = el._half_wEA * (A - 1.0)  # w L EA eps: coefficient of P_q in the secant matrix
+    e, n, E, rp, r0, r1, A, s = _axial_terms(el, e)  # s: coefficient of P_q in the secant matrix
     if el.curvature != "exact":
         # Axial rank term sum_q wEA G_q G_q^T = Gs^T Gs with Gs_q = sqrt(wEA) D_q (x) r'_q.
         Gs = el._D8_sqrt_wEA * np.tile(rp, 4)
