@@ -176,7 +176,11 @@ class _Problem:
         self.driver = int(model.rot_dof[cfg.driver_index])
         self.a = model.trans_dof[cfg.adjustable_index][0] if self.adjust else -1
         self.preload = np.zeros(model.n_dof)
-        self.noise = 1e3 * np.finfo(float).eps * float(model.elements.EA.max()) * np.sqrt(model.elements.n_elem)
+        # Round-off floor of the residual: the axial force loses ~eps of EA per Gauss point, the linear
+        # bending force ~eps of sum_j |K_b,ij| |e_j| (positions of order 1 m through stiff short elements).
+        el = model.elements
+        bend = float((np.abs(el.K_bend) @ np.abs(model.e0)[:, :, None]).max(initial=0.0))
+        self.noise = 1e3 * np.finfo(float).eps * (float(el.EA.max()) * np.sqrt(el.n_elem) + bend)
         self.history: list[tuple[float, float]] = []
         self.has_load = bool(np.any(model.gravity_force != 0.0))
 

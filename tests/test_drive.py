@@ -267,3 +267,18 @@ def test_slack_free_belt_fails_clearly():
         solve_modes(model, st.q, n_modes=4)
     text = str(err.value)
     assert text.startswith("modal:") and "mechanism" in text and "span" in err.value.item
+
+
+@pytest.mark.parametrize("EI", [0.0, 0.02, 100.0, 1000.0])
+@pytest.mark.parametrize("tension", [1.0, 200.0, 5000.0])
+def test_extremes_on_a_fine_mesh(EI, tension):
+    # The extreme grid again at 400 el/span: the lower span's first transverse mode
+    # matches the pinned beam under tension within 0.1 % (the 1 % of the 10-element test was
+    # discretization).
+    cfg, model, st, modes = run(CONFIGS / "paper" / "bench_T200.toml",
+                                [f"belt.EI={EI}", f"tension.target={tension}", "mesh.elements_per_span=400"],
+                                n_modes=12)
+    lower = [k for k in range(len(modes.frequency))
+             if modes.kind[k] == "transverse" and modes.order[k] == 1 and modes.span[k] == 1]
+    f_beam, _ = closed_forms(tension, EI, 120000.0, 0.11915, None, np.array([1]), ref_length=0.6715523)
+    assert modes.frequency[lower[0]] == pytest.approx(f_beam[0], rel=1e-3)
