@@ -386,17 +386,13 @@ def run_steps(state, K, mats, fac, opts, out_t, out_q, out_v, out_a, out_w, n_ou
         p_ext = 0.0
         p_dis = 0.0
         for i in range(n):
-            fi = f_el[i] + f_dmp[i]
-            if i == pdof:
-                continue
             p_ext += 0.5 * (F1[i] * v1[i] + F0[i] * v[i])
             p_dis += 0.5 * ((Cv[i] + f_dmp[i]) * v1[i] + (Cv0[i] + f0[n + i]) * v[i])
         # driver reaction (generalized force the prescribed motion applies) and its power
         Rd = 0.0
         if pdof >= 0:
             Rd = Ma[pdof] + Cv[pdof] + f_el[pdof] + f_dmp[pdof] - F1[pdof]
-            p_ext += 0.5 * (Rd * v1[pdof] + th[5] * v[pdof]) + 0.5 * (F1[pdof] * v1[pdof] + F0[pdof] * v[pdof])
-            p_dis += 0.5 * ((Cv[pdof] + f_dmp[pdof]) * v1[pdof] + (Cv0[pdof] + f0[n + pdof]) * v[pdof])
+            p_ext += 0.5 * (Rd * v1[pdof] + th[5] * v[pdof])
         W_new = W_old + h * p_ext
         D_new = D_old + h * p_dis
         # outputs at t_next_out in (t, t1]

@@ -71,13 +71,10 @@ def solve_modes(model: DriveModel, q: np.ndarray, *, n_modes: int, solver: str =
             raise SolverError(f"dense eigen-solver failed: {exc}", analysis="modal") from None
         name = "dense"
     else:
+        from scipy.sparse import csr_matrix
         from scipy.sparse.linalg import LinearOperator, eigsh, splu
 
-        Ks = K.tocsr() if not model.dense else K
-        Ms = M.tocsr() if not model.dense else M
-        from scipy.sparse import csr_matrix
-
-        Ks, Ms = csr_matrix(Ks), csr_matrix(Ms)
+        Ks, Ms = csr_matrix(K), csr_matrix(M)  # no copy for the model's CSR matrices
         scale = float(np.max(Ks.diagonal() / Ms.diagonal()))
         sigma = -1e-9 * scale - 1.0
         lu = splu((Ks - sigma * Ms).T)  # symmetric: the transpose of CSR is the CSC SuperLU wants

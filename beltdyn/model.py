@@ -103,10 +103,6 @@ class DriveModel:
         qe = np.append(q, 0.0)[self.idx]
         return self.e0 + np.matmul(self.T, qe[:, :, None])[:, :, 0]
 
-    def element_motion(self, v: np.ndarray) -> np.ndarray:
-        """Element coordinate increments (n_elem, 8) for an increment v of q (no offset)."""
-        return np.einsum("eim,em->ei", self.T, np.append(v, 0.0)[self.idx])
-
     def reduce_vector(self, fe: np.ndarray) -> np.ndarray:
         """sum_e T^T fe (n_elem, 8) -> (n_dof,)."""
         fr = np.matmul(self.Tt, fe[:, :, None])[:, :, 0]
@@ -309,13 +305,19 @@ def build_model(cfg: DriveConfig, layout: Layout, *, prestrain_stretch: float = 
     return model
 
 
+def element_pairs(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column index of every entry of the (n_elem, m, m) element blocks, flattened; the
+    padding index n marks entries that belong to no DOF."""
+    m = idx.shape[1]
+    return (np.repeat(idx[:, :, None], m, axis=2).ravel(), np.repeat(idx[:, None, :], m, axis=1).ravel())
+
+
 def _make_pattern(idx: np.ndarray, n: int, *, sparse: bool) -> Pattern:
-    rows = np.repeat(idx[:, :, None], idx.shape[1], axis=2)
-    cols = np.repeat(idx[:, None, :], idx.shape[1], axis=1)
-    flat = (rows * (n + 1) + cols).ravel()
+    rows, cols = element_pairs(idx)
+    flat = rows * (n + 1) + cols
     if not sparse:
         return Pattern(n=n, flat=flat)
-    keep = (rows.ravel() < n) & (cols.ravel() < n)
+    keep = (rows < n) & (cols < n)
     diag_keys = np.arange(n) * (n + 1) + np.arange(n)
     keys, inverse = np.unique(np.concatenate([flat[keep], diag_keys]), return_inverse=True)
     slot = np.full(flat.shape, -1, dtype=np.int64)

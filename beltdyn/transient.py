@@ -103,19 +103,23 @@ def _csr(A):
     return A.indptr.astype(np.int64), A.indices.astype(np.int64), A.data.astype(np.float64)
 
 
-def _rcm(model: DriveModel) -> np.ndarray:
-    """Reverse Cuthill-McKee order of the element coupling graph (bandwidth ~ twice an element's)."""
+def _band_order(model: DriveModel) -> tuple[np.ndarray, int]:
+    """Reverse Cuthill-McKee order of the element coupling graph and the half-bandwidth it gives
+    (about twice an element's: the belt loop closes on itself)."""
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+    from .model import element_pairs
+
     n = model.n_dof
-    idx = model.idx
-    rows = np.repeat(idx[:, :, None], idx.shape[1], axis=2).ravel()
-    cols = np.repeat(idx[:, None, :], idx.shape[1], axis=1).ravel()
+    rows, cols = element_pairs(model.idx)
     keep = (rows < n) & (cols < n)
-    G = csr_matrix((np.ones(int(keep.sum()) + n), (np.r_[rows[keep], np.arange(n)], np.r_[cols[keep], np.arange(n)])),
-                   shape=(n, n))
-    return np.asarray(reverse_cuthill_mckee(G, symmetric_mode=True), dtype=np.int64)
+    rows, cols = rows[keep], cols[keep]
+    G = csr_matrix((np.ones(len(rows) + n), (np.r_[rows, np.arange(n)], np.r_[cols, np.arange(n)])), shape=(n, n))
+    perm = np.asarray(reverse_cuthill_mckee(G, symmetric_mode=True), dtype=np.int64)
+    inv = np.empty_like(perm)
+    inv[perm] = np.arange(n)
+    return perm, int(np.abs(inv[rows] - inv[cols]).max(initial=0))
 
 
 def prepare(cfg: DriveConfig, model: DriveModel, static: StaticResult) -> TransientSetup:
@@ -182,14 +186,7 @@ def prepare(cfg: DriveConfig, model: DriveModel, static: StaticResult) -> Transi
         np.array(load_coef, dtype=float), np.array(load_sig, dtype=np.int64), sig_params,
         np.array(ptr, dtype=np.int64), np.array(tabs_t, dtype=float), np.array(tabs_v, dtype=float),
     )
-    perm = _rcm(model)
-    inv = np.empty_like(perm)
-    inv[perm] = np.arange(n)
-    ii = model.idx
-    rows = np.repeat(ii[:, :, None], ii.shape[1], axis=2).ravel()
-    cols = np.repeat(ii[:, None, :], ii.shape[1], axis=1).ravel()
-    keep = (rows < n) & (cols < n)
-    bandwidth = int(np.abs(inv[rows[keep]] - inv[cols[keep]]).max(initial=0))
+    perm, bandwidth = _band_order(model)
     q0 = static.q.copy() if opts.start == "static" else np.zeros(n)
     v0 = np.zeros(n)
     series, coords = _series(cfg, model, opts, pdof)
