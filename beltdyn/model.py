@@ -153,26 +153,30 @@ class DriveModel:
         total = float(el.length.sum())
         return float((el.wL * N).sum() / total), self.reduce_vector(g) / total
 
-    def span_end_tensions(self, q: np.ndarray, gravity: np.ndarray | None = None) -> np.ndarray:
-        """(n_span, 2) axial force at the start and end of each span, N, from the joint reactions.
+    def joint_reactions(self, q: np.ndarray, gravity: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Static joint reactions: hub loads (n_pulley, 2), N, the force of the belt on each pulley, and
+        span tensions (n_span, 2), N, at the start and end of each span.
 
-        The pulley holds each end node with the force F = f_int - f_ext (node position rows); the span
-        pulls the start node along its tangent t and the end node against it, so N_start = -F . t and
-        N_end = F . t with t = r'/|r'| at the node. Unlike strain recovery (EA eps |r'| at the element
-        end), this is exact for the discrete equilibrium even where the strain is tiny.
+        The pulley holds each end node with the force F = f_int - f_ext (node position rows); the belt
+        pushes back with -F. The span pulls the start node along its tangent t and the end node
+        against it, so N_start = -F . t and N_end = F . t with t = r'/|r'| at the node. Unlike strain
+        recovery (EA eps |r'| at the element end), this is exact for the discrete equilibrium even
+        where the strain is tiny.
         """
         el = self.elements
         e = self.element_coordinates(q)
-        F = ancf.internal_forces(el, e)
-        if gravity is not None:
-            F = F - ancf.gravity_forces(el, gravity)
+        F = ancf.internal_forces(el, e) - ancf.gravity_forces(el, gravity)
         first = np.array([s[0] for s in self.span_elements])
         last = np.array([s[-1] for s in self.span_elements])
+        n = self.layout.n
+        hub = np.zeros((n, 2))
+        np.add.at(hub, np.arange(n), -F[first, 0:2])
+        np.add.at(hub, (np.arange(n) + 1) % n, -F[last, 4:6])
         t0 = e[first, 2:4] / np.linalg.norm(e[first, 2:4], axis=1, keepdims=True)
         t1 = e[last, 6:8] / np.linalg.norm(e[last, 6:8], axis=1, keepdims=True)
         N0 = -np.einsum("sd,sd->s", F[first, 0:2], t0)
         N1 = np.einsum("sd,sd->s", F[last, 4:6], t1)
-        return np.column_stack([N0, N1])
+        return hub, np.column_stack([N0, N1])
 
     def pulley_centers(self, q: np.ndarray) -> np.ndarray:
         c = self.layout.center.copy()

@@ -20,7 +20,6 @@ from .config import DriveConfig
 from .errors import ConfigError, SolverError
 from .geometry import Layout, layout_from_config
 from .model import DriveModel, build_model, stretch_for_tension
-from . import ancf
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -349,23 +348,14 @@ def solve_static(cfg: DriveConfig, model: DriveModel) -> StaticResult:
 
 
 def _result(cfg, model, q, preload, hist_r, hist_l, iterations, driver_dof) -> StaticResult:
-    el = model.elements
-    e = model.element_coordinates(q)
-    fe = ancf.internal_forces(el, e)
-    ge = ancf.gravity_forces(el, np.asarray(cfg.model.gravity, dtype=float))
     lay = model.layout
-    n = lay.n
-    hub = np.zeros((n, 2))
-    for s in range(n):
-        first, last = model.span_elements[s][0], model.span_elements[s][-1]
-        hub[s] += ge[first, 0:2] - fe[first, 0:2]
-        hub[(s + 1) % n] += ge[last, 4:6] - fe[last, 4:6]
+    hub, span_tension = model.joint_reactions(q, np.asarray(cfg.model.gravity, dtype=float))
     f = model.internal_force(q) - preload - model.gravity_force
     T_mean, _ = model.mean_tension_and_gradient(q)
     a = cfg.adjustable_index
     offset = lay.adjust_offset + (float(q[model.trans_dof[a][0]]) if a is not None else 0.0)
     return StaticResult(
-        q=q, spring_preload=preload, span_tension=model.span_end_tensions(q, np.asarray(cfg.model.gravity, dtype=float)), mean_tension=T_mean,
+        q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
         hub_load=hub, pulley_center=model.pulley_centers(q), pulley_rotation=q[model.rot_dof].copy(),
         driver_torque=float(f[driver_dof]), adjust_offset=offset,
         residual_history=np.array(hist_r), load_factor_history=np.array(hist_l), iterations=iterations,
