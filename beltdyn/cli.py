@@ -171,30 +171,27 @@ def _refined_modal(job: "_Job", n_modes: int, rtol: float) -> None:
 
 
 def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None):
+    """geometry -> system -> static (-> modal) through the library pipeline; writes the groups reached,
+    and a failed group for the stage that failed."""
     from .errors import SolverError
     from .export import geometry_group, modal_group, static_group
-    from .static import model_from_config, solve_static
+    from .pipeline import analyse
 
-    layout = job.layout
-    job.add(geometry_group(layout))
-    model = model_from_config(job.cfg, layout)
-    stage = "static"
+    job.add(geometry_group(job.layout))
     try:
-        res = solve_static(job.cfg, model)
-        job.add(static_group(model, res, job.cfg.tension.target))
-        mres = None
-        if modal:
-            from .modal import solve_modes
-
-            stage = "modal"
-            mres = solve_modes(model, res.q, n_modes=n_modes or job.cfg.modal.modes, solver=job.cfg.modal.solver)
-            job.add(modal_group(model, mres))
+        run = analyse(job.cfg, modal=modal, n_modes=n_modes, layout=job.layout)
     except SolverError as exc:
-        job.add(_failed_group(stage, exc))
+        part = getattr(exc, "partial", None)
+        if part is not None and part.static is not None:
+            job.add(static_group(part.system, part.static, job.cfg.tension.target))
+        job.add(_failed_group(exc.analysis if exc.analysis in ("static", "modal") else "static", exc))
         job.write()
         raise
+    job.add(static_group(run.system, run.static, job.cfg.tension.target))
+    if run.modal is not None:
+        job.add(modal_group(run.system, run.modal))
     job.write()
-    return layout, model, res, mres
+    return run
 
 
 @app.command()
@@ -204,8 +201,8 @@ def static(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Opti
 
     def body() -> None:
         job = _Job(config, output, set_, force)
-        layout, model, res, _ = _static_pipeline(job, modal=False)
-        _print_static(layout, model, res)
+        run = _static_pipeline(job, modal=False)
+        _print_static(run.layout, run.system, run.static)
         _console().print(f"wrote [bold]/geometry /static[/] to {job.output}")
 
     _run(body)
@@ -224,9 +221,9 @@ def modal(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
         if rtol is not None:
             _refined_modal(job, modes or job.cfg.modal.modes, rtol)
             return
-        layout, model, res, mres = _static_pipeline(job, modal=True, n_modes=modes)
-        _print_static(layout, model, res)
-        _print_modal(mres)
+        run = _static_pipeline(job, modal=True, n_modes=modes)
+        _print_static(run.layout, run.system, run.static)
+        _print_modal(run.modal)
         _console().print(f"wrote [bold]/geometry /static /modal[/] to {job.output}")
 
     _run(body)
@@ -256,13 +253,31 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
             raise ConfigError("no [transient] table: add one (duration, step, excitations)", file=cfg.source,
                               key="transient")
         spec_opts = cfg.transient.spectrum
-        layout, model, res, mres = _static_pipeline(job, modal=spec_opts.enabled)
-        _run_transient(job, model, res, mres)
+        run = _static_pipeline(job, modal=spec_opts.enabled)
+        _run_transient(job, run)
 
     _run(body)
 
 
-def _run_transient(job: "_Job", model, res, mres) -> None:
+def _warm_kernels(con) -> None:
+    """Compile (or load from the cache) the transient kernels before any output file is opened, with
+    Ctrl-C deferred until the compiler is done (an interrupt inside numba's compiler was lost)."""
+    import signal
+
+    from .transient import warm_up
+
+    got: list = []
+    old = signal.signal(signal.SIGINT, lambda *a: got.append(1))
+    try:
+        with con.status("preparing the transient kernels (compiled once, about 10 s the first time)"):
+            warm_up()
+    finally:
+        signal.signal(signal.SIGINT, old)
+    if got:
+        raise KeyboardInterrupt
+
+
+def _run_transient(job: "_Job", run) -> None:
     import numpy as np
 
     from .results_io import GroupData, StreamWriter, Variable
@@ -270,7 +285,9 @@ def _run_transient(job: "_Job", model, res, mres) -> None:
 
     cfg = job.cfg
     opts = cfg.transient
-    setup = prepare(cfg, model, res)
+    model, res, mres = run.system, run.static, run.modal
+    _warm_kernels(_console())
+    setup = prepare(model, res, opts)
     shapes = {name: len(v) for name, v in setup.coords.items()}
     series = {s.name: (tuple(shapes[d] for d in s.dims), s.units, s.dims) for s in setup.series}
     keep = {s.name for s in setup.series if s.name in SPECTRUM_SERIES} if opts.spectrum.enabled else set()
@@ -284,10 +301,10 @@ def _run_transient(job: "_Job", model, res, mres) -> None:
 
         progress, update = _progress_bar(con, opts.duration)
         with progress:
-            summary = run_transient(cfg, model, res, sink=sink, progress=update)
+            summary = run_transient(model, res, opts, sink=sink, progress=update, setup=setup)
         ev = summary.slack_events
         writer.set_attrs(steps=summary.steps, refactorizations=summary.refactorizations,
-                         energy_balance_error=summary.energy_error,
+                         energy_balance_error=summary.energy_error, energy_moved_J=summary.energy_moved,
                          step_halvings=summary.step_halvings, smallest_step_s=summary.min_step,
                          n_slack_events=int(len(ev)))
         spans = [model.layout.span_name(i) for i in range(model.layout.n)]
@@ -519,8 +536,7 @@ def paper(outdir: Path = typer.Option(Path("results/paper"), "--outdir", help="F
         rows = []
         for case in CASES:
             job = _Job(configs / f"{case.config}.toml", outdir / f"{case.config}.h5", [], force)
-            layout, model, res, mres = _static_pipeline(job, modal=True)
-            rows += compare(case, mres)
+            rows += compare(case, _static_pipeline(job, modal=True).modal)
         _print_paper(rows)
         outdir.mkdir(parents=True, exist_ok=True)
         (outdir / "tables.md").write_text(markdown_table(rows), encoding="utf-8")

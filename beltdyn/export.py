@@ -14,7 +14,7 @@ from .results_io import GroupData, Variable
 if TYPE_CHECKING:  # keep `beltdyn geometry` from importing the solvers
     from .geometry import Layout
     from .modal import ModalResult
-    from .model import DriveModel
+    from .system import System as DriveModel
     from .static import StaticResult
 
 XY = ["x", "y"]

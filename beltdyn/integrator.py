@@ -1,11 +1,15 @@
-"""Generalized-alpha (Chung-Hulbert 1993) time stepping of the reduced drive equations, in numba.
+"""Generalized-alpha (Chung-Hulbert 1993) stepper of a `System`, compiled with numba.
 
 Equations of motion on the independent coordinates q (n,):
     M a + C v + f(q, v) = F(t),
-f = f_belt(q) + f_damp(q, v) + k_s * q  (belt elastic force of paper Eqs. 14/17 through the joints,
-Kelvin-Voigt belt damping, bearing springs), F(t) = preload + weight + applied loads - M u_nom s''(t)
-(the inertia of the nominal belt travel s(t)), C = Rayleigh damping (CSR). One DOF may be
-prescribed (the driver pulley's rotation); its residual row is dropped and its reaction recorded.
+f = f_belt(q) + f_damp(q, v) + K_lin (q - q_ref)  (belt elastic force of paper Eqs. 14/17 through
+the joints, Kelvin-Voigt belt damping, the linear components' constant stiffness measured from the
+reference state q_ref, usually the static equilibrium), F(t) = F_const + loads(t) - M u_nom s''(t)
+with F_const = preload + weight - K_lin q_ref (the constant part; it balances f at the static
+equilibrium, so no force of the size of a bearing preload ever enters a tolerance), C the constant
+damping (Rayleigh + components, CSR). Any number of DOFs may be prescribed (constraint objects:
+the rotation law `rotation_state` per DOF); their residual rows are dropped and their reactions
+recorded.
 
 Generalized-alpha with spectral radius rho_inf:
     alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1), gamma = 1/2 - alpha_m + alpha_f,
@@ -14,18 +18,35 @@ Generalized-alpha with spectral radius rho_inf:
     q1 = q0 + h v0 + h^2 ((1/2 - beta) a0 + beta a1),  v1 = v0 + h ((1 - gamma) a0 + gamma a1).
 Newton on q1 with a reused factorization of the iteration matrix
     S = (1 - alpha_m)/(beta h^2) M + (1 - alpha_f) gamma/(beta h) C_t + (1 - alpha_f) K_t,
-given as a banded Cholesky factor (RCM-permuted) or a dense LU; the kernel returns to Python when
-the factor is stale (slow convergence) or the step must be halved.
+given in band storage (RCM order): an upper Cholesky factor (symmetric S) or an LU factor with
+partial pivoting (LAPACK dgbtrf; a non-symmetric S, e.g. with transport terms). The stepper returns
+to Python when the factor is stale (slow convergence) or the step must be halved.
 
-Array conventions: element data T (n_elem, 8, m), idx (n_elem, m) with padding index n, e0 (n_elem, 8),
-dS (n_elem, n_qp, 4) = ds/dx at Gauss points, wL (n_elem, n_qp), EA (n_elem,), Kb (n_elem, 8, 8) =
-EI int S''^T S'' dx (zeros without bending), elem_span (n_elem,).
+Convergence per DOF group (span coordinates, rotations, translations, ...): in every group g,
+    max_{i in g} |R_i| <= tol * s_g + floor_g,
+s_g = max_{i in g} (|M a|_i + |C v|_i + |f_i - F_const,i| + |F_i - F_const,i|), the forces that
+change in the run (constant preloads and the static belt tension excluded), and floor_g the
+round-off: 1e3 machine epsilons of the largest gross force |T^T f_e| + |K (q - q_ref)| + |F_const|
+in the group, plus the round-off of the Green-Lagrange strain, which loses ~eps of EA per Gauss
+point whatever the force (noise = 100 eps EA sqrt(n_elem), and the linear bending force's share).
+
+Energy balance at the steps (never at interpolated outputs): at each step that ends at or after an
+output time, kinetic + strain (belt + linear components about q_ref) - work of the external forces
+and reactions (trapezoid of the power over each step) + dissipated (belt and constant damping) -
+initial = balance error.
+
+Array conventions: belt data as `belt_kernel` (T (n_elem, 8, m), idx (n_elem, m) with padding
+index n, tsel, e0 (n_elem, 8), dS/d2S (n_elem, n_qp, 4), wEA/wEI (n_elem, n_qp), Kb (n_elem, 8, 8)).
 """
 
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 from numba import njit
+
+from . import belt_kernel as bk
 
 # return codes of run_steps
 DONE = 0  # reached t_stop
@@ -33,6 +54,25 @@ BUFFER_FULL = 1  # output buffer full: drain and call again
 REFACTOR = 2  # convergence slowed: refactorize S at the current state and call again
 HALVE = 3  # no convergence with a fresh factor: halve the step, refactorize, call again
 MAX_STEPS = 4  # step budget of this call used up (keeps Ctrl-C responsive)
+
+# Named structures handed to the compiled stepper (numba reads namedtuples by attribute).
+BeltData = namedtuple("BeltData", ["e0", "T", "idx", "tsel", "dS", "d2S", "wEA", "wEI", "EA", "Kb", "curvature",
+                                   "eta_a", "eta_b", "elem_span", "n_span"])
+Csr = namedtuple("Csr", ["indptr", "indices", "data"])
+Linear = namedtuple("Linear", ["K", "q_ref", "C", "M"])  # constant stiffness, its reference state, damping, mass
+Forcing = namedtuple("Forcing", ["constant", "load_dof", "load_coef", "load_sig", "sig_params", "tab_ptr", "tab_t",
+                                 "tab_v", "nominal_mass", "nominal_rotation", "nominal_scale"])
+Constraints = namedtuple("Constraints", ["dof", "params"])  # dof (k,), params (k, 8): rotation law + static offset
+Check = namedtuple("Check", ["group", "n_groups", "tol", "max_iter", "noise"])
+StepOptions = namedtuple("StepOptions", ["am", "af", "beta", "gamma", "t_stop", "dt_out", "max_steps"])
+Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind 0 band Cholesky, 1 band LU
+State = namedtuple("State", ["q", "v", "a", "f0", "fd0", "F0", "R0", "scal"])
+Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n"])
+Events = namedtuple("Events", ["data", "n", "slack"])
+# scal slots
+T_NOW, H, T_OUT, WORK, DISS, STEPS, E0, WORST, MOVED, KIN0, POT0 = range(11)
+N_SCAL = 11
+ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
 
 
 def alpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
@@ -44,89 +84,36 @@ def alpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
     return am, af, beta, gamma
 
 
+def empty_csr(n: int) -> Csr:
+    return Csr(np.zeros(n + 1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0))
+
+
+def to_csr(A) -> Csr:
+    from scipy.sparse import csr_matrix
+
+    A = csr_matrix(A)
+    A.sort_indices()
+    return Csr(A.indptr.astype(np.int64), A.indices.astype(np.int64), A.data.astype(np.float64))
+
+
 @njit(cache=True)
-def csr_matvec(indptr, indices, data, x, out):
-    n = indptr.shape[0] - 1
+def csr_matvec(A, x, out):
+    n = A.indptr.shape[0] - 1
     for i in range(n):
         s = 0.0
-        for k in range(indptr[i], indptr[i + 1]):
-            s += data[k] * x[indices[k]]
+        for k in range(A.indptr[i], A.indptr[i + 1]):
+            s += A.data[k] * x[A.indices[k]]
         out[i] = s
 
 
 @njit(cache=True)
-def element_forces(q, v, T, idx, e0, dS, wL, EA, Kb, eta_a, eta_b, elem_span, n_span, f_el, f_dmp, min_force):
-    """Belt elastic (f_el) and Kelvin-Voigt damping (f_dmp) forces, reduced, added into the outputs;
-    min_force[s] = smallest 2nd Piola-Kirchhoff axial force EA eps over the Gauss points of span s."""
-    n_elem, _, m = T.shape
-    nq = dS.shape[1]
-    E = np.empty(8)
-    Ed = np.empty(8)
-    fe = np.empty(8)
-    fd = np.empty(8)
-    for s in range(n_span):
-        min_force[s] = np.inf
-    for e in range(n_elem):
-        for i in range(8):
-            acc = e0[e, i]
-            accd = 0.0
-            for j in range(m):
-                k = idx[e, j]
-                acc += T[e, i, j] * q[k]
-                accd += T[e, i, j] * v[k]
-            E[i] = acc
-            Ed[i] = accd
-            fe[i] = 0.0
-            fd[i] = 0.0
-        for g in range(nq):
-            rx = 0.0
-            ry = 0.0
-            rdx = 0.0
-            rdy = 0.0
-            for k in range(4):
-                d = dS[e, g, k]
-                rx += d * E[2 * k]
-                ry += d * E[2 * k + 1]
-                rdx += d * Ed[2 * k]
-                rdy += d * Ed[2 * k + 1]
-            eps = 0.5 * (rx * rx + ry * ry - 1.0)
-            epsd = rx * rdx + ry * rdy
-            s_el = wL[e, g] * EA[e] * eps
-            s_dm = wL[e, g] * EA[e] * eta_a * epsd
-            if EA[e] * eps < min_force[elem_span[e]]:
-                min_force[elem_span[e]] = EA[e] * eps
-            for k in range(4):
-                d = dS[e, g, k]
-                fe[2 * k] += s_el * d * rx
-                fe[2 * k + 1] += s_el * d * ry
-                fd[2 * k] += s_dm * d * rx
-                fd[2 * k + 1] += s_dm * d * ry
-        for i in range(8):
-            a = 0.0
-            b = 0.0
-            for j in range(8):
-                a += Kb[e, i, j] * E[j]
-                b += Kb[e, i, j] * Ed[j]
-            fe[i] += a
-            fd[i] += eta_b * b
-        for j in range(m):
-            k = idx[e, j]
-            a = 0.0
-            b = 0.0
-            for i in range(8):
-                a += T[e, i, j] * fe[i]
-                b += T[e, i, j] * fd[i]
-            f_el[k] += a
-            f_dmp[k] += b
-
-
-@njit(cache=True)
-def signal_values(params, tab_ptr, tab_t, tab_v, t, out):
+def signal_values(F, t, out):
     """out[i] = ramp_i(t) * (c + A sin(2 pi f t + phi)) or table interpolation; params (n, 5) = c, A, f, phi, T_ramp."""
+    params = F.sig_params
     for i in range(params.shape[0]):
-        a, b = tab_ptr[i], tab_ptr[i + 1]
+        a, b = F.tab_ptr[i], F.tab_ptr[i + 1]
         if b > a:
-            val = np.interp(t, tab_t[a:b], tab_v[a:b])
+            val = np.interp(t, F.tab_t[a:b], F.tab_v[a:b])
         else:
             val = params[i, 0] + params[i, 1] * np.sin(2.0 * np.pi * params[i, 2] * t + params[i, 3])
         tr = params[i, 4]
@@ -175,97 +162,165 @@ def rotation_state(rot, t):
 
 
 @njit(cache=True)
-def band_solve(cb, perm, b, x, work):
-    """Solve S x = b with S[perm][:, perm] = U^T U, U in upper band storage cb (u+1, n)."""
-    u = cb.shape[0] - 1
-    n = cb.shape[1]
+def band_cholesky_solve(ab, perm, b, x, work):
+    """Solve S x = b with S[perm][:, perm] = U^T U, U in upper band storage ab (u+1, n)."""
+    u = ab.shape[0] - 1
+    n = ab.shape[1]
     for i in range(n):
         work[i] = b[perm[i]]
     for j in range(n):  # U^T y = b
         s = work[j]
         lo = max(0, j - u)
         for i in range(lo, j):
-            s -= cb[u + i - j, j] * work[i]
-        work[j] = s / cb[u, j]
+            s -= ab[u + i - j, j] * work[i]
+        work[j] = s / ab[u, j]
     for i in range(n - 1, -1, -1):  # U x = y
         s = work[i]
         hi = min(n - 1, i + u)
         for j in range(i + 1, hi + 1):
-            s -= cb[u + i - j, j] * work[j]
-        work[i] = s / cb[u, i]
+            s -= ab[u + i - j, j] * work[j]
+        work[i] = s / ab[u, i]
     for i in range(n):
         x[perm[i]] = work[i]
 
 
 @njit(cache=True)
-def dense_lu_solve(lu, piv, b, x):
-    """Solve with a LAPACK getrf factorization (row interchanges piv, unit-lower L and U in lu)."""
-    n = lu.shape[0]
+def band_lu_solve(ab, piv, perm, kl, ku, b, x, work):
+    """Solve S x = b with the LAPACK dgbtrf factor of S[perm][:, perm] (band storage ab
+    (2 kl + ku + 1, n), 0-based pivots piv): the dgbtrs algorithm for no transpose."""
+    n = ab.shape[1]
+    kd = kl + ku
     for i in range(n):
-        x[i] = b[i]
+        work[i] = b[perm[i]]
+    if kl > 0:
+        for j in range(n - 1):
+            lm = min(kl, n - 1 - j)
+            p = piv[j]
+            if p != j:
+                tmp = work[p]
+                work[p] = work[j]
+                work[j] = tmp
+            wj = work[j]
+            for i in range(1, lm + 1):
+                work[j + i] -= ab[kd + i, j] * wj
+    for j in range(n - 1, -1, -1):  # U x = y, U with kd superdiagonals: U[i, j] = ab[kd + i - j, j]
+        work[j] /= ab[kd, j]
+        wj = work[j]
+        lo = max(0, j - kd)
+        for i in range(lo, j):
+            work[i] -= ab[kd + i - j, j] * wj
     for i in range(n):
-        p = piv[i]
-        if p != i:
-            tmp = x[i]
-            x[i] = x[p]
-            x[p] = tmp
-    for i in range(n):
-        s = x[i]
-        for j in range(i):
-            s -= lu[i, j] * x[j]
-        x[i] = s
-    for i in range(n - 1, -1, -1):
-        s = x[i]
-        for j in range(i + 1, n):
-            s -= lu[i, j] * x[j]
-        x[i] = s / lu[i, i]
+        x[perm[i]] = work[i]
 
 
 @njit(cache=True)
-def _forces(q, v, t, K, f_el, f_dmp, F, min_force, sig_val):
-    """Internal force parts f_el (elastic + springs), f_dmp (belt damping) and external force F at (q, v, t)."""
-    (T, idx, e0, dS, wL, EA, Kb, eta_a, eta_b, elem_span, n_span, spring, preload, grav, Mu, rot, pdof,
-     nom_scale, load_dof, load_coef, load_sig, sig_params, tab_ptr, tab_t, tab_v) = K
-    n = q.shape[0]
-    for i in range(n + 1):
-        f_el[i] = 0.0
-        f_dmp[i] = 0.0
-    element_forces(q, v, T, idx, e0, dS, wL, EA, Kb, eta_a, eta_b, elem_span, n_span, f_el, f_dmp, min_force)
+def factor_solve(fac, b, x, work):
+    if fac.kind == 0:
+        band_cholesky_solve(fac.ab, fac.perm, b, x, work)
+    else:
+        band_lu_solve(fac.ab, fac.piv, fac.perm, fac.kl, fac.ku, b, x, work)
+
+
+@njit(cache=True)
+def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, min_elem):
+    """Reduced belt elastic (f_el) and damping (f_dmp) forces (n + 1,) at (q, v); gross (n + 1,) the
+    sum of |T^T f_e| over elements (the round-off scale); min_elem (n_elem,) smallest EA eps."""
+    bk.gather(q_ext, belt.e0, belt.T, belt.idx, belt.tsel, E)
+    bk.element_forces(E, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, fe)
+    f_el[:] = 0.0
+    bk.scatter_vector(fe, belt.T, belt.idx, belt.tsel, f_el)
+    # gross scale: |T^T f_e| per element entry
+    gross[:] = 0.0
+    n_elem, _, m = belt.T.shape
+    for e in range(n_elem):
+        if belt.tsel[e] < 0:
+            for i in range(8):
+                gross[belt.idx[e, i]] += abs(fe[e, i])
+        else:
+            for j in range(m):
+                s = 0.0
+                for i in range(8):
+                    s += belt.T[e, i, j] * fe[e, i]
+                gross[belt.idx[e, j]] += abs(s)
+    f_dmp[:] = 0.0
+    if belt.eta_a != 0.0 or belt.eta_b != 0.0:
+        bk.gather(v_ext, np.zeros_like(belt.e0), belt.T, belt.idx, belt.tsel, Ed)
+        bk.element_damping(E, Ed, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, belt.eta_a,
+                           belt.eta_b, fd)
+        bk.scatter_vector(fd, belt.T, belt.idx, belt.tsel, f_dmp)
+    bk.element_min_axial_force(E, belt.dS, belt.EA, min_elem)
+
+
+@njit(cache=True)
+def external_forces(F, cons, t, out, sig_val):
+    """F(t) (n,): constant part + loads + inertia of the nominal belt travel."""
+    n = out.shape[0]
     for i in range(n):
-        f_el[i] += spring[i] * q[i]
-        F[i] = preload[i] + grav[i]
-    if nom_scale != 0.0:
-        thdd = rotation_state(rot, t)[2]
+        out[i] = F.constant[i]
+    if F.nominal_scale != 0.0:
+        thdd = rotation_state(F.nominal_rotation, t)[2] * F.nominal_scale
         for i in range(n):
-            F[i] -= Mu[i] * thdd * nom_scale
-    signal_values(sig_params, tab_ptr, tab_t, tab_v, t, sig_val)
-    for j in range(load_dof.shape[0]):
-        F[load_dof[j]] += load_coef[j] * sig_val[load_sig[j]]
+            out[i] -= F.nominal_mass[i] * thdd
+    if F.sig_params.shape[0] > 0:
+        signal_values(F, t, sig_val)
+        for j in range(F.load_dof.shape[0]):
+            out[F.load_dof[j]] += F.load_coef[j] * sig_val[F.load_sig[j]]
 
 
 @njit(cache=True)
-def run_steps(state, K, mats, fac, opts, out_t, out_q, out_v, out_a, out_w, n_out, events, n_events,
-              slack, info):
+def potential_energy(belt, lin, q, q_ext, E, U, dq, Kdq):
+    """Belt strain energy + 1/2 (q - q_ref)^T K_lin (q - q_ref)."""
+    bk.gather(q_ext, belt.e0, belt.T, belt.idx, belt.tsel, E)
+    bk.element_strain_energy(E, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, U)
+    total = 0.0
+    for e in range(U.shape[0]):
+        total += U[e]
+    n = q.shape[0]
+    for i in range(n):
+        dq[i] = q[i] - lin.q_ref[i]
+    csr_matvec(lin.K, dq, Kdq)
+    for i in range(n):
+        total += 0.5 * dq[i] * Kdq[i]
+    return total
+
+
+@njit(cache=True)
+def kinetic_energy(lin, v, Mv):
+    csr_matvec(lin.M, v, Mv)
+    s = 0.0
+    for i in range(v.shape[0]):
+        s += 0.5 * v[i] * Mv[i]
+    return s
+
+
+@njit(cache=True)
+def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
     """Advance the state until t_stop, a full buffer, a refactorization request or the step budget.
 
-    state: dict-like arrays packed as (q, v, a, f0, F0, t_h) with t_h = [t, h, t_next_out, W, D, R_d, steps];
-    mats: (M CSR, C CSR); fac: (mode, cb, perm, lu, piv) mode 0 banded Cholesky, 1 dense LU;
-    opts = [alpha_m, alpha_f, beta, gamma, tol, max_iter, t_stop, dt_out, max_steps, fresh];
-    out_w (B, 3): work of loads, dissipated energy, driver reaction at the output times.
-    info (4,): on HALVE/failure the time, residual, worst DOF, iterations.
+    Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
+    output times (Hermite interpolation within the step), the energy terms of the step that contains
+    each output time (exact at that step) and the constraint reactions. info (4,): on HALVE the
+    time, the scaled residual, the worst DOF and the iterations.
     """
-    q, v, a, f0, F0, th = state
-    M_ptr, M_idx, M_dat, C_ptr, C_idx, C_dat = mats
-    mode, cb, perm, lu, piv = fac
-    am, af, beta, gamma = opts[0], opts[1], opts[2], opts[3]
-    tol, max_iter, t_stop, dt_out, max_steps, fresh = opts[4], int(opts[5]), opts[6], opts[7], int(opts[8]), opts[9]
+    q, v, a = state.q, state.v, state.a
+    th = state.scal
+    am, af, beta, gamma = opts.am, opts.af, opts.beta, opts.gamma
     n = q.shape[0]
-    rot = K[15]
-    pdof = K[16]
-    n_span = K[10]
-    B = out_t.shape[0]
+    n_elem = belt.T.shape[0]
+    n_con = cons.dof.shape[0]
+    B = out.t.shape[0]
+    G = chk.n_groups
+    q_ext = np.zeros(n + 1)
+    v_ext = np.zeros(n + 1)
+    E = np.empty((n_elem, 8))
+    Ed = np.empty((n_elem, 8))
+    fe = np.empty((n_elem, 8))
+    fd = np.empty((n_elem, 8))
+    U = np.empty(n_elem)
+    min_elem = np.empty(n_elem)
     f_el = np.zeros(n + 1)
     f_dmp = np.zeros(n + 1)
+    gross = np.zeros(n + 1)
     F1 = np.zeros(n)
     q1 = np.empty(n)
     v1 = np.empty(n)
@@ -276,83 +331,105 @@ def run_steps(state, K, mats, fac, opts, out_t, out_q, out_v, out_a, out_w, n_ou
     Ma0 = np.empty(n)
     Cv = np.empty(n)
     Cv0 = np.empty(n)
+    Kd = np.empty(n)
+    tmp = np.empty(n)
+    tmp2 = np.empty(n)
     work = np.empty(n)
-    min_force = np.empty(max(n_span, 1))
-    sig_val = np.empty(K[21].shape[0])
-    csr_matvec(M_ptr, M_idx, M_dat, a, Ma0)
-    if C_ptr.shape[0] > 1:
-        csr_matvec(C_ptr, C_idx, C_dat, v, Cv0)
-    else:
-        Cv0[:] = 0.0
+    sig_val = np.empty(F.sig_params.shape[0])
+    res_g = np.empty(G)
+    scale_g = np.empty(G)
+    floor_g = np.empty(G)
+    worst_g = np.zeros(G, dtype=np.int64)
+    R1 = np.zeros(max(n_con, 1))
+    min_span = np.empty(max(belt.n_span, 1))
+    csr_matvec(lin.M, a, Ma0)
+    csr_matvec(lin.C, v, Cv0)
+    eps = np.finfo(np.float64).eps
     steps = 0
     while True:
-        t, h = th[0], th[1]
-        if t >= t_stop - 1e-6 * th[1]:
+        t, h = th[T_NOW], th[H]
+        if t >= opts.t_stop - 1e-6 * h:
             return DONE
-        if n_out[0] >= B:
+        if out.n[0] >= B:
             return BUFFER_FULL
-        if steps >= max_steps:
+        if steps >= opts.max_steps:
             return MAX_STEPS
         t1 = t + h
         c_a = 1.0 / (beta * h * h)
         c_v = gamma / (beta * h)
-        # predictor: same acceleration
-        for i in range(n):
+        for i in range(n):  # predictor: same acceleration
             a1[i] = a[i]
             q1[i] = q[i] + h * v[i] + h * h * a[i] * 0.5
             v1[i] = v[i] + h * a[i]
-        if pdof >= 0:
-            g, gd, gdd = rotation_state(rot, t1)[3:]
-            q1[pdof] = rot[7] + g  # the static rotation plus the prescribed fluctuation
-            v1[pdof] = gd
-            a1[pdof] = gdd
+        for k in range(n_con):
+            g, gd, gdd = rotation_state(cons.params[k], t1)[3:]
+            d = cons.dof[k]
+            q1[d] = cons.params[k, 7] + g  # the static rotation plus the prescribed fluctuation
+            v1[d] = gd
+            a1[d] = gdd
+        external_forces(F, cons, t1, F1, sig_val)
         converged = False
         prev = np.inf
         it = 0
         res = np.inf
         worst = 0
         while True:  # at most max_iter corrections; the residual after the last one is checked
-            _forces(q1, v1, t1, K, f_el, f_dmp, F1, min_force, sig_val)
-            csr_matvec(M_ptr, M_idx, M_dat, a1, Ma)
-            if C_ptr.shape[0] > 1:
-                csr_matvec(C_ptr, C_idx, C_dat, v1, Cv)
-            else:
-                for i in range(n):
-                    Cv[i] = 0.0
-            scale = 1e-300
-            res = 0.0
             for i in range(n):
-                fi = f_el[i] + f_dmp[i]
+                q_ext[i] = q1[i]
+                v_ext[i] = v1[i]
+            belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, min_elem)
+            for i in range(n):
+                dq[i] = q1[i] - lin.q_ref[i]
+            csr_matvec(lin.K, dq, Kd)
+            csr_matvec(lin.M, a1, Ma)
+            csr_matvec(lin.C, v1, Cv)
+            for g in range(G):
+                res_g[g] = 0.0
+                scale_g[g] = 0.0
+                floor_g[g] = 0.0
+            finite = True
+            for i in range(n):
+                fi = f_el[i] + Kd[i] + f_dmp[i]
                 R[i] = ((1.0 - am) * Ma[i] + am * Ma0[i]
-                        + (1.0 - af) * (Cv[i] + fi - F1[i]) + af * (Cv0[i] + f0[i] - F0[i]))
-                sc = abs(Ma[i]) + abs(fi) + abs(F1[i]) + abs(Cv[i])
-                if sc > scale:
-                    scale = sc
-            if pdof >= 0:
-                R[pdof] = 0.0
+                        + (1.0 - af) * (Cv[i] + fi - F1[i]) + af * (Cv0[i] + state.f0[i] - state.F0[i]))
+                g = chk.group[i]
+                sc = abs(Ma[i]) + abs(Cv[i]) + abs(fi - F.constant[i]) + abs(F1[i] - F.constant[i])
+                if sc > scale_g[g]:
+                    scale_g[g] = sc
+                fl = gross[i] + abs(Kd[i]) + abs(F.constant[i])
+                if fl > floor_g[g]:
+                    floor_g[g] = fl
+            for k in range(n_con):
+                R[cons.dof[k]] = 0.0
+            res = 0.0
             for i in range(n):
                 r = abs(R[i])
                 if not np.isfinite(r):
-                    res = np.inf
+                    finite = False
                     worst = i
                     break
-                if r > res:
-                    res = r
-                    worst = i
-            res = res / scale
-            if not np.isfinite(res):
+                g = chk.group[i]
+                if r > res_g[g]:
+                    res_g[g] = r
+                    worst_g[g] = i
+            if finite:
+                for g in range(G):
+                    allowed = chk.tol * scale_g[g] + 1e3 * eps * floor_g[g] + chk.noise
+                    x = res_g[g] / allowed if allowed > 0.0 else (0.0 if res_g[g] == 0.0 else np.inf)
+                    if x > res:
+                        res = x
+                        worst = worst_g[g]
+            else:
+                res = np.inf
                 break
-            if res <= tol:
+            if res <= 1.0:
                 converged = True
                 break
-            if it >= max_iter:
+            if it >= chk.max_iter:
                 break
-            if mode == 0:
-                band_solve(cb, perm, R, dq, work)
-            else:
-                dense_lu_solve(lu, piv, R, dq)
-            if pdof >= 0:
-                dq[pdof] = 0.0
+            factor_solve(fac, R, dq, work)
+            for k in range(n_con):
+                dq[cons.dof[k]] = 0.0
             norm = 0.0
             for i in range(n):
                 d = -dq[i]
@@ -369,119 +446,91 @@ def run_steps(state, K, mats, fac, opts, out_t, out_q, out_v, out_a, out_w, n_ou
             info[1] = res
             info[2] = worst
             info[3] = it
-            if fresh > 0.0:
+            if fresh:
                 return HALVE
             return REFACTOR
         # the step is accepted only if all of its output samples fit in the buffer
         n_pend = 0
-        tt = th[2]
+        tt = th[T_OUT]
         while tt <= t1 + 1e-6 * h:
             n_pend += 1
-            tt += dt_out
-        if n_out[0] + n_pend > B:
+            tt += opts.dt_out
+        if out.n[0] + n_pend > B:
             return BUFFER_FULL
-        fresh = 0.0
-        # accepted: energy accounting (trapezoid) and outputs
-        W_old, D_old = th[3], th[4]
+        fresh = False
+        # accepted: power of external forces and reactions, dissipation (trapezoid)
         p_ext = 0.0
         p_dis = 0.0
         for i in range(n):
-            p_ext += 0.5 * (F1[i] * v1[i] + F0[i] * v[i])
-            p_dis += 0.5 * ((Cv[i] + f_dmp[i]) * v1[i] + (Cv0[i] + f0[n + i]) * v[i])
-        # driver reaction (generalized force the prescribed motion applies) and its power
-        Rd = 0.0
-        if pdof >= 0:
-            Rd = Ma[pdof] + Cv[pdof] + f_el[pdof] + f_dmp[pdof] - F1[pdof]
-            p_ext += 0.5 * (Rd * v1[pdof] + th[5] * v[pdof])
-        W_new = W_old + h * p_ext
-        D_new = D_old + h * p_dis
-        # outputs at t_next_out in (t, t1]
-        while th[2] <= t1 + 1e-6 * h:
-            tau = th[2]
+            p_ext += 0.5 * (F1[i] * v1[i] + state.F0[i] * v[i])
+            p_dis += 0.5 * ((Cv[i] + f_dmp[i]) * v1[i] + (Cv0[i] + state.fd0[i]) * v[i])
+        for k in range(n_con):
+            d = cons.dof[k]
+            R1[k] = Ma[d] + Cv[d] + f_el[d] + Kd[d] + f_dmp[d] - F1[d]
+            p_ext += 0.5 * (R1[k] * v1[d] + state.R0[k] * v[d])
+        W_old, D_old = th[WORK], th[DISS]
+        th[WORK] = W_old + h * p_ext
+        th[DISS] = D_old + h * p_dis
+        kin = 0.0
+        pot = 0.0
+        if n_pend > 0:  # energy at this step (exact, not interpolated)
+            kin = kinetic_energy(lin, v1, tmp)
+            pot = potential_energy(belt, lin, q1, q_ext, E, U, tmp, tmp2)
+            bal = kin + pot - th[WORK] + th[DISS] - th[E0]
+            if abs(bal) > th[WORST]:
+                th[WORST] = abs(bal)
+            moved = max(abs(kin - th[KIN0]) + abs(pot - th[POT0]), abs(th[WORK]), abs(th[DISS]))
+            if moved > th[MOVED]:
+                th[MOVED] = moved
+        while th[T_OUT] <= t1 + 1e-6 * h:  # outputs at t_next_out in (t, t1]
+            tau = th[T_OUT]
             s = (tau - t) / h
             h00 = 2 * s ** 3 - 3 * s ** 2 + 1
             h10 = s ** 3 - 2 * s ** 2 + s
             h01 = -2 * s ** 3 + 3 * s ** 2
             h11 = s ** 3 - s ** 2
-            k = n_out[0]
-            out_t[k] = tau
+            k = out.n[0]
+            out.t[k] = tau
             for i in range(n):
-                out_q[k, i] = h00 * q[i] + h10 * h * v[i] + h01 * q1[i] + h11 * h * v1[i]
-                out_v[k, i] = h00 * v[i] + h10 * h * a[i] + h01 * v1[i] + h11 * h * a1[i]
-                out_a[k, i] = (1.0 - s) * a[i] + s * a1[i]
-            out_w[k, 0] = (1.0 - s) * W_old + s * W_new
-            out_w[k, 1] = (1.0 - s) * D_old + s * D_new
-            out_w[k, 2] = (1.0 - s) * th[5] + s * Rd
-            n_out[0] += 1
-            th[2] += dt_out
-        # slack events
-        for sp in range(n_span):
-            now = 1.0 if min_force[sp] < 0.0 else 0.0
-            if now != slack[sp] and n_events[0] < events.shape[0]:
-                events[n_events[0], 0] = t1
-                events[n_events[0], 1] = sp
-                events[n_events[0], 2] = now
-                events[n_events[0], 3] = min_force[sp]
-                n_events[0] += 1
-            slack[sp] = now
+                out.q[k, i] = h00 * q[i] + h10 * h * v[i] + h01 * q1[i] + h11 * h * v1[i]
+                out.v[k, i] = h00 * v[i] + h10 * h * a[i] + h01 * v1[i] + h11 * h * a1[i]
+                out.a[k, i] = (1.0 - s) * a[i] + s * a1[i]
+            out.energy[k, 0] = kin
+            out.energy[k, 1] = pot
+            out.energy[k, 2] = th[WORK]
+            out.energy[k, 3] = th[DISS]
+            out.energy[k, 4] = kin + pot - th[WORK] + th[DISS] - th[E0]
+            for c in range(n_con):
+                out.reaction[k, c] = (1.0 - s) * state.R0[c] + s * R1[c]
+            out.n[0] += 1
+            th[T_OUT] += opts.dt_out
+        # slack events: smallest 2nd Piola-Kirchhoff force per span
+        for sp in range(belt.n_span):
+            min_span[sp] = np.inf
+        for e in range(n_elem):
+            sp = belt.elem_span[e]
+            if min_elem[e] < min_span[sp]:
+                min_span[sp] = min_elem[e]
+        for sp in range(belt.n_span):
+            now = 1.0 if min_span[sp] < 0.0 else 0.0
+            if now != ev.slack[sp] and ev.n[0] < ev.data.shape[0]:
+                ev.data[ev.n[0], 0] = t1
+                ev.data[ev.n[0], 1] = sp
+                ev.data[ev.n[0], 2] = now
+                ev.data[ev.n[0], 3] = min_span[sp]
+                ev.n[0] += 1
+            ev.slack[sp] = now
         for i in range(n):
             q[i] = q1[i]
             v[i] = v1[i]
             a[i] = a1[i]
-            f0[i] = f_el[i] + f_dmp[i]
-            f0[n + i] = f_dmp[i]
-            F0[i] = F1[i]
+            state.f0[i] = f_el[i] + Kd[i] + f_dmp[i]
+            state.fd0[i] = f_dmp[i]
+            state.F0[i] = F1[i]
             Ma0[i] = Ma[i]
             Cv0[i] = Cv[i]
-        th[0] = t1
-        th[3] = W_new
-        th[4] = D_new
-        th[5] = Rd
-        th[6] += 1.0
+        for k in range(n_con):
+            state.R0[k] = R1[k]
+        th[T_NOW] = t1
+        th[STEPS] += 1.0
         steps += 1
-
-
-def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.ndarray, v0: np.ndarray, *,
-                     step: float, n_steps: int, rho_inf: float, tol: float = 1e-12):
-    """Integrate M a + C v + K q = 0 (dense, small) with the same kernel as the drive.
-
-    For tests on analytic oscillators: no belt elements; K enters as a diagonal spring when it is
-    diagonal, else through the Rayleigh slot is not possible, so K must be diagonal here and
-    coupling goes through M and C. Returns t (n_steps+1,), q, v, a (n_steps+1, n).
-    """
-    from scipy.linalg import lu_factor
-
-    n = M.shape[0]
-    if np.count_nonzero(K - np.diag(np.diag(K))):
-        raise ValueError("integrate_linear: K must be diagonal (couple through M or C)")
-    am, af, beta, gamma = alpha_parameters(rho_inf)
-    T = np.zeros((0, 8, 1))
-    kernel = (T, np.zeros((0, 1), dtype=np.int64), np.zeros((0, 8)), np.zeros((0, 1, 4)), np.zeros((0, 1)),
-              np.zeros(0), np.zeros((0, 8, 8)), 0.0, 0.0, np.zeros(0, dtype=np.int64), 0, np.diag(K).astype(float),
-              np.zeros(n), np.zeros(n), np.zeros(n), np.zeros(8), -1, 0.0, np.zeros(0, dtype=np.int64), np.zeros(0),
-              np.zeros(0, dtype=np.int64), np.zeros((0, 5)), np.zeros(1, dtype=np.int64), np.zeros(0), np.zeros(0))
-
-    def csr(A):
-        rows, cols = np.nonzero(A)
-        indptr = np.searchsorted(rows, np.arange(n + 1)).astype(np.int64)
-        return indptr, cols.astype(np.int64), A[rows, cols].astype(float)
-
-    Cm = np.zeros((n, n)) if C is None else C
-    mats = (*csr(M), *(csr(Cm) if C is not None else (np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0))))
-    S = (1 - am) / (beta * step**2) * M + (1 - af) * gamma / (beta * step) * Cm + (1 - af) * K
-    lu, piv = lu_factor(S)
-    fac = (1, np.zeros((1, 1)), np.arange(n, dtype=np.int64), lu, piv.astype(np.int64))
-    q, v = q0.astype(float).copy(), v0.astype(float).copy()
-    a = np.linalg.solve(M, -Cm @ v - K @ q)
-    f0 = np.concatenate([K @ q, np.zeros(n)])
-    state = (q, v, a, f0, np.zeros(n), np.array([0.0, step, 0.0, 0.0, 0.0, 0.0, 0.0]))
-    B = n_steps + 1
-    out_t, out_q, out_v, out_a, out_w = np.zeros(B), np.zeros((B, n)), np.zeros((B, n)), np.zeros((B, n)), np.zeros((B, 3))
-    n_out = np.zeros(1, dtype=np.int64)
-    opts = np.array([am, af, beta, gamma, tol, 20, n_steps * step, step, n_steps + 10, 1.0])
-    code = run_steps(state, kernel, mats, fac, opts, out_t, out_q, out_v, out_a, out_w, n_out,
-                     np.zeros((1, 4)), np.zeros(1, dtype=np.int64), np.zeros(0), np.zeros(4))
-    if code not in (DONE, BUFFER_FULL):
-        raise RuntimeError(f"integrate_linear: kernel returned {code}")
-    k = int(n_out[0])
-    return out_t[:k], out_q[:k], out_v[:k], out_a[:k]

@@ -19,11 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import ancf
 from .errors import SolverError
-from .model import DriveModel
+from .system import ENERGY_KINDS, System
 
-KINDS = ("rotational", "translational", "longitudinal", "transverse")
+KINDS = ENERGY_KINDS
 ORDINAL = {1: "st", 2: "nd", 3: "rd"}
 
 
@@ -49,7 +48,7 @@ def ordinal(n: int) -> str:
     return f"{n}{suffix}"
 
 
-def solve_modes(model: DriveModel, q: np.ndarray, *, n_modes: int, solver: str = "auto") -> ModalResult:
+def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "auto") -> ModalResult:
     """The lowest `n_modes` elastic modes about the equilibrium q."""
     _, K = model.force_and_tangent(q)
     M = model.mass
@@ -123,41 +122,16 @@ def solve_modes(model: DriveModel, q: np.ndarray, *, n_modes: int, solver: str =
         solver=name)
 
 
-def energy_shares(model: DriveModel, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Kinetic-energy shares of mass-normalized shapes (n_modes, n_dof).
+def energy_shares(model: System, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Kinetic-energy shares of mass-normalized shapes (n_modes, n_dof), from the system's components.
 
-    Returns shares (n_modes, 4) [rotational, translational, longitudinal, transverse],
-    span_long (n_modes, n_span), span_trans (n_modes, n_span) and the transverse nodal motion
-    (n_modes, n_elem, 4) (normal component of the 4 element coordinate pairs).
+    Returns shares (n_modes, len(KINDS)), span_long (n_modes, n_span), span_trans (n_modes, n_span)
+    (all divided by the total) and the transverse nodal motion (n_modes, n_elem, 4).
     """
-    el = model.elements
-    n_modes = shapes.shape[0]
-    qe = np.concatenate([shapes, np.zeros((n_modes, 1))], axis=1)[:, model.idx]  # (k, n_elem, m)
-    de = np.einsum("eim,kem->kei", model.T, qe).reshape(n_modes, el.n_elem, 4, 2)
-    t = model.reference_direction[model.elem_span]  # (n_elem, 2)
-    nrm = model.reference_normal[model.elem_span]
-    a = np.einsum("kejd,ed->kej", de, t)
-    b = np.einsum("kejd,ed->kej", de, nrm)
-    Ms = el.mass.reshape(el.n_elem, 4, 2, 4, 2)[:, :, 0, :, 0]  # (n_elem, 4, 4)
-    ka = np.einsum("kei,eij,kej->ke", a, Ms, a)
-    kb = np.einsum("kei,eij,kej->ke", b, Ms, b)
-    n_span = model.layout.n
-    span_long = np.zeros((n_modes, n_span))
-    span_trans = np.zeros((n_modes, n_span))
-    for s, els in enumerate(model.span_elements):
-        span_long[:, s] = ka[:, els].sum(axis=1)
-        span_trans[:, s] = kb[:, els].sum(axis=1)
-    rot = (shapes[:, model.rot_dof] ** 2 * model.pulley_inertia).sum(axis=1)
-    trans = np.zeros(n_modes)
-    for j, dofs in enumerate(model.trans_dof):
-        if dofs:
-            dirs = model.trans_dir[j]
-            disp = shapes[:, list(dofs)] @ dirs  # (k, 2)
-            trans += model.pulley_mass[j] * (disp**2).sum(axis=1)
-    shares = np.column_stack([rot, trans, span_long.sum(axis=1), span_trans.sum(axis=1)])
-    total = shares.sum(axis=1, keepdims=True)
+    kinds, span_long, span_trans, b = model.kinetic_energy_shares(shapes)
+    total = kinds.sum(axis=1, keepdims=True)
     total[total == 0] = 1.0
-    return shares / total, span_long / total, span_trans / total, b
+    return kinds / total, span_long / total, span_trans / total, b
 
 
 def half_waves(w: np.ndarray, threshold: float = 0.05) -> int:
@@ -167,11 +141,11 @@ def half_waves(w: np.ndarray, threshold: float = 0.05) -> int:
     return int(np.count_nonzero(s[1:] != s[:-1])) + 1
 
 
-def classify(model: DriveModel, shapes: np.ndarray, freq: np.ndarray):
+def classify(model: System, shapes: np.ndarray, freq: np.ndarray):
     """kind, order, span, label, energy shares and span shares of each mode."""
     shares, span_long, span_trans, b = energy_shares(model, shapes)
     n_modes = shapes.shape[0]
-    wsamp = np.matmul(model.sampling_table(8)[None], b[..., None])[..., 0]  # (k, n_elem, 8) samples
+    wsamp = np.matmul(model.belt.sampling_table(8)[None], b[..., None])[..., 0]  # (k, n_elem, 8) samples
     kinds, orders, spans, labels = [], np.zeros(n_modes, dtype=int), np.zeros(n_modes, dtype=int), []
     rank: dict[str, int] = {}
     names = model.layout
@@ -182,7 +156,7 @@ def classify(model: DriveModel, shapes: np.ndarray, freq: np.ndarray):
         if kind == "transverse":
             s = int(np.argmax(span_trans[k]))
             span = s + 1
-            els = model.span_elements[s]
+            els = model.belt.span_elements[s]
             order = half_waves(wsamp[k, els].ravel())
         else:
             rank[kind] = rank.get(kind, 0) + 1

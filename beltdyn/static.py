@@ -16,10 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import DriveConfig
-from .errors import ConfigError, SolverError
-from .geometry import Layout, layout_from_config
-from .model import DriveModel, build_model, stretch_for_tension
+from .config import StaticOptions
+from .errors import SolverError
+from .system import System, stretch_for_tension
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -41,33 +40,15 @@ class StaticResult:
     tension_mode: str
 
 
-def model_from_config(cfg: DriveConfig, layout: Layout | None = None) -> DriveModel:
-    """Geometry + model, with the reference state that the tension mode asks for."""
-    layout = layout or layout_from_config(cfg)
-    target = cfg.tension.target
-    if target is not None and cfg.tension.mode == "prestrain":
-        lam = stretch_for_tension(target, cfg.belt.EA)
-    elif target is None and cfg.adjustable_index is None:
-        lam = layout.belt_length / cfg.belt.length  # the belt of length L0 stretched onto the path
-        if lam < 1.0:
-            raise ConfigError(
-                f"the belt is {cfg.belt.length - layout.belt_length:.6g} m longer than its path "
-                f"({layout.belt_length:.6g} m): it is slack; set tension.target or make a pulley adjustable",
-                file=cfg.source, key="belt.length")
-    else:
-        lam = 1.0
-    return build_model(cfg, layout, prestrain_stretch=lam)
-
-
-def _predictor(model: DriveModel, stretch: float, adjust_dof: int, driver_dof: int) -> np.ndarray:
+def _predictor(system: System, stretch: float, adjust_dof: int, driver_dof: int) -> np.ndarray:
     """Linear axial estimate: rotations and the adjustable slide that stretch every span by `stretch`.
 
     Span elongation d_s = (dr_end - dr_start) . t_s is linear in the pulley DOFs; solve A x = (stretch-1) L_s
     for the non-driver rotations and the slide, then lay the nodes on the straight chords.
     """
-    lay = model.layout
-    n = lay.n
-    unknowns = [int(model.rot_dof[j]) for j in range(n) if int(model.rot_dof[j]) != driver_dof] + [adjust_dof]
+    model = system.belt
+    n = system.layout.n
+    unknowns = [int(system.rot_dof[j]) for j in range(n) if int(system.rot_dof[j]) != driver_dof] + [adjust_dof]
     col = {d: i for i, d in enumerate(unknowns)}
     A = np.zeros((n, len(unknowns)))
     t = model.reference_direction
@@ -81,7 +62,7 @@ def _predictor(model: DriveModel, stretch: float, adjust_dof: int, driver_dof: i
         ends.append((e_first, e_last))
     target = (stretch - 1.0) * model.reference_length
     x = np.linalg.lstsq(A, target, rcond=None)[0]
-    q = np.zeros(model.n_dof)
+    q = np.zeros(system.n_dof)
     q[unknowns] = x
     # Straight chords between the moved end nodes.
     e = model.element_coordinates(q)
@@ -91,7 +72,7 @@ def _predictor(model: DriveModel, stretch: float, adjust_dof: int, driver_dof: i
         a, b = e[e_first, 0:2], e[e_last, 4:6]
         grad = (b - a) / model.reference_length[s]
         els = model.span_elements[s]
-        sl = model.span_dof_slices[s]
+        sl = system.dofs.span_slices[s]
         nodes = np.empty((n_e - 1, 4))
         nodes[:, 0:2] = a + np.outer(frac, b - a) - model.e0[els[1:], 0:2]
         nodes[:, 2:4] = grad - model.e0[els[1:], 2:4]
@@ -168,29 +149,30 @@ class _Problem:
     elements), so that err <= 1 means converged.
     """
 
-    def __init__(self, cfg: DriveConfig, model: DriveModel) -> None:
-        self.model, self.opts = model, cfg.static
-        self.target = cfg.tension.target
-        self.adjust = self.target is not None and cfg.tension.mode == "adjust"
-        self.driver = int(model.rot_dof[cfg.driver_index])
-        self.a = model.trans_dof[cfg.adjustable_index][0] if self.adjust else -1
-        self.preload = np.zeros(model.n_dof)
+    def __init__(self, system: System, opts: StaticOptions) -> None:
+        self.model, self.opts = system, opts
+        self.target = system.tension.target
+        self.a = system.tension.adjust_dof
+        self.adjust = self.target is not None and self.a >= 0
+        self.driver = system.driver_dof
+        self.preload = np.zeros(system.n_dof)
         # Round-off floor of the residual: the axial force loses ~eps of EA per Gauss point, the linear
         # bending force ~eps of sum_j |K_b,ij| |e_j| (positions of order 1 m through stiff short elements).
-        el = model.elements
-        bend = float((np.abs(el.K_bend) @ np.abs(model.e0)[:, :, None]).max(initial=0.0))
+        el = system.belt.elements
+        bend = float((np.abs(el.K_bend) @ np.abs(system.belt.e0)[:, :, None]).max(initial=0.0))
         self.noise = 1e3 * np.finfo(float).eps * (float(el.EA.max()) * np.sqrt(el.n_elem) + bend)
         self.history: list[tuple[float, float]] = []
-        self.has_load = bool(np.any(model.gravity_force != 0.0))
+        self.has_load = bool(np.any(system.gravity_force != 0.0))
+        self.EA = float(el.EA.max())
 
     def tension_tolerance(self) -> float:
         """Allowed error of the mean tension: relative tolerance + round-off of EA eps (~EA * eps)."""
-        return self.opts.tolerance * abs(self.target) + 100 * np.finfo(float).eps * float(self.model.elements.EA.max())
+        return self.opts.tolerance * abs(self.target) + 100 * np.finfo(float).eps * self.EA
 
     def allowed(self, lam: float) -> float:
         scale = max(abs(self.target) if self.target else 0.0,
                     float(np.abs(lam * self.model.gravity_force).max(initial=0.0)),
-                    1e-9 * float(self.model.elements.EA.max()))
+                    1e-9 * self.EA)
         return self.opts.tolerance * scale + self.noise
 
     def evaluate(self, q: np.ndarray, lam: float, pinned: np.ndarray, bordered: bool):
@@ -288,7 +270,7 @@ class _Problem:
                 dof = _null_dof(K, m.dense, m.dof_labels)
                 raise _Fail("singular tangent stiffness in the tension iteration", abs(g) / tol_T, dof) from None
             slope = float(dT[a] + dT @ dqf)
-            if not abs(slope) > 1e-12 * float(m.elements.EA.max()):
+            if not abs(slope) > 1e-12 * self.EA:
                 raise _Fail(f"the span tension does not change when the adjustable pulley moves "
                             f"(dT/ds = {slope:.3g} N/m)",
                             abs(g) / tol_T, m.dof_labels[a])
@@ -315,7 +297,7 @@ class _Problem:
                     abs(g) / tol_T, m.dof_labels[a])
 
 
-def solve_static(cfg: DriveConfig, model: DriveModel) -> StaticResult:
+def solve_static(system: System, options: StaticOptions) -> StaticResult:
     """Static equilibrium of the drive (raises SolverError naming step, residual and DOF).
 
     Tension mode "adjust": a bordered Newton on (equilibrium, T = target) from the linear axial
@@ -323,12 +305,13 @@ def solve_static(cfg: DriveConfig, model: DriveModel) -> StaticResult:
     strong nonlinearity), an outer Newton on the slide offset around inner equilibrium solves with
     load stepping on the weight. Other modes: equilibrium with load stepping.
     """
-    prob = _Problem(cfg, model)
+    model = system
+    prob = _Problem(system, options)
     n = model.n_dof
     pinned = np.array([prob.driver])
     try:
         if prob.adjust:
-            q0 = _predictor(model, stretch_for_tension(prob.target, cfg.belt.EA), prob.a, prob.driver)
+            q0 = _predictor(model, stretch_for_tension(prob.target, prob.EA), prob.a, prob.driver)
             try:
                 q = prob.newton(q0, 1.0, pinned, bordered=True, max_iterations=8)
             except _Fail:
@@ -344,19 +327,19 @@ def solve_static(cfg: DriveConfig, model: DriveModel) -> StaticResult:
         f = model.internal_force(q)
         prob.preload[prob.a] = f[prob.a] - model.gravity_force[prob.a]
     hist = np.array(prob.history).reshape(-1, 2)
-    return _result(cfg, model, q, prob.preload, hist[:, 0], hist[:, 1], len(hist), prob.driver)
+    return _result(model, q, prob.preload, hist[:, 0], hist[:, 1], len(hist), prob.driver)
 
 
-def _result(cfg, model, q, preload, hist_r, hist_l, iterations, driver_dof) -> StaticResult:
+def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -> StaticResult:
     lay = model.layout
-    hub, span_tension = model.joint_reactions(q, np.asarray(cfg.model.gravity, dtype=float))
+    hub, span_tension = model.joint_reactions(q)
     f = model.internal_force(q) - preload - model.gravity_force
     T_mean, _ = model.mean_tension_and_gradient(q)
-    a = cfg.adjustable_index
+    a = lay.adjust_index
     offset = lay.adjust_offset + (float(q[model.trans_dof[a][0]]) if a is not None else 0.0)
     return StaticResult(
         q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
         hub_load=hub, pulley_center=model.pulley_centers(q), pulley_rotation=q[model.rot_dof].copy(),
         driver_torque=float(f[driver_dof]), adjust_offset=offset,
         residual_history=np.array(hist_r), load_factor_history=np.array(hist_l), iterations=iterations,
-        tension_mode=cfg.tension.mode if cfg.tension.target is not None else "geometry")
+        tension_mode=model.tension.mode)

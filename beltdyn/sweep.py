@@ -171,18 +171,16 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
         for a in assignments:
             apply_override(raw, a, file=source)
         cfg = config_from_dict(raw, file=source)
-        from .static import model_from_config, solve_static
+        from .pipeline import analyse
 
-        model = model_from_config(cfg)
-        st = solve_static(cfg, model)
+        run = analyse(cfg, modal=analysis == "modal", n_modes=n_modes + 4)
+        model, st = run.system, run.static
         out["mean_tension"] = st.mean_tension
         out["span_tension"] = st.span_tension
         out["hub_load"] = st.hub_load
         out["pulley_center"] = st.pulley_center
         if analysis == "modal":
-            from .modal import solve_modes
-
-            md = solve_modes(model, st.q, n_modes=n_modes + 4, solver=cfg.modal.solver)
+            md = run.modal
             out["frequency"] = md.frequency
             out["shapes"] = md.shapes
             out["mshapes"] = np.asarray((model.mass @ md.shapes.T).T)
@@ -191,7 +189,7 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
             out["span"] = md.span
             out["label"] = np.array(md.label)
         elif analysis == "transient":
-            out.update(_transient_case(cfg, model, st))
+            out.update(_transient_case(run))
     except BeltdynError as exc:
         out = {"failed": 1, "error": str(exc)}
     except Exception as exc:  # a defect in one case must not take the sweep down: record it
@@ -200,13 +198,14 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
     return out
 
 
-def _transient_case(cfg, model, st) -> dict:
+def _transient_case(run) -> dict:
     """Steady-state amplitudes (first harmonic of the excitation, and half peak-to-peak) of the
     span tensions, hub loads and bearing forces after transient.spectrum.start."""
     from .spectrum import amplitude_spectrum, harmonic_content
     from .transient import prepare, run_transient
 
-    setup = prepare(cfg, model, st)
+    cfg = run.config
+    setup = prepare(run.system, run.static, cfg.transient)
     keep = ("span_tension", "hub_load", "bearing_force")
     got: dict[str, list] = {k: [] for k in keep if any(s.name == k for s in setup.series)}
     times: list = []
@@ -217,7 +216,7 @@ def _transient_case(cfg, model, st) -> dict:
         for k in got:
             got[k].append(batch[k][sel])
 
-    summary = run_transient(cfg, model, st, sink=sink, setup=setup)
+    summary = run_transient(run.system, run.static, cfg.transient, sink=sink, setup=setup)
     t = np.concatenate(times)
     out: dict[str, Any] = {"n_slack_events": len(summary.slack_events)}
     for k, parts in got.items():
@@ -517,17 +516,15 @@ def refine_mesh(cfg: DriveConfig, *, n_modes: int, rtol: float, max_elements: in
     whose estimate meets it, with its model, static and modal results, and the Refinement record.
     At least three meshes are computed, so that the estimate rests on an observed order."""
     from .config import with_overrides
-    from .modal import solve_modes
-    from .static import model_from_config, solve_static
+    from .pipeline import analyse
 
     n_el = cfg.mesh.elements_per_span
     runs, elements = [], []
     while True:
         c = with_overrides(cfg, [f"mesh.elements_per_span={n_el}"])
-        model = model_from_config(c)
-        st = solve_static(c, model)
-        md = solve_modes(model, st.q, n_modes=n_modes + 6, solver=c.modal.solver)
-        runs.append((c, model, st, md))
+        run = analyse(c, modal=True, n_modes=n_modes + 6)
+        md = run.modal
+        runs.append((c, run.system, run.static, md))
         elements.append(n_el)
         # the modes wanted are the first n_modes of the finest mesh; coarser meshes matched by label
         ref_keys = _keys(md)[:n_modes]

@@ -1,8 +1,13 @@
-"""Transient analysis: the nonlinear drive integrated in time from its static equilibrium.
+"""Transient analysis: a `System` integrated in time from its static equilibrium.
 
-Builds the numba kernel data from the model (see `integrator` for the equations), runs it chunk by
-chunk, refactorizes the iteration matrix when Newton slows down, halves the step when it fails,
-and hands batches of output samples to a sink (the CLI streams them to HDF5).
+`prepare` lowers the system and the transient options into the stepper's named structures (see
+`integrator`): the belt kernel data, the components' constant matrices (stiffness about the static
+state, damping, mass), the forcing (constant part, loads as signals on DOFs, inertia of the nominal
+belt travel) and the constraints (prescribed rotations, any number). `drive` runs the compiled
+stepper chunk by chunk, refactorizes the iteration matrix when Newton slows down, halves the step
+when it fails, and hands batches of output samples to a sink; the recorded quantities come from
+observers (the belt, the pulleys, the components' own series, the constraints' reactions), vectorized
+over each batch.
 
 Belt travel. A prescribed pulley rotation theta(t) = nominal (speed ramp) + fluctuation is split:
 the fluctuation is the prescribed value of the pulley's rotation DOF; the nominal part moves the
@@ -17,23 +22,22 @@ paper's belt, rho v^2 = 12 N against 200 N).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
 
-from . import ancf
-from .config import DriveConfig
-from .errors import ConfigError, SolverError
-from .model import DriveModel
+from .config import TransientOptions
+from .errors import SolverError
 from .static import StaticResult
+from .system import System, element_pairs
 
 ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
 
 
 @dataclass(frozen=True, kw_only=True)
 class Series:
-    """One recorded history: trailing dims and their coordinate values, units."""
+    """One recorded history: trailing dims (coordinate names), units."""
 
     name: str
     dims: tuple[str, ...]
@@ -43,23 +47,24 @@ class Series:
 
 @dataclass(frozen=True, kw_only=True)
 class TransientSetup:
-    """Everything fixed for one run: series to record, their coordinates, the kernel data."""
+    """Everything fixed for one run: series to record, their coordinates, the stepper's structures."""
 
     series: tuple[Series, ...]
     coords: dict[str, list]
-    kernel: tuple
-    M: object
-    C: object
+    belt: tuple  # integrator.BeltData
+    linear: tuple  # integrator.Linear
+    forcing: tuple  # integrator.Forcing
+    constraints: tuple  # integrator.Constraints
+    groups: np.ndarray  # (n,) DOF group of each DOF (convergence is measured per group)
+    C: object  # constant damping (Rayleigh + components), dense/CSR, or None
     perm: np.ndarray
     bandwidth: int
     q0: np.ndarray
     v0: np.ndarray
     u_nom: np.ndarray
     nom_scale: float
-    rotation: np.ndarray  # (7,) parameters of the prescribed rotation
-    pdof: int
     excitation_frequency: float | None
-    pulley_mass_diag: np.ndarray  # (n,) pulley mass / inertia on their DOFs (the rest of M is element mass)
+    preload: np.ndarray  # (n,) static spring preload
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -75,46 +80,47 @@ class TransientSummary:
     slack_events: np.ndarray  # (k, 4): time, span index, 1 slack / 0 taut again, min 2nd PK force (N)
     message: str = ""
     n_outputs: int = 0
-    energy_error: float = 0.0  # max |balance error| / largest energy exchanged (recorded outputs)
+    energy_error: float = 0.0  # max |balance error| at the steps / energy moved in the run
+    energy_moved: float = 0.0  # J, max of |d kinetic| + |d strain|, |work|, |dissipated|
 
 
-def _belt_travel(model: DriveModel) -> np.ndarray:
+def belt_travel(system: System) -> np.ndarray:
     """u_nom (n_dof,): the rigid belt loop advanced by 1 m (pulley rotations +-1/R, nodes along t)."""
-    u = np.zeros(model.n_dof)
-    lay = model.layout
+    u = np.zeros(system.n_dof)
+    lay = system.layout
     for j in range(lay.n):
         n_out = lay.start_normal[j]
         t = lay.span_direction[j]
-        u[model.rot_dof[j]] = float(np.array([-n_out[1], n_out[0]]) @ t) / lay.radius[j]
-    n_e = len(model.span_elements[0])
-    for s, sl in enumerate(model.span_dof_slices):
+        u[system.rot_dof[j]] = float(np.array([-n_out[1], n_out[0]]) @ t) / lay.radius[j]
+    for s, sl in enumerate(system.dofs.span_slices):
+        labels = system.dof_labels[sl]
         block = np.zeros(sl.stop - sl.start)
-        for node in range(1, n_e):
-            block[2 + 4 * (node - 1): 4 + 4 * (node - 1)] = model.reference_direction[s]
+        for k, lab in enumerate(labels):  # interior node positions move along the chord
+            if lab.endswith(" r1"):
+                block[k] = system.belt.reference_direction[s][0]
+            elif lab.endswith(" r2"):
+                block[k] = system.belt.reference_direction[s][1]
         u[sl] = block
     return u
 
 
-def _csr(A):
-    from scipy.sparse import csr_matrix
-
-    A = csr_matrix(A)
-    A.sort_indices()
-    return A.indptr.astype(np.int64), A.indices.astype(np.int64), A.data.astype(np.float64)
-
-
-def _band_order(model: DriveModel) -> tuple[np.ndarray, int]:
-    """Reverse Cuthill-McKee order of the element coupling graph and the half-bandwidth it gives
-    (about twice an element's: the belt loop closes on itself)."""
+def band_order(system: System) -> tuple[np.ndarray, int]:
+    """Reverse Cuthill-McKee order of the coupling graph (elements and components) and the
+    half-bandwidth it gives (about twice an element's: the belt loop closes on itself)."""
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import reverse_cuthill_mckee
 
-    from .model import element_pairs
-
-    n = model.n_dof
-    rows, cols = element_pairs(model.idx)
+    n = system.n_dof
+    rows, cols = element_pairs(system.belt.idx)
     keep = (rows < n) & (cols < n)
-    rows, cols = rows[keep], cols[keep]
+    rows, cols = [rows[keep]], [cols[keep]]
+    for c in system.components:
+        for mat in (c.stiffness, c.damping, c.mass):
+            if mat is not None:
+                r, cc = np.nonzero(mat)
+                rows.append(c.dofs[r])
+                cols.append(c.dofs[cc])
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
     G = csr_matrix((np.ones(len(rows) + n), (np.r_[rows, np.arange(n)], np.r_[cols, np.arange(n)])), shape=(n, n))
     perm = np.asarray(reverse_cuthill_mckee(G, symmetric_mode=True), dtype=np.int64)
     inv = np.empty_like(perm)
@@ -122,33 +128,35 @@ def _band_order(model: DriveModel) -> tuple[np.ndarray, int]:
     return perm, int(np.abs(inv[rows] - inv[cols]).max(initial=0))
 
 
-def prepare(cfg: DriveConfig, model: DriveModel, static: StaticResult) -> TransientSetup:
-    """Kernel data for the run: only the loads, damping and outputs the configuration asks for."""
-    opts = cfg.transient
-    assert opts is not None
-    if cfg.model.curvature == "exact":
-        raise ConfigError("the transient analysis supports curvature \"linear\" or \"none\"",
-                          file=cfg.source, key="model.curvature")
-    el = model.elements
-    names = [p.name for p in cfg.pulleys]
-    n = model.n_dof
-    u_nom = _belt_travel(model)
-    # prescribed rotation
-    rot = np.zeros(8)
-    pdof, nom_scale, f_exc = -1, 0.0, None
-    if opts.rotation:
-        r = opts.rotation[0]
-        j = names.index(r.pulley)
-        pdof = int(model.rot_dof[j])
-        rot[:] = (r.speed, r.ramp_time, r.amplitude, r.speed_amplitude, r.frequency, r.phase, r.fluctuation_ramp,
-                  static.q[pdof] if opts.start == "static" else 0.0)
-        nom_scale = 1.0 / u_nom[pdof] if (r.speed != 0.0) else 0.0
-        f_exc = r.frequency if (r.amplitude or r.speed_amplitude) else None
-    # applied loads: one channel per (signal, DOF)
+def prepare(system: System, static: StaticResult, opts: TransientOptions) -> TransientSetup:
+    """The stepper's structures for the run: only the loads, damping and outputs the options ask for."""
+    from . import integrator as itg
+    from .belt_kernel import CURVATURE_CODE
+
+    if system.belt.elements.curvature == "exact":
+        from .errors import ConfigError
+
+        raise ConfigError("the transient analysis supports curvature \"linear\" or \"none\"", key="model.curvature")
+    n = system.n_dof
+    u_nom = belt_travel(system)
+    # constraints: prescribed rotations (any number); the first with a speed carries the belt travel
+    cons_dof, cons_par = [], []
+    nom_rot, nom_scale, f_exc = np.zeros(8), 0.0, None
+    for r in opts.rotation:
+        d = int(system.rot_dof[system.pulley_index(r.pulley)])
+        par = np.array([r.speed, r.ramp_time, r.amplitude, r.speed_amplitude, r.frequency, r.phase, r.fluctuation_ramp,
+                        static.q[d] if opts.start == "static" else 0.0])
+        cons_dof.append(d)
+        cons_par.append(par)
+        if r.speed != 0.0 and nom_scale == 0.0:
+            nom_rot, nom_scale = par.copy(), 1.0 / u_nom[d]
+        if f_exc is None and (r.amplitude or r.speed_amplitude):
+            f_exc = r.frequency
+    # loads: one channel per (signal, DOF)
     params, tabs_t, tabs_v, ptr = [], [], [], [0]
     load_dof, load_coef, load_sig = [], [], []
     for load in opts.loads:
-        j = names.index(load.pulley)
+        j = system.pulley_index(load.pulley)
         for c, sig in enumerate(load.signals):
             k = len(params)
             params.append((sig.constant, sig.amplitude, sig.frequency, sig.phase, sig.ramp_time))
@@ -156,48 +164,55 @@ def prepare(cfg: DriveConfig, model: DriveModel, static: StaticResult) -> Transi
             tabs_v += list(sig.table_value)
             ptr.append(len(tabs_t))
             if load.kind == "torque":
-                load_dof.append(int(model.rot_dof[j]))
+                load_dof.append(int(system.rot_dof[j]))
                 load_coef.append(1.0)
                 load_sig.append(k)
             else:
-                for d, vec in zip(model.trans_dof[j], model.trans_dir[j]):
+                for d, vec in zip(system.trans_dof[j], system.trans_dir[j]):
                     if vec[c] != 0.0:
                         load_dof.append(int(d))
                         load_coef.append(float(vec[c]))
                         load_sig.append(k)
             if f_exc is None and sig.amplitude and sig.frequency:
                 f_exc = sig.frequency
-    sig_params = np.array(params, dtype=float).reshape(-1, 5)
-    M = model.mass
-    Mu = np.asarray(M @ u_nom).ravel()
+    M = system.mass
     d = opts.damping
-    C = None
+    C = system.linear_damping
     if d.rayleigh_mass or d.rayleigh_stiffness:
-        _, K0 = model.force_and_tangent(static.q)
-        C = d.rayleigh_mass * M + d.rayleigh_stiffness * K0
-    Kb = el.K_bend if cfg.model.curvature == "linear" else np.zeros((el.n_elem, 8, 8))
-    grav = model.gravity_force
-    kernel = (
-        np.ascontiguousarray(model.T), np.ascontiguousarray(model.idx).astype(np.int64), np.ascontiguousarray(model.e0),
-        np.ascontiguousarray(el.dS), np.ascontiguousarray(el.wL), np.ascontiguousarray(el.EA),
-        np.ascontiguousarray(Kb), float(d.belt_axial), float(d.belt_bending), model.elem_span.astype(np.int64),
-        int(model.layout.n), model.spring.astype(float), static.spring_preload.astype(float), grav.astype(float),
-        Mu.astype(float), rot, int(pdof), float(nom_scale), np.array(load_dof, dtype=np.int64),
-        np.array(load_coef, dtype=float), np.array(load_sig, dtype=np.int64), sig_params,
-        np.array(ptr, dtype=np.int64), np.array(tabs_t, dtype=float), np.array(tabs_v, dtype=float),
-    )
-    perm, bandwidth = _band_order(model)
+        _, K0 = system.force_and_tangent(static.q)
+        ray = d.rayleigh_mass * M + d.rayleigh_stiffness * K0
+        C = ray if C is None else C + ray
+    q_ref = static.q.copy()
+    K_lin = system.linear_matrix()
+    constant = static.spring_preload + system.gravity_force - np.asarray(K_lin @ q_ref).ravel()
+    tab = system.belt.kernel_tables
+    belt = system.belt
+    belt_data = itg.BeltData(
+        e0=belt.e0, T=belt.T, idx=belt.idx, tsel=belt.tsel, dS=tab.dS, d2S=tab.d2S, wEA=tab.wEA, wEI=tab.wEI,
+        EA=tab.EA, Kb=tab.Kb, curvature=int(tab.curvature), eta_a=float(d.belt_axial), eta_b=float(d.belt_bending),
+        elem_span=belt.elem_span.astype(np.int64), n_span=int(belt.n_span))
+    assert CURVATURE_CODE[belt.elements.curvature] == tab.curvature
+    linear = itg.Linear(K=itg.to_csr(K_lin), q_ref=q_ref, C=itg.to_csr(C) if C is not None else itg.empty_csr(n),
+                        M=itg.to_csr(M))
+    forcing = itg.Forcing(
+        constant=constant, load_dof=np.array(load_dof, dtype=np.int64), load_coef=np.array(load_coef, dtype=float),
+        load_sig=np.array(load_sig, dtype=np.int64), sig_params=np.array(params, dtype=float).reshape(-1, 5),
+        tab_ptr=np.array(ptr, dtype=np.int64), tab_t=np.array(tabs_t, dtype=float),
+        tab_v=np.array(tabs_v, dtype=float), nominal_mass=np.asarray(M @ u_nom).ravel().astype(float),
+        nominal_rotation=nom_rot, nominal_scale=float(nom_scale))
+    constraints = itg.Constraints(dof=np.array(cons_dof, dtype=np.int64),
+                                  params=np.array(cons_par, dtype=float).reshape(-1, 8))
+    perm, bandwidth = band_order(system)
     q0 = static.q.copy() if opts.start == "static" else np.zeros(n)
-    v0 = np.zeros(n)
-    series, coords = _series(cfg, model, opts, pdof)
-    extra = np.asarray(M.diagonal()).ravel() - np.asarray(model.reduce_matrix(el.mass).diagonal()).ravel()
-    return TransientSetup(series=series, coords=coords, kernel=kernel, M=M, C=C, perm=perm, bandwidth=bandwidth,
-                          q0=q0, v0=v0, u_nom=u_nom, nom_scale=nom_scale, rotation=rot, pdof=pdof,
-                          excitation_frequency=f_exc, pulley_mass_diag=extra)
+    series, coords = _series(system, opts, cons_dof)
+    return TransientSetup(series=series, coords=coords, belt=belt_data, linear=linear, forcing=forcing,
+                          constraints=constraints, groups=system.dofs.group.astype(np.int64), C=C, perm=perm,
+                          bandwidth=bandwidth, q0=q0, v0=np.zeros(n), u_nom=u_nom, nom_scale=nom_scale,
+                          excitation_frequency=f_exc, preload=static.spring_preload.copy())
 
 
-def _series(cfg, model, opts, pdof):
-    lay = model.layout
+def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
+    lay = system.layout
     rec = opts.record
     coords = {"pulley": list(lay.names), "span": [lay.span_name(i) for i in range(lay.n)], "end": ["start", "end"],
               "component": ["x", "y"]}
@@ -209,361 +224,426 @@ def _series(cfg, model, opts, pdof):
         out.append(Series(name="pulley_speed", dims=("pulley",), units="rad/s"))
     if rec.span_tension:
         out.append(Series(name="span_tension", dims=("span", "end"), units="N",
-                          description="true axial force EA (eps + eta deps/dt) |r'| at the span ends"))
+                          description="axial force at the span ends from the joint reactions (belt damping included)"))
     if rec.hub_load:
         out.append(Series(name="hub_load", dims=("pulley", "component"), units="N",
-                          description="force of the belt on each pulley"))
-    bearing = [p.name for p in cfg.pulleys if p.support != "fixed"]
-    if rec.bearing_force and bearing:
-        coords["bearing"] = bearing
-        out.append(Series(name="bearing_force", dims=("bearing", "component"), units="N",
-                          description="force of the bearing spring on the pulley (preload included)"))
+                          description="force of the belt on each pulley (span-end inertia and belt damping included)"))
+    if rec.bearing_force:
+        for c in system.components:
+            for obs in c.observations(system):
+                if obs.name == "bearing_force":
+                    coords["bearing"] = list(c.pulley_names)
+                out.append(Series(name=obs.name, dims=obs.dims, units=obs.units, description=obs.description))
     if rec.midspan_displacement:
         out.append(Series(name="midspan_displacement", dims=("span",), units="m",
-                          description="mid-span displacement normal to the reference chord"))
+                          description="mid-span displacement from the chord between the span's current end points, "
+                                      "along the chord's normal z x t"))
     if rec.energy:
         coords["energy_term"] = list(ENERGY_TERMS)
         out.append(Series(name="energy", dims=("energy_term",), units="J",
-                          description="kinetic + strain - work of loads + dissipated = balance error (deviation frame)"))
-    if pdof >= 0:
+                          description="kinetic + strain - work + dissipated - initial = balance error, evaluated "
+                                      "at the end of the step that contains the output time (travelling frame; "
+                                      "springs measured from the static state)"))
+    if cons_dof:
         out.append(Series(name="driver_torque", dims=(), units="N m",
-                          description="torque the prescribed rotation applies to its pulley"))
+                          description="torque the first prescribed rotation applies to its pulley"))
+        if len(cons_dof) > 1:
+            coords["constraint"] = [system.dof_labels[d] for d in cons_dof]
+            out.append(Series(name="constraint_reaction", dims=("constraint",), units="N m",
+                              description="generalized force each prescribed rotation applies"))
     if rec.full_state:
-        coords["dof"] = list(model.dof_labels)
-        out.append(Series(name="q", dims=("dof",), units="1", description="independent coordinates"))
-        out.append(Series(name="v", dims=("dof",), units="1", description="their time derivatives (per s)"))
+        coords["dof"] = list(system.dof_labels)
+        out.append(Series(name="q", dims=("dof",), units="mixed (see dof units)", description="independent coordinates"))
+        out.append(Series(name="v", dims=("dof",), units="mixed (see dof units, per s)",
+                          description="their time derivatives"))
     return tuple(out), coords
 
 
 # ------------------------------------------------------------------------------------ iteration matrix
-def _factor(setup: TransientSetup, model: DriveModel, cfg: DriveConfig, q: np.ndarray, h: float):
-    """Factor S = c_m M + c_c (C + C_belt) + (1 - alpha_f) K_t(q): banded Cholesky in RCM order, or LU."""
-    from scipy.linalg import cholesky_banded, lu_factor
+def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool):
+    """Factor S (dense or sparse) in RCM order: band Cholesky when symmetric positive definite, else
+    band LU with partial pivoting (LAPACK dgbtrf). Returns an integrator.Factor."""
+    from scipy.linalg import cholesky_banded
+    from scipy.linalg.lapack import dgbtrf
+    from scipy.sparse import coo_matrix, issparse
 
+    from .integrator import Factor
+
+    n = S.shape[0]
+    Sp = (S.tocsr()[perm][:, perm].tocoo() if issparse(S) else coo_matrix(np.asarray(S)[np.ix_(perm, perm)]))
+    none = np.zeros(1, dtype=np.int64)
+    if symmetric:
+        ab = np.zeros((u + 1, n))
+        mask = Sp.row <= Sp.col
+        np.add.at(ab, (u + Sp.row[mask] - Sp.col[mask], Sp.col[mask]), Sp.data[mask])
+        try:
+            return Factor(kind=0, ab=cholesky_banded(ab, lower=False, check_finite=False), piv=none, perm=perm,
+                          kl=0, ku=u)
+        except np.linalg.LinAlgError:
+            pass
+    ab = np.zeros((3 * u + 1, n))
+    np.add.at(ab, (2 * u + Sp.row - Sp.col, Sp.col), Sp.data)
+    lu, piv, info = dgbtrf(ab, u, u, overwrite_ab=True)
+    if info > 0:
+        raise np.linalg.LinAlgError(f"singular iteration matrix (pivot {info})")
+    return Factor(kind=1, ab=np.ascontiguousarray(lu), piv=piv.astype(np.int64), perm=perm, kl=u, ku=u)
+
+
+def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: float, rho_inf: float):
+    """S = c_m M + c_c (C + C_belt(q)) + (1 - alpha_f) K_t(q), prescribed DOFs held (identity)."""
+    from . import belt_kernel as bk
     from .integrator import alpha_parameters
 
-    am, af, beta, gamma = alpha_parameters(cfg.transient.rho_inf)
-    el = model.elements
-    e = model.element_coordinates(q)
-    _, Ke = ancf.internal_forces_and_tangent(el, e)
-    d = cfg.transient.damping
-    Kb = el.K_bend if cfg.model.curvature == "linear" else 0.0
+    am, af, beta, gamma = alpha_parameters(rho_inf)
     c_m = (1.0 - am) / (beta * h * h)
     c_c = (1.0 - af) * gamma / (beta * h)
-    blocks = (1.0 - af) * Ke + c_c * (d.belt_axial * (Ke - Kb) + d.belt_bending * Kb) + c_m * el.mass
-    # pulley masses and inertias sit on the diagonal of M, outside the element blocks
-    Sd = model.reduce_matrix(blocks, (1.0 - af) * model.spring + c_m * setup.pulley_mass_diag)
+    _, K = system.force_and_tangent(q)
+    S = (1.0 - af) * K + c_m * system.mass
+    b = setup.belt
+    if b.eta_a or b.eta_b:
+        E = system.belt.element_coordinates(q)
+        Ce = np.empty((E.shape[0], 8, 8))
+        bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce)
+        S = S + c_c * system.assemble(system.belt.reduce_blocks(Ce), linear=False)
     if setup.C is not None:
-        Sd = Sd + c_c * setup.C
-    n = model.n_dof
-    if setup.pdof >= 0:  # the prescribed DOF is held: identity row and column
-        p = setup.pdof
-        if model.dense:
-            Sd = Sd.copy()
-            Sd[p, :] = 0.0
-            Sd[:, p] = 0.0
-            Sd[p, p] = 1.0
-        else:
-            Sd = Sd.tolil()
-            Sd[p, :] = 0.0
-            Sd[:, p] = 0.0
-            Sd[p, p] = 1.0
-            Sd = Sd.tocsr()
-    perm = setup.perm
-    u = setup.bandwidth
-    Sp = (Sd[np.ix_(perm, perm)] if model.dense else Sd[perm][:, perm].tocoo())
-    ab = np.zeros((u + 1, n))
-    if model.dense:
-        ii, jj = np.nonzero(np.triu(Sp) != 0.0)
-        vals = Sp[ii, jj]
+        S = S + c_c * setup.C
+    return _hold(S, setup.constraints.dof)
+
+
+def _hold(S, dofs: np.ndarray):
+    if not len(dofs):
+        return S
+    from scipy.sparse import issparse
+
+    if issparse(S):
+        S = S.tolil()
     else:
-        mask = Sp.row <= Sp.col
-        ii, jj, vals = Sp.row[mask], Sp.col[mask], Sp.data[mask]
-    np.add.at(ab, (u + ii - jj, jj), vals)
-    try:
-        cb = cholesky_banded(ab, lower=False, check_finite=False)
-        return (0, cb, perm, np.zeros((1, 1)), np.zeros(1, dtype=np.int64))
-    except np.linalg.LinAlgError:
-        Sfull = Sd if model.dense else Sd.toarray()
-        lu, piv = lu_factor(Sfull, check_finite=False)
-        return (1, np.zeros((1, 1)), perm, lu, piv.astype(np.int64))
+        S = np.array(S)
+    for p in dofs:
+        S[p, :] = 0.0
+        S[:, p] = 0.0
+        S[p, p] = 1.0
+    return S.tocsr() if hasattr(S, "tocsr") else S
 
 
-# ------------------------------------------------------------------------------------ outputs
+# ------------------------------------------------------------------------------------ the driver
+Sink = Callable[[np.ndarray, dict[str, np.ndarray]], None]
+Progress = Callable[[float], None]
+
+
+@dataclass(frozen=True, kw_only=True)
+class StepProblem:
+    """What `drive` integrates: the stepper's structures, the initial state and a factor callback
+    factor(q, h) -> integrator.Factor. n_span is the number of belt spans (slack events)."""
+
+    belt: tuple
+    linear: tuple
+    forcing: tuple
+    constraints: tuple
+    groups: np.ndarray
+    q0: np.ndarray
+    v0: np.ndarray
+    factor: Callable
+    labels: tuple[str, ...]
+
+
+def initial_state(problem: StepProblem, rho_inf: float, step: float):
+    """Consistent initial acceleration M a0 = F(0) - C v0 - f(q0, v0) on the free DOFs, and the
+    energy reference."""
+    from . import integrator as itg
+
+    lin, F, cons, belt = problem.linear, problem.forcing, problem.constraints, problem.belt
+    n = len(problem.q0)
+    q, v = problem.q0.copy(), problem.v0.copy()
+    a = np.zeros(n)
+    for k, d in enumerate(cons.dof):
+        st = itg.rotation_state(cons.params[k], 0.0)
+        q[d], v[d], a[d] = cons.params[k, 7] + st[3], st[4], st[5]
+    n_elem = belt.T.shape[0]
+    E, Ed, fe, fd = (np.empty((n_elem, 8)) for _ in range(4))
+    f_el, f_dmp, gross = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1)
+    itg.belt_forces(belt, np.append(q, 0.0), np.append(v, 0.0), E, Ed, fe, fd, f_el, f_dmp, gross, np.empty(n_elem))
+    Kd, Cv, F0 = np.empty(n), np.empty(n), np.empty(n)
+    itg.csr_matvec(lin.K, q - lin.q_ref, Kd)
+    itg.csr_matvec(lin.C, v, Cv)
+    itg.external_forces(F, cons, 0.0, F0, np.empty(F.sig_params.shape[0]))
+    f0 = f_el[:n] + Kd + f_dmp[:n]
+    from scipy.sparse import csr_matrix
+
+    Md = csr_matrix((lin.M.data, lin.M.indices, lin.M.indptr), shape=(n, n)).toarray()
+    rhs = F0 - Cv - f0 - Md[:, cons.dof] @ a[cons.dof]
+    free = np.setdiff1d(np.arange(n), cons.dof)
+    a[free] = np.linalg.solve(Md[np.ix_(free, free)], rhs[free])
+    R0 = np.array([(Md @ a)[d] + Cv[d] + f0[d] - F0[d] for d in cons.dof])
+    scal = np.zeros(itg.N_SCAL)
+    scal[itg.H] = step
+    tmp, tmp2 = np.empty(n), np.empty(n)
+    kin = itg.kinetic_energy(lin, v, tmp)
+    pot = itg.potential_energy(belt, lin, q, np.append(q, 0.0), E, np.empty(n_elem), tmp, tmp2)
+    scal[itg.E0], scal[itg.KIN0], scal[itg.POT0] = kin + pot, kin, pot
+    return itg.State(q=q, v=v, a=a, f0=f0, fd0=f_dmp[:n].copy(), F0=F0, R0=np.zeros(max(len(cons.dof), 1)) + (
+        np.pad(R0, (0, max(len(cons.dof), 1) - len(R0)))), scal=scal)
+
+
+def residual_noise(belt) -> float:
+    """Round-off of the belt's residual (N): the Green-Lagrange strain (r'.r' - 1)/2 loses ~eps per
+    Gauss point, so the axial force loses ~eps EA whatever its size; the linear bending force loses
+    ~eps of sum_j |K_b,ij| |e_j|."""
+    eps = np.finfo(float).eps
+    n_elem = belt.T.shape[0]
+    if n_elem == 0:
+        return 0.0
+    bend = float((np.abs(belt.Kb) @ np.abs(belt.e0)[:, :, None]).max(initial=0.0))
+    return 100.0 * eps * (float(belt.EA.max()) * math.sqrt(n_elem) + bend)
+
+
 @dataclass
-class _Derived:
-    """Batch computation of the recorded quantities from output states (B, n)."""
+class _Run:
+    """Mutable bookkeeping of one `drive` call."""
 
-    cfg: DriveConfig
-    model: DriveModel
+    steps: int = 0
+    refactors: int = 0
+    halvings: int = 0
+    delivered: int = 0
+
+
+def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float, duration: float,
+          output_interval: float, tolerance: float, max_iterations: int, on_batch: Callable,
+          progress: Progress | None = None, batch: int = 256, n_span: int = 0):
+    """Integrate the problem: outputs in batches to on_batch(t, q, v, a, energy, reaction); returns
+    (status, run bookkeeping, final scal, slack events). Raises SolverError when the step cannot be
+    reduced further (the batches before the failure have been delivered); KeyboardInterrupt
+    propagates after the last complete batch was delivered."""
+    from . import integrator as itg
+
+    am, af, beta, gamma = itg.alpha_parameters(rho_inf)
+    n = len(problem.q0)
+    state = initial_state(problem, rho_inf, step)
+    th = state.scal
+    chk = itg.Check(group=problem.groups, n_groups=int(problem.groups.max(initial=0)) + 1, tol=float(tolerance),
+                    max_iter=int(max_iterations), noise=residual_noise(problem.belt))
+    n_con = max(len(problem.constraints.dof), 1)
+    batch = max(batch, int(math.ceil(step / output_interval)) + 2)  # a step's samples always fit
+    out = itg.Outputs(t=np.zeros(batch), q=np.zeros((batch, n)), v=np.zeros((batch, n)), a=np.zeros((batch, n)),
+                      energy=np.zeros((batch, 5)), reaction=np.zeros((batch, n_con)), n=np.zeros(1, dtype=np.int64))
+    ev = itg.Events(data=np.zeros((2000 * max(n_span, 1) + 8, 4)), n=np.zeros(1, dtype=np.int64),
+                    slack=np.zeros(max(n_span, 1)))
+    all_events: list[np.ndarray] = []
+    info = np.zeros(4)
+    n_total_out = int(math.floor(duration / output_interval + 1e-9)) + 1
+    opts = itg.StepOptions(am=am, af=af, beta=beta, gamma=gamma, t_stop=float(duration), dt_out=float(output_interval),
+                           max_steps=2000)
+    fac = problem.factor(state.q, th[itg.H])
+    fresh = True
+    run = _Run()
+    run.refactors = 1
+    min_h = th[itg.H]
+    calm = 0
+
+    def drain() -> None:
+        k = int(out.n[0])
+        take = min(k, n_total_out - run.delivered)
+        out.n[0] = 0  # counted as delivered before the sink runs: an interrupt inside it cannot repeat them
+        if take > 0:
+            run.delivered += take
+            on_batch(out.t[:take].copy(), out.q[:take].copy(), out.v[:take].copy(), out.a[:take].copy(),
+                     out.energy[:take].copy(), out.reaction[:take].copy())
+
+    def collect_events() -> None:
+        if ev.n[0]:
+            all_events.append(ev.data[: int(ev.n[0])].copy())
+            ev.n[0] = 0
+
+    try:
+        while True:
+            code = itg.run_steps(state, problem.belt, problem.linear, problem.forcing, problem.constraints, chk, opts,
+                                 fac, fresh, out, ev, info)
+            collect_events()
+            if th[itg.STEPS] > run.steps:
+                fresh = False
+            run.steps = int(th[itg.STEPS])
+            if progress is not None:
+                progress(min(th[itg.T_NOW], duration))
+            if code == itg.DONE:
+                break
+            if code in (itg.BUFFER_FULL, itg.MAX_STEPS):
+                drain()
+                if th[itg.H] < step:  # grow the step back after a calm stretch
+                    calm += 1
+                    if calm >= 2:
+                        th[itg.H] = min(2.0 * th[itg.H], step)
+                        fac, fresh, calm = problem.factor(state.q, th[itg.H]), True, 0
+                        run.refactors += 1
+                continue
+            if code == itg.REFACTOR:
+                fac, fresh, calm = problem.factor(state.q, th[itg.H]), True, 0
+                run.refactors += 1
+                continue
+            # HALVE
+            if th[itg.H] / 2.0 < min_step:
+                dof = problem.labels[int(info[2])] if int(info[2]) < n else "?"
+                drain()
+                raise SolverError(
+                    f"no convergence at t = {info[0]:.6g} s even with the step reduced to {th[itg.H]:.3g} s "
+                    f"(transient.min_step = {min_step:g} s)", analysis="transient", step=f"t = {info[0]:.6g} s",
+                    residual=float(info[1]), item=dof)
+            th[itg.H] /= 2.0
+            min_h = min(min_h, th[itg.H])
+            run.halvings += 1
+            calm = 0
+            fac, fresh = problem.factor(state.q, th[itg.H]), True
+            run.refactors += 1
+        drain()
+    except KeyboardInterrupt:
+        drain()
+        raise
+    ev_all = np.concatenate(all_events) if all_events else np.zeros((0, 4))
+    return run, th, min_h, ev_all
+
+
+def run_transient(system: System, static: StaticResult, opts: TransientOptions, *, sink: Sink,
+                  progress: Progress | None = None, setup: TransientSetup | None = None, batch: int = 256,
+                  status: Callable | None = None) -> TransientSummary:
+    """Integrate, feeding (time (B,), {series: (B, ...)}) batches to `sink`.
+
+    Raises SolverError (with the failure time, residual and DOF) when the step cannot be reduced
+    further; the batches before the failure have been delivered. KeyboardInterrupt propagates after
+    the last complete batch was delivered. `status(text)` is told about a first-time kernel compile.
+    """
+    from . import integrator as itg
+
+    setup = setup or prepare(system, static, opts)
+    system = system.with_belt_damping(opts.damping.belt_axial, opts.damping.belt_bending)
+    symmetric = True  # no transport terms yet: S is symmetric (the band LU is the fallback)
+    problem = StepProblem(
+        belt=setup.belt, linear=setup.linear, forcing=setup.forcing, constraints=setup.constraints,
+        groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels,
+        factor=lambda q, h: band_factor(_iteration_matrix(system, setup, q, h, opts.rho_inf), setup.perm,
+                                        setup.bandwidth, symmetric=symmetric))
+    observer = Observers(system=system, setup=setup)
+    run, th, min_h, events = drive(
+        problem, rho_inf=opts.rho_inf, step=opts.step, min_step=opts.min_step, duration=opts.duration,
+        output_interval=opts.output_interval, tolerance=opts.tolerance, max_iterations=opts.max_iterations,
+        on_batch=lambda *b: sink(b[0], observer.compute(*b)), progress=progress, batch=batch,
+        n_span=system.belt.n_span)
+    moved = float(th[itg.MOVED])
+    return TransientSummary(status="complete", steps=run.steps, refactorizations=run.refactors,
+                            step_halvings=run.halvings, final_time=float(th[itg.T_NOW]), min_step=float(min_h),
+                            slack_events=events, n_outputs=run.delivered,
+                            energy_error=float(th[itg.WORST]) / moved if moved > 0 else 0.0, energy_moved=moved)
+
+
+# ------------------------------------------------------------------------------------ observers
+@dataclass
+class Observers:
+    """The recorded quantities of output states (B, n), vectorized over the batch."""
+
+    system: System
     setup: TransientSetup
-    static: StaticResult
-    energy0: float = field(default=0.0)
-    mid: tuple = field(default=())
-    worst_balance: float = field(default=0.0)  # max |balance error| so far, J
-    exchanged: float = field(default=0.0)  # max |kinetic + strain - initial| and |work| so far, J
 
     def __post_init__(self) -> None:
-        m = self.model
-        n_e = len(m.span_elements[0])
+        belt = self.system.belt
+        n_e = len(belt.span_elements[0])
         # mid-span point: the middle node (even mesh) or the middle of the middle element (odd mesh)
         k, xi = (n_e // 2, 0.0) if n_e % 2 == 0 else ((n_e - 1) // 2, 0.5)
-        els = np.array([m.span_elements[s][k] for s in range(m.layout.n)])
-        s_fun, _, _ = ancf.shape_functions(np.array([xi]), m.elements.length[els])
-        ref = (m.layout.span_start + m.layout.span_end) / 2.0
-        self.mid = (els, s_fun[:, 0, :], ref)
+        from . import ancf
 
-    def compute(self, t, q, v, a, w) -> dict[str, np.ndarray]:
-        m, setup, cfg = self.model, self.setup, self.cfg
-        B = len(t)
+        els = np.array([belt.span_elements[s][k] for s in range(belt.n_span)])
+        s_fun, _, _ = ancf.shape_functions(np.array([xi]), belt.elements.length[els])
+        self.mid = (els, s_fun[:, 0, :])
+        self.names = {s.name for s in self.setup.series}
+
+    def compute(self, t, q, v, a, energy, reaction) -> dict[str, np.ndarray]:
+        sysm, setup, names = self.system, self.setup, self.names
+        belt = sysm.belt
         out: dict[str, np.ndarray] = {}
-        names = {s.name for s in setup.series}
-        el = m.elements
-        qe = np.concatenate([q, np.zeros((B, 1))], axis=1)[:, m.idx]  # (B, n_elem, mm)
-        E = np.einsum("eim,bem->bei", m.T, qe) + m.e0  # (B, n_elem, 8)
-        ve = np.concatenate([v, np.zeros((B, 1))], axis=1)[:, m.idx]
-        Ed = np.einsum("eim,bem->bei", m.T, ve)
-        rot_state = np.array([_rotation_numpy(setup.rotation, tt) for tt in t]) if setup.pdof >= 0 else None
         if "pulley_angle" in names or "pulley_speed" in names:
-            s_nom = np.zeros(B)
-            sd_nom = np.zeros(B)
-            if rot_state is not None and setup.nom_scale:
-                s_nom = rot_state[:, 0] * setup.nom_scale
-                sd_nom = rot_state[:, 1] * setup.nom_scale
-            ur = setup.u_nom[m.rot_dof]
+            s_nom = np.zeros(len(t))
+            sd_nom = np.zeros(len(t))
+            if setup.nom_scale:
+                from .integrator import rotation_state
+
+                st = np.array([rotation_state(setup.forcing.nominal_rotation, float(x))[:2] for x in t])
+                s_nom, sd_nom = st[:, 0] * setup.nom_scale, st[:, 1] * setup.nom_scale
+            ur = setup.u_nom[sysm.rot_dof]
             if "pulley_angle" in names:
-                out["pulley_angle"] = q[:, m.rot_dof] + s_nom[:, None] * ur
+                out["pulley_angle"] = q[:, sysm.rot_dof] + s_nom[:, None] * ur
             if "pulley_speed" in names:
-                out["pulley_speed"] = v[:, m.rot_dof] + sd_nom[:, None] * ur
-        if "span_tension" in names:
-            first = np.array([s[0] for s in m.span_elements])
-            last = np.array([s[-1] for s in m.span_elements])
-            eta = cfg.transient.damping.belt_axial
-            res = np.empty((B, m.layout.n, 2))
-            for col, (els, x) in enumerate(((first, 0.0), (last, 1.0))):
-                _, ds, _ = ancf.shape_functions(np.array([x]), el.length[els])
-                D = ds[:, 0, :]  # (n_span, 4)
-                rp = np.einsum("sk,bskd->bsd", D, E[:, els].reshape(B, len(els), 4, 2))
-                rpd = np.einsum("sk,bskd->bsd", D, Ed[:, els].reshape(B, len(els), 4, 2))
-                a2 = (rp ** 2).sum(-1)
-                eps = 0.5 * (a2 - 1.0)
-                epsd = (rp * rpd).sum(-1)
-                res[:, :, col] = el.EA[els] * (eps + eta * epsd) * np.sqrt(a2)
-            out["span_tension"] = res
-        if "hub_load" in names:
-            g = np.asarray(cfg.model.gravity, dtype=float)
-            ge = ancf.gravity_forces(el, g)
-            ae = np.einsum("eim,bem->bei", m.T, np.concatenate([a, np.zeros((B, 1))], axis=1)[:, m.idx])
-            hub = np.zeros((B, m.layout.n, 2))
-            eta_a, eta_b = cfg.transient.damping.belt_axial, cfg.transient.damping.belt_bending
-            Kb = el.K_bend if cfg.model.curvature == "linear" else np.zeros_like(el.K_bend)
-            for b in range(B):
-                fe = ancf.internal_forces(el, E[b])
-                if eta_a or eta_b:
-                    fe = fe + _damping_forces(el, E[b], Ed[b], eta_a, eta_b, Kb)
-                inert = np.einsum("eij,ej->ei", el.mass, ae[b])
-                net = ge - fe - inert
-                for s in range(m.layout.n):
-                    f0, f1 = m.span_elements[s][0], m.span_elements[s][-1]
-                    hub[b, s] += net[f0, 0:2]
-                    hub[b, (s + 1) % m.layout.n] += net[f1, 4:6]
-            out["hub_load"] = hub
-        if "bearing_force" in names:
-            rows = []
-            for j, p in enumerate(cfg.pulleys):
-                if p.support == "fixed":
-                    continue
-                F = np.zeros((B, 2))
-                for dof, vec in zip(m.trans_dof[j], m.trans_dir[j]):
-                    F += (self.static.spring_preload[dof] - m.spring[dof] * q[:, dof])[:, None] * vec
-                rows.append(F)
-            out["bearing_force"] = np.stack(rows, axis=1)
+                out["pulley_speed"] = v[:, sysm.rot_dof] + sd_nom[:, None] * ur
+        E = None
+        if names & {"span_tension", "hub_load", "midspan_displacement"}:
+            E = belt.element_coordinates_batch(q)
+        if "span_tension" in names or "hub_load" in names:
+            Ed = belt.element_coordinates_batch(v, offset=False)
+            F = belt.end_forces(E, Ed, sysm.gravity)  # internal (elastic + damping) - weight
+            if "span_tension" in names:
+                out["span_tension"] = belt.end_tensions(E, F)
+            if "hub_load" in names:  # the pulley also carries the inertia of the end elements' nodes
+                Ea = belt.element_coordinates_batch(a, offset=False)
+                out["hub_load"] = sysm.hub_loads(F + belt.end_inertia(Ea))
+        for c in sysm.components:
+            for obs in c.observations(sysm):
+                if obs.name in names:
+                    out.update(c.observe(sysm, q, setup.preload))
         if "midspan_displacement" in names:
-            els, sfun, ref = self.mid
+            els, sfun = self.mid
+            B = q.shape[0]
             pos = np.einsum("sk,bskd->bsd", sfun, E[:, els].reshape(B, len(els), 4, 2))
-            out["midspan_displacement"] = np.einsum("bsd,sd->bs", pos - ref, m.reference_normal)
+            r0 = E[:, belt.first, 0:2]
+            r1 = E[:, belt.last, 4:6]
+            chord = r1 - r0
+            nrm = np.stack([-chord[..., 1], chord[..., 0]], axis=-1) / np.linalg.norm(chord, axis=-1, keepdims=True)
+            out["midspan_displacement"] = np.einsum("bsd,bsd->bs", pos - r0, nrm)
         if "energy" in names:
-            kin = 0.5 * np.einsum("bi,bi->b", v, np.asarray((m.mass @ v.T).T))
-            strain = np.array([ancf.strain_energy(el, E[b]).sum() for b in range(B)])
-            strain += 0.5 * (m.spring * q * q).sum(axis=1)
-            total = kin + strain - w[:, 0] + w[:, 1]
-            out["energy"] = np.column_stack([kin, strain, w[:, 0], w[:, 1], total - self.energy0])
+            out["energy"] = energy
         if "driver_torque" in names:
-            out["driver_torque"] = w[:, 2].copy()
+            out["driver_torque"] = reaction[:, 0].copy()
+        if "constraint_reaction" in names:
+            out["constraint_reaction"] = reaction.copy()
         if "q" in names:
             out["q"] = q.copy()
             out["v"] = v.copy()
         return out
 
 
-def _damping_forces(el, E, Ed, eta_a, eta_b, Kb):
-    """Kelvin-Voigt belt damping forces (n_elem, 8) at one state (numpy, for outputs)."""
-    Er = E.reshape(-1, 4, 2)
-    Edr = Ed.reshape(-1, 4, 2)
-    rp = np.matmul(el.dS, Er)
-    rpd = np.matmul(el.dS, Edr)
-    epsd = (rp * rpd).sum(-1)
-    c = el.wL * el.EA[:, None] * eta_a * epsd
-    f = np.einsum("eq,eqk,eqd->ekd", c, el.dS, rp).reshape(-1, 8)
-    return f + eta_b * np.einsum("eij,ej->ei", Kb, Ed)
-
-
-def _rotation_numpy(rot, t):
-    from .integrator import rotation_state
-
-    return np.array(rotation_state(rot, float(t)))
-
-
-# ------------------------------------------------------------------------------------ the run
-Sink = Callable[[np.ndarray, dict[str, np.ndarray]], None]
-Progress = Callable[[float], None]
-
-
-def run_transient(cfg: DriveConfig, model: DriveModel, static: StaticResult, *, sink: Sink,
-                  progress: Progress | None = None, setup: TransientSetup | None = None,
-                  batch: int = 256) -> TransientSummary:
-    """Integrate, feeding (time (B,), {series: (B, ...)}) batches to `sink`.
-
-    Raises SolverError (with the failure time, residual and DOF) when the step cannot be reduced
-    further; the batches before the failure have been delivered. KeyboardInterrupt propagates after
-    the last complete batch was delivered.
-    """
+# ------------------------------------------------------------------------------------ analytic tests
+def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.ndarray, v0: np.ndarray, *,
+                     step: float, n_steps: int, rho_inf: float, tol: float = 1e-12):
+    """Integrate M a + C v + K q = 0 through the production path (the same `drive`, compiled stepper
+    and band factorization as the drive, with no belt elements). For tests on analytic oscillators.
+    Returns t (n_steps+1,), q, v, a (n_steps+1, n)."""
     from . import integrator as itg
 
-    opts = cfg.transient
-    setup = setup or prepare(cfg, model, static)
-    n = model.n_dof
-    am, af, beta, gamma = itg.alpha_parameters(opts.rho_inf)
-    M_ptr, M_idx, M_dat = _csr(model.mass)
-    if setup.C is not None:
-        C_ptr, C_idx, C_dat = _csr(setup.C)
-    else:
-        C_ptr, C_idx, C_dat = np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0)
-    mats = (M_ptr, M_idx, M_dat, C_ptr, C_idx, C_dat)
-    K = setup.kernel
-    q, v = setup.q0.copy(), setup.v0.copy()
-    if setup.pdof >= 0:
-        st = itg.rotation_state(setup.rotation, 0.0)
-        q[setup.pdof], v[setup.pdof] = setup.rotation[7] + st[3], st[4]
-    # consistent initial acceleration: M a0 = F(0) - C v0 - f(q0, v0) on the free DOFs
-    f_el, f_dmp = np.zeros(n + 1), np.zeros(n + 1)
-    F = np.zeros(n)
-    min_force = np.zeros(max(model.layout.n, 1))
-    itg._forces(q, v, 0.0, K, f_el, f_dmp, F, min_force, np.zeros(K[21].shape[0]))
-    rhs = F - f_el[:n] - f_dmp[:n]
-    if setup.C is not None:
-        rhs -= np.asarray(setup.C @ v).ravel()
-    a = np.zeros(n)
-    Md = model.mass if model.dense else model.mass.toarray()
-    free = np.arange(n) if setup.pdof < 0 else np.delete(np.arange(n), setup.pdof)
-    if setup.pdof >= 0:
-        a[setup.pdof] = itg.rotation_state(setup.rotation, 0.0)[5]
-        rhs -= Md[:, setup.pdof] * a[setup.pdof]
-    a[free] = np.linalg.solve(Md[np.ix_(free, free)], rhs[free])
-    f0 = np.concatenate([f_el[:n] + f_dmp[:n], f_dmp[:n]])
-    Cv0 = np.asarray(setup.C @ v).ravel() if setup.C is not None else np.zeros(n)
-    Rd0 = (float((Md @ a)[setup.pdof] + Cv0[setup.pdof] + f_el[setup.pdof] + f_dmp[setup.pdof] - F[setup.pdof])
-           if setup.pdof >= 0 else 0.0)
-    th = np.array([0.0, opts.step, 0.0, 0.0, 0.0, Rd0, 0.0])  # t, h, next output, W, D, reaction, steps
-    state = (q, v, a, f0, F.copy(), th)
-    derived = _Derived(cfg=cfg, model=model, setup=setup, static=static)
-    n_span = model.layout.n
-    events = np.zeros((2000 * max(model.layout.n, 1) + 8, 4))  # room for one call's transitions (2000 steps)
-    all_events: list[np.ndarray] = []
-    n_events = np.zeros(1, dtype=np.int64)
-    slack = np.zeros(n_span)
-    info = np.zeros(4)
-    batch = max(batch, int(math.ceil(opts.step / opts.output_interval)) + 2)  # a step's samples always fit
-    out_t = np.zeros(batch)
-    out_q = np.zeros((batch, n))
-    out_v = np.zeros((batch, n))
-    out_a = np.zeros((batch, n))
-    out_w = np.zeros((batch, 3))
-    n_out = np.zeros(1, dtype=np.int64)
-    n_total_out = int(math.floor(opts.duration / opts.output_interval + 1e-9)) + 1
-    h_nominal = opts.step
-    fac = _factor(setup, model, cfg, q, th[1])
-    fresh = 1.0
-    steps = refactors = halvings = 0
-    min_h = th[1]
-    delivered = 0
-    first = True
-    calm = 0
+    n = M.shape[0]
+    belt = itg.BeltData(e0=np.zeros((0, 8)), T=np.zeros((0, 8, 8)), idx=np.zeros((0, 8), dtype=np.int64),
+                        tsel=np.zeros(0, dtype=np.int64), dS=np.zeros((0, 1, 4)), d2S=np.zeros((0, 1, 4)),
+                        wEA=np.zeros((0, 1)), wEI=np.zeros((0, 1)), EA=np.zeros(0), Kb=np.zeros((0, 8, 8)),
+                        curvature=1, eta_a=0.0, eta_b=0.0, elem_span=np.zeros(0, dtype=np.int64), n_span=0)
+    Cm = np.zeros((n, n)) if C is None else np.asarray(C, dtype=float)
+    lin = itg.Linear(K=itg.to_csr(K), q_ref=np.zeros(n), C=itg.to_csr(Cm) if C is not None else itg.empty_csr(n),
+                     M=itg.to_csr(M))
+    forcing = itg.Forcing(constant=np.zeros(n), load_dof=np.zeros(0, dtype=np.int64), load_coef=np.zeros(0),
+                          load_sig=np.zeros(0, dtype=np.int64), sig_params=np.zeros((0, 5)),
+                          tab_ptr=np.zeros(1, dtype=np.int64), tab_t=np.zeros(0), tab_v=np.zeros(0),
+                          nominal_mass=np.zeros(n), nominal_rotation=np.zeros(8), nominal_scale=0.0)
+    cons = itg.Constraints(dof=np.zeros(0, dtype=np.int64), params=np.zeros((0, 8)))
+    am, af, beta, gamma = itg.alpha_parameters(rho_inf)
 
-    def drain() -> None:
-        nonlocal delivered, first
-        k = int(n_out[0])
-        take = min(k, n_total_out - delivered)
-        n_out[0] = 0  # counted as delivered before the sink runs: an interrupt inside it cannot repeat them
-        if take > 0:
-            batch_out = derived.compute(out_t[:take], out_q[:take], out_v[:take], out_a[:take], out_w[:take])
-            if first and "energy" in batch_out:
-                derived.energy0 = float(batch_out["energy"][0, 0] + batch_out["energy"][0, 1])
-                batch_out["energy"][:, 4] -= derived.energy0
-            if "energy" in batch_out:
-                e = batch_out["energy"]
-                derived.worst_balance = max(derived.worst_balance, float(np.abs(e[:, 4]).max()))
-                derived.exchanged = max(derived.exchanged, float(np.abs(e[:, 0] + e[:, 1] - derived.energy0).max()),
-                                        float(np.abs(e[:, 2]).max()), float(np.abs(e[:, 3]).max()))
-            first = False
-            delivered += take
-            sink(out_t[:take].copy(), batch_out)
+    def factor(q, h):
+        S = (1 - am) / (beta * h * h) * M + (1 - af) * gamma / (beta * h) * Cm + (1 - af) * K
+        return band_factor(S, np.arange(n, dtype=np.int64), max(n - 1, 0), symmetric=bool(np.allclose(S, S.T)))
 
-    status, message = "complete", ""
-    try:
-        while True:
-            code = itg.run_steps(state, K, mats, fac, np.array([am, af, beta, gamma, opts.tolerance, opts.max_iterations,
-                                                                 opts.duration, opts.output_interval, 2000, fresh]),
-                                 out_t, out_q, out_v, out_a, out_w, n_out, events, n_events, slack, info)
-            if n_events[0]:
-                all_events.append(events[: int(n_events[0])].copy())
-                n_events[0] = 0
-            if th[6] > steps:
-                fresh = 0.0
-            steps = int(th[6])
-            if progress is not None:
-                progress(min(th[0], opts.duration))
-            if code == itg.DONE:
-                break
-            if code == itg.BUFFER_FULL or code == itg.MAX_STEPS:
-                drain()
-                if th[1] < h_nominal:  # grow the step back after a calm stretch
-                    calm += 1
-                    if calm >= 2:
-                        th[1] = min(2.0 * th[1], h_nominal)
-                        fac = _factor(setup, model, cfg, q, th[1])
-                        fresh, calm = 1.0, 0
-                        refactors += 1
-                continue
-            if code == itg.REFACTOR:
-                fac = _factor(setup, model, cfg, q, th[1])
-                fresh = 1.0
-                refactors += 1
-                calm = 0
-                continue
-            # HALVE
-            if th[1] / 2.0 < opts.min_step:
-                dof = model.dof_labels[int(info[2])] if int(info[2]) < n else "?"
-                message = (f"no convergence at t = {info[0]:.6g} s even with the step reduced to {th[1]:.3g} s "
-                           f"(transient.min_step = {opts.min_step:g} s)")
-                status = "failed"
-                drain()
-                raise SolverError(message, analysis="transient", step=f"t = {info[0]:.6g} s",
-                                  residual=float(info[1]), item=dof)
-            th[1] /= 2.0
-            min_h = min(min_h, th[1])
-            halvings += 1
-            calm = 0
-            fac = _factor(setup, model, cfg, q, th[1])
-            fresh = 1.0
-            refactors += 1
-        drain()
-    except KeyboardInterrupt:
-        status = "interrupted"
-        drain()
-        raise
-    ev = np.concatenate(all_events) if all_events else np.zeros((0, 4))
-    return TransientSummary(status=status, steps=steps, refactorizations=refactors, step_halvings=halvings,
-                            final_time=float(th[0]), min_step=float(min_h), slack_events=ev, message=message,
-                            n_outputs=delivered,
-                            energy_error=derived.worst_balance / derived.exchanged if derived.exchanged > 0 else 0.0)
+    problem = StepProblem(belt=belt, linear=lin, forcing=forcing, constraints=cons, groups=np.zeros(n, dtype=np.int64),
+                          q0=np.asarray(q0, dtype=float), v0=np.asarray(v0, dtype=float), factor=factor,
+                          labels=tuple(f"q{i}" for i in range(n)))
+    got: list = []
+    drive(problem, rho_inf=rho_inf, step=step, min_step=step, duration=n_steps * step, output_interval=step,
+          tolerance=tol, max_iterations=20, on_batch=lambda *b: got.append(b[:4]), batch=n_steps + 2)
+    t, q, v, a = (np.concatenate([g[i] for g in got]) for i in range(4))
+    return t, q, v, a
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) the stepper and the belt kernels: a two-step run of a
+    one-DOF oscillator through the production path."""
+    integrate_linear(np.eye(1), np.eye(1), None, np.ones(1), np.zeros(1), step=0.1, n_steps=2, rho_inf=0.5)

@@ -48,20 +48,17 @@ def cli_time(args: list[str], repeats: int = 7) -> float:
 
 
 def pipeline(cfg):
-    from beltdyn.geometry import layout_from_config
-    from beltdyn.modal import solve_modes
-    from beltdyn.static import model_from_config, solve_static
+    from beltdyn.pipeline import analyse
 
-    model = model_from_config(cfg, layout_from_config(cfg))
-    st = solve_static(cfg, model)
-    return model, solve_modes(model, st.q, n_modes=cfg.modal.modes, solver=cfg.modal.solver)
+    run = analyse(cfg, modal=True)
+    return run.system, run.modal
 
 
 def static_of(cfg):
-    from beltdyn.static import model_from_config, solve_static
+    from beltdyn.pipeline import analyse
 
-    model = model_from_config(cfg)
-    return model, solve_static(cfg, model)
+    run = analyse(cfg)
+    return run.system, run.static
 
 
 def step_study() -> list[tuple[str, ...]]:
@@ -80,10 +77,10 @@ def step_study() -> list[tuple[str, ...]]:
                                   "transient.spectrum.enabled=false"])
         model, st = static_of(cfg)
         got = []
-        run_transient(cfg, model, st, sink=lambda t, b: got.append(b["bearing_force"][:, 0, 0]))
+        run_transient(model, st, cfg.transient, sink=lambda t, b: got.append(b["bearing_force"][:, 0, 0]))
         t0 = time.perf_counter()
         got.clear()
-        run_transient(cfg, model, st, sink=lambda t, b: got.append(b["bearing_force"][:, 0, 0]))
+        run_transient(model, st, cfg.transient, sink=lambda t, b: got.append(b["bearing_force"][:, 0, 0]))
         return np.concatenate(got), time.perf_counter() - t0
 
     ref, _ = history(3.125e-6)
@@ -148,8 +145,8 @@ def main() -> None:
         cfg = load_config(small, [f"mesh.elements_per_span={n_el}", "transient.duration=1.0", "transient.step=1e-4",
                                   "transient.output_interval=1e-3", "transient.spectrum.start=0.5"])
         model, st = static_of(cfg)
-        run_transient(cfg, model, st, sink=lambda t, b: None)
-        t = median_time(lambda: run_transient(cfg, model, st, sink=lambda t, b: None), repeats=3, warmup=0)
+        run_transient(model, st, cfg.transient, sink=lambda t, b: None)
+        t = median_time(lambda: run_transient(model, st, cfg.transient, sink=lambda t, b: None), repeats=3, warmup=0)
         add(f"transient 1 s at dt = 1e-4 s, {n_el} el/span ({model.n_dof} DOFs, outputs every 1 ms)",
             f"{t:.3f} s", f"<= {target} s", t <= target)
     peaks = []
@@ -157,7 +154,7 @@ def main() -> None:
         cfg = load_config(small, [f"transient.duration={duration}", "transient.spectrum.enabled=false"])
         model, st = static_of(cfg)
         tracemalloc.start()
-        run_transient(cfg, model, st, sink=lambda t, b: None)
+        run_transient(model, st, cfg.transient, sink=lambda t, b: None)
         peaks.append(tracemalloc.get_traced_memory()[1])
         tracemalloc.stop()
     add("transient peak memory, 0.5 s vs 2 s simulated", f"{peaks[0] / 1e6:.2f} MB vs {peaks[1] / 1e6:.2f} MB",

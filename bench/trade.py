@@ -36,11 +36,9 @@ def timed(fn, repeats=5):
 
 
 def modal_run(cfg, n_modes):
-    from beltdyn.modal import solve_modes
-    from beltdyn.static import model_from_config, solve_static
+    from beltdyn.pipeline import analyse
 
-    model = model_from_config(cfg)
-    return solve_modes(model, solve_static(cfg, model).q, n_modes=n_modes)
+    return analyse(cfg, modal=True, n_modes=n_modes).modal
 
 
 def keyed(md):

@@ -34,12 +34,10 @@ def test_modal_command_writes_all_groups(tmp_path):
     md = read_group(out, "modal")
     assert md["attrs"]["status"] == "complete" and md["attrs"]["n_rigid"] == 1
     from beltdyn.config import load_config
-    from beltdyn.modal import solve_modes
-    from beltdyn.static import model_from_config, solve_static
+    from beltdyn.pipeline import analyse
 
     cfg = load_config(ROOT / "configs/smoke/two_pulley.toml")
-    model = model_from_config(cfg)
-    ref = solve_modes(model, solve_static(cfg, model).q, n_modes=cfg.modal.modes)
+    ref = analyse(cfg, modal=True).modal
     np.testing.assert_allclose(md["variables"]["frequency"], ref.frequency, rtol=1e-12)
     with h5py.File(out) as f:
         def check(name, obj):

@@ -11,19 +11,17 @@ import pytest
 from beltdyn.config import config_from_dict, load_config
 from beltdyn.errors import SolverError
 from beltdyn.modal import solve_modes
-from beltdyn.model import build_model, stretch_for_tension
 from beltdyn.paper import CASES, compare
-from beltdyn.static import model_from_config, solve_static
+from beltdyn.static import solve_static
+from beltdyn.system import build_system, stretch_for_tension
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
 
 def run(path_or_cfg, overrides=(), n_modes=16, dense=None):
     cfg = load_config(path_or_cfg, list(overrides)) if isinstance(path_or_cfg, (str, Path)) else path_or_cfg
-    model = model_from_config(cfg)
-    if dense is not None:
-        model = build_model(cfg, model.layout, prestrain_stretch=model.prestrain_stretch, dense=dense)
-    st = solve_static(cfg, model)
+    model = build_system(cfg, dense=dense)
+    st = solve_static(model, cfg.static)
     return cfg, model, st, solve_modes(model, st.q, n_modes=n_modes)
 
 
@@ -47,9 +45,9 @@ def test_paper_bench_static():
     np.testing.assert_allclose(st.span_tension, 200.0, rtol=1e-6)
     move = model.layout.adjust_offset - st.adjust_offset
     assert move == pytest.approx(1.13e-3, abs=0.01e-3)
-    e = model.element_coordinates(st.q)
-    first = [s[0] for s in model.span_elements]
-    last = [s[-1] for s in model.span_elements]
+    e = model.belt.element_coordinates(st.q)
+    first = [s[0] for s in model.belt.span_elements]
+    last = [s[-1] for s in model.belt.span_elements]
     t_out = e[first[0], 4:6] - e[first[0], 0:2]
     t_in = e[last[1], 4:6] - e[last[1], 0:2]
     expect = 200.0 * (t_out / np.linalg.norm(t_out) - t_in / np.linalg.norm(t_in))
@@ -69,7 +67,7 @@ def test_gravity_global_equilibrium(tension):
     # weight (rho g sum of reference lengths), relative 1e-8.
     cfg, model, st, _ = run(CONFIGS / "paper" / "bench_T200.toml",
                             ["model.gravity=[0.0, -9.81]", f"tension.target={tension}"], n_modes=1)
-    weight = cfg.belt.mass_per_length * 9.81 * model.reference_length.sum()
+    weight = cfg.belt.mass_per_length * 9.81 * model.belt.reference_length.sum()
     np.testing.assert_allclose(st.hub_load.sum(axis=0), [0.0, -weight], rtol=0, atol=1e-8 * weight)
     assert st.mean_tension == pytest.approx(tension, rel=1e-9)
 
@@ -77,8 +75,8 @@ def test_gravity_global_equilibrium(tension):
 def test_reduced_tangent_against_finite_differences():
     # K_t = d f_int / dq of the reduced model (joints included) against central differences, 1e-6 relative.
     cfg = load_config(CONFIGS / "smoke" / "three_pulley.toml")
-    model = model_from_config(cfg)
-    st = solve_static(cfg, model)
+    model = build_system(cfg)
+    st = solve_static(model, cfg.static)
     rng = np.random.default_rng(1)
     q = st.q + 1e-4 * rng.standard_normal(model.n_dof)
     _, K = model.force_and_tangent(q)
@@ -241,7 +239,7 @@ def test_low_tension_with_gravity_converges():
     # over; the weight is carried (global equilibrium 1e-8) and the target met.
     cfg, model, st, modes = run(CONFIGS / "paper" / "bench_T200.toml",
                                 ["model.gravity=[0.0, -9.81]", "tension.target=1.0", "belt.EI=0.0"], n_modes=4)
-    weight = cfg.belt.mass_per_length * 9.81 * model.reference_length.sum()
+    weight = cfg.belt.mass_per_length * 9.81 * model.belt.reference_length.sum()
     np.testing.assert_allclose(st.hub_load.sum(axis=0), [0.0, -weight], atol=1e-8 * weight)
     assert st.mean_tension == pytest.approx(1.0, rel=1e-8)
     assert np.all(modes.frequency > 0)
@@ -260,9 +258,9 @@ def test_slack_free_belt_fails_clearly():
     raw["tension"] = {}
     raw["belt"]["length"] = layout_from_config(config_from_dict(raw)).belt_length  # exactly the path: no strain
     cfg = config_from_dict(raw)
-    model = model_from_config(cfg)
-    assert model.prestrain_stretch == 1.0
-    st = solve_static(cfg, model)
+    model = build_system(cfg)
+    assert model.belt.prestrain_stretch == 1.0
+    st = solve_static(model, cfg.static)
     with pytest.raises(SolverError) as err:
         solve_modes(model, st.q, n_modes=4)
     text = str(err.value)

@@ -16,7 +16,7 @@ import pytest
 from beltdyn.config import load_config, with_overrides
 from beltdyn.errors import ConfigError
 from beltdyn.modal import solve_modes
-from beltdyn.static import model_from_config, solve_static
+from beltdyn.pipeline import analyse
 from beltdyn.sweep import Journal, _keys, assemble, make_spec, parse_values, refine_mesh, richardson, run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -83,8 +83,7 @@ def test_grid_product_and_parents(tmp_path):
     res = sweep(tmp_path, [("tension.target", "200,300,400"), ("belt.EI", "0.02,1.0")], n_modes=4)
     assert res.spec.shape == (3, 2) and res.values[1] == (200, 1.0) and res.values[2] == (300, 0.02)
     cfg = with_overrides(load_config(BENCH), ["tension.target=400", "belt.EI=1.0"])
-    model = model_from_config(cfg)
-    md = solve_modes(model, solve_static(cfg, model).q, n_modes=4)
+    md = analyse(cfg, modal=True, n_modes=4).modal
     np.testing.assert_allclose(np.sort(res.frequency[5]), md.frequency, rtol=1e-10)
 
 
@@ -179,8 +178,7 @@ def test_rtol_refinement_meets_tolerance_and_bounds_error(start, rtol, n_modes):
     (c, model, st, md), ref = refine_mesh(cfg, n_modes=n_modes, rtol=rtol)
     assert ref.converged
     rc = with_overrides(cfg, ["mesh.elements_per_span=320"])
-    rm = model_from_config(rc)
-    rmd = solve_modes(rm, solve_static(rc, rm).q, n_modes=n_modes + 10)
+    rmd = analyse(rc, modal=True, n_modes=n_modes + 10).modal
     ref_keys = _keys(rmd)
     chosen_keys = _keys(md)
     for j, lab in enumerate(ref.labels):

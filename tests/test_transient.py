@@ -18,11 +18,11 @@ import scipy.linalg as sl
 
 from beltdyn.config import config_from_dict, config_to_dict, load_config
 from beltdyn.errors import SolverError
-from beltdyn.integrator import alpha_parameters, integrate_linear
+from beltdyn.integrator import alpha_parameters
 from beltdyn.modal import solve_modes
+from beltdyn.pipeline import analyse
 from beltdyn.spectrum import amplitude_spectrum, harmonic_content
-from beltdyn.static import model_from_config, solve_static
-from beltdyn.transient import prepare, run_transient
+from beltdyn.transient import integrate_linear, prepare, run_transient
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
@@ -114,8 +114,8 @@ def bench_cfg(transient: dict, overrides=()):
 
 
 def collect(cfg, *, setup=None):
-    model = model_from_config(cfg)
-    st = solve_static(cfg, model)
+    run = analyse(cfg)
+    model, st = run.system, run.static
     got: dict[str, list] = {}
 
     def sink(t, batch):
@@ -123,7 +123,7 @@ def collect(cfg, *, setup=None):
         for k, v in batch.items():
             got.setdefault(k, []).append(v)
 
-    summary = run_transient(cfg, model, st, sink=sink, setup=setup(cfg, model, st) if setup else None)
+    summary = run_transient(model, st, cfg.transient, sink=sink, setup=setup(cfg, model, st) if setup else None)
     return model, st, summary, {k: np.concatenate(v) for k, v in got.items()}
 
 
@@ -134,13 +134,13 @@ def test_free_vibration_at_modal_frequency(mode):
     # step 2.5e-5 s so that the trapezoidal period error (w h)^2/12 stays below 0.01 %).
     cfg = bench_cfg({"duration": 0.15, "step": 2.5e-5, "output_interval": 2.5e-5, "rho_inf": 1.0,
                      "record": {"full_state": True, "hub_load": False, "energy": False}, "spectrum": {"enabled": False}})
-    model = model_from_config(cfg)
-    st = solve_static(cfg, model)
+    run = analyse(cfg)
+    model, st = run.system, run.static
     modes = solve_modes(model, st.q, n_modes=12)
     phi = modes.shapes[mode]
 
     def setup(cfg, model, st):
-        s = prepare(cfg, model, st)
+        s = prepare(model, st, cfg.transient)
         return dataclasses.replace(s, q0=st.q + 1e-6 / np.abs(phi).max() * phi)
 
     _, _, summary, out = collect(cfg, setup=setup)
@@ -237,11 +237,10 @@ def test_unrecoverable_failure_names_time_and_dof():
     tr = excitation(0.5)
     tr.update(min_step=1e-4, max_iterations=4)
     cfg = bench_cfg(tr)
-    model = model_from_config(cfg)
-    st = solve_static(cfg, model)
+    run = analyse(cfg)
     seen = []
     with pytest.raises(SolverError) as err:
-        run_transient(cfg, model, st, sink=lambda t, b: seen.append(t))
+        run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: seen.append(t))
     assert str(err.value).startswith("transient:") and "t = " in str(err.value)
     assert err.value.item and seen
 
@@ -302,7 +301,7 @@ def test_static_start_with_prescribed_rotation_stays_at_rest():
     cfg = load_config(ROOT / "configs/examples/bench_transient_small.toml",
                       ["transient.rotation[0].amplitude=0.0", "transient.duration=0.05", "transient.spectrum.enabled=false"])
     _, st, summary, out = collect(cfg)
-    assert abs(st.q[model_from_config(cfg).rot_dof[1]]) > 1e-6  # C does turn in the static solution
+    assert abs(st.q[analyse(cfg, static=False).system.rot_dof[1]]) > 1e-6  # C does turn in the static solution
     assert out["energy"][:, 0].max() < 1e-12
     assert np.ptp(out["bearing_force"][:, 0, 0]) < 1e-6
 
@@ -314,12 +313,12 @@ def test_outputs_do_not_depend_on_the_buffer(batch):
     cfg = load_config(ROOT / "configs/examples/bench_transient_small.toml",
                       ["transient.duration=0.01", "transient.output_interval=1e-5", "transient.spectrum.enabled=false",
                        "transient.rotation[0].fluctuation_ramp=0.0"])
-    model = model_from_config(cfg)
-    st = solve_static(cfg, model)
+    run = analyse(cfg)
+    model, st = run.system, run.static
     runs = []
     for b in (batch, 1_000_000):
         got = []
-        run_transient(cfg, model, st, sink=lambda t, d: got.append((t, d["driver_torque"])), batch=b)
+        run_transient(model, st, cfg.transient, sink=lambda t, d: got.append((t, d["driver_torque"])), batch=b)
         runs.append((np.concatenate([g[0] for g in got]), np.concatenate([g[1] for g in got])))
     assert len(runs[0][0]) == 1001
     np.testing.assert_allclose(runs[0][0], np.arange(1001) * 1e-5, atol=1e-12)

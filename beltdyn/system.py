@@ -1,0 +1,788 @@
+"""The drive as a system of components: one DOF map, components that own DOFs and contribute.
+
+Nomenclature (paper section 2.2):
+- q (n_dof,): independent coordinates, measured from the reference configuration (q = 0 is the
+  stress-free L0 geometry, or the prestrained one). A pulley carries only the DOFs its support
+  allows: rotation theta (rad, counter-clockwise), plus the slide offset u (m) or the bearing
+  displacements (x, y) (m). A span carries every coordinate of its interior nodes (r1, r2, r1', r2')
+  and the gradients of its end nodes; the end-node positions are dependent (the joints).
+- Joint (DESIGN section 2): r_end = c + R n + R theta (z x n) + translation, n the outward normal at
+  the tangent point, z x n the pulley surface direction for a positive rotation; the gradients of
+  the end nodes are free (pinned, "bi-articulated"). This joint has a constant Jacobian, so the
+  paper's transformation B is constant: element coordinates e = e0 + T q[idx] element by element,
+  with T (n_elem, 8, m) and idx (n_elem, m) (padding points at the dummy index n_dof). Interior
+  elements have T = [I8 | 0]: the kernel skips their transform.
+
+The seam. A `System` is the DOF map, the belt (`BeltSpans`, the only nonlinear component today,
+evaluated by the compiled kernel of `belt_kernel`) and any number of `LinearComponent`s: pulley
+inertia, pulley mass, bearing springs, or anything a user writes (a rotational spring between two
+pulleys is one in the tests). Every component owns its DOF indices and gives its contribution to
+the internal force and tangent (K q, K), to the damping (C v), to the mass (M) and to the weight,
+its kinetic-energy kind for the classification of modes, and its own output series. The analyses
+(static, modal, transient) see only the system: adding a component touches no analysis.
+
+Reduced matrices: M = sum_e T^T M_e T + component masses; K_t = sum_e T^T K_e T + component
+stiffness (paper Eqs. 20-23, 26). Assembly scatters (n_elem, m, m) blocks and the components'
+constant matrices through one precomputed pattern into a dense array (small models) or a CSR
+matrix (large models).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import ancf
+from .config import DriveConfig
+from .errors import ConfigError
+from .geometry import Layout, layout_from_config
+
+DENSE_LIMIT = 200  # models up to this many DOFs use dense linear algebra
+DOF_GROUPS = ("span", "rotation", "translation")
+ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse")
+
+
+def _z_cross(n: np.ndarray) -> np.ndarray:
+    return np.array([-n[1], n[0]])
+
+
+# ------------------------------------------------------------------------------------ DOF map
+@dataclass(frozen=True, kw_only=True)
+class DofMap:
+    """Every independent coordinate: label, unit and group, and the pulleys' and spans' DOFs.
+
+    labels/units (n_dof,); group (n_dof,) int index into DOF_GROUPS; rot_dof (n_pulley,);
+    trans_dof[j] the translation DOFs of pulley j with trans_dir[j] (k, 2) their directions (m per
+    unit q); span_slices[s] the contiguous DOF range of span s's own coordinates.
+    """
+
+    labels: tuple[str, ...]
+    units: tuple[str, ...]
+    group: np.ndarray
+    rot_dof: np.ndarray
+    trans_dof: tuple[tuple[int, ...], ...]
+    trans_dir: tuple[np.ndarray, ...]
+    span_slices: tuple[slice, ...]
+
+    @property
+    def n(self) -> int:
+        return len(self.labels)
+
+
+def number_dofs(cfg: DriveConfig) -> DofMap:
+    """DOF order along the loop: pulley j (translations, rotation), then span j (start gradients,
+    interior nodes, end gradients)."""
+    n_e = cfg.mesh.elements_per_span
+    labels: list[str] = []
+    units: list[str] = []
+    group: list[int] = []
+    rot_dof = np.zeros(len(cfg.pulleys), dtype=int)
+    trans_dof: list[tuple[int, ...]] = []
+    trans_dir: list[np.ndarray] = []
+    span_slices: list[slice] = []
+
+    def add(label: str, unit: str, grp: str) -> int:
+        labels.append(label)
+        units.append(unit)
+        group.append(DOF_GROUPS.index(grp))
+        return len(labels) - 1
+
+    comp = (("r1", "m"), ("r2", "m"), ("r1'", "1"), ("r2'", "1"))
+    for j, p in enumerate(cfg.pulleys):
+        if p.support == "slide":
+            trans_dof.append((add(f"pulley {p.name} slide", "m", "translation"),))
+            trans_dir.append(np.array([p.slide_direction], dtype=float))
+        elif p.support == "bearing":
+            trans_dof.append(tuple(add(f"pulley {p.name} {axis}", "m", "translation") for axis in "xy"))
+            trans_dir.append(np.eye(2))
+        else:
+            trans_dof.append(())
+            trans_dir.append(np.zeros((0, 2)))
+        rot_dof[j] = add(f"pulley {p.name} rotation", "rad", "rotation")
+        start = len(labels)
+        s = j + 1
+        for node in range(1, n_e + 2):
+            for c, unit in (comp[2:] if node in (1, n_e + 1) else comp):
+                add(f"span {s} node {node} {c}", unit, "span")
+        span_slices.append(slice(start, len(labels)))
+    return DofMap(labels=tuple(labels), units=tuple(units), group=np.array(group, dtype=np.int64), rot_dof=rot_dof,
+                  trans_dof=tuple(trans_dof), trans_dir=tuple(trans_dir), span_slices=tuple(span_slices))
+
+
+# ------------------------------------------------------------------------------------ components
+@dataclass(frozen=True, kw_only=True)
+class Observation:
+    """One output series a component offers: trailing dims (coordinate names) and units."""
+
+    name: str
+    dims: tuple[str, ...]
+    units: str
+    description: str = ""
+
+
+@dataclass(frozen=True, kw_only=True)
+class LinearComponent:
+    """A component with constant matrices over its own DOFs (k,): internal force K q[dofs],
+    damping C v[dofs], mass M, weight W (k, 2) (generalized force per unit gravity vector).
+
+    energy_kind names the kinetic-energy kind of its mass for the mode classification
+    (one of ENERGY_KINDS, or "" for none). Subclasses may offer output series (`observations`,
+    `observe`).
+    """
+
+    name: str
+    dofs: np.ndarray
+    stiffness: np.ndarray | None = None
+    damping: np.ndarray | None = None
+    mass: np.ndarray | None = None
+    weight: np.ndarray | None = None
+    energy_kind: str = ""
+
+    def observations(self, system: "System") -> tuple[Observation, ...]:
+        return ()
+
+    def observe(self, system: "System", q: np.ndarray, preload: np.ndarray) -> dict[str, np.ndarray]:
+        """Series values for output states q (B, n_dof); preload (n_dof,) the static spring preload."""
+        return {}
+
+
+@dataclass(frozen=True, kw_only=True)
+class BearingSprings(LinearComponent):
+    """Bearing springs of the pulleys on slides and bearings (paper Eq. 21), diagonal."""
+
+    pulleys: tuple[int, ...] = ()  # pulley index of each supported pulley
+    pulley_names: tuple[str, ...] = ()
+
+    def observations(self, system: "System") -> tuple[Observation, ...]:
+        if not self.pulleys:
+            return ()
+        return (Observation(name="bearing_force", dims=("bearing", "component"), units="N",
+                            description="force of the bearing spring on the pulley (preload included)"),)
+
+    def observe(self, system: "System", q: np.ndarray, preload: np.ndarray) -> dict[str, np.ndarray]:
+        d = system.dofs
+        rows = []
+        for j in self.pulleys:
+            F = np.zeros((q.shape[0], 2))
+            for dof, vec in zip(d.trans_dof[j], d.trans_dir[j]):
+                k = float(self.stiffness[list(self.dofs).index(dof), list(self.dofs).index(dof)])
+                F += (preload[dof] - k * q[:, dof])[:, None] * vec
+            rows.append(F)
+        return {"bearing_force": np.stack(rows, axis=1)}
+
+
+# ------------------------------------------------------------------------------------ the belt
+@dataclass(frozen=True, kw_only=True)
+class BeltSpans:
+    """The belt's free spans: ANCF elements joined to the pulleys by constant-Jacobian joints.
+
+    Shapes: n_elem elements (span-major), m columns of the element transformation.
+    """
+
+    elements: ancf.ElementSet
+    elem_span: np.ndarray  # (n_elem,) span index of each element
+    span_elements: tuple[np.ndarray, ...]  # element indices of each span, in order
+    T: np.ndarray  # (n_elem, 8, m) element coordinates per independent coordinate
+    idx: np.ndarray  # (n_elem, m) independent coordinate indices (n_dof = padding)
+    tsel: np.ndarray  # (n_elem,) -1 where T = [I8 | 0] (interior elements), else the element index
+    e0: np.ndarray  # (n_elem, 8) element coordinates at q = 0
+    n_dof: int
+    reference_length: np.ndarray  # (n_span,) reference (unstretched) length of each span
+    reference_direction: np.ndarray  # (n_span, 2) unit direction of each span at q = 0
+    reference_normal: np.ndarray  # (n_span, 2) unit normal (z x t) of each span at q = 0
+    prestrain_stretch: float = 1.0
+    damping_axial: float = 0.0  # Kelvin-Voigt retardation times (s), set by the transient options
+    damping_bending: float = 0.0
+
+    @property
+    def n_span(self) -> int:
+        return len(self.span_elements)
+
+    @property
+    def first(self) -> np.ndarray:
+        return np.array([s[0] for s in self.span_elements])
+
+    @property
+    def last(self) -> np.ndarray:
+        return np.array([s[-1] for s in self.span_elements])
+
+    @property
+    def Tt(self) -> np.ndarray:
+        """(n_elem, m, 8) transposed element transformation (cached)."""
+        tt = self.__dict__.get("_Tt")
+        if tt is None:
+            tt = np.ascontiguousarray(self.T.transpose(0, 2, 1))
+            object.__setattr__(self, "_Tt", tt)
+        return tt
+
+    @property
+    def kernel_tables(self):
+        """The compiled kernel's tables of these elements (cached)."""
+        tab = self.__dict__.get("_tables")
+        if tab is None:
+            from .belt_kernel import tables_from_elements
+
+            tab = tables_from_elements(self.elements)
+            object.__setattr__(self, "_tables", tab)
+        return tab
+
+    def sampling_table(self, n_pts: int) -> np.ndarray:
+        """(n_elem, n_pts, 4) shape functions s1..s4 at xi = 0, 1/n_pts, ... (cached)."""
+        key = f"_samp{n_pts}"
+        tab = self.__dict__.get(key)
+        if tab is None:
+            tab, _, _ = ancf.shape_functions(np.arange(n_pts) / n_pts, self.elements.length)
+            object.__setattr__(self, key, tab)
+        return tab
+
+    # -------------------------------------------------------------------- coordinates
+    def element_coordinates(self, q: np.ndarray) -> np.ndarray:
+        """e (n_elem, 8) = e0 + T q[idx]."""
+        qe = np.append(q, 0.0)[self.idx]
+        return self.e0 + np.matmul(self.T, qe[:, :, None])[:, :, 0]
+
+    def element_coordinates_batch(self, q: np.ndarray, *, offset: bool = True) -> np.ndarray:
+        """(B, n_elem, 8) element coordinates (velocities with offset=False) of states q (B, n_dof)."""
+        qe = np.concatenate([q, np.zeros((q.shape[0], 1))], axis=1)[:, self.idx]
+        E = np.einsum("eim,bem->bei", self.T, qe)
+        return E + self.e0 if offset else E
+
+    def reduce_vector(self, fe: np.ndarray) -> np.ndarray:
+        """sum_e T^T fe (n_elem, 8) -> (n_dof,)."""
+        fr = np.matmul(self.Tt, fe[:, :, None])[:, :, 0]
+        return np.bincount(self.idx.ravel(), weights=fr.ravel(), minlength=self.n_dof + 1)[: self.n_dof]
+
+    def reduce_blocks(self, Ke: np.ndarray) -> np.ndarray:
+        """(n_elem, m, m) blocks T^T Ke T."""
+        return np.matmul(np.matmul(self.Tt, Ke), self.T)
+
+    # -------------------------------------------------------------------- forces (compiled kernel)
+    def force(self, q: np.ndarray) -> np.ndarray:
+        """Reduced elastic force of the belt (n_dof,)."""
+        from . import belt_kernel as bk
+
+        tab = self.kernel_tables
+        out = np.zeros(self.n_dof + 1)
+        bk.reduced_force(np.append(q, 0.0), self.e0, self.T, self.idx, self.tsel, tab.dS, tab.d2S, tab.wEA, tab.wEI,
+                         tab.Kb, tab.curvature, out, self.elements)
+        return out[: self.n_dof]
+
+    def force_and_blocks(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Reduced elastic force (n_dof,) and the tangent blocks T^T K_e T (n_elem, m, m)."""
+        from . import belt_kernel as bk
+
+        tab = self.kernel_tables
+        out = np.zeros(self.n_dof + 1)
+        blocks = np.empty((self.T.shape[0], self.T.shape[2], self.T.shape[2]))
+        bk.reduced_force_and_tangent_blocks(np.append(q, 0.0), self.e0, self.T, self.idx, self.tsel, tab.dS, tab.d2S,
+                                            tab.wEA, tab.wEI, tab.Kb, tab.curvature, out, blocks, self.elements)
+        return out[: self.n_dof], blocks
+
+    def mean_tension_and_gradient(self, q: np.ndarray) -> tuple[float, np.ndarray]:
+        """Length-weighted mean true axial force over all spans (N) and its gradient (n_dof,)."""
+        el = self.elements
+        E = self.element_coordinates(q).reshape(-1, 4, 2)
+        rp = np.matmul(el.dS, E)  # (n_elem, n_qp, 2) r' at the Gauss points
+        a2 = np.einsum("eqd,eqd->eq", rp, rp)
+        a = np.sqrt(a2)
+        eps = 0.5 * (a2 - 1.0)
+        N = el.EA[:, None] * eps * a
+        # dN/de = EA (a + eps / a) S'^T r'
+        c = el.wL * el.EA[:, None] * (a + eps / a)
+        g = np.einsum("eq,eqk,eqd->ekd", c, el.dS, rp).reshape(-1, 8)
+        total = float(el.length.sum())
+        return float((el.wL * N).sum() / total), self.reduce_vector(g) / total
+
+    def end_forces(self, E: np.ndarray, Ed: np.ndarray | None, gravity: np.ndarray) -> np.ndarray:
+        """Force of each span on its end nodes, (B, n_span, 2 ends, 2), from element states
+        E, Ed (B, n_elem, 8): internal (elastic + belt damping) - weight of the end elements, position
+        rows. The pulley holds the node with this force (plus `end_inertia`); the belt pushes back."""
+        from . import belt_kernel as bk
+
+        el = self.elements
+        tab = self.kernel_tables
+        ends = np.concatenate([self.first, self.last])
+        B = E.shape[0]
+        F = np.empty((B, len(ends), 8))
+        sub = _sub_tables(tab, ends)
+        fe = np.empty((len(ends), 8))
+        fd = np.empty((len(ends), 8))
+        ge = ancf.gravity_forces(el, gravity)[ends]
+        damped = self.damping_axial > 0.0 or self.damping_bending > 0.0
+        for b in range(B):
+            if tab.curvature == 2:
+                fe = ancf.internal_forces(ancf_subset(el, ends), np.ascontiguousarray(E[b, ends]))
+            else:
+                bk.element_forces(np.ascontiguousarray(E[b, ends]), *sub, fe)
+            F[b] = fe - ge
+            if damped and Ed is not None:
+                bk.element_damping(np.ascontiguousarray(E[b, ends]), np.ascontiguousarray(Ed[b, ends]), sub[0], sub[1],
+                                   sub[2], sub[3], sub[4], sub[5], self.damping_axial, self.damping_bending, fd)
+                F[b] += fd
+        n = self.n_span
+        return np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2)
+
+    def end_inertia(self, Ea: np.ndarray) -> np.ndarray:
+        """(B, n_span, 2, 2) inertia forces M_e a_e of the end elements on the span-end nodes."""
+        m = self.elements.mass
+        f0 = np.einsum("eij,bej->bei", m[self.first], Ea[:, self.first])[:, :, 0:2]
+        f1 = np.einsum("eij,bej->bei", m[self.last], Ea[:, self.last])[:, :, 4:6]
+        return np.stack([f0, f1], axis=2)
+
+    def end_tensions(self, E: np.ndarray, F_end: np.ndarray) -> np.ndarray:
+        """Span tensions (B, n_span, 2) at the start/end of each span from the end-node forces F_end
+        (B, n_span, 2, 2): the span pulls its start node along its tangent t and its end node against
+        it, so N_start = -F . t and N_end = F . t with t = r'/|r'| at the node."""
+        t0 = E[:, self.first, 2:4]
+        t1 = E[:, self.last, 6:8]
+        t0 = t0 / np.linalg.norm(t0, axis=-1, keepdims=True)
+        t1 = t1 / np.linalg.norm(t1, axis=-1, keepdims=True)
+        return np.stack([-np.einsum("bsd,bsd->bs", F_end[:, :, 0], t0), np.einsum("bsd,bsd->bs", F_end[:, :, 1], t1)],
+                        axis=-1)
+
+
+def ancf_subset(el: ancf.ElementSet, els: np.ndarray) -> ancf.ElementSet:
+    """The ElementSet of a subset of elements."""
+    import dataclasses
+
+    fields_ = {}
+    for f in dataclasses.fields(el):
+        v = getattr(el, f.name)
+        fields_[f.name] = v[els] if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == el.n_elem else v
+    return ancf.ElementSet(**fields_)
+
+
+def _sub_tables(tab, els: np.ndarray) -> tuple:
+    """Kernel table arguments (dS, d2S, wEA, wEI, Kb, curvature) of a subset of elements."""
+    return (np.ascontiguousarray(tab.dS[els]), np.ascontiguousarray(tab.d2S[els]), np.ascontiguousarray(tab.wEA[els]),
+            np.ascontiguousarray(tab.wEI[els]), np.ascontiguousarray(tab.Kb[els]), tab.curvature)
+
+
+# ------------------------------------------------------------------------------------ assembly pattern
+@dataclass(frozen=True, kw_only=True)
+class Pattern:
+    """Scatter indices for assembling (n_elem, m, m) blocks and component entries.
+
+    flat (n_elem*m*m,): row*(n+1)+col of every block entry; for the sparse path `slot` maps each entry
+    to its CSR data slot (-1 for the dummy row/column) and indices/indptr give the pattern, which
+    also holds the diagonal and every component entry.
+    """
+
+    n: int
+    flat: np.ndarray
+    slot: np.ndarray | None = None
+    indices: np.ndarray | None = None
+    indptr: np.ndarray | None = None
+    diag_slot: np.ndarray | None = None
+    nnz: int = 0
+
+    def slots_of(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """CSR data slots of entries (rows, cols) that the pattern holds (sparse path)."""
+        keys = rows.astype(np.int64) * (self.n + 1) + cols
+        r, c = np.divmod(keys, self.n + 1)
+        lo = self.indptr[r]
+        out = np.empty(len(keys), dtype=np.int64)
+        for k in range(len(keys)):  # small: component entries only
+            seg = self.indices[lo[k]: self.indptr[r[k] + 1]]
+            out[k] = lo[k] + int(np.searchsorted(seg, c[k]))
+        return out
+
+
+def element_pairs(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column index of every entry of the (n_elem, m, m) element blocks, flattened; the
+    padding index n marks entries that belong to no DOF."""
+    m = idx.shape[1]
+    return (np.repeat(idx[:, :, None], m, axis=2).ravel(), np.repeat(idx[:, None, :], m, axis=1).ravel())
+
+
+def make_pattern(idx: np.ndarray, n: int, *, sparse: bool, extra: tuple[np.ndarray, np.ndarray] | None = None) -> Pattern:
+    rows, cols = element_pairs(idx)
+    flat = rows * (n + 1) + cols
+    if not sparse:
+        return Pattern(n=n, flat=flat)
+    keep = (rows < n) & (cols < n)
+    diag_keys = np.arange(n) * (n + 1) + np.arange(n)
+    more = [] if extra is None else [extra[0].astype(np.int64) * (n + 1) + extra[1]]
+    keys, inverse = np.unique(np.concatenate([flat[keep], diag_keys, *more]), return_inverse=True)
+    slot = np.full(flat.shape, -1, dtype=np.int64)
+    slot[keep] = inverse[: keep.sum()]
+    r, c = np.divmod(keys, n + 1)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(indptr, r + 1, 1)
+    indptr = np.cumsum(indptr)
+    diag_slot = np.searchsorted(keys, diag_keys)
+    return Pattern(n=n, flat=flat, slot=slot, indices=c.astype(np.int32), indptr=indptr.astype(np.int32),
+                   diag_slot=diag_slot, nnz=len(keys))
+
+
+# ------------------------------------------------------------------------------------ the system
+@dataclass(frozen=True, kw_only=True)
+class TensionSetting:
+    """How the belt tension is set: target N (None: the geometry decides), mode "adjust" (the
+    adjustable DOF moves until the mean tension meets the target) or "prestrain"."""
+
+    target: float | None
+    mode: str
+    adjust_dof: int  # -1 when no DOF is moved
+
+
+@dataclass(frozen=True, kw_only=True)
+class System:
+    """The drive: DOF map, belt, components, assembled constant matrices. n = n_dof."""
+
+    layout: Layout
+    dofs: DofMap
+    belt: BeltSpans
+    components: tuple[LinearComponent, ...]
+    pulley_names: tuple[str, ...]
+    driver: int  # pulley index held in statics (reacts the applied torques)
+    tension: TensionSetting
+    gravity: np.ndarray  # (2,) m/s^2
+    dense: bool
+    pattern: Pattern
+    mass: object  # (n, n) dense array or CSR
+    gravity_force: np.ndarray  # (n,) generalized weight at gravity factor 1
+    linear_stiffness: object  # (n, n) dense, or CSR data (nnz,) in the pattern, or None
+    linear_damping: object  # (n, n) dense array or CSR, or None (constant component damping)
+    label: str = ""
+
+    # -------------------------------------------------------------------- names kept from the model
+    @property
+    def n_dof(self) -> int:
+        return self.dofs.n
+
+    @property
+    def dof_labels(self) -> tuple[str, ...]:
+        return self.dofs.labels
+
+    @property
+    def rot_dof(self) -> np.ndarray:
+        return self.dofs.rot_dof
+
+    @property
+    def trans_dof(self) -> tuple[tuple[int, ...], ...]:
+        return self.dofs.trans_dof
+
+    @property
+    def trans_dir(self) -> tuple[np.ndarray, ...]:
+        return self.dofs.trans_dir
+
+    @property
+    def driver_dof(self) -> int:
+        return int(self.dofs.rot_dof[self.driver])
+
+    def pulley_index(self, name: str) -> int:
+        return self.pulley_names.index(name)
+
+    def with_components(self, *extra: LinearComponent) -> "System":
+        """A system with more components (matrices and pattern rebuilt)."""
+        return _assemble(self.layout, self.dofs, self.belt, self.components + tuple(extra), pulley_names=self.pulley_names,
+                         driver=self.driver, tension=self.tension, gravity=self.gravity, dense=self.dense)
+
+    def with_belt_damping(self, axial: float, bending: float) -> "System":
+        belt = BeltSpans(**{**{k: v for k, v in self.belt.__dict__.items() if not k.startswith("_")},
+                            "damping_axial": float(axial), "damping_bending": float(bending)})
+        return System(**{**{k: v for k, v in self.__dict__.items() if not k.startswith("_")}, "belt": belt})
+
+    # -------------------------------------------------------------------- assembly
+    def assemble(self, blocks: np.ndarray, *, linear: bool = True, diagonal: np.ndarray | None = None):
+        """Element blocks (n_elem, m, m) (+ the components' constant stiffness, + a diagonal)
+        -> dense (n, n) or CSR."""
+        n, pat = self.n_dof, self.pattern
+        if self.dense:
+            K = np.bincount(pat.flat, weights=blocks.ravel(), minlength=(n + 1) ** 2).reshape(n + 1, n + 1)[:n, :n]
+            if linear and self.linear_stiffness is not None:
+                K += self.linear_stiffness
+            if diagonal is not None:
+                K[np.diag_indices(n)] += diagonal
+            return K
+        from scipy.sparse import csr_matrix
+
+        keep = pat.slot >= 0
+        data = np.bincount(pat.slot[keep], weights=blocks.ravel()[keep], minlength=pat.nnz)
+        if linear and self.linear_stiffness is not None:
+            data += self.linear_stiffness
+        if diagonal is not None:
+            data[pat.diag_slot] += diagonal
+        return csr_matrix((data, pat.indices, pat.indptr), shape=(n, n))
+
+    def linear_force(self, q: np.ndarray) -> np.ndarray:
+        if self.linear_stiffness is None:
+            return np.zeros(self.n_dof)
+        if self.dense:
+            return self.linear_stiffness @ q
+        return self.linear_matrix() @ q
+
+    def linear_matrix(self):
+        """The components' constant stiffness as a matrix (dense or CSR), zeros if none."""
+        from scipy.sparse import csr_matrix
+
+        if self.dense:
+            return self.linear_stiffness if self.linear_stiffness is not None else np.zeros((self.n_dof, self.n_dof))
+        data = self.linear_stiffness if self.linear_stiffness is not None else np.zeros(self.pattern.nnz)
+        return csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=(self.n_dof, self.n_dof))
+
+    # -------------------------------------------------------------------- forces
+    def internal_force(self, q: np.ndarray) -> np.ndarray:
+        """f(q): belt elastic force + components' K q (preloads excluded)."""
+        return self.belt.force(q) + self.linear_force(q)
+
+    def force_and_tangent(self, q: np.ndarray):
+        """Internal force (n,) and tangent stiffness K_t = df/dq (dense or CSR)."""
+        f, blocks = self.belt.force_and_blocks(q)
+        return f + self.linear_force(q), self.assemble(blocks)
+
+    def mean_tension_and_gradient(self, q: np.ndarray) -> tuple[float, np.ndarray]:
+        return self.belt.mean_tension_and_gradient(q)
+
+    def joint_reactions(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Static hub loads (n_pulley, 2), N, the force of the belt on each pulley, and span tensions
+        (n_span, 2), N, at the start and end of each span, from the joint reactions (exact for the
+        discrete equilibrium even where the strain is tiny)."""
+        E = self.belt.element_coordinates(q)[None]
+        F = self.belt.end_forces(E, None, self.gravity)
+        return self.hub_loads(F)[0], self.belt.end_tensions(E, F)[0]
+
+    def hub_loads(self, F_end: np.ndarray) -> np.ndarray:
+        """(B, n_pulley, 2) force of the belt on each pulley from the span end-node forces."""
+        n = self.layout.n
+        hub = -F_end[:, :, 0].copy()
+        hub -= np.roll(F_end[:, :, 1], 1, axis=1)  # span s ends on pulley s + 1
+        return hub[:, :n]
+
+    def pulley_centers(self, q: np.ndarray) -> np.ndarray:
+        c = self.layout.center.copy()
+        for j, (dofs, dirs) in enumerate(zip(self.trans_dof, self.trans_dir)):
+            for d, v in zip(dofs, dirs):
+                c[j] += q[d] * v
+        return c
+
+    # -------------------------------------------------------------------- energy
+    def kinetic_energy_shares(self, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Kinetic-energy split of shapes (n_modes, n_dof) by kind.
+
+        Returns kinds (n_modes, len(ENERGY_KINDS)) absolute (not normalized), span_long and
+        span_trans (n_modes, n_span), and the transverse nodal motion b (n_modes, n_elem, 4). The
+        belt's share splits exactly into motion along and across each span's chord (M_e = M_s (x) I2);
+        every component's mass counts for its energy kind.
+        """
+        belt = self.belt
+        el = belt.elements
+        n_modes = shapes.shape[0]
+        de = belt.element_coordinates_batch(shapes, offset=False).reshape(n_modes, el.n_elem, 4, 2)
+        t = belt.reference_direction[belt.elem_span]
+        nrm = belt.reference_normal[belt.elem_span]
+        a = np.einsum("kejd,ed->kej", de, t)
+        b = np.einsum("kejd,ed->kej", de, nrm)
+        Ms = el.mass.reshape(el.n_elem, 4, 2, 4, 2)[:, :, 0, :, 0]
+        ka = np.einsum("kei,eij,kej->ke", a, Ms, a)
+        kb = np.einsum("kei,eij,kej->ke", b, Ms, b)
+        span_long = np.zeros((n_modes, belt.n_span))
+        span_trans = np.zeros((n_modes, belt.n_span))
+        np.add.at(span_long.T, belt.elem_span, ka.T)
+        np.add.at(span_trans.T, belt.elem_span, kb.T)
+        kinds = np.zeros((n_modes, len(ENERGY_KINDS)))
+        kinds[:, 2] = span_long.sum(axis=1)
+        kinds[:, 3] = span_trans.sum(axis=1)
+        for c in self.components:
+            if c.mass is not None and c.energy_kind:
+                x = shapes[:, c.dofs]
+                kinds[:, ENERGY_KINDS.index(c.energy_kind)] += np.einsum("ki,ij,kj->k", x, c.mass, x)
+        return kinds, span_long, span_trans, b
+
+
+def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[LinearComponent, ...], *,
+              pulley_names: tuple[str, ...], driver: int, tension: TensionSetting, gravity: np.ndarray,
+              dense: bool | None) -> System:
+    """Pattern, mass, weight and the components' constant matrices of a system."""
+    n = dofs.n
+    use_dense = n <= DENSE_LIMIT if dense is None else dense
+    rows, cols = [], []
+    for c in components:
+        for mat in (c.stiffness, c.damping, c.mass):
+            if mat is not None:
+                r, cc = np.nonzero(mat)
+                rows.append(c.dofs[r])
+                cols.append(c.dofs[cc])
+    extra = (np.concatenate(rows), np.concatenate(cols)) if rows else None
+    pattern = make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
+
+    def dense_sum(attr: str) -> np.ndarray | None:
+        mats = [(c.dofs, getattr(c, attr)) for c in components if getattr(c, attr) is not None]
+        if not mats:
+            return None
+        A = np.zeros((n, n))
+        for d, mat in mats:
+            A[np.ix_(d, d)] += mat
+        return A
+
+    K_lin, C_lin, M_comp = dense_sum("stiffness"), dense_sum("damping"), dense_sum("mass")
+    g = np.asarray(gravity, dtype=float)
+    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g))
+    for c in components:
+        if c.weight is not None:
+            fg[c.dofs] += c.weight @ g
+    stub = System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names, driver=driver,
+                  tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=None, gravity_force=fg,
+                  linear_stiffness=None, linear_damping=None)
+    Mb = stub.assemble(belt.reduce_blocks(belt.elements.mass), linear=False)
+    if use_dense:
+        M = Mb + (M_comp if M_comp is not None else 0.0)
+        lin = K_lin
+        C = C_lin
+    else:
+        from scipy.sparse import csr_matrix
+
+        M = Mb + csr_matrix(M_comp) if M_comp is not None else Mb
+        M = _in_pattern(M, pattern)
+        lin = _in_pattern(csr_matrix(K_lin), pattern).data if K_lin is not None else None
+        C = _in_pattern(csr_matrix(C_lin), pattern) if C_lin is not None else None
+    return System(**{**stub.__dict__, "mass": M, "linear_stiffness": lin, "linear_damping": C})
+
+
+def _in_pattern(A, pattern: Pattern):
+    """A CSR matrix re-expressed on the system's pattern (every entry of A must be in it)."""
+    from scipy.sparse import csr_matrix
+
+    A = csr_matrix(A)
+    A.sum_duplicates()
+    data = np.zeros(pattern.nnz)
+    coo = A.tocoo()
+    if coo.nnz:
+        data[pattern.slots_of(coo.row, coo.col)] += coo.data
+    return csr_matrix((data, pattern.indices, pattern.indptr), shape=A.shape)
+
+
+# ------------------------------------------------------------------------------------ building
+def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stretch: float = 1.0) -> BeltSpans:
+    """Mesh each span and join its end nodes to the pulleys (constant-Jacobian joints)."""
+    n_p = layout.n
+    n_e = cfg.mesh.elements_per_span
+    n_dof = dofs.n
+    pad = n_dof
+    lam = prestrain_stretch
+    L_ref = layout.span_length / lam
+    t_dir = layout.span_direction
+    normals = np.column_stack([-t_dir[:, 1], t_dir[:, 0]])
+    n_elem = n_p * n_e
+    # Per element, columns 0-3 / 4-7 carry the coordinates of its first / second node, 8-10 / 11-13
+    # the joint DOFs of a span end; padding columns are squeezed out afterwards.
+    T = np.zeros((n_elem, 8, 14))
+    idx = np.full((n_elem, 14), pad, dtype=int)
+    elem_span = np.repeat(np.arange(n_p), n_e)
+    span_elements = tuple(np.arange(s * n_e, (s + 1) * n_e) for s in range(n_p))
+    frac = np.arange(n_e + 1) / n_e
+    e0 = np.zeros((n_elem, 8))
+    eye4 = np.eye(4)
+    for s in range(n_p):
+        els = span_elements[s]
+        a, b = layout.span_start[s], layout.span_end[s]
+        nodes = a + np.outer(frac, b - a)
+        e0[els, 0:2], e0[els, 4:6] = nodes[:-1], nodes[1:]
+        e0[els, 2:4] = e0[els, 6:8] = lam * t_dir[s]
+        base = dofs.span_slices[s].start
+        node_dof = base + 2 + 4 * (np.arange(n_e + 1) - 1)  # first DOF of each node (interior nodes)
+        node_dof[0], node_dof[-1] = base - 2, base + 2 + 4 * (n_e - 1) - 2  # so that +2, +3 are gradients
+        for side, nodes_of in ((0, np.arange(n_e)), (1, np.arange(1, n_e + 1))):
+            cols = slice(4 * side, 4 * side + 4)
+            T[els, 4 * side: 4 * side + 4, cols] = eye4
+            idx[els, cols] = node_dof[nodes_of, None] + np.arange(4)
+        # End nodes: positions are dependent (joints), gradients stay independent.
+        for el, side, j, normal in ((els[0], 0, s, layout.start_normal[s]),
+                                    (els[-1], 1, (s + 1) % n_p, layout.end_normal[s])):
+            T[el, 4 * side: 4 * side + 2, 4 * side: 4 * side + 2] = 0.0
+            idx[el, 4 * side: 4 * side + 2] = pad
+            R = layout.radius[j]
+            pairs = [(int(dofs.rot_dof[j]), R * _z_cross(normal))]
+            pairs += list(zip(dofs.trans_dof[j], dofs.trans_dir[j]))
+            for k, (dof, v) in enumerate(pairs):
+                c = 8 + 3 * side + k
+                idx[el, c] = dof
+                T[el, 4 * side: 4 * side + 2, c] = v
+    order = np.argsort(idx == pad, axis=1, kind="stable")
+    idx = np.take_along_axis(idx, order, axis=1)
+    T = np.take_along_axis(T, order[:, None, :], axis=2)
+    used = max(int((idx != pad).sum(axis=1).max()), 8)
+    T, idx = np.ascontiguousarray(T[:, :, :used]), np.ascontiguousarray(idx[:, :used]).astype(np.int64)
+    from .belt_kernel import joint_selection
+
+    el = ancf.make_elements(np.repeat(L_ref / n_e, n_e), cfg.belt.EA, cfg.belt.EI, cfg.belt.mass_per_length,
+                            curvature=cfg.model.curvature, n_gauss=cfg.model.gauss_points)
+    return BeltSpans(elements=el, elem_span=elem_span, span_elements=span_elements, T=T, idx=idx,
+                     tsel=joint_selection(T, idx, n_dof), e0=e0, n_dof=n_dof, reference_length=L_ref,
+                     reference_direction=t_dir, reference_normal=normals, prestrain_stretch=lam)
+
+
+def pulley_components(cfg: DriveConfig, dofs: DofMap) -> tuple[LinearComponent, ...]:
+    """Pulley inertia (rotation DOFs), pulley mass and weight (translation DOFs, paper Eq. 20) and
+    the bearing springs (Eq. 21): only on the DOFs the supports allow."""
+    rot = dofs.rot_dof
+    out: list[LinearComponent] = [LinearComponent(
+        name="pulley inertia", dofs=rot.copy(), mass=np.diag([p.inertia for p in cfg.pulleys]),
+        energy_kind="rotational")]
+    t_dofs, t_mass, t_weight, k_spring, supported = [], [], [], [], []
+    for j, p in enumerate(cfg.pulleys):
+        for k, (d, v) in enumerate(zip(dofs.trans_dof[j], dofs.trans_dir[j])):
+            t_dofs.append(d)
+            t_mass.append(p.mass * float(v @ v))
+            t_weight.append(p.mass * v)
+            k_spring.append(p.bearing_stiffness[k])
+        if dofs.trans_dof[j]:
+            supported.append(j)
+    if t_dofs:
+        d = np.array(t_dofs, dtype=np.int64)
+        out.append(LinearComponent(name="pulley mass", dofs=d, mass=np.diag(t_mass), weight=np.array(t_weight),
+                                   energy_kind="translational"))
+        out.append(BearingSprings(name="bearing springs", dofs=d, stiffness=np.diag(k_spring), pulleys=tuple(supported),
+                                  pulley_names=tuple(cfg.pulleys[j].name for j in supported)))
+    return tuple(out)
+
+
+def stretch_for_tension(tension: float, EA: float) -> float:
+    """lambda with EA * eps * lambda = N, eps = (lambda^2 - 1)/2 (St. Venant-Kirchhoff bar)."""
+    lam = 1.0 + tension / EA
+    for _ in range(50):
+        f = 0.5 * EA * (lam**3 - lam) - tension
+        step = f / (0.5 * EA * (3 * lam**2 - 1))
+        lam -= step
+        if abs(step) < 1e-16:
+            break
+    return lam
+
+
+def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
+    """The spans' stretch at q = 0 that the tension mode asks for (1: stress-free)."""
+    target = cfg.tension.target
+    if target is not None and cfg.tension.mode == "prestrain":
+        return stretch_for_tension(target, cfg.belt.EA)
+    if target is None and cfg.adjustable_index is None:
+        lam = layout.belt_length / cfg.belt.length  # the belt of length L0 stretched onto the path
+        if lam < 1.0:
+            raise ConfigError(
+                f"the belt is {cfg.belt.length - layout.belt_length:.6g} m longer than its path "
+                f"({layout.belt_length:.6g} m): it is slack; set tension.target or make a pulley adjustable",
+                file=cfg.source, key="belt.length")
+        return lam
+    return 1.0
+
+
+def build_system(cfg: DriveConfig, layout: Layout | None = None, *, prestrain_stretch: float | None = None,
+                 dense: bool | None = None, extra: tuple[LinearComponent, ...] = ()) -> System:
+    """The one place a system is built from a configuration: geometry, DOFs, belt, pulleys, springs."""
+    layout = layout or layout_from_config(cfg)
+    lam = reference_stretch(cfg, layout) if prestrain_stretch is None else prestrain_stretch
+    dofs = number_dofs(cfg)
+    belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam)
+    target = cfg.tension.target
+    adjust = target is not None and cfg.tension.mode == "adjust"
+    a = cfg.adjustable_index
+    tension = TensionSetting(target=target, mode=cfg.tension.mode if target is not None else "geometry",
+                             adjust_dof=int(dofs.trans_dof[a][0]) if adjust and a is not None else -1)
+    return _assemble(layout, dofs, belt, pulley_components(cfg, dofs) + tuple(extra),
+                     pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index, tension=tension,
+                     gravity=np.asarray(cfg.model.gravity, dtype=float), dense=dense)
+
+
+__all__ = ["System", "DofMap", "BeltSpans", "LinearComponent", "BearingSprings", "Observation", "TensionSetting",
+           "build_system", "number_dofs", "stretch_for_tension", "element_pairs", "DENSE_LIMIT", "ENERGY_KINDS"]
