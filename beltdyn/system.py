@@ -123,8 +123,9 @@ class Observation:
 
 @dataclass(frozen=True, kw_only=True)
 class LinearComponent:
-    """A component with constant matrices over its own DOFs (k,): internal force K q[dofs],
-    damping C v[dofs], mass M, weight W (k, 2) (generalized force per unit gravity vector).
+    """A component with constant matrices over its own DOFs (k,): internal force
+    K (q[dofs] - free), damping C v[dofs], mass M, weight W (k, 2) (generalized force per unit
+    gravity vector); `free` (k,) the DOF values at which its force vanishes (default 0).
 
     energy_kind names the kinetic-energy kind of its mass for the mode classification
     (one of ENERGY_KINDS, or "" for none). Subclasses may offer output series (`observations`,
@@ -137,6 +138,7 @@ class LinearComponent:
     damping: np.ndarray | None = None
     mass: np.ndarray | None = None
     weight: np.ndarray | None = None
+    free: np.ndarray | None = None
     energy_kind: str = ""
 
     def observations(self, system: "System") -> tuple[Observation, ...]:
@@ -445,7 +447,7 @@ class System:
     gravity_force: np.ndarray  # (n,) generalized weight at gravity factor 1
     linear_stiffness: object  # (n, n) dense, or CSR data (nnz,) in the pattern, or None
     linear_damping: object  # (n, n) dense array or CSR, or None (constant component damping)
-    label: str = ""
+    linear_offset: np.ndarray | None = None  # (n,) sum of K_c free_c: the components' force is K q - offset
 
     # -------------------------------------------------------------------- names kept from the model
     @property
@@ -508,11 +510,11 @@ class System:
         return csr_matrix((data, pat.indices, pat.indptr), shape=(n, n))
 
     def linear_force(self, q: np.ndarray) -> np.ndarray:
+        """The components' force K q - offset."""
         if self.linear_stiffness is None:
             return np.zeros(self.n_dof)
-        if self.dense:
-            return self.linear_stiffness @ q
-        return self.linear_matrix() @ q
+        f = self.linear_stiffness @ q if self.dense else self.linear_matrix() @ q
+        return f - self.linear_offset if self.linear_offset is not None else f
 
     def linear_matrix(self):
         """The components' constant stiffness as a matrix (dense or CSR), zeros if none."""
@@ -618,6 +620,11 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
         return A
 
     K_lin, C_lin, M_comp = dense_sum("stiffness"), dense_sum("damping"), dense_sum("mass")
+    offset = None
+    for c in components:
+        if c.free is not None and c.stiffness is not None:
+            offset = np.zeros(n) if offset is None else offset
+            offset[c.dofs] += c.stiffness @ np.asarray(c.free, dtype=float)
     g = np.asarray(gravity, dtype=float)
     fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g))
     for c in components:
@@ -638,7 +645,8 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
         M = _in_pattern(M, pattern)
         lin = _in_pattern(csr_matrix(K_lin), pattern).data if K_lin is not None else None
         C = _in_pattern(csr_matrix(C_lin), pattern) if C_lin is not None else None
-    return System(**{**stub.__dict__, "mass": M, "linear_stiffness": lin, "linear_damping": C})
+    return System(**{**stub.__dict__, "mass": M, "linear_stiffness": lin, "linear_damping": C,
+                     "linear_offset": offset})
 
 
 def _in_pattern(A, pattern: Pattern):

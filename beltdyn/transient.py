@@ -185,6 +185,8 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
     q_ref = static.q.copy()
     K_lin = system.linear_matrix()
     constant = static.spring_preload + system.gravity_force - np.asarray(K_lin @ q_ref).ravel()
+    if system.linear_offset is not None:  # the components' force is K q - offset
+        constant = constant + system.linear_offset
     tab = system.belt.kernel_tables
     belt = system.belt
     belt_data = itg.BeltData(
