@@ -306,7 +306,7 @@ def _run_transient(job: "_Job", run) -> None:
         writer.set_attrs(steps=summary.steps, refactorizations=summary.refactorizations,
                          energy_balance_error=summary.energy_error, energy_moved_J=summary.energy_moved,
                          step_halvings=summary.step_halvings, smallest_step_s=summary.min_step,
-                         n_slack_events=int(len(ev)))
+                         n_slack_events=int(len(ev)), warnings=list(summary.warnings))
         spans = [model.layout.span_name(i) for i in range(model.layout.n)]
         if len(ev):
             writer.add_subgroup(GroupData(
@@ -379,7 +379,9 @@ def _print_transient(con, summary, spans, peaks, f_exc) -> None:
     con.print(f"transient {summary.status}: {summary.steps} steps to t = {summary.final_time:.6g} s, "
               f"{summary.refactorizations} refactorizations, {summary.step_halvings} step halvings "
               f"(smallest step {summary.min_step:.3g} s); energy balance error {summary.energy_error:.2e} "
-              f"of the energy exchanged")
+              f"of the energy moved")
+    for w in summary.warnings:
+        con.print(f"[bold yellow]warning[/]: {w}")
     ev = summary.slack_events
     for t, s, slack, fmin in ev[:8]:
         con.print(f"  span {spans[int(s)]} {'went slack' if slack else 'taut again'} at t = {t:.6g} s "

@@ -742,6 +742,8 @@ def _prepare_attrs(attrs: dict, *, where: str) -> dict[str, Any]:
             out[key] = np.int64(value)
         elif isinstance(value, (float, np.floating)):
             out[key] = np.float64(value)
+        elif isinstance(value, (list, tuple)) and len(value) == 0:  # an empty list of strings (warnings)
+            out[key] = np.array([], dtype=_h5py().string_dtype())
         elif isinstance(value, (list, tuple, np.ndarray)):
             arr, is_str = _to_array(value, f"{where}: attribute {key!r}")
             if arr.ndim != 1:

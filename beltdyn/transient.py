@@ -82,6 +82,29 @@ class TransientSummary:
     n_outputs: int = 0
     energy_error: float = 0.0  # max |balance error| at the steps / energy moved in the run
     energy_moved: float = 0.0  # J, max of |d kinetic| + |d strain|, |work|, |dissipated|
+    warnings: tuple[str, ...] = ()  # accuracy warnings (see `accuracy_warnings`)
+
+
+ENERGY_WARNING = 0.01  # energy-balance error, as a share of the energy moved, above which a run is flagged
+
+
+def accuracy_warnings(opts: TransientOptions, *, energy_error: float, excitation_frequency: float | None,
+                      min_step: float) -> tuple[str, ...]:
+    """What makes a finished run's numbers doubtful: an energy-balance error above 1 % of the energy
+    moved, a step longer than a tenth of the excitation period, an output interval below the step
+    (samples between steps are interpolated, not computed)."""
+    out = []
+    if energy_error > ENERGY_WARNING:
+        out.append(f"energy balance error {energy_error:.2e} of the energy moved exceeds {ENERGY_WARNING:.0%}: "
+                   f"the step {opts.step:g} s is too long for this run; reduce transient.step")
+    if excitation_frequency and opts.step > 0.1 / excitation_frequency:
+        out.append(f"the step {opts.step:g} s exceeds a tenth of the excitation period "
+                   f"({1.0 / excitation_frequency:.4g} s at {excitation_frequency:g} Hz): the response is not "
+                   f"resolved; use transient.step <= {0.1 / excitation_frequency:.3g} s")
+    if opts.output_interval < opts.step:
+        out.append(f"transient.output_interval {opts.output_interval:g} s is below the step {opts.step:g} s: "
+                   f"samples between steps are interpolated, not computed")
+    return tuple(out)
 
 
 def belt_travel(system: System) -> np.ndarray:
@@ -529,10 +552,12 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
         on_batch=lambda *b: sink(b[0], observer.compute(*b)), progress=progress, batch=batch,
         n_span=system.belt.n_span)
     moved = float(th[itg.MOVED])
+    error = float(th[itg.WORST]) / moved if moved > 0 else 0.0
     return TransientSummary(status="complete", steps=run.steps, refactorizations=run.refactors,
                             step_halvings=run.halvings, final_time=float(th[itg.T_NOW]), min_step=float(min_h),
-                            slack_events=events, n_outputs=run.delivered,
-                            energy_error=float(th[itg.WORST]) / moved if moved > 0 else 0.0, energy_moved=moved)
+                            slack_events=events, n_outputs=run.delivered, energy_error=error, energy_moved=moved,
+                            warnings=accuracy_warnings(opts, energy_error=error, min_step=float(min_h),
+                                                       excitation_frequency=setup.excitation_frequency))
 
 
 # ------------------------------------------------------------------------------------ observers

@@ -139,3 +139,31 @@ def test_convergence_does_not_depend_on_bearing_preload(stiffness):
 
     a, b = tensions(1e-8), tensions(1e-9)
     assert np.abs(a - b).max() <= 1e-6 * np.ptp(b)
+
+
+def test_inaccurate_transient_is_flagged_not_silently_complete(tmp_path):
+    # Issue 14/15: `--step 0.1` on the large example resolves nothing of its 45 Hz excitation; the run
+    # finishes but /transient carries warnings (energy balance, step against the excitation period,
+    # output interval below the step) and the console prints them. A well-resolved run has none
+    # (an empty array of strings).
+    import subprocess
+    import sys
+
+    import h5py
+
+    exe = Path(sys.executable).parent / "beltdyn"
+    cfg = ROOT / "configs/examples/bench_transient_small.toml"
+    bad = subprocess.run([str(exe), "transient", str(cfg), "-o", str(tmp_path / "bad.h5"), "--step", "0.01",
+                          "--duration", "0.6", "--set", "transient.spectrum.start=0.3"],
+                         capture_output=True, text=True, timeout=300)
+    assert bad.returncode == 0, bad.stderr
+    assert "warning" in bad.stdout
+    with h5py.File(tmp_path / "bad.h5") as f:
+        w = [x.decode() if isinstance(x, bytes) else x for x in f["transient"].attrs["warnings"]]
+    assert any("excitation period" in x for x in w) and any("output_interval" in x for x in w)
+    good = subprocess.run([str(exe), "transient", str(cfg), "-o", str(tmp_path / "good.h5"), "--duration", "0.6",
+                           "--set", "transient.spectrum.start=0.3"], capture_output=True, text=True, timeout=300)
+    assert good.returncode == 0, good.stderr
+    with h5py.File(tmp_path / "good.h5") as f:
+        assert len(f["transient"].attrs["warnings"]) == 0
+        assert f["transient"].attrs["energy_balance_error"] < 0.01
