@@ -48,7 +48,7 @@ def _axial(E, dS, wEA):
 
 def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K, el=None):
     n = E.shape[0]
-    if curvature == 2:  # the reference implementation
+    if el is not None:  # the tuned reference implementation (precomputed P_q tables, every curvature)
         f[:], K[:] = ancf.internal_forces_and_tangent(el, E)
         return
     rp, A, s = _axial(E, dS, wEA)
@@ -91,7 +91,7 @@ def reduced_force(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_o
     E = np.empty((n, 8))
     gather(q_ext, e0, T, idx, tsel, E)
     fe = np.empty((n, 8))
-    if curvature == 2:
+    if el is not None:
         fe = ancf.internal_forces(el, E)
     else:
         element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe)

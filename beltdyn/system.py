@@ -610,16 +610,24 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
     extra = (np.concatenate(rows), np.concatenate(cols)) if rows else None
     pattern = make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
 
-    def dense_sum(attr: str) -> np.ndarray | None:
+    def summed(attr: str):
+        """The components' matrices `attr` summed: dense (n, n) for dense systems, CSR otherwise."""
         mats = [(c.dofs, getattr(c, attr)) for c in components if getattr(c, attr) is not None]
         if not mats:
             return None
-        A = np.zeros((n, n))
-        for d, mat in mats:
-            A[np.ix_(d, d)] += mat
-        return A
+        if use_dense:
+            A = np.zeros((n, n))
+            for d, mat in mats:
+                A[np.ix_(d, d)] += mat
+            return A
+        from scipy.sparse import coo_matrix
 
-    K_lin, C_lin, M_comp = dense_sum("stiffness"), dense_sum("damping"), dense_sum("mass")
+        r = np.concatenate([np.repeat(d, len(d)) for d, _ in mats])
+        c = np.concatenate([np.tile(d, len(d)) for d, _ in mats])
+        v = np.concatenate([np.asarray(mat, dtype=float).ravel() for _, mat in mats])
+        return coo_matrix((v, (r, c)), shape=(n, n)).tocsr()
+
+    K_lin, C_lin, M_comp = summed("stiffness"), summed("damping"), summed("mass")
     offset = None
     for c in components:
         if c.free is not None and c.stiffness is not None:
@@ -639,12 +647,12 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
         lin = K_lin
         C = C_lin
     else:
-        from scipy.sparse import csr_matrix
-
-        M = Mb + csr_matrix(M_comp) if M_comp is not None else Mb
-        M = _in_pattern(M, pattern)
-        lin = _in_pattern(csr_matrix(K_lin), pattern).data if K_lin is not None else None
-        C = _in_pattern(csr_matrix(C_lin), pattern) if C_lin is not None else None
+        M = Mb
+        if M_comp is not None:  # Mb is already on the pattern: add the components' few entries
+            coo = M_comp.tocoo()
+            np.add.at(M.data, pattern.slots_of(coo.row, coo.col), coo.data)
+        lin = _in_pattern(K_lin, pattern).data if K_lin is not None else None
+        C = _in_pattern(C_lin, pattern) if C_lin is not None else None
     return System(**{**stub.__dict__, "mass": M, "linear_stiffness": lin, "linear_damping": C,
                      "linear_offset": offset})
 
