@@ -30,19 +30,10 @@ import numpy as np
 from .config import TransientOptions
 from .errors import SolverError
 from .static import StaticResult
+from .system import Observation as Series  # one declaration of a recorded series
 from .system import System, element_pairs
 
 ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
-
-
-@dataclass(frozen=True, kw_only=True)
-class Series:
-    """One recorded history: trailing dims (coordinate names), units."""
-
-    name: str
-    dims: tuple[str, ...]
-    units: str
-    description: str = ""
 
 
 @dataclass(frozen=True, kw_only=True)
