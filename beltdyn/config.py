@@ -711,7 +711,7 @@ def _num(x: float) -> str:
 
 def parse_toml_file(path: Path) -> dict[str, Any]:
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte order mark (some Windows editors) is skipped
     except FileNotFoundError:
         raise ConfigError("file not found", file=str(path)) from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -914,7 +914,7 @@ def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int,
     path = (base / name) if not Path(name).is_absolute() else Path(name)
     try:
         data = path.read_bytes()
-        lines = data.decode("utf-8").splitlines()
+        lines = data.decode("utf-8-sig").splitlines()
     except (OSError, UnicodeDecodeError) as exc:
         raise chk.fail(key, f"cannot read table '{name}': {getattr(exc, 'strerror', None) or exc}") from None
     sha = hashlib.sha256(data).hexdigest()

@@ -515,3 +515,33 @@ def test_transient_accuracy_without_fmax_cli(tmp_path):
     (r,) = run_cli((["geometry", "drive.toml", "-o", "out.h5"], tmp_path))
     assert_rejected(r, "drive.toml", "transient.fmax", ["missing key: transient.accuracy is given"])
     assert sorted(os.listdir(tmp_path)) == ["drive.toml"]
+
+
+# ------------------------------------------------------------------------------ small defects
+def test_config_with_utf8_byte_order_mark_is_read(tmp_path):
+    # Checks: a config saved with a UTF-8 byte order mark (some Windows editors) is read like the same
+    # file without it, by load_config and by the CLI (it used to be "Invalid statement (line 1, column 1)").
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + SMOKE.read_bytes())
+    assert config_hash(load_config(path)) == config_hash(load_config(SMOKE))
+    assert replace(load_config(path), source="") == replace(load_config(SMOKE), source="")
+    (r,) = run_cli((["geometry", "bom.toml", "-o", "out.h5"], tmp_path))
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert read_root_attrs(tmp_path / "out.h5")["config_sha256"] == config_hash(load_config(SMOKE))
+
+
+def _torque_table_config(tmp_path: Path, table: bytes) -> Path:
+    (tmp_path / "torque.csv").write_bytes(table)
+    path = tmp_path / "drive.toml"
+    path.write_text(TRANSIENT_SMALL.read_text(encoding="utf-8")
+                    + '\n[[transient.torque]]\npulley = "A"\ntable = "torque.csv"\n', encoding="utf-8")
+    return path
+
+
+def test_torque_table_with_byte_order_mark_keeps_its_first_row(tmp_path):
+    # Checks: a CSV load table saved with a byte order mark and data on its first line keeps that row
+    # (the mark used to make it unreadable, and it was skipped silently as a header).
+    path = _torque_table_config(tmp_path, b"\xef\xbb\xbf0.0, 1.0\n0.5, 2.0\n1.0, 3.0\n")
+    sig = load_config(path).transient.loads[0].signals[0]
+    assert sig.table_time == (0.0, 0.5, 1.0) and sig.table_value == (1.0, 2.0, 3.0)
+    assert sig.table_sha256 == sha256(tmp_path / "torque.csv")
