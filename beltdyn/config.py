@@ -113,6 +113,18 @@ class _Str(_Kind):
         return value
 
 
+class _Name(_Str):
+    """A name that other keys refer to: no white space around it (so "A" and "A " cannot both exist)."""
+
+    label = "name (non-empty, no white space around it)"
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> str:
+        value = super().parse(chk, key, value)
+        if value != value.strip():
+            raise chk.fail(key, f"must not begin or end with white space, got {_show(value)}")
+        return value
+
+
 class _Choice(_Kind):
     def __init__(self, *choices: str) -> None:
         self.choices = choices
@@ -264,6 +276,7 @@ UNIT = _Number(0.0, 1.0)
 POSINT = _Int(1)
 TEXT = _Text()
 STR = _Str()
+NAME = _Name()
 BOOL = _Bool()
 VEC2 = _Pair()
 RANGE2 = _Pair(ordered=True)
@@ -293,7 +306,7 @@ class Pulley:
     slide_range: (min, max) travel along the slide from `center`, m (None: unbounded).
     """
 
-    name: str = key(STR, doc="name, unique; loads and rotations refer to it")
+    name: str = key(NAME, doc="name, unique; loads and rotations refer to it")
     center: tuple[float, float] = key(VEC2, doc="centre (x right, y up); a slide's origin", units="m")
     radius: float = key(POSFLOAT, doc="radius at the belt's neutral line", units="m")
     mass: float = key(POSFLOAT, doc="mass", units="kg")

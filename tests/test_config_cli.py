@@ -545,3 +545,33 @@ def test_torque_table_with_byte_order_mark_keeps_its_first_row(tmp_path):
     sig = load_config(path).transient.loads[0].signals[0]
     assert sig.table_time == (0.0, 0.5, 1.0) and sig.table_value == (1.0, 2.0, 3.0)
     assert sig.table_sha256 == sha256(tmp_path / "torque.csv")
+
+
+@pytest.mark.parametrize(("name", "fragment"), [
+    ("A ", "must not begin or end with white space, got 'A '"),
+    (" C", "must not begin or end with white space, got ' C'"),
+    ("C\\t", "must not begin or end with white space"),
+    ("", "must be a non-empty string, got ''"),
+    ("  ", "must be a non-empty string, got '  '"),
+])
+def test_pulley_name_with_surrounding_white_space_is_rejected(tmp_path, name, fragment):
+    # Checks: a pulley name with white space around it (so "A" and "A " could both exist) or an empty
+    # name is rejected with the key path, by load_config on a small file; the duplicate check stays.
+    path = tmp_path / "drive.toml"
+    path.write_text(SMOKE.read_text(encoding="utf-8").replace('name = "C"', f'name = "{name}"'), encoding="utf-8")
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert info.value.file == str(path) and info.value.key == "pulleys[1].name"
+    assert fragment in str(info.value)
+
+
+def test_pulley_name_white_space_cli(tmp_path):
+    # Checks the same at the command line: exit 2, one line with the file and pulleys[1].name.
+    path = tmp_path / "drive.toml"
+    path.write_text(SMOKE.read_text(encoding="utf-8").replace('name = "C"', 'name = "A "'), encoding="utf-8")
+    (r,) = run_cli((["static", "drive.toml", "-o", "out.h5"], tmp_path))
+    assert_rejected(r, "drive.toml", "pulleys[1].name", ["must not begin or end with white space"])
+    assert sorted(os.listdir(tmp_path)) == ["drive.toml"]
+
+
+# Bad input that used to end in a traceback: (assignment, key path named, fragment).
