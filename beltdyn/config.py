@@ -34,6 +34,7 @@ SIDES = ("inside", "backside")
 SUPPORTS = ("fixed", "slide", "bearing")
 TENSION_MODES = ("adjust", "prestrain")
 CURVATURES = ("linear", "exact", "none")
+MAX_GAUSS_POINTS = 64  # beltdyn.ancf's quadrature table (not imported: it would load numba at start-up)
 
 
 # ------------------------------------------------------------------------------- the value kinds
@@ -239,11 +240,12 @@ class _Params(_Kind):
             raise chk.fail(key, "must be a table of \"dotted.key\" = \"SPEC\" or [values]")
         out = []
         for name, spec in value.items():
-            if isinstance(spec, list):
+            if isinstance(spec, list) and all(isinstance(x, (bool, int, float, str)) for x in spec):
                 spec = ",".join(str(x).lower() if isinstance(x, bool) else (f'"{x}"' if isinstance(x, str)
                                                                               else repr(x)) for x in spec)
             if not isinstance(spec, str):
-                raise chk.fail(f"{key}.{name}", f"must be a SPEC string or a list, got {_show(spec)}")
+                raise chk.fail(f"{key}.{name}", f"must be a SPEC string or a list of numbers, strings or "
+                                                f"booleans, got {_show(spec)}")
             out.append((name, spec))
         return tuple(out)
 
@@ -358,7 +360,7 @@ class ModelOptions:
     gravity: tuple[float, float] = key(VEC2, (0.0, 0.0), doc="gravity in the drive plane", units="m/s^2")
     curvature: str = key(_Choice(*CURVATURES), "linear",
                          doc="bending energy: linear (paper Eq. 17), exact (Eq. 15) or none")
-    gauss_points: int = key(POSINT, 5, doc="Gauss points per element for the axial force")
+    gauss_points: int = key(_Int(1, MAX_GAUSS_POINTS), 5, doc="Gauss points per element for the axial force")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -696,7 +698,8 @@ class _Checker:
     def fail(self, key: str, message: str) -> ConfigError:
         return ConfigError(message, file=self.file, key=key)
 
-    def unknown(self, key: str, name: str, allowed: list[str]) -> ConfigError:
+    def unknown(self, key: str, name: Any, allowed: list[str]) -> ConfigError:
+        name = str(name)  # an override can put an integer key into a table (--set belt.0=1)
         close = difflib.get_close_matches(name, allowed, n=1, cutoff=0.5)
         hint = f"; did you mean '{close[0]}'?" if close else f"; valid keys: {', '.join(allowed)}"
         return self.fail(key, f"unknown key '{name}'{hint}")
@@ -704,7 +707,10 @@ class _Checker:
     def number(self, key: str, value: Any) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(key, f"must be a number, got {_show(value)}")
-        value = float(value)
+        try:
+            value = float(value)
+        except OverflowError:  # an integer beyond the float range
+            value = math.inf if value > 0 else -math.inf
         if not math.isfinite(value):
             raise self.fail(key, f"must be finite, got {value}")
         return value

@@ -575,3 +575,48 @@ def test_pulley_name_white_space_cli(tmp_path):
 
 
 # Bad input that used to end in a traceback: (assignment, key path named, fragment).
+
+
+def test_gauss_points_bound_is_the_quadrature_table():
+    # Checks: model.gauss_points is bounded by what beltdyn.ancf can integrate (it used to pass the
+    # config and fail later with a ValueError traceback), with the key path in the message.
+    from beltdyn import ancf
+    from beltdyn.config import MAX_GAUSS_POINTS
+
+    assert MAX_GAUSS_POINTS == ancf._MAX_GAUSS
+    assert load_config(SMOKE, [f"model.gauss_points={MAX_GAUSS_POINTS}"]).model.gauss_points == MAX_GAUSS_POINTS
+    with pytest.raises(ConfigError) as info:
+        load_config(SMOKE, [f"model.gauss_points={MAX_GAUSS_POINTS + 1}"])
+    assert info.value.key == "model.gauss_points" and f"must be in [1, {MAX_GAUSS_POINTS}]" in str(info.value)
+
+
+TRACEBACK_SETS = [
+    ("belt.0=1", "belt.0", "unknown key '0'"),
+    ("belt[0].x=1", "belt.0", "unknown key '0'"),
+    ("belt.EA=1" + "0" * 400, "belt.EA", "must be finite"),
+    ("model.gauss_points=100000", "model.gauss_points", "must be in [1, 64], got 100000"),
+]
+
+
+def test_bad_input_that_used_to_raise_a_traceback(tmp_path):
+    # Checks: an integer key put into a table by --set, an integer beyond the float range and a
+    # quadrature order beyond the table are exit 2 with the file and the key path, no traceback.
+    calls = []
+    for i, (assignment, _, _) in enumerate(TRACEBACK_SETS):
+        (tmp_path / str(i)).mkdir()
+        calls.append((["modal", str(SMOKE), "--set", assignment, "-o", "out.h5"], tmp_path / str(i)))
+    for (assignment, key, fragment), r, (_, cwd) in zip(TRACEBACK_SETS, run_cli(*calls), calls):
+        assert_rejected(r, str(SMOKE), key, [fragment])
+        assert os.listdir(cwd) == [], assignment
+
+
+def test_sweep_params_list_items_must_be_values():
+    # Checks: a [sweep.params] list holds numbers, strings or booleans; a nested list or a table in it
+    # is an error with the key path (it used to become a SPEC string that failed later, in the sweep).
+    for value in ("[{a=1}]", "[[1, 2]]"):
+        with pytest.raises(ConfigError) as info:
+            load_config(TRANSIENT_SMALL, [f"sweep.params.x={value}"])
+        assert info.value.key == "sweep.params.x"
+        assert "must be a SPEC string or a list of numbers, strings or booleans" in str(info.value)
+    cfg = load_config(TRANSIENT_SMALL, ["sweep.params.x=[1, 2.5, true, 'exact']"])
+    assert cfg.sweep.params == (("x", '1,2.5,true,"exact"'),)
