@@ -945,12 +945,11 @@ def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int,
         if not line:
             continue
         parts = [p for p in re.split(r"[,\s;]+", line) if p]
-        try:
-            vals = [float(p) for p in parts]
-        except ValueError:
-            if not rows:  # a header line
+        vals = [_float_or_none(p) for p in parts]
+        if None in vals:
+            if not rows and all(v is None for v in vals):  # a header line: no number in it
                 continue
-            raise chk.fail(key, f"table '{name}' line {i}: not numbers: {line!r}") from None
+            raise chk.fail(key, f"table '{name}' line {i}: not numbers: {line!r}")
         if len(vals) != 1 + n_values or not all(math.isfinite(v) for v in vals):
             raise chk.fail(key, f"table '{name}' line {i}: expected {1 + n_values} finite numbers (time, "
                                 f"value{'s' if n_values > 1 else ''}), got {line!r}")
@@ -961,6 +960,13 @@ def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int,
     if any(b <= a for a, b in zip(cols[0], cols[0][1:])):
         raise chk.fail(key, f"table '{name}': times must increase")
     return sha, cols
+
+
+def _float_or_none(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
 
 
 def config_to_dict(cfg: DriveConfig) -> dict[str, Any]:

@@ -620,3 +620,15 @@ def test_sweep_params_list_items_must_be_values():
         assert "must be a SPEC string or a list of numbers, strings or booleans" in str(info.value)
     cfg = load_config(TRANSIENT_SMALL, ["sweep.params.x=[1, 2.5, true, 'exact']"])
     assert cfg.sweep.params == (("x", '1,2.5,true,"exact"'),)
+
+
+def test_torque_table_bad_first_row_is_not_taken_for_a_header(tmp_path):
+    # Checks: a header line (no number in it) is still skipped, but a first data row with a typo is
+    # an error naming the line, not a header silently dropped.
+    ok = load_config(_torque_table_config(tmp_path, b"t (s), torque (N m)\n0.0, 1.0\n1.0, 3.0\n"))
+    assert ok.transient.loads[0].signals[0].table_time == (0.0, 1.0)
+    path = _torque_table_config(tmp_path, b"0.0, 1.0x\n0.5, 2.0\n1.0, 3.0\n")
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert info.value.key == "transient.torque[0].table"
+    assert "line 1: not numbers" in str(info.value)
