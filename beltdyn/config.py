@@ -4,18 +4,29 @@ Every error is a `ConfigError` naming the file and the dotted key path, e.g.
 ``drive.toml: pulleys[1].radius: must be > 0, got -0.05``. Overrides (``--set KEY=VALUE``) are
 applied to the parsed TOML before validation; VALUE is parsed as a TOML literal (never eval), a bare
 word being taken as a string. Units are SI everywhere; keys carry no unit suffixes.
+
+One declaration: each dataclass below is the schema of its TOML table. A field declared with
+``key(KIND, default, doc=..., units=...)`` is a TOML key of that name; KIND checks and converts the
+TOML value (`parse`) and writes it back (`dump`). Parsing (unknown keys with the closest valid key
+suggested, missing keys, type and range errors with the key path), the defaults, `valid_keys`,
+`key_docs` and the resolved TOML (`config_to_dict`, `resolved_toml`) are all derived from these
+declarations. Checks that involve several keys (one adjustable pulley, slide_range only on slides,
+the default tension mode, the transient's cross-checks, the CSV load tables, ...) are explicit code
+after the generic parse, in `config_from_dict`.
 """
 
 from __future__ import annotations
 
 import difflib
+import functools
 import hashlib
 import math
 import re
 import tomllib
-from dataclasses import dataclass, field, fields, replace
+from collections.abc import Iterator
+from dataclasses import MISSING, Field, dataclass, field, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from .errors import ConfigError
 
@@ -23,16 +34,266 @@ SIDES = ("inside", "backside")
 SUPPORTS = ("fixed", "slide", "bearing")
 TENSION_MODES = ("adjust", "prestrain")
 CURVATURES = ("linear", "exact", "none")
+MAX_GAUSS_POINTS = 64  # beltdyn.ancf's quadrature table (not imported: it would load numba at start-up)
 
 
+# ------------------------------------------------------------------------------- the value kinds
+class _Kind:
+    """How one TOML value is checked and converted (`parse`) and written back (`dump`)."""
+
+    label = "value"  # what the value must be, for key_docs
+    is_table = False  # a table or array of tables: written after the plain values, as TOML does
+    names: tuple[str, ...] = ()  # a group: several TOML keys of the parent table read into one field
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> Any:
+        raise AssertionError(f"{type(self).__name__} declares no parse")
+
+    def dump(self, value: Any) -> Any:
+        return value
+
+    def missing(self, key: str) -> str:
+        return "missing key"
+
+
+class _Number(_Kind):
+    """A finite float, optionally bounded: lo/hi, each open or closed (an int is taken as a float)."""
+
+    def __init__(self, lo: float | None = None, hi: float | None = None, *, open_lo: bool = False,
+                 open_hi: bool = False) -> None:
+        self.lo, self.hi, self.open_lo, self.open_hi = lo, hi, open_lo, open_hi
+        if lo is None:
+            self.rule = ""
+        elif hi is None:
+            self.rule = f"{'>' if open_lo else '>='} {lo:g}"
+        else:
+            self.rule = f"in {'(' if open_lo else '['}{lo:g}, {hi:g}{')' if open_hi else ']'}"
+        self.label = f"number {self.rule}".strip()
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> float:
+        x = chk.number(key, value)
+        lo, hi = self.lo, self.hi
+        if (lo is not None and (x <= lo if self.open_lo else x < lo)) or \
+                (hi is not None and (x >= hi if self.open_hi else x > hi)):
+            raise chk.fail(key, f"must be {self.rule}, got {_num(x)}")
+        return x
+
+
+class _Int(_Kind):
+    def __init__(self, lo: int = 1, hi: int | None = None) -> None:
+        self.lo, self.hi = lo, hi
+        self.rule = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+        self.label = f"integer {self.rule}"
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise chk.fail(key, f"must be an integer, got {_show(value)}")
+        if value < self.lo or (self.hi is not None and value > self.hi):
+            raise chk.fail(key, f"must be {self.rule}, got {value}")
+        return value
+
+
+class _Text(_Kind):
+    """Any string (the title)."""
+
+    label = "string"
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> str:
+        if not isinstance(value, str):
+            raise chk.fail(key, f"must be a string, got {_show(value)}")
+        return value
+
+
+class _Str(_Kind):
+    """A string with something in it besides white space."""
+
+    label = "non-empty string"
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> str:
+        if not isinstance(value, str) or not value.strip():
+            raise chk.fail(key, f"must be a non-empty string, got {_show(value)}")
+        return value
+
+
+class _Name(_Str):
+    """A name that other keys refer to: no white space around it (so "A" and "A " cannot both exist)."""
+
+    label = "name (non-empty, no white space around it)"
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> str:
+        value = super().parse(chk, key, value)
+        if value != value.strip():
+            raise chk.fail(key, f"must not begin or end with white space, got {_show(value)}")
+        return value
+
+
+class _Choice(_Kind):
+    def __init__(self, *choices: str) -> None:
+        self.choices = choices
+        self.label = f"one of {', '.join(map(repr, choices))}"
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> str:
+        if value not in self.choices:
+            raise chk.fail(key, f"must be {self.label}, got {_show(value)}")
+        return value
+
+
+class _Bool(_Kind):
+    label = "true or false"
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> bool:
+        if not isinstance(value, bool):
+            raise chk.fail(key, f"must be true or false, got {_show(value)}")
+        return value
+
+
+class _Pair(_Kind):
+    """[x, y] of finite numbers; `ordered`: [min, max] with min < max."""
+
+    def __init__(self, ordered: bool = False) -> None:
+        self.ordered = ordered
+        self.label = "[min, max], min < max" if ordered else "[x, y]"
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> tuple[float, float]:
+        if not isinstance(value, list) or len(value) != 2:
+            raise chk.fail(key, f"must be a list of 2 numbers, got {_show(value)}")
+        x, y = (chk.number(f"{key}[{i}]", v) for i, v in enumerate(value))
+        if self.ordered and not x < y:
+            raise chk.fail(key, f"must be [min, max] with min < max, got {_show(value)}")
+        return (x, y)
+
+    def dump(self, value: tuple[float, float]) -> list[float]:
+        return list(value)
+
+
+class _Stiffness(_Kind):
+    """A number k >= 0 (taken as (k, k)) or a pair [kx, ky] of numbers >= 0."""
+
+    label = "number >= 0 or [kx, ky]"
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> tuple[float, float]:
+        if isinstance(value, list):
+            if len(value) != 2:
+                raise chk.fail(key, f"must be a number or a list of 2 numbers, got {_show(value)}")
+            pair = tuple(chk.number(f"{key}[{i}]", v) for i, v in enumerate(value))
+        else:
+            x = chk.number(key, value)
+            pair = (x, x)
+        for k in pair:
+            if k < 0:
+                raise chk.fail(key, f"must be >= 0, got {_num(k)}")
+        return pair
+
+    def dump(self, value: tuple[float, float]) -> list[float]:
+        return list(value)
+
+
+class _Table(_Kind):
+    """A nested table declared by a dataclass."""
+
+    is_table = True
+
+    def __init__(self, cls: type) -> None:
+        self.cls = cls
+        self.label = "table"
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> Any:
+        return _parse(chk, key, value, self.cls)
+
+    def dump(self, value: Any) -> dict[str, Any]:
+        return _dump(value)
+
+    def missing(self, key: str) -> str:
+        return f"missing table [{key}]"
+
+
+class _Array(_Kind):
+    """An array of tables [[key]], each declared by the dataclass `cls`; a tuple in Python."""
+
+    is_table = True
+
+    def __init__(self, cls: type, *, min_items: int = 0, noun: str = "", missing: str = "") -> None:
+        self.cls, self.min_items, self.noun, self.missing_text = cls, min_items, noun, missing
+        self.label = "array of tables"
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> tuple:
+        if not isinstance(value, list) or not all(isinstance(x, dict) for x in value):
+            raise chk.fail(key, f"must be an array of tables [[{key}]]")
+        if len(value) < self.min_items:
+            raise chk.fail(key, f"need at least {self.min_items} {self.noun}, got {len(value)}")
+        return tuple(_parse(chk, f"{key}[{i}]", x, self.cls) for i, x in enumerate(value))
+
+    def dump(self, value: tuple) -> list[dict[str, Any]]:
+        return [_dump(x) for x in value]
+
+    def missing(self, key: str) -> str:
+        return self.missing_text or f"missing [[{key}]]"
+
+
+class _Params(_Kind):
+    """[sweep.params]: "dotted.key" = "SPEC" or [values] -> ((key, SPEC), ...), a list as "v1,v2,..."."""
+
+    is_table = True
+    label = 'table of "dotted.key" = "SPEC" or [values]'
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> tuple[tuple[str, str], ...]:
+        if not isinstance(value, dict):
+            raise chk.fail(key, "must be a table of \"dotted.key\" = \"SPEC\" or [values]")
+        out = []
+        for name, spec in value.items():
+            if isinstance(spec, list) and all(isinstance(x, (bool, int, float, str)) for x in spec):
+                spec = ",".join(str(x).lower() if isinstance(x, bool) else (f'"{x}"' if isinstance(x, str)
+                                                                              else repr(x)) for x in spec)
+            if not isinstance(spec, str):
+                raise chk.fail(f"{key}.{name}", f"must be a SPEC string or a list of numbers, strings or "
+                                                f"booleans, got {_show(spec)}")
+            out.append((name, spec))
+        return tuple(out)
+
+    def dump(self, value: tuple[tuple[str, str], ...]) -> dict[str, str]:
+        return dict(value)
+
+
+class _Key(NamedTuple):
+    kind: _Kind
+    doc: str
+    units: str
+    omit_default: bool  # left out of the resolved TOML while it has its default value
+
+
+def key(kind: _Kind, default: Any = MISSING, *, doc: str, units: str = "", factory: Any = None,
+        omit_default: bool = False) -> Any:
+    """Declare a dataclass field as a TOML key: its kind, its default (none: the key is required; or
+    `factory`), a one-line doc and its units. A None value is never written to the resolved TOML;
+    `omit_default` also leaves the key out while it has its default (new keys keep old hashes)."""
+    meta = {"key": _Key(kind, doc, units, omit_default)}
+    if factory is not None:
+        return field(default_factory=factory, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+FLOAT = _Number()
+POSFLOAT = _Number(0.0, open_lo=True)
+NONNEGFLOAT = _Number(0.0)
+UNIT = _Number(0.0, 1.0)
+POSINT = _Int(1)
+TEXT = _Text()
+STR = _Str()
+NAME = _Name()
+BOOL = _Bool()
+VEC2 = _Pair()
+RANGE2 = _Pair(ordered=True)
+STIFFNESS = _Stiffness()
+
+
+# ------------------------------------------------------------------------------ the declarations
 @dataclass(frozen=True, kw_only=True)
 class Belt:
     """Belt properties. length: undeformed loop length L0 (m); EA (N); EI (N m^2); kg/m."""
 
-    length: float
-    EA: float
-    EI: float
-    mass_per_length: float
+    length: float = key(POSFLOAT, doc="undeformed loop length L0", units="m")
+    EA: float = key(POSFLOAT, doc="axial stiffness", units="N")
+    EI: float = key(NONNEGFLOAT, doc="bending stiffness", units="N m^2")
+    mass_per_length: float = key(POSFLOAT, doc="mass per unit length", units="kg/m")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -47,18 +308,22 @@ class Pulley:
     slide_range: (min, max) travel along the slide from `center`, m (None: unbounded).
     """
 
-    name: str
-    center: tuple[float, float]
-    radius: float
-    mass: float
-    inertia: float
-    side: str = "inside"
-    support: str = "fixed"
-    slide_direction: tuple[float, float] = (1.0, 0.0)
-    bearing_stiffness: tuple[float, float] = (0.0, 0.0)
-    adjustable: bool = False
-    driver: bool = False
-    slide_range: tuple[float, float] | None = None
+    name: str = key(NAME, doc="name, unique; loads and rotations refer to it")
+    center: tuple[float, float] = key(VEC2, doc="centre (x right, y up); a slide's origin", units="m")
+    radius: float = key(POSFLOAT, doc="radius at the belt's neutral line", units="m")
+    mass: float = key(POSFLOAT, doc="mass", units="kg")
+    inertia: float = key(POSFLOAT, doc="moment of inertia about its axis", units="kg m^2")
+    side: str = key(_Choice(*SIDES), "inside", doc="the belt touches it from the inside of the loop or on its backside")
+    support: str = key(_Choice(*SUPPORTS), "fixed",
+                       doc="fixed centre, a slide along slide_direction, or a bearing moving in x and y")
+    slide_direction: tuple[float, float] = key(VEC2, (1.0, 0.0), doc="direction of the slide (normalized)")
+    bearing_stiffness: tuple[float, float] = key(STIFFNESS, (0.0, 0.0),
+                                                 doc="spring of a slide (one number) or a bearing ([kx, ky])",
+                                                 units="N/m")
+    adjustable: bool = key(BOOL, False, doc="moved along its slide to fit L0 and to set the tension")
+    driver: bool = key(BOOL, False, doc="rotation held in the static analysis, reacting the applied torques")
+    slide_range: tuple[float, float] | None = key(RANGE2, None, doc="[min, max] travel along the slide from "
+                                                                    "center (not set: unbounded)", units="m")
 
     @property
     def n_translation(self) -> int:
@@ -75,13 +340,16 @@ class Tension:
     centres kept, the spans' reference length shortened so that their initial tension is the target.
     """
 
-    target: float | None = None
-    mode: str = "adjust"
+    target: float | None = key(POSFLOAT, None, doc="static span tension (not set: the geometry alone decides)",
+                               units="N")
+    mode: str = key(_Choice(*TENSION_MODES), "adjust",
+                    doc="move the adjustable pulley, or prestrain the spans (default: adjust if a pulley is "
+                        "adjustable)")
 
 
 @dataclass(frozen=True, kw_only=True)
 class Mesh:
-    elements_per_span: int = 10
+    elements_per_span: int = key(POSINT, 10, doc="ANCF beam elements per free span")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -89,32 +357,35 @@ class ModelOptions:
     """gravity (m/s^2, vector in the drive plane); curvature: "linear" (paper Eq. 17), "exact"
     (Eq. 15) or "none" (string); gauss_points per element for the axial force."""
 
-    gravity: tuple[float, float] = (0.0, 0.0)
-    curvature: str = "linear"
-    gauss_points: int = 5
+    gravity: tuple[float, float] = key(VEC2, (0.0, 0.0), doc="gravity in the drive plane", units="m/s^2")
+    curvature: str = key(_Choice(*CURVATURES), "linear",
+                         doc="bending energy: linear (paper Eq. 17), exact (Eq. 15) or none")
+    gauss_points: int = key(_Int(1, MAX_GAUSS_POINTS), 5, doc="Gauss points per element for the axial force")
 
 
 @dataclass(frozen=True, kw_only=True)
 class StaticOptions:
     """Newton settings: relative force tolerance, iterations per load step, number of load steps."""
 
-    tolerance: float = 1e-10
-    max_iterations: int = 40
-    load_steps: int = 1
+    tolerance: float = key(POSFLOAT, 1e-10, doc="Newton tolerance, relative to the force scale")
+    max_iterations: int = key(POSINT, 40, doc="Newton iterations per load step")
+    load_steps: int = key(POSINT, 1, doc="number of load steps")
 
 
 @dataclass(frozen=True, kw_only=True)
 class ModalOptions:
     """modes: number of elastic modes wanted; solver: "auto" | "dense" | "sparse"."""
 
-    modes: int = 12
-    solver: str = "auto"
+    modes: int = key(POSINT, 12, doc="elastic modes computed (rigid-body modes excluded)")
+    solver: str = key(_Choice("auto", "dense", "sparse"), "auto", doc="eigensolver")
 
 
 @dataclass(frozen=True, kw_only=True)
 class Signal:
     """A scalar time function: ramp(t) * (constant + amplitude sin(2 pi frequency t + phase)), or a
-    table (time s, value) linearly interpolated (held constant outside). ramp(t) = min(t / ramp_time, 1)."""
+    table (time s, value) linearly interpolated (held constant outside). ramp(t) = min(t / ramp_time, 1).
+    Not a TOML table itself: [[transient.torque]] and [[transient.hub_force]] entries are read into
+    one and two signals (see _TorqueEntry)."""
 
     constant: float = 0.0
     amplitude: float = 0.0
@@ -133,14 +404,15 @@ class Rotation:
     by a linear speed ramp over ramp_time; on top, a harmonic fluctuation of the angle (amplitude, rad)
     or of the speed (speed_amplitude, rad/s) at `frequency` Hz, faded in smoothly over fluctuation_ramp s."""
 
-    pulley: str
-    speed: float = 0.0
-    ramp_time: float = 0.0
-    amplitude: float = 0.0
-    speed_amplitude: float = 0.0
-    frequency: float = 0.0
-    phase: float = 0.0
-    fluctuation_ramp: float = 0.0
+    pulley: str = key(STR, doc="name of the pulley whose rotation is prescribed")
+    speed: float = key(FLOAT, 0.0, doc="mean speed, counter-clockwise", units="rad/s")
+    ramp_time: float = key(NONNEGFLOAT, 0.0, doc="linear speed ramp up to the mean speed", units="s")
+    amplitude: float = key(FLOAT, 0.0, doc="angle amplitude of the fluctuation", units="rad")
+    speed_amplitude: float = key(FLOAT, 0.0, doc="speed amplitude of the fluctuation (instead of amplitude)",
+                                 units="rad/s")
+    frequency: float = key(NONNEGFLOAT, 0.0, doc="frequency of the fluctuation", units="Hz")
+    phase: float = key(FLOAT, 0.0, doc="phase of the fluctuation", units="rad")
+    fluctuation_ramp: float = key(NONNEGFLOAT, 0.0, doc="smooth fade-in of the fluctuation", units="s")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -153,15 +425,72 @@ class Load:
 
 
 @dataclass(frozen=True, kw_only=True)
+class _TorqueEntry:
+    """[[transient.torque]]: a torque on a pulley's rotation (read into a Load with one Signal)."""
+
+    pulley: str = key(STR, doc="name of the pulley it acts on")
+    constant: float = key(FLOAT, 0.0, doc="mean torque, counter-clockwise", units="N m")
+    amplitude: float = key(FLOAT, 0.0, doc="harmonic amplitude", units="N m")
+    frequency: float = key(NONNEGFLOAT, 0.0, doc="harmonic frequency", units="Hz")
+    phase: float = key(FLOAT, 0.0, doc="harmonic phase", units="rad")
+    ramp_time: float = key(NONNEGFLOAT, 0.0, doc="linear fade-in of the whole load", units="s")
+    table: str = key(STR, "", omit_default=True,
+                     doc="CSV file (time s, value) interpolated instead, relative to the config file")
+    table_sha256: str = key(STR, "", omit_default=True,
+                            doc="sha256 of the table file's bytes (written by the resolved configuration)")
+
+
+@dataclass(frozen=True, kw_only=True)
+class _HubForceEntry(_TorqueEntry):
+    """[[transient.hub_force]]: a force on a slide or bearing pulley's centre (a Load with x and y Signals)."""
+
+    constant: tuple[float, float] = key(VEC2, (0.0, 0.0), doc="mean force [Fx, Fy]", units="N")
+    amplitude: tuple[float, float] = key(VEC2, (0.0, 0.0), doc="harmonic amplitudes [Fx, Fy]", units="N")
+
+
+class _Loads(_Kind):
+    """TransientOptions.loads: the [[transient.torque]] and [[transient.hub_force]] entries, in that order."""
+
+    is_table = True
+    label = "array of tables"
+    entries = {"torque": _Array(_TorqueEntry), "hub_force": _Array(_HubForceEntry)}
+    names = tuple(entries)
+
+    def parse(self, chk: _Checker, key: str, table: dict[str, Any]) -> tuple[Load, ...]:
+        loads = []
+        for kind, array in self.entries.items():
+            for e in array.parse(chk, f"{key}.{kind}", table.get(kind, [])):
+                parts = [(e.constant, e.amplitude)] if kind == "torque" else zip(e.constant, e.amplitude)
+                loads.append(Load(pulley=e.pulley, kind=kind, signals=tuple(
+                    Signal(constant=c, amplitude=a, frequency=e.frequency, phase=e.phase, ramp_time=e.ramp_time,
+                           table=e.table, table_sha256=e.table_sha256) for c, a in parts)))
+        return tuple(loads)
+
+    def dump(self, loads: tuple[Load, ...]) -> dict[str, list[dict[str, Any]]]:
+        out: dict[str, list[dict[str, Any]]] = {kind: [] for kind in self.entries}
+        for load in loads:
+            s0 = load.signals[0]
+            constant = tuple(s.constant for s in load.signals)  # hub force: (x, y); torque: one number
+            amplitude = tuple(s.amplitude for s in load.signals)
+            if load.kind == "torque":
+                constant, amplitude = constant[0], amplitude[0]
+            e = self.entries[load.kind].cls(pulley=load.pulley, constant=constant, amplitude=amplitude,
+                                            frequency=s0.frequency, phase=s0.phase, ramp_time=s0.ramp_time,
+                                            table=s0.table, table_sha256=s0.table_sha256)
+            out[load.kind].append(_dump(e))
+        return out
+
+
+@dataclass(frozen=True, kw_only=True)
 class Record:
-    pulley_angles: bool = True
-    pulley_speeds: bool = True
-    span_tension: bool = True
-    hub_load: bool = True
-    bearing_force: bool = True
-    midspan_displacement: bool = True
-    energy: bool = True
-    full_state: bool = False
+    pulley_angles: bool = key(BOOL, True, doc="record the pulley angles")
+    pulley_speeds: bool = key(BOOL, True, doc="record the pulley speeds")
+    span_tension: bool = key(BOOL, True, doc="record the tension at both ends of each span")
+    hub_load: bool = key(BOOL, True, doc="record the force of the belt on each pulley")
+    bearing_force: bool = key(BOOL, True, doc="record the spring force on slide and bearing pulleys")
+    midspan_displacement: bool = key(BOOL, True, doc="record the transverse displacement at mid-span")
+    energy: bool = key(BOOL, True, doc="record kinetic and strain energy, work of loads, dissipation, balance")
+    full_state: bool = key(BOOL, False, doc="record every DOF (large files)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -169,18 +498,21 @@ class Damping:
     """Rayleigh C = rayleigh_mass M + rayleigh_stiffness K_t(static) (1/s, s); belt material damping
     (Kelvin-Voigt retardation times, s): axial force EA (eps + belt_axial d eps/dt), bending EI likewise."""
 
-    rayleigh_mass: float = 0.0
-    rayleigh_stiffness: float = 0.0
-    belt_axial: float = 0.0
-    belt_bending: float = 0.0
+    rayleigh_mass: float = key(NONNEGFLOAT, 0.0, doc="Rayleigh mass coefficient alpha (C = alpha M + beta K)",
+                               units="1/s")
+    rayleigh_stiffness: float = key(NONNEGFLOAT, 0.0, doc="Rayleigh stiffness coefficient beta", units="s")
+    belt_axial: float = key(NONNEGFLOAT, 0.0, doc="Kelvin-Voigt retardation time of the belt's axial stress",
+                            units="s")
+    belt_bending: float = key(NONNEGFLOAT, 0.0, doc="Kelvin-Voigt retardation time of the belt's bending",
+                              units="s")
 
 
 @dataclass(frozen=True, kw_only=True)
 class SpectrumOptions:
-    enabled: bool = True
-    start: float = 0.0
-    window: str = "hann"
-    peaks: int = 8
+    enabled: bool = key(BOOL, True, doc="compute the spectra of the recorded series")
+    start: float = key(NONNEGFLOAT, 0.0, doc="start of the analysed window (leave out the transient)", units="s")
+    window: str = key(_Choice("hann", "rect", "flattop"), "hann", doc="window function")
+    peaks: int = key(POSINT, 8, doc="spectral peaks reported per series")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -189,44 +521,61 @@ class TransientOptions:
 
     duration, step, output_interval in s; rho_inf the spectral radius at infinite frequency (1: no
     numerical damping); start "static" (equilibrium) or "rest" (the stress-free reference state).
+    accuracy and fmax (given together or not at all): the time step must resolve frequencies up to
+    fmax with a relative frequency error below accuracy. max_output_mb: a run writing more needs
+    --force-large.
     """
 
-    duration: float = 1.0
-    step: float = 1e-4
-    min_step: float = 1e-9
-    output_interval: float = 1e-3
-    rho_inf: float = 0.9
-    start: str = "static"
-    tolerance: float = 1e-8
-    max_iterations: int = 12
-    record: Record = field(default_factory=Record)
-    damping: Damping = field(default_factory=Damping)
-    spectrum: SpectrumOptions = field(default_factory=SpectrumOptions)
-    rotation: tuple[Rotation, ...] = ()
-    loads: tuple[Load, ...] = ()
+    duration: float = key(POSFLOAT, 1.0, doc="simulated time", units="s")
+    step: float = key(POSFLOAT, 1e-4, doc="time step (halved when Newton fails, grown back after)", units="s")
+    min_step: float = key(POSFLOAT, 1e-9, doc="smallest step before the run fails", units="s")
+    output_interval: float = key(POSFLOAT, 1e-3, doc="time between recorded samples", units="s")
+    rho_inf: float = key(UNIT, 0.9, doc="spectral radius at infinite frequency (1: no numerical damping)")
+    start: str = key(_Choice("static", "rest"), "static",
+                     doc="start from the static equilibrium or the stress-free reference state")
+    tolerance: float = key(POSFLOAT, 1e-8, doc="Newton tolerance per step, relative")
+    max_iterations: int = key(POSINT, 12, doc="Newton iterations per step")
+    accuracy: float | None = key(_Number(0.0, 0.5, open_lo=True, open_hi=True), None,
+                                 doc="relative frequency error the time step must meet up to fmax (with fmax)")
+    fmax: float | None = key(POSFLOAT, None, doc="highest frequency the run must resolve (with accuracy)",
+                             units="Hz")
+    max_output_mb: float = key(POSFLOAT, 1000.0, omit_default=True,
+                               doc="output volume above which a run needs --force-large", units="MB (1e6 bytes)")
+    record: Record = key(_Table(Record), factory=Record, doc="[transient.record]: the series written")
+    damping: Damping = key(_Table(Damping), factory=Damping, doc="[transient.damping]: Rayleigh and belt damping")
+    spectrum: SpectrumOptions = key(_Table(SpectrumOptions), factory=SpectrumOptions,
+                                    doc="[transient.spectrum]: spectra of the recorded series")
+    rotation: tuple[Rotation, ...] = key(_Array(Rotation), (), doc="[[transient.rotation]]: at most one "
+                                                                   "prescribed pulley rotation")
+    loads: tuple[Load, ...] = key(_Loads(), (), doc="[[transient.torque]] and [[transient.hub_force]]: "
+                                                    "applied torques and hub forces")
 
 
 @dataclass(frozen=True, kw_only=True)
 class SweepTable:
     """[sweep]: analysis, zip, and params = {"dotted.key" = "SPEC" or [values]} (see `beltdyn sweep`)."""
 
-    analysis: str = "modal"
-    zip: bool = False
-    params: tuple[tuple[str, str], ...] = ()
+    analysis: str = key(_Choice("static", "modal", "transient"), "modal", doc="analysis run for each case")
+    zip: bool = key(BOOL, False, doc="vary the parameters together (equal lengths) instead of their product")
+    params: tuple[tuple[str, str], ...] = key(_Params(), (), doc='"dotted.key" = "SPEC" or [values]')
 
 
 @dataclass(frozen=True, kw_only=True)
 class DriveConfig:
-    belt: Belt
-    pulleys: tuple[Pulley, ...]
-    tension: Tension = field(default_factory=Tension)
-    mesh: Mesh = field(default_factory=Mesh)
-    model: ModelOptions = field(default_factory=ModelOptions)
-    static: StaticOptions = field(default_factory=StaticOptions)
-    modal: ModalOptions = field(default_factory=ModalOptions)
-    transient: TransientOptions | None = None
-    sweep: SweepTable | None = None
-    title: str = ""
+    """A whole drive description: the top level of the TOML file."""
+
+    belt: Belt = key(_Table(Belt), doc="[belt]: the belt's properties")
+    pulleys: tuple[Pulley, ...] = key(_Array(Pulley, min_items=2, noun="pulleys",
+                                             missing="missing: give at least 2 [[pulleys]] in belt order"),
+                                      doc="[[pulleys]]: at least 2, in the order the belt meets them")
+    tension: Tension = key(_Table(Tension), factory=Tension, doc="[tension]: how the static tension is set")
+    mesh: Mesh = key(_Table(Mesh), factory=Mesh, doc="[mesh]: discretization of the spans")
+    model: ModelOptions = key(_Table(ModelOptions), factory=ModelOptions, doc="[model]: model options")
+    static: StaticOptions = key(_Table(StaticOptions), factory=StaticOptions, doc="[static]: Newton settings")
+    modal: ModalOptions = key(_Table(ModalOptions), factory=ModalOptions, doc="[modal]: modal analysis")
+    transient: TransientOptions | None = key(_Table(TransientOptions), None, doc="[transient]: time integration")
+    sweep: SweepTable | None = key(_Table(SweepTable), None, doc="[sweep]: parameter sweep (beltdyn sweep)")
+    title: str = key(TEXT, "", omit_default=True, doc="a title for the results")
     source: str = ""  # file the config came from (not part of the resolved TOML)
 
     @property
@@ -244,87 +593,104 @@ class DriveConfig:
         return 0
 
 
-# ----------------------------------------------------------------------------------------------
-# Schema: key -> (kind, default). Kinds: "float", "posfloat", "nonnegfloat", "int", "str:<choices>",
-# "bool", "vec2", "posvec2|scalar", "range2", "table", "array-of-tables".
-_BELT_KEYS = {
-    "length": ("posfloat", None),
-    "EA": ("posfloat", None),
-    "EI": ("nonnegfloat", None),
-    "mass_per_length": ("posfloat", None),
-}
-_PULLEY_KEYS = {
-    "name": ("str", None),
-    "center": ("vec2", None),
-    "radius": ("posfloat", None),
-    "mass": ("posfloat", None),
-    "inertia": ("posfloat", None),
-    "side": ("choice", SIDES),
-    "support": ("choice", SUPPORTS),
-    "slide_direction": ("vec2", (1.0, 0.0)),
-    "bearing_stiffness": ("stiffness", 0.0),
-    "adjustable": ("bool", False),
-    "driver": ("bool", False),
-    "slide_range": ("range2", None),
-}
-_TABLES = {
-    "tension": {"target": ("posfloat?", None), "mode": ("choice", TENSION_MODES)},
-    "mesh": {"elements_per_span": ("posint", 10)},
-    "model": {
-        "gravity": ("vec2", (0.0, 0.0)),
-        "curvature": ("choice", CURVATURES),
-        "gauss_points": ("posint", 5),
-    },
-    "static": {
-        "tolerance": ("posfloat", 1e-10),
-        "max_iterations": ("posint", 40),
-        "load_steps": ("posint", 1),
-    },
-    "modal": {"modes": ("posint", 12), "solver": ("choice", ("auto", "dense", "sparse"))},
-}
-_TRANSIENT_KEYS = {
-    "duration": ("posfloat", 1.0),
-    "step": ("posfloat", 1e-4),
-    "min_step": ("posfloat", 1e-9),
-    "output_interval": ("posfloat", 1e-3),
-    "rho_inf": ("unit", 0.9),
-    "start": ("choice", ("static", "rest")),
-    "tolerance": ("posfloat", 1e-8),
-    "max_iterations": ("posint", 12),
-}
-_TRANSIENT_SUB = {
-    "record": {k: ("bool", None) for k in ("pulley_angles", "pulley_speeds", "span_tension", "hub_load",
-                                          "bearing_force", "midspan_displacement", "energy", "full_state")},
-    "damping": {k: ("nonnegfloat", 0.0) for k in ("rayleigh_mass", "rayleigh_stiffness", "belt_axial",
-                                                 "belt_bending")},
-    "spectrum": {"enabled": ("bool", True), "start": ("nonnegfloat", 0.0),
-                 "window": ("choice", ("hann", "rect", "flattop")), "peaks": ("posint", 8)},
-}
-_ROTATION_KEYS = {
-    "pulley": ("str", None), "speed": ("float", 0.0), "ramp_time": ("nonnegfloat", 0.0),
-    "amplitude": ("float", 0.0), "speed_amplitude": ("float", 0.0), "frequency": ("nonnegfloat", 0.0),
-    "phase": ("float", 0.0), "fluctuation_ramp": ("nonnegfloat", 0.0),
-}
-_SIGNAL_KEYS = {"constant": ("float", 0.0), "amplitude": ("float", 0.0), "frequency": ("nonnegfloat", 0.0),
-                "phase": ("float", 0.0), "ramp_time": ("nonnegfloat", 0.0), "table": ("str", None),
-                "table_sha256": ("str", None)}
-_LOAD_KEYS = {"torque": {"pulley": ("str", None), **_SIGNAL_KEYS},
-              "hub_force": {"pulley": ("str", None), **_SIGNAL_KEYS, "constant": ("vec2", None),
-                            "amplitude": ("vec2", None)}}
-_TOP_KEYS = ["title", "belt", "pulleys", *_TABLES, "transient", "sweep"]
-_REQUIRED_PULLEY = ("name", "center", "radius", "mass", "inertia")
+# ------------------------------------------------------------------- parsing and serialization
+@functools.cache
+def _schema(cls: type) -> tuple[tuple[Field, _Key], ...]:
+    """The declared keys of a dataclass, in TOML order: plain values first, then the tables and
+    arrays of tables (as tomli_w writes them), each in declaration order."""
+    keyed = [(f, f.metadata["key"]) for f in fields(cls) if "key" in f.metadata]
+    return tuple(sorted(keyed, key=lambda fk: fk[1].kind.is_table))
+
+
+@functools.cache
+def _names(cls: type) -> tuple[str, ...]:
+    """The TOML key names of a declared table."""
+    return tuple(n for f, k in _schema(cls) for n in (k.kind.names or (f.name,)))
+
+
+def _join(path: str, name: str) -> str:
+    return f"{path}.{name}" if path else name
+
+
+def _parse(chk: _Checker, path: str, raw: Any, cls: type) -> Any:
+    """A TOML table -> an instance of the dataclass declaring it (checks every key's kind)."""
+    if not isinstance(raw, dict):
+        raise chk.fail(path, f"must be a table, got {_show(raw)}")
+    allowed = _names(cls)
+    for name in raw:
+        if name not in allowed:
+            raise chk.unknown(_join(path, name), name, list(allowed))
+    values = {}
+    for f, k in _schema(cls):
+        if k.kind.names:
+            values[f.name] = k.kind.parse(chk, path, raw)
+        elif f.name in raw:
+            values[f.name] = k.kind.parse(chk, _join(path, f.name), raw[f.name])
+        elif f.default is MISSING and f.default_factory is MISSING:
+            raise chk.fail(_join(path, f.name), k.kind.missing(_join(path, f.name)))
+    return cls(**values)
+
+
+def _dump(obj: Any) -> dict[str, Any]:
+    """A declared dataclass instance -> its TOML table (None values and omitted defaults left out)."""
+    out: dict[str, Any] = {}
+    for f, k in _schema(type(obj)):
+        value = getattr(obj, f.name)
+        if value is None or (k.omit_default and value == f.default):
+            continue
+        if k.kind.names:
+            out.update(k.kind.dump(value))
+        else:
+            out[f.name] = k.kind.dump(value)
+    return out
+
+
+class KeyDoc(NamedTuple):
+    key: str  # dotted path, array entries as [i]
+    kind: str  # what the value must be
+    default: str  # as TOML, or "required" / "not set"
+    units: str
+    doc: str
+
+
+def _walk(cls: type, path: str) -> Iterator[tuple[str, Field, _Key]]:
+    """(dotted path, field, key) of every plain value of a declared table, nested tables expanded."""
+    for f, k in _schema(cls):
+        kind = k.kind
+        if isinstance(kind, _Table):
+            yield from _walk(kind.cls, _join(path, f.name))
+        elif isinstance(kind, _Array):
+            yield from _walk(kind.cls, f"{_join(path, f.name)}[i]")
+        elif isinstance(kind, _Loads):
+            for name, array in kind.entries.items():
+                yield from _walk(array.cls, f"{_join(path, name)}[i]")
+        else:
+            yield _join(path, f.name), f, k
 
 
 def valid_keys() -> list[str]:
-    """All dotted keys of the schema (pulley keys as pulleys[i].key)."""
-    keys = ["title"] + [f"belt.{k}" for k in _BELT_KEYS] + [f"pulleys[i].{k}" for k in _PULLEY_KEYS]
-    for table, spec in _TABLES.items():
-        keys += [f"{table}.{k}" for k in spec]
-    return keys
+    """All dotted keys of the schema (array entries as pulleys[i].key)."""
+    return [path for path, _, _ in _walk(DriveConfig, "")]
+
+
+def key_docs() -> list[KeyDoc]:
+    """Every key of the schema with its kind, default, units and one-line doc."""
+    import json
+
+    rows = []
+    for path, f, k in _walk(DriveConfig, ""):
+        if f.default is MISSING:
+            default = "required"
+        elif f.default is None:
+            default = "not set"
+        else:
+            default = json.dumps(k.kind.dump(f.default))
+        rows.append(KeyDoc(path, k.kind.label, default, k.units, k.doc))
+    return rows
 
 
 class _Checker:
-    """Validates raw TOML values, raising ConfigError with the file and key path."""
+    """Raises ConfigError with the file and key path."""
 
     def __init__(self, file: str) -> None:
         self.file = file
@@ -332,7 +698,8 @@ class _Checker:
     def fail(self, key: str, message: str) -> ConfigError:
         return ConfigError(message, file=self.file, key=key)
 
-    def unknown(self, key: str, name: str, allowed: list[str]) -> ConfigError:
+    def unknown(self, key: str, name: Any, allowed: list[str]) -> ConfigError:
+        name = str(name)  # an override can put an integer key into a table (--set belt.0=1)
         close = difflib.get_close_matches(name, allowed, n=1, cutoff=0.5)
         hint = f"; did you mean '{close[0]}'?" if close else f"; valid keys: {', '.join(allowed)}"
         return self.fail(key, f"unknown key '{name}'{hint}")
@@ -340,76 +707,13 @@ class _Checker:
     def number(self, key: str, value: Any) -> float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.fail(key, f"must be a number, got {_show(value)}")
-        value = float(value)
+        try:
+            value = float(value)
+        except OverflowError:  # an integer beyond the float range
+            value = math.inf if value > 0 else -math.inf
         if not math.isfinite(value):
             raise self.fail(key, f"must be finite, got {value}")
         return value
-
-    def value(self, key: str, kind: str, arg: Any, value: Any) -> Any:
-        if kind == "unit":
-            x = self.number(key, value)
-            if not 0.0 <= x <= 1.0:
-                raise self.fail(key, f"must be in [0, 1], got {_num(x)}")
-            return x
-        if kind in ("float", "posfloat", "nonnegfloat", "posfloat?"):
-            x = self.number(key, value)
-            if kind in ("posfloat", "posfloat?") and not x > 0:
-                raise self.fail(key, f"must be > 0, got {_num(x)}")
-            if kind == "nonnegfloat" and x < 0:
-                raise self.fail(key, f"must be >= 0, got {_num(x)}")
-            return x
-        if kind == "posint":
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise self.fail(key, f"must be an integer, got {_show(value)}")
-            if value < 1:
-                raise self.fail(key, f"must be >= 1, got {value}")
-            return value
-        if kind == "table":
-            return value
-        if kind == "str":
-            if not isinstance(value, str) or not value.strip():
-                raise self.fail(key, f"must be a non-empty string, got {_show(value)}")
-            return value
-        if kind == "choice":
-            if value not in arg:
-                raise self.fail(key, f"must be one of {', '.join(map(repr, arg))}, got {_show(value)}")
-            return value
-        if kind == "bool":
-            if not isinstance(value, bool):
-                raise self.fail(key, f"must be true or false, got {_show(value)}")
-            return value
-        if kind in ("vec2", "range2"):
-            if not isinstance(value, list) or len(value) != 2:
-                raise self.fail(key, f"must be a list of 2 numbers, got {_show(value)}")
-            x, y = (self.number(f"{key}[{i}]", v) for i, v in enumerate(value))
-            if kind == "range2" and not x < y:
-                raise self.fail(key, f"must be [min, max] with min < max, got {_show(value)}")
-            return (x, y)
-        if kind == "stiffness":
-            if isinstance(value, list):
-                if len(value) != 2:
-                    raise self.fail(key, f"must be a number or a list of 2 numbers, got {_show(value)}")
-                pair = tuple(self.number(f"{key}[{i}]", v) for i, v in enumerate(value))
-            else:
-                x = self.number(key, value)
-                pair = (x, x)
-            for i, k in enumerate(pair):
-                if k < 0:
-                    raise self.fail(key, f"must be >= 0, got {_num(k)}")
-            return pair
-        raise AssertionError(kind)
-
-    def table(self, key: str, raw: Any, spec: dict[str, tuple[str, Any]]) -> dict[str, Any]:
-        if not isinstance(raw, dict):
-            raise self.fail(key, f"must be a table, got {_show(raw)}")
-        for name in raw:
-            if name not in spec:
-                raise self.unknown(f"{key}.{name}" if key else name, name, list(spec))
-        out = {}
-        for name, (kind, arg) in spec.items():
-            if name in raw:
-                out[name] = self.value(f"{key}.{name}", kind, arg, raw[name])
-        return out
 
 
 def _show(value: Any) -> str:
@@ -426,7 +730,7 @@ def _num(x: float) -> str:
 
 def parse_toml_file(path: Path) -> dict[str, Any]:
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte order mark (some Windows editors) is skipped
     except FileNotFoundError:
         raise ConfigError("file not found", file=str(path)) from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -435,9 +739,6 @@ def parse_toml_file(path: Path) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"TOML syntax error: {exc}", file=str(path)) from None
-
-
-_PATH_TOKEN = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)|\[(\d+)\]|\.")
 
 
 def _split_key(key: str) -> list[str | int]:
@@ -495,8 +796,8 @@ def apply_override(raw: dict[str, Any], assignment: str, *, file: str) -> None:
         if not isinstance(node, dict):
             raise ConfigError(f"'{part}' is not a table", file=file, key=where)
         if part not in node:
-            if i == 0 and part not in _TOP_KEYS:
-                raise _Checker(file).unknown(where, str(part), _TOP_KEYS)
+            if i == 0 and part not in _names(DriveConfig):
+                raise _Checker(file).unknown(where, str(part), list(_names(DriveConfig)))
             node[part] = [] if isinstance(nxt, int) else {}
         node = node[part]
     last = parts[-1]
@@ -505,8 +806,8 @@ def apply_override(raw: dict[str, Any], assignment: str, *, file: str) -> None:
             raise ConfigError(f"bad index '{last}'", file=file, key=where)
         node[last] = value
     elif isinstance(node, dict):
-        if len(parts) == 1 and last not in _TOP_KEYS:
-            raise _Checker(file).unknown(where, str(last), _TOP_KEYS)
+        if len(parts) == 1 and last not in _names(DriveConfig):
+            raise _Checker(file).unknown(where, str(last), list(_names(DriveConfig)))
         node[last] = value
     else:
         raise ConfigError(f"'{parts[-2]}' is not a table", file=file, key=where)
@@ -522,98 +823,109 @@ def load_config(path: Path | str, overrides: tuple[str, ...] | list[str] = ()) -
 
 
 def config_from_dict(raw: dict[str, Any], *, file: str = "<config>") -> DriveConfig:
+    """Validate a parsed TOML drive description: the declared keys first, then the checks that
+    involve several keys."""
     chk = _Checker(file)
-    for name in raw:
-        if name not in _TOP_KEYS:
-            raise chk.unknown(name, name, _TOP_KEYS)
-    title = raw.get("title", "")
-    if not isinstance(title, str):
-        raise chk.fail("title", f"must be a string, got {_show(title)}")
-    if "belt" not in raw:
-        raise chk.fail("belt", "missing table [belt]")
-    belt_raw = chk.table("belt", raw["belt"], _BELT_KEYS)
-    for name in _BELT_KEYS:
-        if name not in belt_raw:
-            raise chk.fail(f"belt.{name}", "missing key")
-    belt = Belt(**belt_raw)
-
-    plist = raw.get("pulleys")
-    if plist is None:
-        raise chk.fail("pulleys", "missing: give at least 2 [[pulleys]] in belt order")
-    if not isinstance(plist, list) or not all(isinstance(p, dict) for p in plist):
-        raise chk.fail("pulleys", "must be an array of tables [[pulleys]]")
-    if len(plist) < 2:
-        raise chk.fail("pulleys", f"need at least 2 pulleys, got {len(plist)}")
-    pulleys = []
-    for i, praw in enumerate(plist):
-        key = f"pulleys[{i}]"
-        vals = chk.table(key, praw, _PULLEY_KEYS)
-        for name in _REQUIRED_PULLEY:
-            if name not in vals:
-                raise chk.fail(f"{key}.{name}", "missing key")
-        support = vals.get("support", "fixed")
-        if "slide_direction" in vals:
-            dx, dy = vals["slide_direction"]
-            norm = math.hypot(dx, dy)
-            if norm == 0:
-                raise chk.fail(f"{key}.slide_direction", "must not be the zero vector")
-            if abs(norm - 1.0) > 4 * 2.0**-52:  # a unit vector (to rounding) is kept as given, so that
-                vals["slide_direction"] = (dx / norm, dy / norm)  # the resolved TOML round-trips
-        if support == "fixed" and "bearing_stiffness" in vals and any(vals["bearing_stiffness"]):
-            raise chk.fail(f"{key}.bearing_stiffness", "a fixed-centre pulley has no bearing spring; "
-                           "use support = \"slide\" or \"bearing\"")
-        if support == "slide" and isinstance(praw.get("bearing_stiffness"), list):
-            raise chk.fail(f"{key}.bearing_stiffness", "a slide has one stiffness (N/m along the slide)")
-        if vals.get("adjustable") and support != "slide":
-            raise chk.fail(f"{key}.adjustable", "the adjustable pulley needs support = \"slide\"")
-        if "slide_range" in vals and support != "slide":
-            raise chk.fail(f"{key}.slide_range", "only a slide pulley has a slide range")
-        pulleys.append(Pulley(**vals))
-    names = [p.name for p in pulleys]
-    for i, n in enumerate(names):
-        if names.index(n) != i:
-            raise chk.fail(f"pulleys[{i}].name", f"duplicate pulley name '{n}'")
-    adjustable = [i for i, p in enumerate(pulleys) if p.adjustable]
-    if len(adjustable) > 1:
-        raise chk.fail(f"pulleys[{adjustable[1]}].adjustable",
-                       f"only one pulley may be adjustable (pulleys[{adjustable[0]}] already is)")
-    drivers = [i for i, p in enumerate(pulleys) if p.driver]
-    if len(drivers) > 1:
-        raise chk.fail(f"pulleys[{drivers[1]}].driver", "only one pulley may be the driver")
-
-    tables = {}
-    for tname, spec in _TABLES.items():
-        tables[tname] = chk.table(tname, raw.get(tname, {}), spec)
-    if "mode" not in tables["tension"]:  # default: move the adjustable pulley if there is one
-        tables["tension"]["mode"] = "adjust" if adjustable else "prestrain"
-    tension = Tension(**tables["tension"])
+    cfg = _parse(chk, "", raw, DriveConfig)
+    pulleys = _check_pulleys(chk, raw["pulleys"], cfg.pulleys)
+    adjustable = any(p.adjustable for p in pulleys)
+    tension = cfg.tension
+    if "mode" not in raw.get("tension", {}):  # default: move the adjustable pulley if there is one
+        tension = replace(tension, mode="adjust" if adjustable else "prestrain")
     if tension.target is not None and tension.mode == "adjust" and not adjustable:
         raise chk.fail("tension.mode", "mode \"adjust\" needs one pulley with adjustable = true "
                        "(or use mode = \"prestrain\")")
-    transient = None
-    if "transient" in raw:
-        transient = _parse_transient(chk, raw["transient"], names, pulleys, file)
-    sweep = None
-    if "sweep" in raw:
-        sweep = _parse_sweep(chk, raw["sweep"])
-    cfg = DriveConfig(
-        sweep=sweep,
-        transient=transient,
-        belt=belt,
-        pulleys=tuple(pulleys),
-        tension=tension,
-        mesh=Mesh(**tables["mesh"]),
-        model=ModelOptions(**tables["model"]),
-        static=StaticOptions(**tables["static"]),
-        modal=ModalOptions(**tables["modal"]),
-        title=title,
-        source=file,
-    )
-    return cfg
+    transient = cfg.transient
+    if transient is not None:
+        transient = _check_transient(chk, transient, pulleys, file)
+    return replace(cfg, pulleys=pulleys, tension=tension, transient=transient, source=file)
+
+
+def _check_pulleys(chk: _Checker, raw: list[dict[str, Any]], pulleys: tuple[Pulley, ...]) -> tuple[Pulley, ...]:
+    out = []
+    for i, (p, praw) in enumerate(zip(pulleys, raw)):
+        key = f"pulleys[{i}]"
+        dx, dy = p.slide_direction
+        norm = math.hypot(dx, dy)
+        if norm == 0:
+            raise chk.fail(f"{key}.slide_direction", "must not be the zero vector")
+        if abs(norm - 1.0) > 4 * 2.0**-52:  # a unit vector (to rounding) is kept as given, so that
+            p = replace(p, slide_direction=(dx / norm, dy / norm))  # the resolved TOML round-trips
+        if p.support == "fixed" and any(p.bearing_stiffness):
+            raise chk.fail(f"{key}.bearing_stiffness", "a fixed-centre pulley has no bearing spring; "
+                           "use support = \"slide\" or \"bearing\"")
+        if p.support == "slide" and isinstance(praw.get("bearing_stiffness"), list):
+            raise chk.fail(f"{key}.bearing_stiffness", "a slide has one stiffness (N/m along the slide)")
+        if p.adjustable and p.support != "slide":
+            raise chk.fail(f"{key}.adjustable", "the adjustable pulley needs support = \"slide\"")
+        if p.slide_range is not None and p.support != "slide":
+            raise chk.fail(f"{key}.slide_range", "only a slide pulley has a slide range")
+        out.append(p)
+    names = [p.name for p in out]
+    for i, n in enumerate(names):
+        if names.index(n) != i:
+            raise chk.fail(f"pulleys[{i}].name", f"duplicate pulley name '{n}'")
+    adjustable = [i for i, p in enumerate(out) if p.adjustable]
+    if len(adjustable) > 1:
+        raise chk.fail(f"pulleys[{adjustable[1]}].adjustable",
+                       f"only one pulley may be adjustable (pulleys[{adjustable[0]}] already is)")
+    drivers = [i for i, p in enumerate(out) if p.driver]
+    if len(drivers) > 1:
+        raise chk.fail(f"pulleys[{drivers[1]}].driver", "only one pulley may be the driver")
+    return tuple(out)
+
+
+def _pulley_index(chk: _Checker, key: str, name: str, names: list[str]) -> int:
+    if name not in names:
+        raise chk.fail(key, f"no pulley named {_show(name)}; pulleys are {', '.join(names)}")
+    return names.index(name)
+
+
+def _check_transient(chk: _Checker, t: TransientOptions, pulleys: tuple[Pulley, ...], file: str) -> TransientOptions:
+    names = [p.name for p in pulleys]
+    for i, r in enumerate(t.rotation):
+        key = f"transient.rotation[{i}]"
+        _pulley_index(chk, f"{key}.pulley", r.pulley, names)
+        if r.amplitude and r.speed_amplitude:
+            raise chk.fail(f"{key}.speed_amplitude", "give either amplitude (angle) or speed_amplitude, not both")
+        if (r.amplitude or r.speed_amplitude) and not r.frequency > 0:
+            raise chk.fail(f"{key}.frequency", "a fluctuation needs frequency > 0")
+    if len(t.rotation) > 1:
+        raise chk.fail("transient.rotation[1]", "only one pulley rotation can be prescribed")
+    loads = []
+    count = {"torque": 0, "hub_force": 0}
+    for load in t.loads:
+        key = f"transient.{load.kind}[{count[load.kind]}]"
+        count[load.kind] += 1
+        j = _pulley_index(chk, f"{key}.pulley", load.pulley, names)
+        if load.kind == "hub_force" and pulleys[j].support == "fixed":
+            raise chk.fail(f"{key}.pulley", f"pulley '{load.pulley}' has a fixed centre: a hub force "
+                                            f"on it goes straight into the ground (give it a slide or bearing)")
+        s0 = load.signals[0]
+        if any(s.amplitude for s in load.signals) and not s0.frequency > 0:
+            raise chk.fail(f"{key}.frequency", "a harmonic load needs frequency > 0")
+        if s0.table:
+            sha, cols = _read_table(chk, f"{key}.table", s0.table, file, len(load.signals), s0.table_sha256)
+            load = replace(load, signals=tuple(replace(s, table_sha256=sha, table_time=cols[0], table_value=cols[1 + c])
+                                               for c, s in enumerate(load.signals)))
+        elif s0.table_sha256:
+            raise chk.fail(f"{key}.table_sha256", "given without a table")
+        loads.append(load)
+    t = replace(t, loads=tuple(loads))
+    if t.spectrum.enabled and t.spectrum.start >= t.duration:
+        raise chk.fail("transient.spectrum.start", f"must be < transient.duration ({t.duration:g} s), got "
+                                                   f"{t.spectrum.start:g}; or set transient.spectrum.enabled = false")
+    if t.min_step > t.step:
+        raise chk.fail("transient.min_step", f"must be <= transient.step ({t.step:g} s)")
+    if (t.accuracy is None) != (t.fmax is None):
+        given, missing = ("accuracy", "fmax") if t.fmax is None else ("fmax", "accuracy")
+        raise chk.fail(f"transient.{missing}", f"missing key: transient.{given} is given; give accuracy and "
+                                               f"fmax together or neither")
+    return t
 
 
 def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int,
-                expect_sha: str | None = None) -> tuple[str, tuple[tuple, ...]]:
+                expect_sha: str = "") -> tuple[str, tuple[tuple, ...]]:
     """CSV (comma or whitespace separated, '#' comments): time, value(s); path relative to the config.
     Returns the sha256 of the file's bytes and the columns; expect_sha (from a resolved configuration)
     must match, so results never mix two versions of a table."""
@@ -621,7 +933,7 @@ def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int,
     path = (base / name) if not Path(name).is_absolute() else Path(name)
     try:
         data = path.read_bytes()
-        lines = data.decode("utf-8").splitlines()
+        lines = data.decode("utf-8-sig").splitlines()
     except (OSError, UnicodeDecodeError) as exc:
         raise chk.fail(key, f"cannot read table '{name}': {getattr(exc, 'strerror', None) or exc}") from None
     sha = hashlib.sha256(data).hexdigest()
@@ -633,12 +945,11 @@ def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int,
         if not line:
             continue
         parts = [p for p in re.split(r"[,\s;]+", line) if p]
-        try:
-            vals = [float(p) for p in parts]
-        except ValueError:
-            if not rows:  # a header line
+        vals = [_float_or_none(p) for p in parts]
+        if None in vals:
+            if not rows and all(v is None for v in vals):  # a header line: no number in it
                 continue
-            raise chk.fail(key, f"table '{name}' line {i}: not numbers: {line!r}") from None
+            raise chk.fail(key, f"table '{name}' line {i}: not numbers: {line!r}")
         if len(vals) != 1 + n_values or not all(math.isfinite(v) for v in vals):
             raise chk.fail(key, f"table '{name}' line {i}: expected {1 + n_values} finite numbers (time, "
                                 f"value{'s' if n_values > 1 else ''}), got {line!r}")
@@ -651,161 +962,19 @@ def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int,
     return sha, cols
 
 
-def _pulley_index(chk: _Checker, key: str, name: Any, names: list[str]) -> int:
-    if not isinstance(name, str) or name not in names:
-        raise chk.fail(key, f"no pulley named {_show(name)}; pulleys are {', '.join(names)}")
-    return names.index(name)
-
-
-def _parse_transient(chk: _Checker, raw: Any, names: list[str], pulleys: list[Pulley], file: str) -> TransientOptions:
-    spec = {**_TRANSIENT_KEYS, **{k: ("table", None) for k in _TRANSIENT_SUB},
-            "rotation": ("list", None), "torque": ("list", None), "hub_force": ("list", None)}
-    if not isinstance(raw, dict):
-        raise chk.fail("transient", "must be a table")
-    for name in raw:
-        if name not in spec:
-            raise chk.unknown(f"transient.{name}", name, list(spec))
-    top = chk.table("transient", {k: v for k, v in raw.items() if k in _TRANSIENT_KEYS}, _TRANSIENT_KEYS)
-    subs = {k: chk.table(f"transient.{k}", raw.get(k, {}), v) for k, v in _TRANSIENT_SUB.items()}
-    record = Record(**subs["record"])
-    damping = Damping(**subs["damping"])
-    spectrum = SpectrumOptions(**subs["spectrum"])
-
-    def entries(kind: str) -> list[dict]:
-        lst = raw.get(kind, [])
-        if not isinstance(lst, list) or not all(isinstance(x, dict) for x in lst):
-            raise chk.fail(f"transient.{kind}", f"must be an array of tables [[transient.{kind}]]")
-        return lst
-
-    rotations = []
-    for i, r in enumerate(entries("rotation")):
-        key = f"transient.rotation[{i}]"
-        vals = chk.table(key, r, _ROTATION_KEYS)
-        if "pulley" not in vals:
-            raise chk.fail(f"{key}.pulley", "missing key")
-        _pulley_index(chk, f"{key}.pulley", vals["pulley"], names)
-        if vals.get("amplitude", 0.0) and vals.get("speed_amplitude", 0.0):
-            raise chk.fail(f"{key}.speed_amplitude", "give either amplitude (angle) or speed_amplitude, not both")
-        if (vals.get("amplitude", 0.0) or vals.get("speed_amplitude", 0.0)) and not vals.get("frequency", 0.0) > 0:
-            raise chk.fail(f"{key}.frequency", "a fluctuation needs frequency > 0")
-        rotations.append(Rotation(**vals))
-    if len(rotations) > 1:
-        raise chk.fail("transient.rotation[1]", "only one pulley rotation can be prescribed")
-    loads = []
-    for kind in ("torque", "hub_force"):
-        n_val = 1 if kind == "torque" else 2
-        for i, r in enumerate(entries(kind)):
-            key = f"transient.{kind}[{i}]"
-            vals = chk.table(key, r, _LOAD_KEYS[kind])
-            if "pulley" not in vals:
-                raise chk.fail(f"{key}.pulley", "missing key")
-            j = _pulley_index(chk, f"{key}.pulley", vals["pulley"], names)
-            if kind == "hub_force" and pulleys[j].support == "fixed":
-                raise chk.fail(f"{key}.pulley", f"pulley '{vals['pulley']}' has a fixed centre: a hub force "
-                                                f"on it goes straight into the ground (give it a slide or bearing)")
-            if vals.get("amplitude") and any(vals["amplitude"] if n_val == 2 else [vals["amplitude"]]) \
-                    and not vals.get("frequency", 0.0) > 0:
-                raise chk.fail(f"{key}.frequency", "a harmonic load needs frequency > 0")
-            tab: tuple[tuple, ...] = ()
-            sha = ""
-            if vals.get("table"):
-                sha, tab = _read_table(chk, f"{key}.table", vals["table"], file, n_val, vals.get("table_sha256"))
-            elif vals.get("table_sha256"):
-                raise chk.fail(f"{key}.table_sha256", "given without a table")
-            sigs = []
-            for c in range(n_val):
-                pick = (lambda v: v) if n_val == 1 else (lambda v, c=c: v[c])
-                sigs.append(Signal(
-                    constant=pick(vals.get("constant", 0.0 if n_val == 1 else (0.0, 0.0))),
-                    amplitude=pick(vals.get("amplitude", 0.0 if n_val == 1 else (0.0, 0.0))),
-                    frequency=vals.get("frequency", 0.0), phase=vals.get("phase", 0.0),
-                    ramp_time=vals.get("ramp_time", 0.0), table=vals.get("table", ""), table_sha256=sha,
-                    table_time=tab[0] if tab else (), table_value=tab[1 + c] if tab else ()))
-            loads.append(Load(pulley=vals["pulley"], kind=kind, signals=tuple(sigs)))
-    opts = TransientOptions(**top, record=record, damping=damping, spectrum=spectrum,
-                            rotation=tuple(rotations), loads=tuple(loads))
-    if spectrum.enabled and spectrum.start >= opts.duration:
-        raise chk.fail("transient.spectrum.start", f"must be < transient.duration ({opts.duration:g} s), got "
-                                                   f"{spectrum.start:g}; or set transient.spectrum.enabled = false")
-    if opts.min_step > opts.step:
-        raise chk.fail("transient.min_step", f"must be <= transient.step ({opts.step:g} s)")
-    return opts
-
-
-def _parse_sweep(chk: _Checker, raw: Any) -> SweepTable:
-    vals = chk.table("sweep", raw, {"analysis": ("choice", ("static", "modal", "transient")), "zip": ("bool", False),
-                                    "params": ("table", None)})
-    params = vals.pop("params", {})
-    if not isinstance(params, dict):
-        raise chk.fail("sweep.params", "must be a table of \"dotted.key\" = \"SPEC\" or [values]")
-    out = []
-    for key, spec in params.items():
-        if isinstance(spec, list):
-            spec = ",".join(str(x).lower() if isinstance(x, bool) else (f'"{x}"' if isinstance(x, str) else repr(x))
-                            for x in spec)
-        if not isinstance(spec, str):
-            raise chk.fail(f"sweep.params.{key}", f"must be a SPEC string or a list, got {_show(spec)}")
-        out.append((key, spec))
-    return SweepTable(**vals, params=tuple(out))
-
-
-def _transient_to_dict(t: TransientOptions) -> dict[str, Any]:
-    out: dict[str, Any] = {k: getattr(t, k) for k in _TRANSIENT_KEYS}
-    out["record"] = {f.name: getattr(t.record, f.name) for f in fields(t.record)}
-    out["damping"] = {f.name: getattr(t.damping, f.name) for f in fields(t.damping)}
-    out["spectrum"] = {f.name: getattr(t.spectrum, f.name) for f in fields(t.spectrum)}
-    out["rotation"] = [{f.name: getattr(r, f.name) for f in fields(r)} for r in t.rotation]
-    for kind in ("torque", "hub_force"):
-        items = []
-        for load in t.loads:
-            if load.kind != kind:
-                continue
-            s0 = load.signals[0]
-            d: dict[str, Any] = {"pulley": load.pulley}
-            if kind == "torque":
-                d.update(constant=s0.constant, amplitude=s0.amplitude)
-            else:
-                d.update(constant=[x.constant for x in load.signals], amplitude=[x.amplitude for x in load.signals])
-            d.update(frequency=s0.frequency, phase=s0.phase, ramp_time=s0.ramp_time)
-            if s0.table:
-                d["table"] = s0.table
-                d["table_sha256"] = s0.table_sha256
-            items.append(d)
-        out[kind] = items
-    return out
+def _float_or_none(text: str) -> float | None:
+    try:
+        return float(text)
+    except ValueError:
+        return None
 
 
 def config_to_dict(cfg: DriveConfig) -> dict[str, Any]:
     """The resolved configuration (defaults filled in) as a TOML-ready dict."""
-
-    def clean(obj: Any) -> Any:
-        if isinstance(obj, tuple):
-            return [clean(x) for x in obj]
-        return obj
-
-    out: dict[str, Any] = {}
-    if cfg.title:
-        out["title"] = cfg.title
-    out["belt"] = {f.name: getattr(cfg.belt, f.name) for f in fields(cfg.belt)}
-    out["pulleys"] = []
-    for p in cfg.pulleys:
-        d = {}
-        for f in fields(p):
-            v = getattr(p, f.name)
-            if v is None:
-                continue
-            if f.name == "bearing_stiffness" and p.support != "bearing":
-                v = v[0]
-            d[f.name] = clean(v)
-        out["pulleys"].append(d)
-    for tname in _TABLES:
-        obj = getattr(cfg, tname)
-        out[tname] = {f.name: clean(getattr(obj, f.name)) for f in fields(obj)
-                      if getattr(obj, f.name) is not None}
-    if cfg.transient is not None:
-        out["transient"] = _transient_to_dict(cfg.transient)
-    if cfg.sweep is not None:
-        out["sweep"] = {"analysis": cfg.sweep.analysis, "zip": cfg.sweep.zip, "params": dict(cfg.sweep.params)}
+    out = _dump(cfg)
+    for p, d in zip(cfg.pulleys, out["pulleys"]):
+        if p.support != "bearing":  # one stiffness (a slide's, or none): written as one number
+            d["bearing_stiffness"] = p.bearing_stiffness[0]
     return out
 
 
@@ -830,5 +999,5 @@ def with_overrides(cfg: DriveConfig, assignments: list[str] | tuple[str, ...]) -
 __all__ = [
     "Belt", "Pulley", "Tension", "Mesh", "ModelOptions", "StaticOptions", "ModalOptions", "DriveConfig",
     "load_config", "config_from_dict", "config_to_dict", "resolved_toml", "config_hash",
-    "apply_override", "with_overrides", "valid_keys", "replace",
+    "apply_override", "with_overrides", "valid_keys", "key_docs", "key", "replace",
 ]

@@ -361,3 +361,274 @@ def test_help_and_version(tmp_path):
         assert option in geo.stdout
     assert ver.stdout.strip() == f"beltdyn {beltdyn.__version__}"
     assert os.listdir(tmp_path) == []
+
+
+# ------------------------------------------------------------------ one declaration per table
+TRANSIENT_SMALL = ROOT / "configs" / "examples" / "bench_transient_small.toml"
+
+
+def _declared_classes():
+    from beltdyn import config as c
+
+    return [c.Belt, c.Pulley, c.Tension, c.Mesh, c.ModelOptions, c.StaticOptions, c.ModalOptions, c.Rotation,
+            c.Record, c.Damping, c.SpectrumOptions, c.TransientOptions, c.SweepTable, c.DriveConfig,
+            c._TorqueEntry, c._HubForceEntry]
+
+
+def test_every_key_is_declared_once_with_a_doc():
+    # Checks: every field of the TOML-facing dataclasses (but DriveConfig.source) is declared with its
+    # kind and a one-line doc; valid_keys() is derived from them (the keys it listed before come first,
+    # the transient and sweep keys follow); key_docs() gives each a kind, a default and a doc.
+    from dataclasses import fields
+
+    from beltdyn.config import key_docs, valid_keys
+
+    for cls in _declared_classes():
+        for f in fields(cls):
+            if (cls.__name__, f.name) == ("DriveConfig", "source"):
+                assert "key" not in f.metadata
+                continue
+            assert "key" in f.metadata and f.metadata["key"].doc, (cls.__name__, f.name)
+    keys = valid_keys()
+    assert keys[:6] == ["title", "belt.length", "belt.EA", "belt.EI", "belt.mass_per_length", "pulleys[i].name"]
+    for k in ("modal.solver", "transient.accuracy", "transient.fmax", "transient.max_output_mb",
+              "transient.damping.rayleigh_mass", "transient.rotation[i].speed", "transient.torque[i].table",
+              "transient.hub_force[i].constant", "sweep.params"):
+        assert k in keys, k
+    assert len(set(keys)) == len(keys)
+    docs = {d.key: d for d in key_docs()}
+    assert list(docs) == keys
+    assert all(d.doc and d.kind and d.default for d in docs.values())
+    assert docs["pulleys[i].radius"].default == "required" and docs["pulleys[i].radius"].units == "m"
+    assert docs["pulleys[i].radius"].kind == "number > 0"
+    assert docs["pulleys[i].slide_direction"].default == "[1.0, 0.0]"
+    assert docs["transient.accuracy"].kind == "number in (0, 0.5)" and docs["transient.accuracy"].default == "not set"
+    assert docs["transient.fmax"].units == "Hz"
+    assert docs["transient.max_output_mb"].default == "1000.0"
+
+
+def _full_config(tmp_path: Path):
+    """The small transient bench with every kind of key set: a bearing pulley, a slide range, a driver,
+    a torque from a CSV table, a hub force, the new transient keys and a [sweep] table."""
+    from beltdyn.config import config_to_dict
+
+    (tmp_path / "torque.csv").write_text("time, torque\n0.0, 0.0\n0.01, 2.0\n1.0, 2.0\n", encoding="utf-8")
+    raw = config_to_dict(load_config(TRANSIENT_SMALL))
+    raw["pulleys"][0].update(slide_range=[-0.1, 0.2], driver=True)
+    raw["pulleys"].append({"name": "B", "center": [0.55, -0.3], "radius": 0.03, "mass": 1.0, "inertia": 1e-3,
+                           "side": "backside", "support": "bearing", "bearing_stiffness": [1e6, 2e6]})
+    raw["transient"].update(accuracy=0.01, fmax=400.0, max_output_mb=50.0)
+    raw["transient"]["torque"] = [{"pulley": "C", "constant": 1.0, "amplitude": 0.5, "frequency": 10.0,
+                                   "table": "torque.csv"}]
+    raw["transient"]["hub_force"] = [{"pulley": "B", "amplitude": [1.0, 0.0], "frequency": 120.0}]
+    raw["sweep"] = {"analysis": "modal", "zip": True,
+                    "params": {"tension.target": "100:200:3", "model.curvature": ["exact", "linear", "none"]}}
+    return config_from_dict(raw, file=str(tmp_path / "drive.toml"))
+
+
+def test_config_to_dict_round_trips_every_kind_of_key(tmp_path):
+    # Checks: config_from_dict(config_to_dict(cfg)) == cfg with every kind of key set (bearing pair, slide
+    # range, torque table with its sha256, hub force, sweep params, the new transient keys), through the
+    # resolved TOML text as well; the CSV table's columns are read again.
+    from beltdyn.config import config_to_dict
+
+    cfg = _full_config(tmp_path)
+    t = cfg.transient
+    assert (t.accuracy, t.fmax, t.max_output_mb) == (0.01, 400.0, 50.0)
+    assert [ld.kind for ld in t.loads] == ["torque", "hub_force"]
+    assert t.loads[0].signals[0].table_time == (0.0, 0.01, 1.0) and len(t.loads[0].signals[0].table_sha256) == 64
+    assert [s.amplitude for s in t.loads[1].signals] == [1.0, 0.0]
+    assert cfg.sweep.params == (("tension.target", "100:200:3"), ("model.curvature", '"exact","linear","none"'))
+    assert config_from_dict(config_to_dict(cfg), file=cfg.source) == cfg
+    text = resolved_toml(cfg)
+    back = config_from_dict(tomllib.loads(text), file=cfg.source)
+    assert back == cfg and resolved_toml(back) == text
+    assert back.transient.loads[0].signals[0].table_value == (0.0, 2.0, 2.0)
+    resolved = tomllib.loads(text)
+    assert resolved["transient"]["max_output_mb"] == 50.0 and resolved["pulleys"][2]["bearing_stiffness"] == [1e6, 2e6]
+    assert resolved["pulleys"][0]["bearing_stiffness"] == 2425300.0  # a slide's one stiffness: a number
+
+
+# ----------------------------------------------------------------------- the new transient keys
+def test_transient_accuracy_fmax_and_max_output_defaults_and_hash():
+    # Checks: the new keys default to None / None / 1000 MB and, at these defaults, are not written to
+    # the resolved TOML, so the hash of every shipped transient config is what it was; set, they are.
+    cfg = load_config(TRANSIENT_SMALL)
+    assert (cfg.transient.accuracy, cfg.transient.fmax, cfg.transient.max_output_mb) == (None, None, 1000.0)
+    resolved = tomllib.loads(resolved_toml(cfg))["transient"]
+    assert not {"accuracy", "fmax", "max_output_mb"} & set(resolved)
+    assert config_hash(load_config(TRANSIENT_SMALL, ["transient.max_output_mb=1000"])) == config_hash(cfg)
+    changed = load_config(TRANSIENT_SMALL, ["transient.accuracy=0.02", "transient.fmax=250", "transient.max_output_mb=5"])
+    assert (changed.transient.accuracy, changed.transient.fmax, changed.transient.max_output_mb) == (0.02, 250.0, 5.0)
+    assert isinstance(changed.transient.fmax, float)
+    assert config_hash(changed) != config_hash(cfg)
+    assert with_overrides(changed, []) == changed
+
+
+@pytest.mark.parametrize(("sets", "key", "fragment"), [
+    (["transient.accuracy=0.01"], "transient.fmax", "missing key: transient.accuracy is given"),
+    (["transient.fmax=300"], "transient.accuracy", "missing key: transient.fmax is given"),
+    (["transient.accuracy=0", "transient.fmax=300"], "transient.accuracy", "must be in (0, 0.5), got 0"),
+    (["transient.accuracy=0.5", "transient.fmax=300"], "transient.accuracy", "must be in (0, 0.5), got 0.5"),
+    (["transient.accuracy=-0.1", "transient.fmax=300"], "transient.accuracy", "must be in (0, 0.5), got -0.1"),
+    (["transient.accuracy=0.01", "transient.fmax=0"], "transient.fmax", "must be > 0, got 0"),
+    (["transient.accuracy=0.01", "transient.fmax='high'"], "transient.fmax", "must be a number, got 'high'"),
+    (["transient.max_output_mb=-1"], "transient.max_output_mb", "must be > 0, got -1"),
+    (["transient.max_output_mb=true"], "transient.max_output_mb", "must be a number, got true"),
+    (["transient.max_output_md=5"], "transient.max_output_md", "did you mean 'max_output_mb'?"),
+])
+def test_transient_accuracy_fmax_and_max_output_errors(sets, key, fragment):
+    # Checks: range and type errors of the new keys, and accuracy / fmax given alone (the error names
+    # the missing key), each a ConfigError with the file and the key path.
+    with pytest.raises(ConfigError) as info:
+        load_config(TRANSIENT_SMALL, sets)
+    assert info.value.file == str(TRANSIENT_SMALL) and info.value.key == key
+    assert fragment in str(info.value)
+
+
+@pytest.mark.parametrize(("sets", "key", "fragment"), [
+    (["transient.damping.rayleigh_mas=1"], "transient.damping.rayleigh_mas", "did you mean 'rayleigh_mass'?"),
+    (["transient.rotation[0].frequncy=1"], "transient.rotation[0].frequncy", "did you mean 'frequency'?"),
+    (["transient.rotation=[{speed=1.0}]"], "transient.rotation[0].pulley", "missing key"),
+    (["transient.hub_force=[{pulley='A', constant=[1.0]}]"], "transient.hub_force[0].constant",
+     "must be a list of 2 numbers"),
+    (["transient.torque=[{pulley='A', amplitud=1.0}]"], "transient.torque[0].amplitud", "did you mean 'amplitude'?"),
+    (["transient.torque=[{pulley='Z'}]"], "transient.torque[0].pulley", "no pulley named 'Z'"),
+    (["transient.spectrum.window='hamming'"], "transient.spectrum.window", "must be one of 'hann', 'rect', 'flattop'"),
+    (["sweep.analysis='fast'"], "sweep.analysis", "must be one of 'static', 'modal', 'transient'"),
+])
+def test_nested_tables_name_the_key_path(sets, key, fragment):
+    # Checks: the generic parse gives tables nested in [transient] and [sweep] the same errors as the
+    # top-level ones: unknown keys with a suggestion, missing keys and type errors, with the key path.
+    with pytest.raises(ConfigError) as info:
+        load_config(TRANSIENT_SMALL, sets)
+    assert info.value.key == key
+    assert fragment in str(info.value)
+
+
+def test_transient_accuracy_without_fmax_cli(tmp_path):
+    # Checks the real CLI on a small file: accuracy without fmax exits 2 with one line naming the file
+    # and transient.fmax, no traceback, nothing written.
+    path = tmp_path / "drive.toml"
+    path.write_text(TRANSIENT_SMALL.read_text(encoding="utf-8").replace(
+        'start = "static"', 'start = "static"\naccuracy = 0.01', 1), encoding="utf-8")
+    (r,) = run_cli((["geometry", "drive.toml", "-o", "out.h5"], tmp_path))
+    assert_rejected(r, "drive.toml", "transient.fmax", ["missing key: transient.accuracy is given"])
+    assert sorted(os.listdir(tmp_path)) == ["drive.toml"]
+
+
+# ------------------------------------------------------------------------------ small defects
+def test_config_with_utf8_byte_order_mark_is_read(tmp_path):
+    # Checks: a config saved with a UTF-8 byte order mark (some Windows editors) is read like the same
+    # file without it, by load_config and by the CLI (it used to be "Invalid statement (line 1, column 1)").
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + SMOKE.read_bytes())
+    assert config_hash(load_config(path)) == config_hash(load_config(SMOKE))
+    assert replace(load_config(path), source="") == replace(load_config(SMOKE), source="")
+    (r,) = run_cli((["geometry", "bom.toml", "-o", "out.h5"], tmp_path))
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert read_root_attrs(tmp_path / "out.h5")["config_sha256"] == config_hash(load_config(SMOKE))
+
+
+def _torque_table_config(tmp_path: Path, table: bytes) -> Path:
+    (tmp_path / "torque.csv").write_bytes(table)
+    path = tmp_path / "drive.toml"
+    path.write_text(TRANSIENT_SMALL.read_text(encoding="utf-8")
+                    + '\n[[transient.torque]]\npulley = "A"\ntable = "torque.csv"\n', encoding="utf-8")
+    return path
+
+
+def test_torque_table_with_byte_order_mark_keeps_its_first_row(tmp_path):
+    # Checks: a CSV load table saved with a byte order mark and data on its first line keeps that row
+    # (the mark used to make it unreadable, and it was skipped silently as a header).
+    path = _torque_table_config(tmp_path, b"\xef\xbb\xbf0.0, 1.0\n0.5, 2.0\n1.0, 3.0\n")
+    sig = load_config(path).transient.loads[0].signals[0]
+    assert sig.table_time == (0.0, 0.5, 1.0) and sig.table_value == (1.0, 2.0, 3.0)
+    assert sig.table_sha256 == sha256(tmp_path / "torque.csv")
+
+
+@pytest.mark.parametrize(("name", "fragment"), [
+    ("A ", "must not begin or end with white space, got 'A '"),
+    (" C", "must not begin or end with white space, got ' C'"),
+    ("C\\t", "must not begin or end with white space"),
+    ("", "must be a non-empty string, got ''"),
+    ("  ", "must be a non-empty string, got '  '"),
+])
+def test_pulley_name_with_surrounding_white_space_is_rejected(tmp_path, name, fragment):
+    # Checks: a pulley name with white space around it (so "A" and "A " could both exist) or an empty
+    # name is rejected with the key path, by load_config on a small file; the duplicate check stays.
+    path = tmp_path / "drive.toml"
+    path.write_text(SMOKE.read_text(encoding="utf-8").replace('name = "C"', f'name = "{name}"'), encoding="utf-8")
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert info.value.file == str(path) and info.value.key == "pulleys[1].name"
+    assert fragment in str(info.value)
+
+
+def test_pulley_name_white_space_cli(tmp_path):
+    # Checks the same at the command line: exit 2, one line with the file and pulleys[1].name.
+    path = tmp_path / "drive.toml"
+    path.write_text(SMOKE.read_text(encoding="utf-8").replace('name = "C"', 'name = "A "'), encoding="utf-8")
+    (r,) = run_cli((["static", "drive.toml", "-o", "out.h5"], tmp_path))
+    assert_rejected(r, "drive.toml", "pulleys[1].name", ["must not begin or end with white space"])
+    assert sorted(os.listdir(tmp_path)) == ["drive.toml"]
+
+
+# Bad input that used to end in a traceback: (assignment, key path named, fragment).
+
+
+def test_gauss_points_bound_is_the_quadrature_table():
+    # Checks: model.gauss_points is bounded by what beltdyn.ancf can integrate (it used to pass the
+    # config and fail later with a ValueError traceback), with the key path in the message.
+    from beltdyn import ancf
+    from beltdyn.config import MAX_GAUSS_POINTS
+
+    assert MAX_GAUSS_POINTS == ancf._MAX_GAUSS
+    assert load_config(SMOKE, [f"model.gauss_points={MAX_GAUSS_POINTS}"]).model.gauss_points == MAX_GAUSS_POINTS
+    with pytest.raises(ConfigError) as info:
+        load_config(SMOKE, [f"model.gauss_points={MAX_GAUSS_POINTS + 1}"])
+    assert info.value.key == "model.gauss_points" and f"must be in [1, {MAX_GAUSS_POINTS}]" in str(info.value)
+
+
+TRACEBACK_SETS = [
+    ("belt.0=1", "belt.0", "unknown key '0'"),
+    ("belt[0].x=1", "belt.0", "unknown key '0'"),
+    ("belt.EA=1" + "0" * 400, "belt.EA", "must be finite"),
+    ("model.gauss_points=100000", "model.gauss_points", "must be in [1, 64], got 100000"),
+]
+
+
+def test_bad_input_that_used_to_raise_a_traceback(tmp_path):
+    # Checks: an integer key put into a table by --set, an integer beyond the float range and a
+    # quadrature order beyond the table are exit 2 with the file and the key path, no traceback.
+    calls = []
+    for i, (assignment, _, _) in enumerate(TRACEBACK_SETS):
+        (tmp_path / str(i)).mkdir()
+        calls.append((["modal", str(SMOKE), "--set", assignment, "-o", "out.h5"], tmp_path / str(i)))
+    for (assignment, key, fragment), r, (_, cwd) in zip(TRACEBACK_SETS, run_cli(*calls), calls):
+        assert_rejected(r, str(SMOKE), key, [fragment])
+        assert os.listdir(cwd) == [], assignment
+
+
+def test_sweep_params_list_items_must_be_values():
+    # Checks: a [sweep.params] list holds numbers, strings or booleans; a nested list or a table in it
+    # is an error with the key path (it used to become a SPEC string that failed later, in the sweep).
+    for value in ("[{a=1}]", "[[1, 2]]"):
+        with pytest.raises(ConfigError) as info:
+            load_config(TRANSIENT_SMALL, [f"sweep.params.x={value}"])
+        assert info.value.key == "sweep.params.x"
+        assert "must be a SPEC string or a list of numbers, strings or booleans" in str(info.value)
+    cfg = load_config(TRANSIENT_SMALL, ["sweep.params.x=[1, 2.5, true, 'exact']"])
+    assert cfg.sweep.params == (("x", '1,2.5,true,"exact"'),)
+
+
+def test_torque_table_bad_first_row_is_not_taken_for_a_header(tmp_path):
+    # Checks: a header line (no number in it) is still skipped, but a first data row with a typo is
+    # an error naming the line, not a header silently dropped.
+    ok = load_config(_torque_table_config(tmp_path, b"t (s), torque (N m)\n0.0, 1.0\n1.0, 3.0\n"))
+    assert ok.transient.loads[0].signals[0].table_time == (0.0, 1.0)
+    path = _torque_table_config(tmp_path, b"0.0, 1.0x\n0.5, 2.0\n1.0, 3.0\n")
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert info.value.key == "transient.torque[0].table"
+    assert "line 1: not numbers" in str(info.value)
