@@ -1,7 +1,8 @@
 """Command-line interface: wires config -> geometry -> model -> analysis -> HDF5 and owns the console.
 
-Exit codes: 0 ok, 1 solver failure, 2 bad config or usage, 130 interrupted. No traceback for user
-errors. Heavy modules are imported inside the commands so that `beltdyn --help` starts fast.
+Exit codes: 0 ok, 1 solver failure (or an internal error), 2 bad config or usage, 130 interrupted
+(Ctrl-C), 143 terminated (SIGTERM). No traceback: an unexpected exception is one line naming its type
+(the traceback only with `beltdyn --debug COMMAND ...`). Heavy modules are imported inside the commands so that `beltdyn --help` starts fast.
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ app = typer.Typer(
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     help="Dynamics of belt drives: ANCF belt spans on rigid pulleys.\n\n"
-    "Exit codes: 0 ok, 1 solver failure, 2 bad configuration or usage.",
+    "Exit codes: 0 ok, 1 solver failure or internal error, 2 bad configuration or usage, 130 interrupted "
+    "(Ctrl-C), 143 terminated (SIGTERM).",
 )
 
 ConfigArg = typer.Argument(..., help="TOML drive description.", show_default=False)
@@ -43,22 +45,50 @@ def _console(stderr: bool = False):
     return con
 
 
+_STATE = {"debug": False}
+
+# POSIX convention: 128 + signal number
+EXIT_INTERRUPTED = 130  # SIGINT (Ctrl-C)
+EXIT_TERMINATED = 143  # SIGTERM
+
+
+def _one_line(text: str) -> str:
+    """Line breaks and other control characters (from a quoted TOML key, a --set value) escaped."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
+
+
 def _fail(exc: BaseException) -> None:
-    from .errors import BeltdynError
+    from rich.text import Text
+
+    from .errors import BeltdynError, Terminated
 
     err = _console(stderr=True)
     if isinstance(exc, KeyboardInterrupt):
-        err.print("[bold red]interrupted[/]: finished groups are unchanged; a running transient keeps its "
-                  "samples so far, marked 'interrupted'")
-        raise typer.Exit(130)
-    assert isinstance(exc, BeltdynError)
+        what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
+        err.print(Text.assemble((what, "bold red"), ": finished groups are unchanged; a running transient keeps "
+                                "its samples so far, marked 'interrupted'"))
+        raise typer.Exit(EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED)
+    if isinstance(exc, BeltdynError):
+        err.print(Text.assemble(("error", "bold red"), f": {_one_line(str(exc))}"))
+        raise typer.Exit(exc.exit_code)
+    if _STATE["debug"]:
+        import traceback
+
+        traceback.print_exception(exc, file=sys.stderr)
+    hint = "" if _STATE["debug"] else "; rerun with --debug for the traceback"
+    err.print(Text.assemble(("internal error", "bold red"), f": {type(exc).__name__}: {_one_line(str(exc))}; please "
+                            f"file it with the command line and config{hint}"))
+    raise typer.Exit(1)
+
+
+def _out_of_memory(detail: str) -> None:
     from rich.text import Text
 
-    # One line always: line breaks and other control characters (from a quoted TOML key, a --set
-    # value) are shown escaped.
-    message = "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in str(exc))
-    err.print(Text.assemble(("error", "bold red"), f": {message}"))
-    raise typer.Exit(exc.exit_code)
+    detail = f" ({_one_line(detail)})" if detail else ""
+    _console(stderr=True).print(Text.assemble(
+        ("error", "bold red"), f": out of memory{detail}; the model is too large for this machine: use a smaller "
+        "mesh.elements_per_span (e.g. --set mesh.elements_per_span=40), fewer modes or fewer sweep --workers"))
+    raise typer.Exit(1)
 
 
 def _version(value: bool) -> None:
@@ -70,8 +100,10 @@ def _version(value: bool) -> None:
 @app.callback()
 def main(
     version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version."),
+    debug: bool = typer.Option(False, "--debug", help="Show the Python traceback of an internal error."),
 ) -> None:
     """beltdyn command-line tool."""
+    _STATE["debug"] = debug
 
 
 class _Job:
@@ -101,13 +133,48 @@ class _Job:
         write_groups(self.output, self.groups, config_toml=self.toml, config_sha256=self.sha, force=self.force)
 
 
+def _on_sigterm(signum, frame) -> None:
+    from .errors import Terminated
+
+    raise Terminated()
+
+
 def _run(body) -> None:
-    from .errors import BeltdynError
+    """Run a command's body: a BeltdynError is one line and its exit code; Ctrl-C exit 130 and SIGTERM
+    (handled like Ctrl-C: atomic writes discarded, a transient's samples and a sweep's journal kept)
+    exit 143; anything else is an internal error, one line and exit 1 (the traceback with --debug)."""
+    import signal
 
     try:
+        signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread (e.g. called from a test harness)
+        pass
+    import rich.console  # noqa: F401 - loaded before the body, so the handlers below need no memory to import
+    import rich.text  # noqa: F401
+
+    from . import errors  # noqa: F401
+
+    memory_error = None
+    try:
         body()
-    except (BeltdynError, KeyboardInterrupt) as exc:
+    except typer.Exit:
+        raise
+    except MemoryError as exc:
+        if _STATE["debug"]:
+            import traceback
+
+            try:
+                traceback.print_exception(exc, file=sys.stderr)
+            except MemoryError:
+                pass
+        memory_error = str(exc)  # leaving this block frees the frames, and the memory they hold
+    except (Exception, KeyboardInterrupt) as exc:  # noqa: BLE001 - the top-level handler
         _fail(exc)
+    if memory_error is not None:
+        import gc
+
+        gc.collect()
+        _out_of_memory(memory_error)
 
 
 def _failed_group(name: str, exc: BaseException):
