@@ -487,7 +487,7 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
     """A grid (or zip) of cases in parallel, modes tracked across the grid by MAC."""
 
     def body() -> None:
-        from .sweep import Journal, assemble, make_spec, run_sweep
+        from .sweep import Journal, assemble, available_cores, make_spec
 
         job = _Job(config, output, set_, force)
         cfg = job.cfg
@@ -501,33 +501,32 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
             params.append((k.strip(), v.strip()))
         zip_flag = zip_
         kind = analysis
-        if not params and cfg.sweep is not None:
+        if cfg.sweep is not None and cfg.sweep.params:
+            if params:
+                from .errors import ConfigError
+
+                raise ConfigError("give the parameters either in [sweep.params] ("
+                                  + ", ".join(k for k, _ in cfg.sweep.params) + ") or with --param ("
+                                  + ", ".join(k for k, _ in params) + "), not both",
+                                  file=cfg.source, key="--param")
             params = list(cfg.sweep.params)
+        if cfg.sweep is not None:  # the table's analysis and zip are defaults for --analysis / --zip
             zip_flag = zip_flag or cfg.sweep.zip
             kind = kind or cfg.sweep.analysis
         spec = make_spec(cfg, params, analysis=kind or "modal", zip_=zip_flag, n_modes=modes)
-        journal = Journal(job.output)
         con = _console()
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+        if workers is not None and scheduler is None and workers > available_cores():
+            con.print(f"note: --workers {workers} is more than the {available_cores()} available cores; "
+                      f"using {available_cores()}")
+        journal = Journal(job.output)
+        with journal:  # exclusive: a second sweep on the same output is refused, not raced
+            _sweep_cases(con, cfg, spec, journal, resume=resume, workers=workers, scheduler=scheduler, force=force)
+            result = assemble(spec, journal)
+            from .export import sweep_group
 
-        bar = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=con,
-                       disable=not con.is_terminal, transient=True)
-        task = bar.add_task("sweep", total=spec.n_cases)
-        try:
-            with bar:
-                run_sweep(cfg, spec, journal=journal, resume=resume, workers=workers, scheduler=scheduler,
-                          progress=lambda k, n: bar.update(task, completed=k), restart=force)
-        except KeyboardInterrupt:
-            n_done = len(journal.done()) if journal.exists() else 0
-            _console(stderr=True).print(f"sweep interrupted: {n_done} of {spec.n_cases} cases are journaled in "
-                                        f"{journal.dir}; continue with --resume")
-            raise
-        result = assemble(spec, journal)
-        from .export import sweep_group
-
-        job.add(sweep_group(cfg, result))
-        job.write()
-        journal.remove()
+            job.add(sweep_group(cfg, result))
+            job.write()
+            journal.remove()
         _print_sweep(con, result)
         if result.failed.all():
             from .errors import SolverError
@@ -536,6 +535,28 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
         con.print(f"wrote [bold]/sweep[/] ({spec.n_cases} cases, {int(result.failed.sum())} failed) to {job.output}")
 
     _run(body)
+
+
+def _sweep_cases(con, cfg, spec, journal, *, resume, workers, scheduler, force) -> None:
+    """Run the missing cases with a progress bar; on Ctrl-C / SIGTERM say what is journaled."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from .errors import Terminated
+    from .sweep import run_sweep
+
+    bar = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=con,
+                   disable=not con.is_terminal, transient=True)
+    task = bar.add_task("sweep", total=spec.n_cases)
+    try:
+        with bar:
+            run_sweep(cfg, spec, journal=journal, resume=resume, workers=workers, scheduler=scheduler,
+                      progress=lambda k, n: bar.update(task, completed=k), restart=force)
+    except KeyboardInterrupt as exc:
+        n_done = len(journal.done()) if journal.exists() else 0
+        what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
+        _console(stderr=True).print(f"sweep {what}: {n_done} of {spec.n_cases} cases are journaled in "
+                                    f"{journal.dir}; continue with --resume")
+        raise
 
 
 def _print_sweep(con, result) -> None:

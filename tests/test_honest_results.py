@@ -95,3 +95,198 @@ def test_help_lists_debug_and_exit_codes(tmp_path):
     r = run("--help", cwd=tmp_path)
     assert r.returncode == 0
     assert "--debug" in r.stdout and "143" in r.stdout
+
+
+# ----------------------------------------------------------------------------------- 2. sweeps
+def _default_sigint() -> None:
+    # a runner started in the background (or with nohup) passes SIGINT ignored; the CLI under test
+    # must see Ctrl-C as a user would
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def _popen(args, cwd) -> subprocess.Popen:
+    return subprocess.Popen([*BELTDYN, *map(str, args)], cwd=cwd, env=_env(), text=True, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, preexec_fn=_default_sigint)
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            text = stat.read_text()
+        except OSError:
+            continue
+        if int(text[text.rindex(")") + 2:].split()[1]) == pid:
+            out.append(int(stat.parent.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    """Running (a zombie waiting for init to reap it counts as dead)."""
+    try:
+        os.kill(pid, 0)
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except (ProcessLookupError, FileNotFoundError):
+        return False
+    return text[text.rindex(")") + 2] != "Z"
+
+
+def _wait_for(predicate, timeout=60.0, step=0.02):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(step)
+    return predicate()
+
+
+# 80 elements per span: each case ~10 ms and its result (mode shapes) larger than a pipe buffer
+SLOW_SWEEP = ["sweep", BENCH, "--param", "tension.target=100:600:200", "--set", "mesh.elements_per_span=80"]
+
+
+def test_second_sweep_on_a_running_journal_is_refused_with_its_pid(tmp_path):
+    # A second `sweep --resume` (and a plain rerun) while the first still runs: exit 2 at once, one line
+    # "sweep journal ... is in use by pid N" with the first one's pid, no traceback; the first sweep
+    # is not disturbed (Ctrl-C later: exit 130 with its journal intact and no stray temporary files).
+    first = _popen([*SLOW_SWEEP, "--workers", "1", "-o", "s.h5"], tmp_path)
+    journal = tmp_path / "s.h5.sweep"
+    try:
+        assert _wait_for(lambda: (journal / "spec.json").exists()), "the first sweep did not start"
+        for extra in (["--resume"], []):
+            r = run(*SLOW_SWEEP, "--workers", "1", "-o", "s.h5", *extra, cwd=tmp_path)
+            assert r.returncode == 2, r.stdout + r.stderr
+            assert "Traceback" not in r.stdout + r.stderr
+            lines = r.stderr.strip().splitlines()
+            assert len(lines) == 1 and f"sweep journal s.h5.sweep is in use by pid {first.pid}" in lines[0], r.stderr
+        assert first.poll() is None
+    finally:
+        first.send_signal(signal.SIGINT)
+        _, stderr = first.communicate(timeout=60)
+    assert first.returncode == 130, stderr
+    assert "continue with --resume" in stderr and "Traceback" not in stderr
+    assert (journal / "spec.json").exists() and not list(journal.glob("*.tmp*"))
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
+def test_sweep_workers_die_with_their_parent(tmp_path, sig):
+    # Two local workers; the sweep is killed once both run and a case is journaled. No worker survives
+    # (checked in /proc), and the caller's pipes close at once (a surviving worker would hold them).
+    # SIGTERM is handled like Ctrl-C: exit 143, the journal kept, and --resume then completes it.
+    proc = _popen([*SLOW_SWEEP, "--workers", "2", "-o", "k.h5"], tmp_path)
+    journal = tmp_path / "k.h5.sweep"
+    workers = _wait_for(lambda: len(_children(proc.pid)) >= 2 and list(journal.glob("case-*.npz"))
+                        and _children(proc.pid))
+    assert workers and len(workers) == 2, "the workers did not start"
+    proc.send_signal(sig)
+    start = time.monotonic()
+    _, stderr = proc.communicate(timeout=30)  # EOF on both pipes: nobody holds them any more
+    assert time.monotonic() - start < 10
+    assert _wait_for(lambda: not any(_alive(w) for w in workers), timeout=10), "a worker outlived the sweep"
+    if sig == signal.SIGKILL:
+        assert proc.returncode == -signal.SIGKILL
+        return
+    assert proc.returncode == 143, stderr
+    assert "Traceback" not in stderr
+    assert "sweep terminated (SIGTERM)" in stderr and "continue with --resume" in stderr
+    assert (journal / "spec.json").exists() and not (tmp_path / "k.h5").exists()
+    kept = len(list(journal.glob("case-*.npz")))
+    assert 1 <= kept < 200
+    resumed = run(*SLOW_SWEEP, "--workers", "2", "-o", "k.h5", "--resume", cwd=tmp_path)
+    assert resumed.returncode == 0, resumed.stderr
+    assert "wrote /sweep (200 cases, 0 failed)" in resumed.stdout and not journal.exists()
+
+
+def test_workers_beyond_the_cores_are_capped(tmp_path, monkeypatch):
+    # --workers 64 on this machine: a note naming the core count, and the pool gets at most that
+    # many processes (in-process check of what the pool is given).
+    from beltdyn import sweep as sw
+
+    r = run("sweep", SMOKE, "--param", "tension.target=200,250,300,350", "--analysis", "static", "--workers", "64",
+            "-o", "w.h5", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    cores = sw.available_cores()
+    assert f"note: --workers 64 is more than the {cores} available cores; using {cores}" in r.stdout
+    seen = []
+    import concurrent.futures
+
+    class Spy(concurrent.futures.ProcessPoolExecutor):
+        def __init__(self, max_workers=None, **kw):
+            seen.append(max_workers)
+            super().__init__(max_workers=max_workers, **kw)
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", Spy)
+    from beltdyn.config import load_config
+
+    cfg = load_config(SMOKE)
+    spec = sw.make_spec(cfg, [("tension.target", "150:350:40")], analysis="static", zip_=False)
+    sw.run_sweep(cfg, spec, journal=sw.Journal(tmp_path / "in.h5"), workers=64)
+    assert seen == ([min(64, cores)] if cores > 1 else [])
+    assert len(sw.Journal(tmp_path / "in.h5").done()) == 40
+
+
+def test_param_and_sweep_table_together_is_a_usage_error(tmp_path):
+    # [sweep.params] in the file and --param on the command line: exit 2 naming both, nothing run.
+    cfg = tmp_path / "swept.toml"
+    cfg.write_text(SMOKE.read_text() + '\n[sweep]\nanalysis = "static"\n[sweep.params]\n"tension.target" = "200,300"\n')
+    r = run("sweep", cfg, "--param", "belt.EI=0.02,1", "-o", "x.h5", cwd=tmp_path)
+    assert r.returncode == 2, r.stdout + r.stderr
+    line = r.stderr.strip()
+    assert line.startswith(f"error: {cfg}: --param: give the parameters either in [sweep.params] (tension.target) "
+                           "or with --param (belt.EI), not both"), line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["swept.toml"]
+    ok = run("sweep", cfg, "-o", "x.h5", cwd=tmp_path)  # the table alone still works
+    assert ok.returncode == 0, ok.stderr
+    assert "Sweep: static, 2 cases" in ok.stdout
+
+
+@pytest.mark.parametrize("enabled", [True, False], ids=["spectrum", "no-spectrum"])
+def test_every_sweep_value_is_validated_before_any_case_runs(tmp_path, enabled):
+    # A transient sweep over transient.duration whose second value ends before transient.spectrum.start
+    # (1 s in the example): exit 2 naming transient.spectrum.start and that case, before anything is
+    # journaled; also with the spectrum disabled (each case used to fail with a numpy ValueError).
+    r = run("sweep", TRANSIENT, "--analysis", "transient", "--param", "transient.duration=1.5,0.5",
+            "--set", f"transient.spectrum.enabled={str(enabled).lower()}", "-o", "t.h5", cwd=tmp_path)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "Traceback" not in r.stdout + r.stderr
+    line = r.stderr.strip()
+    assert line.startswith(f"error: {TRANSIENT}: transient.spectrum.start: must be < transient.duration"), line
+    assert "(in the sweep case transient.duration=0.5)" in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_later_bad_value_of_a_grid_is_named(tmp_path):
+    from beltdyn.config import load_config
+    from beltdyn.errors import ConfigError
+    from beltdyn.sweep import make_spec
+
+    with pytest.raises(ConfigError) as err:
+        make_spec(load_config(BENCH), [("belt.EI", "0.02,1"), ("pulleys[1].radius", "0.1016,-0.1")],
+                  analysis="modal", zip_=False)
+    assert err.value.key == "pulleys[1].radius" and "must be > 0" in str(err.value)
+    assert "in the sweep case belt.EI=0.02, pulleys[1].radius=-0.1" in str(err.value)
+
+
+def test_journal_writes_are_fsynced(tmp_path, monkeypatch):
+    # Every case file is fsync'ed before its rename, and the journal folder after it (and spec.json).
+    import stat
+
+    from beltdyn.sweep import Journal
+
+    synced = []
+    real = os.fsync
+
+    def spy(fd):
+        synced.append("dir" if stat.S_ISDIR(os.fstat(fd).st_mode) else "file")
+        real(fd)
+
+    monkeypatch.setattr(os, "fsync", spy)
+    j = Journal(tmp_path / "x.h5")
+    with j:
+        j.start({"a": 1}, "0" * 64)
+        assert synced == ["file", "dir"]
+        synced.clear()
+        j.write(3, {"failed": 0, "frequency": np.arange(3.0)})
+        assert synced == ["file", "dir"]
+        assert j.done() == {3} and not list(j.dir.glob("*.tmp*"))
+    assert j.dir.exists()  # journaled: kept
