@@ -117,11 +117,16 @@ class _Job:
         self.layout = layout_from_config(self.cfg)  # geometric config errors come before the output check
         self.toml = resolved_toml(self.cfg)
         self.sha = config_hash(self.cfg)
+        # the configuration as given: `modal --rtol` replaces cfg/toml/sha by the chosen mesh's and
+        # its file records both, so that the same command is accepted on its own output again
+        self.base_sha = self.sha
         self.force = force
         self.output = output if output is not None else Path("results") / f"{config.stem}.h5"
         from .results_io import check_target
 
-        check_target(self.output, config_sha256=self.sha, force=force)
+        # early check (before any analysis); a file of a derived configuration (from this base) passes
+        # here and is checked strictly, against the configuration actually written, by `write`
+        check_target(self.output, config_sha256=self.sha, force=force, base_config_sha256=self.base_sha)
         self.groups: list = []
 
     def add(self, group) -> None:
@@ -130,7 +135,8 @@ class _Job:
     def write(self) -> None:
         from .results_io import write_groups
 
-        write_groups(self.output, self.groups, config_toml=self.toml, config_sha256=self.sha, force=self.force)
+        write_groups(self.output, self.groups, config_toml=self.toml, config_sha256=self.sha, force=self.force,
+                     base_config_sha256=self.base_sha)
 
 
 def _on_sigterm(signum, frame) -> None:
@@ -235,6 +241,21 @@ def _refined_modal(job: "_Job", n_modes: int, rtol: float) -> None:
     state = "meets" if ref.converged else "does NOT meet (mesh limit reached)"
     con.print(f"chosen mesh: {ref.elements[ref.chosen]} elements per span; it {state} rtol = {rtol:g} "
               f"(largest estimate {np.nanmax(ref.estimate[ref.chosen]):.2e}); wrote {job.output}")
+    if not ref.converged:
+        _rtol_not_met(ref, rtol, job.output)
+
+
+def _rtol_not_met(ref, rtol: float, output) -> None:
+    """`modal --rtol` reached the mesh limit without meeting the tolerance: a solver failure (exit 1)
+    after the table and the file (its /modal has mesh_converged = 0) are written."""
+    import numpy as np
+
+    from .errors import SolverError
+
+    raise SolverError(f"the modes do NOT meet rtol = {rtol:g}: largest estimated relative error "
+                      f"{np.nanmax(ref.estimate[ref.chosen]):.2e} at {ref.elements[ref.chosen]} elements per span, "
+                      f"the finest mesh tried (the refinement limit); its results are in {output} "
+                      "(/modal mesh_converged = 0)", analysis="modal", step="mesh refinement")
 
 
 def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None):

@@ -290,3 +290,83 @@ def test_journal_writes_are_fsynced(tmp_path, monkeypatch):
         assert synced == ["file", "dir"]
         assert j.done() == {3} and not list(j.dir.glob("*.tmp*"))
     assert j.dir.exists()  # journaled: kept
+
+
+# ------------------------------------------------------------------------------ 3. output files
+def test_read_only_output_is_reported_as_such(tmp_path):
+    # An existing, read-only results file: exit 2, "cannot write results to ro.h5: permission denied"
+    # (not "cannot create a temporary file"), also with --force; the file and folder unchanged.
+    first = run("geometry", SMOKE, "-o", "ro.h5", cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    out = tmp_path / "ro.h5"
+    out.chmod(0o444)
+    before = out.read_bytes()
+    for extra in ([], ["--force"]):
+        r = run("static", SMOKE, "-o", "ro.h5", *extra, cwd=tmp_path)
+        assert r.returncode == 2, r.stdout + r.stderr
+        assert r.stderr.strip().splitlines() == ["error: cannot write results to ro.h5: permission denied (the file "
+                                                 "is read-only; make it writable or choose another output path)"]
+        assert "temporary" not in r.stderr
+    assert out.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["ro.h5"]
+
+
+@pytest.mark.parametrize("kind", ["text", "foreign", "corrupt"])
+def test_force_replaces_a_foreign_or_corrupt_output(tmp_path, kind):
+    # Without --force: exit 2, the message says --force replaces it, the file untouched. With --force:
+    # exit 0 and a beltdyn results file in its place.
+    from beltdyn.config import config_hash, load_config
+    from beltdyn.results_io import read_root_attrs
+
+    out = tmp_path / "out.h5"
+    if kind == "text":
+        out.write_text("my notes\n")
+    elif kind == "foreign":
+        with h5py.File(out, "w") as f:
+            f["x"] = np.arange(4)
+    else:
+        assert run("geometry", SMOKE, "-o", "out.h5", cwd=tmp_path).returncode == 0
+        out.write_bytes(out.read_bytes()[:1500])
+    before = out.read_bytes()
+    r = run("geometry", SMOKE, "-o", "out.h5", cwd=tmp_path)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "--force replaces it" in r.stderr and "Traceback" not in r.stderr
+    assert out.read_bytes() == before
+    f = run("geometry", SMOKE, "-o", "out.h5", "--force", cwd=tmp_path)
+    assert f.returncode == 0, f.stderr
+    assert read_root_attrs(out)["config_sha256"] == config_hash(load_config(SMOKE))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.h5"]
+
+
+# ------------------------------------------------------------------------------- 4. modal --rtol
+def test_rtol_not_met_exits_1_with_table_and_file(tmp_path):
+    # A tolerance below round-off cannot be met: the refinement table and the modes are printed, the
+    # file is written (/modal complete, mesh_converged = 0), and one error line says it does NOT meet
+    # rtol: exit 1.
+    r = run("modal", SMOKE, "--rtol", "1e-15", "--modes", "2", "-o", "r.h5", cwd=tmp_path)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "Mesh refinement to rtol = 1e-15" in r.stdout and "does NOT meet" in r.stdout
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: modal: the modes do NOT meet rtol = 1e-15"), r.stderr
+    with h5py.File(tmp_path / "r.h5") as f:
+        assert f["modal"].attrs["status"] == "complete" and f["modal"].attrs["mesh_converged"] == 0
+        assert "frequency" in f["modal"]
+
+
+def test_rtol_rerun_on_its_own_output_is_accepted(tmp_path):
+    # The file records the chosen mesh's configuration (config_sha256) and the given one
+    # (base_config_sha256): the same `modal --rtol` command on it again is accepted (exit 0, same
+    # choice); a plain `static` of the given configuration is still refused (other mesh) unless --force.
+    from beltdyn.config import config_hash, load_config
+    from beltdyn.results_io import read_root_attrs
+
+    args = ["modal", SMOKE, "--rtol", "1e-3", "--modes", "4", "-o", "r.h5"]
+    first = run(*args, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    attrs = read_root_attrs(tmp_path / "r.h5")
+    base = config_hash(load_config(SMOKE))
+    assert attrs["base_config_sha256"] == base and attrs["config_sha256"] != base
+    again = run(*args, cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert again.stdout.splitlines()[-1] == first.stdout.splitlines()[-1]
+    plain = run("static", SMOKE, "-o", "r.h5", cwd=tmp_path)
+    assert plain.returncode == 2 and "holds results of a different configuration" in plain.stderr
