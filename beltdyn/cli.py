@@ -449,7 +449,64 @@ def _spectra(writer, setup, t, kept, mres, opts):
     if freq is not None:
         writer.add_subgroup(GroupData(name="spectrum", coords={"frequency": freq}, coord_units={"frequency": "Hz"},
                                       variables=tuple(variables)))
+    store_peaks(writer, peaks, setup.excitation_frequency)
     return peaks
+
+
+def _shown_peaks(peaks):
+    """The rows of the printed peak table: (series, units, peak), the 4 largest peaks of each series
+    (round-off ripples below 1e-6 of its largest dropped)."""
+    rows = []
+    for name, units, plist in peaks:
+        top = max((p.amplitude for p in plist), default=0.0)
+        rows += [(name, units, p) for p in [p for p in plist if p.amplitude >= 1e-6 * top][:4]]
+    return rows
+
+
+def _peak_relation(p, f_exc) -> str:
+    parts = []
+    if p.harmonic:
+        parts.append(f"harmonic {p.harmonic} of the excitation ({f_exc:g} Hz)" if f_exc else f"harmonic {p.harmonic}")
+    if p.nearest_mode:
+        parts.append(f"nearest mode {p.nearest_mode} at {p.mode_frequency:.3f} Hz ({p.mode_distance_pct:+.2f} %)")
+    return "; ".join(parts) or "-"
+
+
+def store_peaks(writer, peaks, f_exc=None) -> None:
+    """/transient/peaks: the printed table of dominant spectral peaks, one row per peak (series,
+    channel, frequency, amplitude in its series' units, harmonic, nearest mode, relation text).
+    `peaks` as returned by `_spectra` (series name, units, [spectrum.Peak]); nothing for no peaks.
+    Called by `_spectra`, so `_run_transient` needs no change."""
+    import numpy as np
+
+    from .results_io import GroupData, Variable
+
+    rows = _shown_peaks(peaks)
+    if not rows:
+        return
+    nan = float("nan")
+    writer.add_subgroup(GroupData(
+        name="peaks", coords={"peak": np.arange(1, len(rows) + 1)},
+        variables=(
+            Variable(name="series", data=[n for n, _, _ in rows], dims=("peak",), units="1",
+                     description="recorded quantity (its spectrum is in /transient/spectrum)"),
+            Variable(name="channel", data=[p.channel for _, _, p in rows], dims=("peak",), units="1"),
+            Variable(name="frequency", data=np.array([p.frequency for _, _, p in rows]), dims=("peak",), units="Hz"),
+            Variable(name="amplitude", data=np.array([p.amplitude for _, _, p in rows]), dims=("peak",),
+                     units="mixed (see amplitude_unit)", description="single-sided peak amplitude, in amplitude_unit"),
+            Variable(name="amplitude_unit", data=[u for _, u, _ in rows], dims=("peak",), units="1"),
+            Variable(name="harmonic", data=np.array([p.harmonic for _, _, p in rows], dtype=np.int64), dims=("peak",),
+                     units="1", description="k if the peak is the k-th harmonic of the excitation, 0 if none"),
+            Variable(name="nearest_mode", data=np.array([p.nearest_mode for _, _, p in rows], dtype=np.int64),
+                     dims=("peak",), units="1", description="1-based number of the closest natural frequency, 0 if none"),
+            Variable(name="mode_frequency", data=np.array([p.mode_frequency if p.nearest_mode else nan
+                                                           for _, _, p in rows]), dims=("peak",), units="Hz"),
+            Variable(name="mode_distance", data=np.array([p.mode_distance_pct if p.nearest_mode else nan
+                                                          for _, _, p in rows]), dims=("peak",), units="%",
+                     description="100 (f - f_mode) / f_mode"),
+            Variable(name="relation", data=[_peak_relation(p, f_exc) for _, _, p in rows], dims=("peak",), units="1"),
+        ),
+        attrs={"excitation_frequency_Hz": float(f_exc) if f_exc else nan}))
 
 
 def _channel_labels(series, coords) -> list[str]:
@@ -484,13 +541,11 @@ def _print_transient(con, summary, spans, peaks, f_exc) -> None:
     tbl = Table(title="Dominant spectral peaks" + (f" (excitation {f_exc:g} Hz)" if f_exc else ""))
     for col in ("channel", "frequency (Hz)", "amplitude", "harmonic", "nearest mode (Hz)", "vs mode (%)"):
         tbl.add_column(col, justify="left" if col == "channel" else "right")
-    for name, units, plist in peaks:
-        top = max((p.amplitude for p in plist), default=0.0)
-        for p in [p for p in plist if p.amplitude >= 1e-6 * top][:4]:  # drop round-off ripples
-            tbl.add_row(p.channel, f"{p.frequency:.3f}", f"{p.amplitude:.4g} {units}",
-                        str(p.harmonic) if p.harmonic else "-",
-                        f"{p.mode_frequency:.3f}" if p.nearest_mode else "-",
-                        f"{p.mode_distance_pct:+.2f}" if p.nearest_mode else "-")
+    for _, units, p in _shown_peaks(peaks):  # the same rows as /transient/peaks
+        tbl.add_row(p.channel, f"{p.frequency:.3f}", f"{p.amplitude:.4g} {units}",
+                    str(p.harmonic) if p.harmonic else "-",
+                    f"{p.mode_frequency:.3f}" if p.nearest_mode else "-",
+                    f"{p.mode_distance_pct:+.2f}" if p.nearest_mode else "-")
     con.print(tbl)
 
 

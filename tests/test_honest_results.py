@@ -370,3 +370,32 @@ def test_rtol_rerun_on_its_own_output_is_accepted(tmp_path):
     assert again.stdout.splitlines()[-1] == first.stdout.splitlines()[-1]
     plain = run("static", SMOKE, "-o", "r.h5", cwd=tmp_path)
     assert plain.returncode == 2 and "holds results of a different configuration" in plain.stderr
+
+
+# ------------------------------------------------------------------------ 5. the stored peak table
+def test_transient_peak_table_is_stored(tmp_path):
+    # /transient/peaks holds the printed table row by row: series, channel, frequency (Hz), amplitude
+    # with its unit, harmonic, nearest mode and a relation text; the file opens in xarray.
+    r = run("transient", TRANSIENT, "-o", "tr.h5", "--duration", "0.3", "--set", "transient.spectrum.start=0.1",
+            cwd=tmp_path, timeout=300)
+    assert r.returncode == 0, r.stderr
+    table = r.stdout[r.stdout.index("Dominant spectral peaks"):]
+    with h5py.File(tmp_path / "tr.h5") as f:
+        g = f["transient/peaks"]
+        assert g["frequency"].attrs["units"] == "Hz" and g["mode_frequency"].attrs["units"] == "Hz"
+        assert g["amplitude"].attrs["units"] == "mixed (see amplitude_unit)"
+        channels = g["channel"].asstr()[()]
+        units = g["amplitude_unit"].asstr()[()]
+        relation = g["relation"].asstr()[()]
+        freq, amp, harm = g["frequency"][()], g["amplitude"][()], g["harmonic"][()]
+        assert set(g["series"].asstr()[()]) <= {"span_tension", "hub_load", "bearing_force", "midspan_displacement",
+                                                "pulley_speed", "driver_torque"}
+    rows = [line for line in table.splitlines() if line.startswith("│")]
+    assert len(rows) == len(channels) > 0
+    for row, ch, u, fr, a, h, rel in zip(rows, channels, units, freq, amp, harm, relation):
+        cells = [c.strip() for c in row.strip("│").split("│")]
+        assert cells[0] == ch and cells[1] == f"{fr:.3f}" and cells[2] == f"{a:.4g} {u}"
+        assert (cells[3] == "-") == (h == 0) and (h == 0 or f"harmonic {h} of the excitation (45 Hz)" in rel)
+    xr = pytest.importorskip("xarray")
+    tree = xr.open_datatree(tmp_path / "tr.h5", engine="h5netcdf")
+    assert tree["transient/peaks"].dataset.sizes["peak"] == len(channels)
