@@ -399,3 +399,42 @@ def test_transient_peak_table_is_stored(tmp_path):
     xr = pytest.importorskip("xarray")
     tree = xr.open_datatree(tmp_path / "tr.h5", engine="h5netcdf")
     assert tree["transient/peaks"].dataset.sizes["peak"] == len(channels)
+
+
+# ---------------------------------------------------------------------------------------- 6. units
+def test_mixed_unit_datasets_carry_dof_units(tmp_path):
+    # q, spring_preload and the mode shapes no longer claim units "1": they point to a per-DOF unit
+    # variable derived from the DOF map (rotation rad, slide / x / y and node positions m, slopes 1).
+    r = run("modal", SMOKE, "-o", "m.h5", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "m.h5") as f:
+        for group in ("static", "modal"):
+            labels = f[group]["dof"].asstr()[()]
+            units = f[group]["dof_unit"].asstr()[()]
+            assert f[group]["dof_unit"].dims[0][0].name == f[group]["dof"].name
+            for lab, unit in zip(labels, units):
+                expect = ("rad" if lab.endswith("rotation") else "1" if lab.endswith("'")
+                          else "m" if lab.endswith((" slide", " x", " y", " r1", " r2")) else None)
+                assert unit == expect, (lab, unit)
+        assert f["static/q"].attrs["units"] == "mixed (see dof_unit)"
+        assert f["modal/shape"].attrs["units"] == "mixed (see dof_unit)"
+        assert f["static/spring_preload"].attrs["units"] == "mixed (see dof_force_unit)"
+        force_units = f["static/dof_force_unit"].asstr()[()]
+        assert all(fu == ("N" if u == "m" else "N m") for fu, u in zip(force_units, f["static/dof_unit"].asstr()[()]))
+        assert set(units) == {"rad", "m", "1"}
+
+
+def test_swept_parameters_carry_their_units(tmp_path):
+    from beltdyn.export import param_units
+
+    r = run("sweep", SMOKE, "--analysis", "static", "--param", "tension.target=200,300", "--param",
+            "pulleys.A.radius=0.0375,0.04", "--param", "static.load_steps=1,2", "-o", "s.h5", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "s.h5") as f:
+        assert f["sweep/param_tension_target"].attrs["units"] == "N"
+        assert f["sweep/param_pulleys_A_radius"].attrs["units"] == "m"
+        assert f["sweep/param_static_load_steps"].attrs["units"] == "1"
+    assert [param_units(k) for k in ("belt.EA", "belt.EI", "belt.mass_per_length", "mesh.elements_per_span",
+                                     "pulleys[1].radius", "pulleys.1.center[0]", "transient.hub_force[0].frequency",
+                                     "transient.rotation.0.speed", "belt.nonsense")] == [
+        "N", "N m^2", "kg/m", "1", "m", "m", "Hz", "rad/s", "unknown"]
