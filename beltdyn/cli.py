@@ -36,13 +36,33 @@ SetOpt = typer.Option(None, "--set", help="Override a dotted config key: KEY=VAL
 ForceOpt = typer.Option(False, "--force", help="Replace a results file written for a different configuration.")
 
 
-def _console(stderr: bool = False):
-    from rich.console import Console
+PIPE_WIDTH = 1000  # console width when the output is not a terminal: tables at their natural width
 
-    con = Console(stderr=stderr, highlight=False, soft_wrap=True)
-    if not con.is_terminal:  # piped or captured (make, CI): wide enough for the tables
-        con = Console(stderr=stderr, highlight=False, soft_wrap=True, width=130)
-    return con
+
+def _is_tty(stream) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError, OSError):
+        return False
+
+
+def _console(stderr: bool = False):
+    """The rich console: in a terminal its width; piped or captured (make, CI, a file) wide, so that no
+    table is squeezed or cut (also when FORCE_COLOR makes rich treat the pipe as a terminal of 80
+    columns). Table cells fold instead of ending in an ellipsis when a terminal is too narrow."""
+    from rich.console import Console
+    from rich.table import Table
+
+    class _FoldingConsole(Console):
+        def print(self, *objects, **kwargs) -> None:
+            for obj in objects:
+                if isinstance(obj, Table):
+                    for column in obj.columns:
+                        column.overflow = "fold"
+            super().print(*objects, **kwargs)
+
+    width = None if _is_tty(sys.stderr if stderr else sys.stdout) else PIPE_WIDTH
+    return _FoldingConsole(stderr=stderr, highlight=False, soft_wrap=True, width=width)
 
 
 _STATE = {"debug": False}
@@ -714,6 +734,14 @@ def paper(outdir: Path = typer.Option(Path("results/paper"), "--outdir", help="F
 
 
 # ------------------------------------------------------------------------------------ printing
+def _degrees_180(angle: float) -> float:
+    """A direction in degrees in (-180, 180]."""
+    import math
+
+    d = math.degrees(angle) % 360.0
+    return d - 360.0 if d > 180.0 else d
+
+
 def _print_geometry(layout) -> None:
     import math
 
@@ -732,7 +760,7 @@ def _print_geometry(layout) -> None:
     for col in ("span", "length (m)", "angle (deg)"):
         s.add_column(col, justify="right" if col != "span" else "left")
     for i in range(layout.n):
-        s.add_row(layout.span_name(i), f"{layout.span_length[i]:.7f}", f"{math.degrees(layout.span_angle[i]):.4f}")
+        s.add_row(layout.span_name(i), f"{layout.span_length[i]:.7f}", f"{_degrees_180(layout.span_angle[i]):.4f}")
     con.print(s)
     extra = ""
     if layout.adjust_index is not None:

@@ -8,6 +8,7 @@ peak table, honest units, angles and table widths on the console, the SPDX licen
 from __future__ import annotations
 
 import os
+import re
 import resource
 import signal
 import subprocess
@@ -438,3 +439,95 @@ def test_swept_parameters_carry_their_units(tmp_path):
                                      "pulleys[1].radius", "pulleys.1.center[0]", "transient.hub_force[0].frequency",
                                      "transient.rotation.0.speed", "belt.nonsense")] == [
         "N", "N m^2", "kg/m", "1", "m", "m", "Hz", "rad/s", "unknown"]
+
+
+# -------------------------------------------------------------------------------------- 7. console
+def test_span_angles_are_printed_and_stored_in_the_half_open_circle(tmp_path):
+    # A drive whose span C-A runs at -183.07 deg by the tangent construction: printed as 176.9339 deg,
+    # stored in (-pi, pi]; every printed angle in (-180, 180].
+    sets = ["--set", "pulleys[0].radius=0.15", "--set", "pulleys[1].radius=0.05", "--set", "pulleys[0].adjustable=false"]
+    r = run("geometry", SMOKE, *sets, "-o", "g.h5", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    spans = r.stdout[r.stdout.index("Spans"):].splitlines()
+    rows = {cells[0]: float(cells[2]) for cells in
+            ([c.strip() for c in line.strip("│").split("│")] for line in spans if line.startswith("│"))}
+    assert rows["C-A"] == pytest.approx(176.9339, abs=1e-4)
+    assert all(-180 < a <= 180 for a in rows.values())
+    with h5py.File(tmp_path / "g.h5") as f:
+        stored = f["geometry/span_angle"][()]
+    assert np.all((stored > -np.pi) & (stored <= np.pi))
+    assert np.degrees(stored[1]) == pytest.approx(176.9339, abs=1e-4)
+
+
+def test_piped_tables_are_not_cut(tmp_path):
+    # 12 modes of the --rtol table: 13 columns, wider than 80 and than 130. Piped, also with
+    # FORCE_COLOR and COLUMNS=80 (rich then took the pipe for an 80-column terminal): every cell whole,
+    # no ellipsis, each mesh row with its 12 estimates.
+    for extra in ({}, {"FORCE_COLOR": "1", "COLUMNS": "80"}):
+        r = run("modal", SMOKE, "--rtol", "1e-4", "--modes", "12", "-o", "r.h5", cwd=tmp_path, env=_env(**extra))
+        assert r.returncode == 0, r.stderr
+        assert "…" not in r.stdout and "..." not in r.stdout
+        table = r.stdout[:r.stdout.index("Modes (")]
+        rows = [line for line in table.splitlines() if line.startswith("│")]
+        assert len(rows) >= 3
+        for row in rows:
+            cells = [c.strip() for c in row.strip("│").split("│")]
+            assert len(cells) == 13 and all(re.fullmatch(r"\d\.\de[-+]\d\d|nan", c) for c in cells[1:]), row
+        assert max(len(line) for line in r.stdout.splitlines()) > 130
+
+
+def test_narrow_terminal_folds_cells_instead_of_cutting_them(tmp_path):
+    # In a 50-column terminal (a pty) a table wider than that folds its cells: no ellipsis.
+    import fcntl
+    import pty
+    import struct
+    import termios
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 50, 0, 0))
+    env = _env(COLUMNS="50", LINES="40")
+    proc = subprocess.Popen([*BELTDYN, "geometry", str(SMOKE), "-o", "g.h5"], cwd=tmp_path, env=env,
+                            stdin=slave, stdout=slave, stderr=slave)
+    os.close(slave)
+    chunks = []
+    while True:
+        try:
+            data = os.read(master, 4096)
+        except OSError:  # EIO: the child closed the terminal
+            break
+        if not data:
+            break
+        chunks.append(data)
+    os.close(master)
+    assert proc.wait(timeout=60) == 0
+    out = re.sub(r"\x1b\[[0-9;]*m", "", b"".join(chunks).decode())  # bold and italics stay with NO_COLOR
+    assert "Pulleys" in out and "…" not in out
+    table = [line for line in out.splitlines() if line[:1] in "┏┃┡│└"]
+    assert table and max(len(line) for line in table) <= 50
+    assert "0.89" in out and "6600" in out  # the x of pulley C, folded over two lines, not cut
+
+
+def test_license_is_an_spdx_string():
+    import tomllib
+
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert meta["project"]["license"] == "MIT"
+    assert "setuptools>=77" in meta["build-system"]["requires"]
+
+
+@pytest.mark.slow
+def test_build_has_no_license_warning(tmp_path):
+    # Building the package (isolated build environment, as `make test` does) gives no setuptools
+    # warning about the license, and the metadata carries License-Expression: MIT.
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-v", "-w", str(tmp_path), str(ROOT)],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    log = r.stdout + r.stderr
+    assert "project.license` as a TOML table is deprecated" not in log
+    assert "BuildBackendWarning" not in log
+    import zipfile
+
+    (wheel,) = tmp_path.glob("beltdyn-*.whl")
+    with zipfile.ZipFile(wheel) as z:
+        meta = z.read(next(n for n in z.namelist() if n.endswith("METADATA"))).decode()
+    assert "License-Expression: MIT" in meta
