@@ -16,7 +16,7 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 test-slow: $(STAMP)
-	$(BIN)/python -m pytest -q -m slow || test $$? -eq 5  # exit 5: no test is marked slow at present
+	$(BIN)/python -m pytest -q -m slow || test $$? -eq 5  # exit 5: no test selected (none marked slow)
 
 test-all: $(STAMP)
 	$(BIN)/python -m pytest -q -m 'slow or not slow'

@@ -1,7 +1,8 @@
 """Command-line interface: wires config -> geometry -> model -> analysis -> HDF5 and owns the console.
 
-Exit codes: 0 ok, 1 solver failure, 2 bad config or usage, 130 interrupted. No traceback for user
-errors. Heavy modules are imported inside the commands so that `beltdyn --help` starts fast.
+Exit codes: 0 ok, 1 solver failure (or an internal error), 2 bad config or usage, 130 interrupted
+(Ctrl-C), 143 terminated (SIGTERM). No traceback: an unexpected exception is one line naming its type
+(the traceback only with `beltdyn --debug COMMAND ...`). Heavy modules are imported inside the commands so that `beltdyn --help` starts fast.
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ app = typer.Typer(
     no_args_is_help=True,
     pretty_exceptions_enable=False,
     help="Dynamics of belt drives: ANCF belt spans on rigid pulleys.\n\n"
-    "Exit codes: 0 ok, 1 solver failure, 2 bad configuration or usage.",
+    "Exit codes: 0 ok, 1 solver failure or internal error, 2 bad configuration or usage, 130 interrupted "
+    "(Ctrl-C), 143 terminated (SIGTERM).",
 )
 
 ConfigArg = typer.Argument(..., help="TOML drive description.", show_default=False)
@@ -34,31 +36,79 @@ SetOpt = typer.Option(None, "--set", help="Override a dotted config key: KEY=VAL
 ForceOpt = typer.Option(False, "--force", help="Replace a results file written for a different configuration.")
 
 
-def _console(stderr: bool = False):
-    from rich.console import Console
+PIPE_WIDTH = 1000  # console width when the output is not a terminal: tables at their natural width
 
-    con = Console(stderr=stderr, highlight=False, soft_wrap=True)
-    if not con.is_terminal:  # piped or captured (make, CI): wide enough for the tables
-        con = Console(stderr=stderr, highlight=False, soft_wrap=True, width=130)
-    return con
+
+def _is_tty(stream) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError, OSError):
+        return False
+
+
+def _console(stderr: bool = False):
+    """The rich console: in a terminal its width; piped or captured (make, CI, a file) wide, so that no
+    table is squeezed or cut (also when FORCE_COLOR makes rich treat the pipe as a terminal of 80
+    columns). Table cells fold instead of ending in an ellipsis when a terminal is too narrow."""
+    from rich.console import Console
+    from rich.table import Table
+
+    class _FoldingConsole(Console):
+        def print(self, *objects, **kwargs) -> None:
+            for obj in objects:
+                if isinstance(obj, Table):
+                    for column in obj.columns:
+                        column.overflow = "fold"
+            super().print(*objects, **kwargs)
+
+    width = None if _is_tty(sys.stderr if stderr else sys.stdout) else PIPE_WIDTH
+    return _FoldingConsole(stderr=stderr, highlight=False, soft_wrap=True, width=width)
+
+
+_STATE = {"debug": False}
+
+# POSIX convention: 128 + signal number
+EXIT_INTERRUPTED = 130  # SIGINT (Ctrl-C)
+EXIT_TERMINATED = 143  # SIGTERM
+
+
+def _one_line(text: str) -> str:
+    """Line breaks and other control characters (from a quoted TOML key, a --set value) escaped."""
+    return "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in text)
 
 
 def _fail(exc: BaseException) -> None:
-    from .errors import BeltdynError
+    from rich.text import Text
+
+    from .errors import BeltdynError, Terminated
 
     err = _console(stderr=True)
     if isinstance(exc, KeyboardInterrupt):
-        err.print("[bold red]interrupted[/]: finished groups are unchanged; a running transient keeps its "
-                  "samples so far, marked 'interrupted'")
-        raise typer.Exit(130)
-    assert isinstance(exc, BeltdynError)
+        what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
+        err.print(Text.assemble((what, "bold red"), ": finished groups are unchanged; a running transient keeps "
+                                "its samples so far, marked 'interrupted'"))
+        raise typer.Exit(EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED)
+    if isinstance(exc, BeltdynError):
+        err.print(Text.assemble(("error", "bold red"), f": {_one_line(str(exc))}"))
+        raise typer.Exit(exc.exit_code)
+    if _STATE["debug"]:
+        import traceback
+
+        traceback.print_exception(exc, file=sys.stderr)
+    hint = "" if _STATE["debug"] else "; rerun with --debug for the traceback"
+    err.print(Text.assemble(("internal error", "bold red"), f": {type(exc).__name__}: {_one_line(str(exc))}; please "
+                            f"file it with the command line and config{hint}"))
+    raise typer.Exit(1)
+
+
+def _out_of_memory(detail: str) -> None:
     from rich.text import Text
 
-    # One line always: line breaks and other control characters (from a quoted TOML key, a --set
-    # value) are shown escaped.
-    message = "".join(c if c.isprintable() else c.encode("unicode_escape").decode() for c in str(exc))
-    err.print(Text.assemble(("error", "bold red"), f": {message}"))
-    raise typer.Exit(exc.exit_code)
+    detail = f" ({_one_line(detail)})" if detail else ""
+    _console(stderr=True).print(Text.assemble(
+        ("error", "bold red"), f": out of memory{detail}; the model is too large for this machine: use a smaller "
+        "mesh.elements_per_span (e.g. --set mesh.elements_per_span=40), fewer modes or fewer sweep --workers"))
+    raise typer.Exit(1)
 
 
 def _version(value: bool) -> None:
@@ -70,8 +120,10 @@ def _version(value: bool) -> None:
 @app.callback()
 def main(
     version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version."),
+    debug: bool = typer.Option(False, "--debug", help="Show the Python traceback of an internal error."),
 ) -> None:
     """beltdyn command-line tool."""
+    _STATE["debug"] = debug
 
 
 class _Job:
@@ -85,11 +137,16 @@ class _Job:
         self.layout = layout_from_config(self.cfg)  # geometric config errors come before the output check
         self.toml = resolved_toml(self.cfg)
         self.sha = config_hash(self.cfg)
+        # the configuration as given: `modal --rtol` replaces cfg/toml/sha by the chosen mesh's and
+        # its file records both, so that the same command is accepted on its own output again
+        self.base_sha = self.sha
         self.force = force
         self.output = output if output is not None else Path("results") / f"{config.stem}.h5"
         from .results_io import check_target
 
-        check_target(self.output, config_sha256=self.sha, force=force)
+        # early check (before any analysis); a file of a derived configuration (from this base) passes
+        # here and is checked strictly, against the configuration actually written, by `write`
+        check_target(self.output, config_sha256=self.sha, force=force, base_config_sha256=self.base_sha)
         self.groups: list = []
 
     def add(self, group) -> None:
@@ -98,16 +155,52 @@ class _Job:
     def write(self) -> None:
         from .results_io import write_groups
 
-        write_groups(self.output, self.groups, config_toml=self.toml, config_sha256=self.sha, force=self.force)
+        write_groups(self.output, self.groups, config_toml=self.toml, config_sha256=self.sha, force=self.force,
+                     base_config_sha256=self.base_sha)
+
+
+def _on_sigterm(signum, frame) -> None:
+    from .errors import Terminated
+
+    raise Terminated()
 
 
 def _run(body) -> None:
-    from .errors import BeltdynError
+    """Run a command's body: a BeltdynError is one line and its exit code; Ctrl-C exit 130 and SIGTERM
+    (handled like Ctrl-C: atomic writes discarded, a transient's samples and a sweep's journal kept)
+    exit 143; anything else is an internal error, one line and exit 1 (the traceback with --debug)."""
+    import signal
 
     try:
+        signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread (e.g. called from a test harness)
+        pass
+    import rich.console  # noqa: F401 - loaded before the body, so the handlers below need no memory to import
+    import rich.text  # noqa: F401
+
+    from . import errors  # noqa: F401
+
+    memory_error = None
+    try:
         body()
-    except (BeltdynError, KeyboardInterrupt) as exc:
+    except typer.Exit:
+        raise
+    except MemoryError as exc:
+        if _STATE["debug"]:
+            import traceback
+
+            try:
+                traceback.print_exception(exc, file=sys.stderr)
+            except MemoryError:
+                pass
+        memory_error = str(exc)  # leaving this block frees the frames, and the memory they hold
+    except (Exception, KeyboardInterrupt) as exc:  # noqa: BLE001 - the top-level handler
         _fail(exc)
+    if memory_error is not None:
+        import gc
+
+        gc.collect()
+        _out_of_memory(memory_error)
 
 
 def _failed_group(name: str, exc: BaseException):
@@ -168,6 +261,21 @@ def _refined_modal(job: "_Job", n_modes: int, rtol: float) -> None:
     state = "meets" if ref.converged else "does NOT meet (mesh limit reached)"
     con.print(f"chosen mesh: {ref.elements[ref.chosen]} elements per span; it {state} rtol = {rtol:g} "
               f"(largest estimate {np.nanmax(ref.estimate[ref.chosen]):.2e}); wrote {job.output}")
+    if not ref.converged:
+        _rtol_not_met(ref, rtol, job.output)
+
+
+def _rtol_not_met(ref, rtol: float, output) -> None:
+    """`modal --rtol` reached the mesh limit without meeting the tolerance: a solver failure (exit 1)
+    after the table and the file (its /modal has mesh_converged = 0) are written."""
+    import numpy as np
+
+    from .errors import SolverError
+
+    raise SolverError(f"the modes do NOT meet rtol = {rtol:g}: largest estimated relative error "
+                      f"{np.nanmax(ref.estimate[ref.chosen]):.2e} at {ref.elements[ref.chosen]} elements per span, "
+                      f"the finest mesh tried (the refinement limit); its results are in {output} "
+                      "(/modal mesh_converged = 0)", analysis="modal", step="mesh refinement")
 
 
 def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None):
@@ -361,7 +469,64 @@ def _spectra(writer, setup, t, kept, mres, opts):
     if freq is not None:
         writer.add_subgroup(GroupData(name="spectrum", coords={"frequency": freq}, coord_units={"frequency": "Hz"},
                                       variables=tuple(variables)))
+    store_peaks(writer, peaks, setup.excitation_frequency)
     return peaks
+
+
+def _shown_peaks(peaks):
+    """The rows of the printed peak table: (series, units, peak), the 4 largest peaks of each series
+    (round-off ripples below 1e-6 of its largest dropped)."""
+    rows = []
+    for name, units, plist in peaks:
+        top = max((p.amplitude for p in plist), default=0.0)
+        rows += [(name, units, p) for p in [p for p in plist if p.amplitude >= 1e-6 * top][:4]]
+    return rows
+
+
+def _peak_relation(p, f_exc) -> str:
+    parts = []
+    if p.harmonic:
+        parts.append(f"harmonic {p.harmonic} of the excitation ({f_exc:g} Hz)" if f_exc else f"harmonic {p.harmonic}")
+    if p.nearest_mode:
+        parts.append(f"nearest mode {p.nearest_mode} at {p.mode_frequency:.3f} Hz ({p.mode_distance_pct:+.2f} %)")
+    return "; ".join(parts) or "-"
+
+
+def store_peaks(writer, peaks, f_exc=None) -> None:
+    """/transient/peaks: the printed table of dominant spectral peaks, one row per peak (series,
+    channel, frequency, amplitude in its series' units, harmonic, nearest mode, relation text).
+    `peaks` as returned by `_spectra` (series name, units, [spectrum.Peak]); nothing for no peaks.
+    Called by `_spectra`, so `_run_transient` needs no change."""
+    import numpy as np
+
+    from .results_io import GroupData, Variable
+
+    rows = _shown_peaks(peaks)
+    if not rows:
+        return
+    nan = float("nan")
+    writer.add_subgroup(GroupData(
+        name="peaks", coords={"peak": np.arange(1, len(rows) + 1)},
+        variables=(
+            Variable(name="series", data=[n for n, _, _ in rows], dims=("peak",), units="1",
+                     description="recorded quantity (its spectrum is in /transient/spectrum)"),
+            Variable(name="channel", data=[p.channel for _, _, p in rows], dims=("peak",), units="1"),
+            Variable(name="frequency", data=np.array([p.frequency for _, _, p in rows]), dims=("peak",), units="Hz"),
+            Variable(name="amplitude", data=np.array([p.amplitude for _, _, p in rows]), dims=("peak",),
+                     units="mixed (see amplitude_unit)", description="single-sided peak amplitude, in amplitude_unit"),
+            Variable(name="amplitude_unit", data=[u for _, u, _ in rows], dims=("peak",), units="1"),
+            Variable(name="harmonic", data=np.array([p.harmonic for _, _, p in rows], dtype=np.int64), dims=("peak",),
+                     units="1", description="k if the peak is the k-th harmonic of the excitation, 0 if none"),
+            Variable(name="nearest_mode", data=np.array([p.nearest_mode for _, _, p in rows], dtype=np.int64),
+                     dims=("peak",), units="1", description="1-based number of the closest natural frequency, 0 if none"),
+            Variable(name="mode_frequency", data=np.array([p.mode_frequency if p.nearest_mode else nan
+                                                           for _, _, p in rows]), dims=("peak",), units="Hz"),
+            Variable(name="mode_distance", data=np.array([p.mode_distance_pct if p.nearest_mode else nan
+                                                          for _, _, p in rows]), dims=("peak",), units="%",
+                     description="100 (f - f_mode) / f_mode"),
+            Variable(name="relation", data=[_peak_relation(p, f_exc) for _, _, p in rows], dims=("peak",), units="1"),
+        ),
+        attrs={"excitation_frequency_Hz": float(f_exc) if f_exc else nan}))
 
 
 def _channel_labels(series, coords) -> list[str]:
@@ -396,13 +561,11 @@ def _print_transient(con, summary, spans, peaks, f_exc) -> None:
     tbl = Table(title="Dominant spectral peaks" + (f" (excitation {f_exc:g} Hz)" if f_exc else ""))
     for col in ("channel", "frequency (Hz)", "amplitude", "harmonic", "nearest mode (Hz)", "vs mode (%)"):
         tbl.add_column(col, justify="left" if col == "channel" else "right")
-    for name, units, plist in peaks:
-        top = max((p.amplitude for p in plist), default=0.0)
-        for p in [p for p in plist if p.amplitude >= 1e-6 * top][:4]:  # drop round-off ripples
-            tbl.add_row(p.channel, f"{p.frequency:.3f}", f"{p.amplitude:.4g} {units}",
-                        str(p.harmonic) if p.harmonic else "-",
-                        f"{p.mode_frequency:.3f}" if p.nearest_mode else "-",
-                        f"{p.mode_distance_pct:+.2f}" if p.nearest_mode else "-")
+    for _, units, p in _shown_peaks(peaks):  # the same rows as /transient/peaks
+        tbl.add_row(p.channel, f"{p.frequency:.3f}", f"{p.amplitude:.4g} {units}",
+                    str(p.harmonic) if p.harmonic else "-",
+                    f"{p.mode_frequency:.3f}" if p.nearest_mode else "-",
+                    f"{p.mode_distance_pct:+.2f}" if p.nearest_mode else "-")
     con.print(tbl)
 
 
@@ -420,7 +583,7 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
     """A grid (or zip) of cases in parallel, modes tracked across the grid by MAC."""
 
     def body() -> None:
-        from .sweep import Journal, assemble, make_spec, run_sweep
+        from .sweep import Journal, assemble, available_cores, make_spec
 
         job = _Job(config, output, set_, force)
         cfg = job.cfg
@@ -434,33 +597,32 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
             params.append((k.strip(), v.strip()))
         zip_flag = zip_
         kind = analysis
-        if not params and cfg.sweep is not None:
+        if cfg.sweep is not None and cfg.sweep.params:
+            if params:
+                from .errors import ConfigError
+
+                raise ConfigError("give the parameters either in [sweep.params] ("
+                                  + ", ".join(k for k, _ in cfg.sweep.params) + ") or with --param ("
+                                  + ", ".join(k for k, _ in params) + "), not both",
+                                  file=cfg.source, key="--param")
             params = list(cfg.sweep.params)
+        if cfg.sweep is not None:  # the table's analysis and zip are defaults for --analysis / --zip
             zip_flag = zip_flag or cfg.sweep.zip
             kind = kind or cfg.sweep.analysis
         spec = make_spec(cfg, params, analysis=kind or "modal", zip_=zip_flag, n_modes=modes)
-        journal = Journal(job.output)
         con = _console()
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+        if workers is not None and scheduler is None and workers > available_cores():
+            con.print(f"note: --workers {workers} is more than the {available_cores()} available cores; "
+                      f"using {available_cores()}")
+        journal = Journal(job.output)
+        with journal:  # exclusive: a second sweep on the same output is refused, not raced
+            _sweep_cases(con, cfg, spec, journal, resume=resume, workers=workers, scheduler=scheduler, force=force)
+            result = assemble(spec, journal)
+            from .export import sweep_group
 
-        bar = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=con,
-                       disable=not con.is_terminal, transient=True)
-        task = bar.add_task("sweep", total=spec.n_cases)
-        try:
-            with bar:
-                run_sweep(cfg, spec, journal=journal, resume=resume, workers=workers, scheduler=scheduler,
-                          progress=lambda k, n: bar.update(task, completed=k), restart=force)
-        except KeyboardInterrupt:
-            n_done = len(journal.done()) if journal.exists() else 0
-            _console(stderr=True).print(f"sweep interrupted: {n_done} of {spec.n_cases} cases are journaled in "
-                                        f"{journal.dir}; continue with --resume")
-            raise
-        result = assemble(spec, journal)
-        from .export import sweep_group
-
-        job.add(sweep_group(cfg, result))
-        job.write()
-        journal.remove()
+            job.add(sweep_group(cfg, result))
+            job.write()
+            journal.remove()
         _print_sweep(con, result)
         if result.failed.all():
             from .errors import SolverError
@@ -469,6 +631,28 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
         con.print(f"wrote [bold]/sweep[/] ({spec.n_cases} cases, {int(result.failed.sum())} failed) to {job.output}")
 
     _run(body)
+
+
+def _sweep_cases(con, cfg, spec, journal, *, resume, workers, scheduler, force) -> None:
+    """Run the missing cases with a progress bar; on Ctrl-C / SIGTERM say what is journaled."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from .errors import Terminated
+    from .sweep import run_sweep
+
+    bar = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=con,
+                   disable=not con.is_terminal, transient=True)
+    task = bar.add_task("sweep", total=spec.n_cases)
+    try:
+        with bar:
+            run_sweep(cfg, spec, journal=journal, resume=resume, workers=workers, scheduler=scheduler,
+                      progress=lambda k, n: bar.update(task, completed=k), restart=force)
+    except KeyboardInterrupt as exc:
+        n_done = len(journal.done()) if journal.exists() else 0
+        what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
+        _console(stderr=True).print(f"sweep {what}: {n_done} of {spec.n_cases} cases are journaled in "
+                                    f"{journal.dir}; continue with --resume")
+        raise
 
 
 def _print_sweep(con, result) -> None:
@@ -550,6 +734,14 @@ def paper(outdir: Path = typer.Option(Path("results/paper"), "--outdir", help="F
 
 
 # ------------------------------------------------------------------------------------ printing
+def _degrees_180(angle: float) -> float:
+    """A direction in degrees in (-180, 180]."""
+    import math
+
+    d = math.degrees(angle) % 360.0
+    return d - 360.0 if d > 180.0 else d
+
+
 def _print_geometry(layout) -> None:
     import math
 
@@ -568,7 +760,7 @@ def _print_geometry(layout) -> None:
     for col in ("span", "length (m)", "angle (deg)"):
         s.add_column(col, justify="right" if col != "span" else "left")
     for i in range(layout.n):
-        s.add_row(layout.span_name(i), f"{layout.span_length[i]:.7f}", f"{math.degrees(layout.span_angle[i]):.4f}")
+        s.add_row(layout.span_name(i), f"{layout.span_length[i]:.7f}", f"{_degrees_180(layout.span_angle[i]):.4f}")
     con.print(s)
     extra = ""
     if layout.adjust_index is not None:

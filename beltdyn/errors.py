@@ -59,3 +59,7 @@ class SolverError(BeltdynError):
         if item:
             parts.append(f"at fault: {item}")
         super().__init__("; ".join(parts))
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, handled like Ctrl-C (results so far kept, partial writes discarded); exit 143."""

@@ -18,6 +18,58 @@ if TYPE_CHECKING:  # keep `beltdyn geometry` from importing the solvers
     from .static import StaticResult
 
 XY = ["x", "y"]
+MIXED = "mixed (see dof_unit)"
+
+
+def dof_units(model: DriveModel) -> list[str]:
+    """Unit of each generalized coordinate (the system's DOF map): pulley rotation rad, pulley slide /
+    x / y m, span node position r1 / r2 m, span node slope r1' / r2' 1."""
+    return list(model.dofs.units)
+
+
+def dof_force_unit(unit: str) -> str:
+    """Unit of the generalized force conjugate to a DOF of unit `unit` (force times DOF is work, J)."""
+    return "N" if unit == "m" else "N m"
+
+
+def _dof_unit_variable(model: DriveModel) -> Variable:
+    return Variable(name="dof_unit", data=dof_units(model), dims=("dof",), units="1",
+                    description="unit of each generalized coordinate (rad, m, or 1 for a slope)")
+
+
+# Units of swept keys (pulley and excitation entries by any index or name: "*"); others "unknown".
+PARAM_UNITS = {
+    "belt.length": "m", "belt.EA": "N", "belt.EI": "N m^2", "belt.mass_per_length": "kg/m",
+    "pulleys.*.center": "m", "pulleys.*.radius": "m", "pulleys.*.mass": "kg", "pulleys.*.inertia": "kg m^2",
+    "pulleys.*.slide_direction": "1", "pulleys.*.bearing_stiffness": "N/m", "pulleys.*.slide_range": "m",
+    "tension.target": "N", "mesh.elements_per_span": "1",
+    "model.gravity": "m/s^2", "model.gauss_points": "1",
+    "static.tolerance": "1", "static.max_iterations": "1", "static.load_steps": "1", "modal.modes": "1",
+    "transient.duration": "s", "transient.step": "s", "transient.min_step": "s", "transient.output_interval": "s",
+    "transient.rho_inf": "1", "transient.tolerance": "1", "transient.max_iterations": "1",
+    "transient.damping.rayleigh_mass": "1/s", "transient.damping.rayleigh_stiffness": "s",
+    "transient.damping.belt_axial": "s", "transient.damping.belt_bending": "s",
+    "transient.spectrum.start": "s", "transient.spectrum.peaks": "1",
+    "transient.rotation.*.speed": "rad/s", "transient.rotation.*.ramp_time": "s",
+    "transient.rotation.*.amplitude": "rad", "transient.rotation.*.speed_amplitude": "rad/s",
+    "transient.rotation.*.frequency": "Hz", "transient.rotation.*.phase": "rad",
+    "transient.rotation.*.fluctuation_ramp": "s",
+    "transient.torque.*.constant": "N m", "transient.torque.*.amplitude": "N m",
+    "transient.hub_force.*.constant": "N", "transient.hub_force.*.amplitude": "N",
+    **{f"transient.{kind}.*.{key}": unit for kind in ("torque", "hub_force")
+       for key, unit in (("frequency", "Hz"), ("phase", "rad"), ("ramp_time", "s"))},
+}
+
+
+def param_units(key: str) -> str:
+    """Units of a swept dotted key (`pulleys[1].radius`, `pulleys.A.radius`, `pulleys.1.center[0]`,
+    `transient.hub_force[0].frequency` ...); "unknown" for a key not in PARAM_UNITS."""
+    import re
+
+    k = re.sub(r"\[\d+\]$", "", key.strip())  # one component of a vector value
+    k = re.sub(r"\[(\d+)\]", r".\1", k)
+    k = re.sub(r"^(pulleys|transient\.rotation|transient\.torque|transient\.hub_force)\.[^.]+\.", r"\1.*.", k)
+    return PARAM_UNITS.get(k, "unknown")
 
 
 def geometry_group(layout: Layout) -> GroupData:
@@ -34,8 +86,9 @@ def geometry_group(layout: Layout) -> GroupData:
             Variable(name="wrap_angle", data=layout.wrap_angle, dims=("pulley",), units="rad"),
             Variable(name="arc_length", data=layout.arc_length, dims=("pulley",), units="m"),
             Variable(name="span_length", data=layout.span_length, dims=("span",), units="m"),
-            Variable(name="span_angle", data=layout.span_angle, dims=("span",), units="rad",
-                     description="direction of belt travel along the span, counter-clockwise from +x"),
+            Variable(name="span_angle", data=np.pi - np.mod(np.pi - np.asarray(layout.span_angle), 2 * np.pi),
+                     dims=("span",), units="rad",
+                     description="direction of belt travel along the span, counter-clockwise from +x, in (-pi, pi]"),
             Variable(name="span_start", data=layout.span_start, dims=("span", "component"), units="m",
                      description="tangent point where the span leaves its first pulley"),
             Variable(name="span_end", data=layout.span_end, dims=("span", "component"), units="m",
@@ -68,9 +121,13 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
                      description="torque the driver pulley's support applies to hold it"),
             Variable(name="adjust_offset", data=np.array(res.adjust_offset), dims=(), units="m",
                      description="travel of the adjustable pulley from its given centre"),
-            Variable(name="q", data=res.q, dims=("dof",), units="1",
-                     description="independent coordinates from the reference state (m, rad or 1)"),
-            Variable(name="spring_preload", data=res.spring_preload, dims=("dof",), units="N"),
+            Variable(name="q", data=res.q, dims=("dof",), units=MIXED,
+                     description="independent coordinates from the reference state, each in its dof_unit"),
+            _dof_unit_variable(model),
+            Variable(name="dof_force_unit", data=[dof_force_unit(u) for u in dof_units(model)], dims=("dof",),
+                     units="1", description="unit of the generalized force on each DOF (N for m, N m for rad or 1)"),
+            Variable(name="spring_preload", data=res.spring_preload, dims=("dof",), units="mixed (see dof_force_unit)",
+                     description="preload of the support spring on each DOF, in its dof_force_unit (0 if none)"),
             Variable(name="residual", data=res.residual_history, dims=("iteration",), units="1",
                      description="residual norm divided by the allowed residual (converged <= 1) after each Newton iteration"),
             Variable(name="load_factor", data=res.load_factor_history, dims=("iteration",), units="1"),
@@ -101,8 +158,10 @@ def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
             Variable(name="energy_share", data=res.energy_share, dims=("mode", "energy_kind"), units="1",
                      description="share of the modal kinetic energy"),
             Variable(name="span_share", data=res.span_share, dims=("mode", "belt_span"), units="1"),
-            Variable(name="shape", data=res.shapes, dims=("mode", "dof"), units="1",
-                     description="mass-normalized mode shapes, phi^T M phi = 1, in the DOF units"),
+            Variable(name="shape", data=res.shapes, dims=("mode", "dof"), units=MIXED,
+                     description="mass-normalized mode shapes (phi^T M phi = 1): entry i in dof_unit[i] "
+                                 "per sqrt(kg m^2)"),
+            _dof_unit_variable(model),
             Variable(name="rigid_frequency", data=res.rigid_frequency, dims=("rigid",), units="Hz"),
         ),
         attrs={"n_rigid": int(res.n_rigid), "solver": res.solver, "n_dof": int(model.n_dof)},
@@ -125,7 +184,8 @@ def sweep_group(cfg, result) -> GroupData:
         vals = [v[k] for v in result.values]
         numeric = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in vals)
         variables.append(Variable(name=f"param_{var_name(p.key)}", data=np.array(vals, dtype=float) if numeric
-                                  else [str(v) for v in vals], dims=("case",), units="1",
+                                  else [str(v) for v in vals], dims=("case",),
+                                  units=param_units(p.key) if numeric else "1",
                                   description=f"swept key {p.key}"))
     variables += [
         Variable(name="wall_time", data=result.wall_time, dims=("case",), units="s",

@@ -3,7 +3,8 @@
 Layout (schema version `beltdyn.SCHEMA_VERSION`):
 
 * root attributes `beltdyn_version`, `schema_version`, `created_utc` (ISO 8601, UTC, kept from the
-  file's creation), `modified_utc` (last write) and `config_sha256`;
+  file's creation), `modified_utc` (last write), `config_sha256` and, from the CLI,
+  `base_config_sha256`;
 * `/provenance/config_toml`: the resolved configuration, a scalar UTF-8 string dataset;
 * one group per analysis (`/geometry`, `/static`, `/modal`, `/transient`, `/sweep`) with a string
   attribute `status` (`running|complete|failed|interrupted`) and, when the analysis failed or was
@@ -21,8 +22,11 @@ Writes are atomic: the target is copied to `<name>.tmp-<pid>-<token>` in the sam
 copy is modified, flushed, fsync'ed and `os.replace`d over the target. A failed or interrupted
 write leaves the target as it was. Writing results of a different configuration (other
 `config_sha256`, or another schema version) into an existing file raises `OutputError` unless
-`force=True`, in which case the file is started afresh. A file that is not a beltdyn results file
-is never overwritten, even with `force`.
+`force=True`, in which case the file is started afresh; so is a file that is not a beltdyn results
+file (not HDF5, unreadable, or another program's HDF5), which is refused without `force`. A
+read-only file is refused even with `force` ("permission denied"). A root attribute
+`base_config_sha256` records the configuration as given when the results are of a configuration
+derived from it (`modal --rtol` records the chosen mesh as `config_sha256`).
 """
 
 from __future__ import annotations
@@ -118,15 +122,18 @@ class GroupData:
 # --------------------------------------------------------------------------------------------
 
 
-def check_target(path: Path, *, config_sha256: str, force: bool = False) -> None:
+def check_target(path: Path, *, config_sha256: str, force: bool = False,
+                 base_config_sha256: str | None = None) -> None:
     """Raise `OutputError` early (before any analysis runs) if `path` cannot receive the results.
 
-    Refused: a directory or a file that is not a beltdyn results file (never overwritten, even with
-    `force`); a beltdyn file of another configuration or schema version unless `force`; a parent
-    directory that cannot be created or written.
+    Refused: a directory; a read-only file (even with `force`); a file that is not a beltdyn results
+    file (not HDF5, unreadable, or HDF5 of another program) or a beltdyn file of another
+    configuration or schema version, unless `force` (which replaces it); a parent directory that
+    cannot be created or written. With `base_config_sha256`, a file whose root attribute
+    `base_config_sha256` equals it is accepted too (`modal --rtol` re-run on its own output).
     """
     path = _resolve_target(path)
-    _inspect_target(path, config_sha256=config_sha256, force=force)
+    _inspect_target(path, config_sha256=config_sha256, force=force, base_config_sha256=base_config_sha256)
     parent = path.parent
     while not parent.exists() and parent != parent.parent:
         parent = parent.parent
@@ -144,7 +151,8 @@ def write_group(
 
 
 def write_groups(
-    path: Path, groups: list[GroupData], *, config_toml: str, config_sha256: str, force: bool = False
+    path: Path, groups: list[GroupData], *, config_toml: str, config_sha256: str, force: bool = False,
+    base_config_sha256: str | None = None,
 ) -> None:
     """Atomically add or replace several groups of the results file at `path` in one transaction.
 
@@ -152,7 +160,9 @@ def write_groups(
     another configuration, `OutputError` is raised unless `force` (then a fresh file is started).
     The groups are replaced, the root attributes and `/provenance/config_toml` are written, and the
     temporary file is flushed, fsync'ed and renamed over `path`. On any exception the temporary file
-    is removed and `path` is untouched. Parent directories are created.
+    is removed and `path` is untouched. Parent directories are created. `base_config_sha256` (the
+    configuration as given when the results are of a derived one, `modal --rtol`) is stored as a
+    root attribute; the file's own check stays on `config_sha256`.
     """
     path = _resolve_target(path)
     _check_provenance_args(config_toml, config_sha256)
@@ -169,6 +179,8 @@ def write_groups(
     names = ", ".join(f"/{g.name}" for g in groups)
     try:
         _write_root(f, config_toml=config_toml, config_sha256=config_sha256, fresh=fresh)
+        if base_config_sha256 is not None:
+            f.attrs["base_config_sha256"] = base_config_sha256
         for group, prepared, attrs in ready:
             if group.name in f:
                 del f[group.name]
@@ -847,37 +859,59 @@ def _open_read(path: Path):
         raise OutputError(f"{path}: cannot be read as an HDF5 file ({exc})") from exc
 
 
-def _inspect_target(path: Path, *, config_sha256: str, force: bool) -> bool:
+def _read_only(path: Path) -> bool:
+    """No write permission for this user; for root (who may write anyway) no write bit at all: a
+    read-only results file is the user's protection and is not replaced."""
+    if not os.access(path, os.W_OK):
+        return True
+    return hasattr(os, "geteuid") and os.geteuid() == 0 and not path.stat().st_mode & 0o222
+
+
+def _inspect_target(path: Path, *, config_sha256: str, force: bool, base_config_sha256: str | None = None) -> bool:
     """True if `path` is a beltdyn file to be updated (copied), False if a fresh file is to be
-    started; OutputError if the file must not be touched."""
+    started (none there, or `force` replaces it); OutputError if the file must not be touched.
+
+    The file is accepted when its `config_sha256` is `config_sha256`, or when `base_config_sha256`
+    is given and equals the file's `base_config_sha256` (the configuration as given, before
+    `modal --rtol` chose the mesh)."""
     h5py = _h5py()
     if not path.exists():
         return False
     if not path.is_file():
         raise OutputError(f"{path}: exists and is not a regular file; choose another output path")
+    if _read_only(path):
+        raise OutputError(f"cannot write results to {path}: permission denied (the file is read-only; make it "
+                          "writable or choose another output path)")
     try:
         ok = h5py.is_hdf5(path)
     except OSError as exc:
         raise OutputError(f"{path}: cannot be read ({exc})") from exc
     if not ok:
-        raise OutputError(f"{path}: exists and is not an HDF5 file; it is not overwritten "
-                          "(remove it or choose another output path)")
+        if force:
+            return False
+        raise OutputError(f"{path}: exists and is not an HDF5 file; it is not overwritten: --force replaces it "
+                          "(or choose another output path)")
     try:
         with h5py.File(path, "r") as f:
             attrs = {k: _decode_attr(v) for k, v in f.attrs.items()}
     except OSError as exc:
-        raise OutputError(f"{path}: cannot be read as an HDF5 file ({exc}); it is not overwritten "
-                          "(remove it or choose another output path)") from exc
+        if force:
+            return False
+        raise OutputError(f"{path}: cannot be read as an HDF5 file ({exc}); it is not overwritten: --force "
+                          "replaces it (or choose another output path)") from exc
     if "config_sha256" not in attrs or "beltdyn_version" not in attrs:
-        raise OutputError(f"{path}: exists and is not a beltdyn results file; it is not overwritten "
-                          "(remove it or choose another output path)")
+        if force:
+            return False
+        raise OutputError(f"{path}: exists and is not a beltdyn results file; it is not overwritten: --force "
+                          "replaces it (or choose another output path)")
     if str(attrs.get("schema_version")) != SCHEMA_VERSION:
         if force:
             return False
         raise OutputError(f"{path}: was written with results schema {attrs.get('schema_version')!r}, this "
                           f"beltdyn writes schema {SCHEMA_VERSION!r}; use --force to start the file afresh "
                           "or choose another output path")
-    if attrs["config_sha256"] != config_sha256:
+    same_base = base_config_sha256 is not None and attrs.get("base_config_sha256") == base_config_sha256
+    if attrs["config_sha256"] != config_sha256 and not same_base:
         if force:
             return False
         raise OutputError(f"{path}: holds results of a different configuration (config_sha256 "

@@ -13,8 +13,15 @@ near-degenerate upper/lower span pairs keep their identity. Where the DOF counts
 sweep) the match is by classification (kind, order, span), then by frequency.
 
 Journal: `<output>.sweep/` holds `spec.json` (what the sweep is) and one `case-NNNNNN.npz` per
-finished case, each written atomically; `--resume` skips the cases found there. The final /sweep
-group is assembled from the journal, so an interrupted and resumed sweep gives the same file.
+finished case, each written atomically and durably (temporary file, fsync, rename, fsync of the
+folder); `--resume` skips the cases found there. The final /sweep group is assembled from the
+journal, so an interrupted and resumed sweep gives the same file. A running sweep holds an exclusive
+lock (`flock` on `<output>.sweep/lock`, which records its pid): a second sweep on the same journal is
+refused at once instead of racing it.
+
+Local workers are forked processes that die with the sweep: each asks the kernel for SIGKILL when its
+parent dies (Linux `prctl(PR_SET_PDEATHSIG)`), ignores Ctrl-C (the parent handles it: the journal is
+kept, the workers are stopped) and never holds the journal lock. At most one worker per available core.
 """
 
 from __future__ import annotations
@@ -24,6 +31,7 @@ import json
 import math
 import os
 import re
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +40,7 @@ from typing import Any, Callable
 import numpy as np
 
 from .config import DriveConfig, config_hash, resolved_toml
-from .errors import ConfigError
+from .errors import ConfigError, OutputError
 
 ANALYSES = ("static", "modal", "transient")
 MAC_LOST = 0.5  # below this MAC a tracked mode counts as lost (it left the computed modes)
@@ -123,9 +131,7 @@ def parse_values(key: str, spec: str, *, where: str = "--param") -> tuple[Any, .
 
 def make_spec(cfg: DriveConfig, params: list[tuple[str, str]], *, analysis: str, zip_: bool,
               n_modes: int | None = None) -> SweepSpec:
-    """Validate the sweep: every key settable (checked on the first case) and, zipped, equal lengths."""
-    from .config import with_overrides
-
+    """Validate the sweep: zipped, equal lengths; every case a valid configuration (`_check_cases`)."""
     if analysis not in ANALYSES:
         raise ConfigError(f"must be one of {', '.join(ANALYSES)}, got {analysis!r}", file=cfg.source, key="--analysis")
     if not params:
@@ -140,9 +146,50 @@ def make_spec(cfg: DriveConfig, params: list[tuple[str, str]], *, analysis: str,
     if analysis == "transient" and cfg.transient is None:
         raise ConfigError("a transient sweep needs a [transient] table", file=cfg.source, key="transient")
     spec = SweepSpec(params=ps, analysis=analysis, zip=zip_, n_modes=n_modes or cfg.modal.modes)
-    for p in ps:  # every value must make a valid configuration key
-        with_overrides(cfg, [_assign(p.key, p.values[0])])
+    _check_cases(cfg, spec)
     return spec
+
+
+CHECK_EVERY_CASE = 5000  # larger grids: every value of every parameter (the others at their first value)
+
+
+def _check_cases(cfg: DriveConfig, spec: SweepSpec) -> None:
+    """Every case must be a valid configuration (ConfigError naming the key and the case before any
+    case runs); cheap (~0.1 ms a case). Grids of more than CHECK_EVERY_CASE cases are checked value by
+    value. A transient sweep measures its amplitudes after transient.spectrum.start, so that must
+    come before transient.duration in every case, whether or not the spectrum is enabled."""
+    import copy
+
+    from .config import apply_override, config_from_dict, config_to_dict
+
+    raw = config_to_dict(cfg)
+    if spec.zip or spec.n_cases <= CHECK_EVERY_CASE:
+        cases = [spec.case_values(i) for i in range(spec.n_cases)]
+    else:
+        first = [p.values[0] for p in spec.params]
+        cases = [tuple(v if k == j else first[k] for k in range(len(spec.params)))
+                 for j, p in enumerate(spec.params) for v in p.values]
+    seen = set()
+    for values in cases:
+        assignments = [_assign(p.key, v) for p, v in zip(spec.params, values)]
+        marker = tuple(assignments)
+        if marker in seen:
+            continue
+        seen.add(marker)
+        where = ", ".join(assignments)
+        case_raw = copy.deepcopy(raw)
+        try:
+            for a in assignments:
+                apply_override(case_raw, a, file=cfg.source)
+            c = config_from_dict(case_raw, file=cfg.source)
+        except ConfigError as exc:
+            raise ConfigError(f"{exc.detail} (in the sweep case {where})", file=exc.file, key=exc.key) from None
+        if spec.analysis == "transient" and c.transient is not None \
+                and not c.transient.spectrum.start < c.transient.duration:
+            raise ConfigError(f"must be < transient.duration ({c.transient.duration:g} s) in every case of a "
+                              f"transient sweep (the amplitudes are measured after it), got "
+                              f"{c.transient.spectrum.start:g} (in the sweep case {where})",
+                              file=cfg.source, key="transient.spectrum.start")
 
 
 def _assign(key: str, value: Any) -> str:
@@ -247,26 +294,107 @@ def _run_chunk(base_toml: str, source: str, items: list[tuple[int, list[str]]], 
 
 
 # ------------------------------------------------------------------------------------ the journal
+_HELD_LOCKS: set[int] = set()  # journal lock descriptors of this process (closed in forked workers)
+
+
 class Journal:
-    """`<output>.sweep/`: spec.json and case-NNNNNN.npz files, each written atomically."""
+    """`<output>.sweep/`: spec.json and case-NNNNNN.npz files, each written atomically and fsync'ed;
+    `lock` (flock) while a sweep runs on it."""
+
+    LOCK = "lock"
 
     def __init__(self, output: Path) -> None:
         self.dir = Path(str(output) + ".sweep")
+        self._lock_fd: int | None = None
+        self._made_dir = False
+        self._discard = False  # remove the folder on unlock (removed while locked)
 
     def exists(self) -> bool:
         return (self.dir / "spec.json").exists()
 
+    # -- the lock ---------------------------------------------------------------------------------
+    def lock(self) -> None:
+        """Take the exclusive lock of the journal without waiting; OutputError (exit 2) naming the pid
+        of the holder if another sweep has it. The folder is created if needed (and removed again by
+        `unlock` if nothing was journaled). Left-over temporary files of a killed run are removed."""
+        import fcntl
+
+        if self._lock_fd is not None:
+            return
+        for _ in range(20):
+            if not self.dir.is_dir():
+                try:
+                    self.dir.mkdir(parents=True)
+                    self._made_dir = True
+                except FileExistsError:
+                    pass
+                except OSError as exc:
+                    raise OutputError(f"cannot create the sweep journal {self.dir}: {exc}") from exc
+            path = self.dir / self.LOCK
+            try:
+                fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+            except FileNotFoundError:  # the folder was removed meanwhile (a sweep finished): again
+                continue
+            except OSError as exc:
+                raise OutputError(f"cannot lock the sweep journal {self.dir}: {exc}") from exc
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                pid = _lock_holder(fd)
+                os.close(fd)
+                who = f"pid {pid}" if pid else "another process"
+                raise OutputError(f"sweep journal {self.dir} is in use by {who} (a sweep writing the same output "
+                                  "is running); wait for it to finish or stop it, then use --resume") from None
+            try:  # the holder may have finished and removed the folder between our open and flock
+                same = os.stat(path).st_ino == os.fstat(fd).st_ino
+            except FileNotFoundError:
+                same = False
+            if not same:
+                os.close(fd)
+                continue
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+            self._lock_fd = fd
+            _HELD_LOCKS.add(fd)
+            for stale in self.dir.glob("*.tmp*"):  # partial writes of a run that was killed
+                stale.unlink(missing_ok=True)
+            return
+        raise OutputError(f"cannot lock the sweep journal {self.dir}: it keeps disappearing")
+
+    def unlock(self) -> None:
+        fd, self._lock_fd = self._lock_fd, None
+        if fd is None:
+            return
+        _HELD_LOCKS.discard(fd)
+        if self._discard or (self._made_dir and self.dir.is_dir() and not self.exists()):
+            # removed while locked, or this run created the folder and journaled nothing (e.g. a usage
+            # error): leave no trace. The folder goes before the lock is released; a process waiting
+            # on the old lock file notices (inode check in `lock`).
+            import shutil
+
+            shutil.rmtree(self.dir, ignore_errors=True)
+        os.close(fd)  # releases the flock
+
+    def __enter__(self) -> "Journal":
+        self.lock()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.unlock()
+
+    # -- content ----------------------------------------------------------------------------------
     def start(self, spec_json: dict, digest: str) -> None:
         self.dir.mkdir(parents=True, exist_ok=True)
-        tmp = self.dir / "spec.json.tmp"
-        tmp.write_text(json.dumps({"sha256": digest, "spec": spec_json}, indent=1))
-        os.replace(tmp, self.dir / "spec.json")
+        self._discard = False
+        data = json.dumps({"sha256": digest, "spec": spec_json}, indent=1).encode()
+        self._put("spec.json", lambda fh: fh.write(data))
+        _fsync_dir(self.dir)
 
     def digest(self) -> str:
         return json.loads((self.dir / "spec.json").read_text())["sha256"]
 
     def done(self) -> set[int]:
-        """Finished cases (a case-NNNNNN.tmp.npz left by an interrupted write does not count)."""
+        """Finished cases (a case-NNNNNN.tmp-*.npz left by an interrupted write does not count)."""
         found = set()
         for p in self.dir.glob("case-*.npz"):
             m = re.fullmatch(r"case-(\d+)\.npz", p.name)
@@ -274,20 +402,78 @@ class Journal:
                 found.add(int(m.group(1)))
         return found
 
-    def write(self, index: int, result: dict) -> None:
-        tmp = self.dir / f"case-{index:06d}.tmp.npz"  # renamed into place only when complete
+    def write(self, index: int, result: dict, *, sync_dir: bool = True) -> None:
+        """Write one case: temporary file, fsync, rename into place; then fsync the folder (callers
+        writing several cases at once pass sync_dir=False and call `sync` after the last)."""
         arrays = {k: np.asarray(v) for k, v in result.items()}
-        np.savez(tmp, **arrays)
-        os.replace(tmp, self.dir / f"case-{index:06d}.npz")
+        self._put(f"case-{index:06d}.npz", lambda fh: np.savez(fh, **arrays))
+        if sync_dir:
+            self.sync()
+
+    def sync(self) -> None:
+        """Make the renames durable (fsync of the journal folder)."""
+        _fsync_dir(self.dir)
+
+    def _put(self, name: str, fill) -> None:
+        stem, _, ext = name.partition(".")
+        # unique per process: two writers never rename each other's temporary file
+        tmp = self.dir / f"{stem}.tmp-{os.getpid()}-{os.urandom(3).hex()}.{ext}"
+        try:
+            with open(tmp, "wb") as fh:
+                fill(fh)
+                fh.flush()
+                os.fsync(fh.fileno())
+            os.replace(tmp, self.dir / name)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
 
     def read(self, index: int) -> dict:
         with np.load(self.dir / f"case-{index:06d}.npz", allow_pickle=False) as z:
             return {k: z[k] for k in z.files}
 
     def remove(self) -> None:
+        """Delete the journal. While locked, the lock file stays until `unlock` (which then removes
+        the folder), so that no other sweep can start on it meanwhile."""
         import shutil
 
-        shutil.rmtree(self.dir, ignore_errors=True)
+        if self._lock_fd is None:
+            shutil.rmtree(self.dir, ignore_errors=True)
+            return
+        for entry in list(self.dir.iterdir()) if self.dir.is_dir() else []:
+            if entry.name == self.LOCK:
+                continue
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                entry.unlink(missing_ok=True)
+        self._discard = True
+
+
+def _lock_holder(fd: int) -> int | None:
+    """The pid recorded in a lock file held by another process (it writes it right after locking)."""
+    for _ in range(20):
+        try:
+            text = os.pread(fd, 32, 0).decode().strip()
+        except OSError:
+            return None
+        if text.isdigit():
+            return int(text)
+        time.sleep(0.01)
+    return None
+
+
+def _fsync_dir(directory: Path) -> None:
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 # ------------------------------------------------------------------------------------ running
@@ -320,16 +506,18 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
         progress(len(done), spec.n_cases)
     if not items:
         return
-    n_workers = workers or os.cpu_count() or 1
+    n_workers = min(workers or available_cores(), available_cores())
     chunk = max(1, min(16, math.ceil(len(items) / (4 * n_workers))))
     chunks = [items[k:k + chunk] for k in range(0, len(items), chunk)]
+    n_workers = min(n_workers, len(chunks))  # no idle processes
     finished = len(done)
 
     def record(results: list[tuple[int, dict]]) -> None:
         nonlocal finished
         for i, res in results:
-            journal.write(i, res)
+            journal.write(i, res, sync_dir=False)
             finished += 1
+        journal.sync()
         if progress:
             progress(finished, spec.n_cases)
 
@@ -352,15 +540,78 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
 
-    with ProcessPoolExecutor(max_workers=n_workers, mp_context=mp.get_context("fork")) as pool:
+    pool = ProcessPoolExecutor(max_workers=n_workers, mp_context=mp.get_context("fork"),
+                               initializer=_worker_init, initargs=(os.getpid(),))
+    futures = []
+    try:
         futures = [pool.submit(_run_chunk, *args, c, spec.analysis, spec.n_modes) for c in chunks]
+        for fut in cf_completed(futures):
+            record(fut.result())
+    except BaseException:  # Ctrl-C, SIGTERM, a journal write error: stop the workers, keep the journal
+        _stop_pool(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def available_cores() -> int:
+    """Cores this process may run on (its CPU affinity, else the core count)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
+_PR_SET_PDEATHSIG = 1
+
+
+def _worker_init(parent_pid: int) -> None:
+    """In each forked worker: die with the parent, leave Ctrl-C and the journal lock to the parent."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # a terminal's Ctrl-C reaches the whole group
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # the parent's Python handler is inherited by fork
+    for fd in list(_HELD_LOCKS):  # the flock is the parent's: a worker must not keep it alive
         try:
-            for fut in cf_completed(futures):
-                record(fut.result())
-        except BaseException:
-            for f in futures:
-                f.cancel()
-            raise
+            os.close(fd)
+        except OSError:
+            pass
+    _HELD_LOCKS.clear()
+    if sys.platform.startswith("linux"):
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent_pid:  # the parent died before the request took effect
+        os._exit(1)
+
+
+def _stop_pool(pool) -> None:
+    """Kill the workers (running chunks are lost, not journaled), reap them and shut the pool down.
+    The futures are not cancelled here: the pool marks them broken itself (cancelling them first makes
+    Python 3.11's pool thread fail with InvalidStateError and print its traceback)."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    for proc in procs:
+        if proc.is_alive():
+            proc.terminate()
+    for proc in procs:
+        proc.join(timeout=5)
+        if proc.is_alive():
+            proc.kill()
+            proc.join(timeout=5)
+    # A worker killed while sending its (large) result leaves a partial message in the result pipe, and
+    # the pool's thread would wait for the rest forever (and the interpreter's exit with it): close
+    # the parent's write end (only the dead workers wrote to it), so that it reads end-of-file instead.
+    queue = getattr(pool, "_result_queue", None)
+    writer = getattr(queue, "_writer", None)
+    if writer is not None:
+        try:
+            writer.close()
+        except OSError:
+            pass
+    pool.shutdown(wait=True)
 
 
 # ------------------------------------------------------------------------------------ assembly

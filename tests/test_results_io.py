@@ -279,27 +279,67 @@ def test_failure_midway_leaves_target_unchanged_and_no_temp_file(tmp_path, monke
     assert sorted(p.name for p in tmp_path.iterdir()) == ["results.h5"]
 
 
-def test_non_hdf5_or_foreign_target_is_refused_and_untouched(tmp_path):
-    """A non-HDF5 file, or an HDF5 file that is not a beltdyn results file, at the target ->
-    OutputError naming it (even with force) and the file untouched."""
+def test_non_hdf5_foreign_or_corrupt_target_is_refused_unless_force(tmp_path):
+    """A non-HDF5 file, an HDF5 file that is not a beltdyn results file, or a corrupt (truncated)
+    beltdyn file at the target -> OutputError naming it and saying that --force replaces it, the
+    file untouched; with force it is replaced by a fresh results file. A directory is always refused."""
     text = tmp_path / "results.h5"
     text.write_text("this is my thesis\n")
     foreign = tmp_path / "other.h5"
     with h5py.File(foreign, "w") as f:
         f["data"] = np.arange(3)
-    foreign_bytes = foreign.read_bytes()
-    for path, content in ((text, b"this is my thesis\n"), (foreign, foreign_bytes)):
-        for force in (False, True):
-            with pytest.raises(OutputError) as err:
-                check_target(path, config_sha256=SHA, force=force)
-            assert str(path) in str(err.value)
-            with pytest.raises(OutputError) as err:
-                write_group(path, geometry_group(), config_toml=TOML, config_sha256=SHA, force=force)
-            assert str(path) in str(err.value)
-            assert path.read_bytes() == content
+    corrupt = tmp_path / "corrupt.h5"
+    write_group(corrupt, geometry_group(), config_toml=TOML, config_sha256=SHA)
+    corrupt.write_bytes(corrupt.read_bytes()[:1500])  # the HDF5 signature survives, the rest is cut
+    for path in (text, foreign, corrupt):
+        content = path.read_bytes()
+        with pytest.raises(OutputError) as err:
+            check_target(path, config_sha256=SHA)
+        assert str(path) in str(err.value) and "--force replaces it" in str(err.value)
+        with pytest.raises(OutputError) as err:
+            write_group(path, geometry_group(), config_toml=TOML, config_sha256=SHA)
+        assert str(path) in str(err.value) and "--force replaces it" in str(err.value)
+        assert path.read_bytes() == content
+        check_target(path, config_sha256=SHA, force=True)
+        write_group(path, geometry_group(), config_toml=TOML, config_sha256=SHA, force=True)
+        assert read_root_attrs(path)["config_sha256"] == SHA
+        assert set(h5py.File(path, "r")) == {"geometry", "provenance"}
+        check_contract(path)
     with pytest.raises(OutputError):
-        check_target(tmp_path, config_sha256=SHA)  # a directory
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["other.h5", "results.h5"]
+        check_target(tmp_path, config_sha256=SHA, force=True)  # a directory
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["corrupt.h5", "other.h5", "results.h5"]
+
+
+def test_read_only_target_is_refused_as_such(tmp_path):
+    """A read-only results file (mode 0444; also when running as root, who could write it) ->
+    OutputError "cannot write results to X: permission denied", even with force; file untouched."""
+    path = tmp_path / "results.h5"
+    write_group(path, geometry_group(), config_toml=TOML, config_sha256=SHA)
+    path.chmod(0o444)
+    before = path.read_bytes()
+    for force in (False, True):
+        with pytest.raises(OutputError, match=r"cannot write results to .*results\.h5: permission denied"):
+            check_target(path, config_sha256=SHA, force=force)
+        with pytest.raises(OutputError, match="permission denied"):
+            write_group(path, geometry_group(name="static"), config_toml=TOML, config_sha256=SHA, force=force)
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["results.h5"]
+
+
+def test_base_config_hash_is_recorded_and_accepted(tmp_path):
+    """write_groups records base_config_sha256; check_target accepts a file of another configuration
+    whose base is the given one (modal --rtol's re-run), and write_groups itself stays strict."""
+    path = tmp_path / "results.h5"
+    write_group(path, geometry_group(), config_toml=TOML, config_sha256=OTHER_SHA)
+    from beltdyn.results_io import write_groups
+
+    write_groups(path, [geometry_group()], config_toml=TOML, config_sha256=OTHER_SHA, base_config_sha256=SHA)
+    assert read_root_attrs(path)["base_config_sha256"] == SHA
+    check_target(path, config_sha256=SHA, base_config_sha256=SHA)
+    with pytest.raises(OutputError, match="different configuration"):
+        check_target(path, config_sha256=SHA)
+    with pytest.raises(OutputError, match="different configuration"):
+        write_groups(path, [geometry_group()], config_toml=TOML, config_sha256=SHA, base_config_sha256=SHA)
 
 
 def test_invalid_group_content_is_rejected_before_touching_files(tmp_path):

@@ -130,13 +130,21 @@ def test_interrupted_sweep_resumes_to_the_same_file(tmp_path):
                           text=True, timeout=600)
     assert full.returncode == 0, full.stderr
     out = tmp_path / "cut.h5"
+    # SIGINT at its default in the CLI even when this runner was started with it ignored (a background
+    # job of a non-interactive shell, nohup): else the Ctrl-C below is lost and the sweep runs to its end
     proc = subprocess.Popen([*BELTDYN, *args, "-o", str(out)], cwd=tmp_path, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     journal = Path(str(out) + ".sweep")
     deadline = time.time() + 120
-    while time.time() < deadline and len(list(journal.glob("case-*.npz"))) < 40:
-        time.sleep(0.05)
+    while time.time() < deadline and len(list(journal.glob("case-*.npz"))) < 40 and proc.poll() is None:
+        time.sleep(0.01)
+    # Midway for sure on a loaded machine: the sweep is frozen (SIGSTOP) the moment the journal holds 40
+    # cases, so that it cannot run on to its end (or into assembling the file) before the Ctrl-C lands;
+    # the Ctrl-C is delivered when it continues.
+    proc.send_signal(signal.SIGSTOP)
     proc.send_signal(signal.SIGINT)
+    proc.send_signal(signal.SIGCONT)
     _, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 130, stderr
     assert "--resume" in stderr

@@ -277,7 +277,9 @@ def test_transient_interrupt_keeps_steps(tmp_path):
     out = tmp_path / "int.h5"
     proc = subprocess.Popen([*BELTDYN, "transient", str(ROOT / "configs/examples/bench_transient_small.toml"),
                              "-o", str(out), "--duration", "200", "--step", "2e-5"], cwd=tmp_path,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            # Ctrl-C reaches the CLI even when this runner has SIGINT ignored (background)
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 60
     while time.time() < deadline and not list(tmp_path.glob("int.h5.tmp*")):
         time.sleep(0.2)

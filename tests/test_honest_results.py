@@ -1,0 +1,533 @@
+"""The crash and small-defect list of the "Honest results" issue, each with the real command in a
+subprocess: no traceback (internal errors and MemoryError are one line), sweep journal lock, sweep
+workers dying with their parent, SIGTERM, --workers cap, --param vs [sweep.params], every sweep value
+validated, read-only / foreign / corrupt output files, `modal --rtol` exit code and re-run, the stored
+peak table, honest units, angles and table widths on the console, the SPDX license.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import resource
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SMOKE = ROOT / "configs" / "smoke" / "two_pulley.toml"
+BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
+TRANSIENT = ROOT / "configs" / "examples" / "bench_transient_small.toml"
+_SCRIPT = Path(sys.executable).parent / "beltdyn"
+BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
+
+
+def _env(**extra) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "TTY_COMPATIBLE", "CLICOLOR_FORCE",
+                                                            "COLUMNS")}
+    env["NO_COLOR"] = "1"
+    env.update(extra)
+    return env
+
+
+def run(*args, cwd, timeout=120, env=None, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run([*BELTDYN, *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=timeout,
+                          env=env or _env(), **kw)
+
+
+def run_patched(patch: str, *args, cwd, debug=False) -> subprocess.CompletedProcess:
+    """The real CLI app in a fresh interpreter, after `patch` (Python source) has broken a module."""
+    argv = ["beltdyn", *(["--debug"] if debug else []), *map(str, args)]
+    code = textwrap.dedent(patch) + f"\nimport sys\nfrom beltdyn.cli import app\nsys.argv = {argv!r}\napp()\n"
+    return subprocess.run([sys.executable, "-c", code], cwd=cwd, capture_output=True, text=True, timeout=120,
+                          env=_env())
+
+
+# ----------------------------------------------------------------------------- 1. no traceback
+BOOM = """
+import beltdyn.geometry as g
+def boom(*a, **k):
+    raise RuntimeError("boom\\nsecond line")
+g.layout_from_config = boom
+"""
+
+
+def test_internal_error_is_one_line_and_debug_shows_the_traceback(tmp_path):
+    # An unexpected exception (a defect): exit 1, one stderr line "internal error: RuntimeError: boom..."
+    # asking for a report and --debug, no traceback; with the global --debug the traceback comes first.
+    r = run_patched(BOOM, "geometry", SMOKE, "-o", "x.h5", cwd=tmp_path)
+    assert r.returncode == 1, r.stderr
+    assert "Traceback" not in r.stdout + r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr
+    assert lines[0].startswith("internal error: RuntimeError: boom\\nsecond line; please file it")
+    assert "--debug" in lines[0]
+    assert not (tmp_path / "x.h5").exists()
+    d = run_patched(BOOM, "geometry", SMOKE, "-o", "x.h5", cwd=tmp_path, debug=True)
+    assert d.returncode == 1
+    assert "Traceback (most recent call last)" in d.stderr and "RuntimeError: boom" in d.stderr
+    assert d.stderr.strip().splitlines()[-1].startswith("internal error: RuntimeError")
+
+
+def test_memory_error_is_one_line_suggesting_a_smaller_mesh(tmp_path):
+    # A real MemoryError: the address space limited to 900 MiB and a mesh of a million elements per
+    # span. Exit 1, one line saying "out of memory" and naming mesh.elements_per_span, no traceback.
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (900 << 20, 900 << 20))
+
+    r = subprocess.run([*BELTDYN, "modal", str(SMOKE), "--set", "mesh.elements_per_span=1000000", "-o", "m.h5"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=120, env=_env(), preexec_fn=limit)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "Traceback" not in r.stdout + r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: out of memory"), r.stderr
+    assert "mesh.elements_per_span" in lines[0]
+    assert not list(tmp_path.glob("*.tmp*"))
+
+
+def test_help_lists_debug_and_exit_codes(tmp_path):
+    r = run("--help", cwd=tmp_path)
+    assert r.returncode == 0
+    assert "--debug" in r.stdout and "143" in r.stdout
+
+
+# ----------------------------------------------------------------------------------- 2. sweeps
+def _default_sigint() -> None:
+    # a runner started in the background (or with nohup) passes SIGINT ignored; the CLI under test
+    # must see Ctrl-C as a user would
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+def _popen(args, cwd) -> subprocess.Popen:
+    return subprocess.Popen([*BELTDYN, *map(str, args)], cwd=cwd, env=_env(), text=True, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, preexec_fn=_default_sigint)
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            text = stat.read_text()
+        except OSError:
+            continue
+        if int(text[text.rindex(")") + 2:].split()[1]) == pid:
+            out.append(int(stat.parent.name))
+    return out
+
+
+def _alive(pid: int) -> bool:
+    """Running (a zombie waiting for init to reap it counts as dead)."""
+    try:
+        os.kill(pid, 0)
+        text = Path(f"/proc/{pid}/stat").read_text()
+    except (ProcessLookupError, FileNotFoundError):
+        return False
+    return text[text.rindex(")") + 2] != "Z"
+
+
+def _wait_for(predicate, timeout=60.0, step=0.02):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        value = predicate()
+        if value:
+            return value
+        time.sleep(step)
+    return predicate()
+
+
+# 80 elements per span: each case ~10 ms and its result (mode shapes) larger than a pipe buffer
+SLOW_SWEEP = ["sweep", BENCH, "--param", "tension.target=100:600:200", "--set", "mesh.elements_per_span=80"]
+
+
+def test_second_sweep_on_a_running_journal_is_refused_with_its_pid(tmp_path):
+    # A second `sweep --resume` (and a plain rerun) while the first still runs: exit 2 at once, one line
+    # "sweep journal ... is in use by pid N" with the first one's pid, no traceback; the first sweep
+    # is not disturbed (Ctrl-C later: exit 130 with its journal intact and no stray temporary files).
+    first = _popen([*SLOW_SWEEP, "--workers", "1", "-o", "s.h5"], tmp_path)
+    journal = tmp_path / "s.h5.sweep"
+    try:
+        assert _wait_for(lambda: (journal / "spec.json").exists()), "the first sweep did not start"
+        for extra in (["--resume"], []):
+            r = run(*SLOW_SWEEP, "--workers", "1", "-o", "s.h5", *extra, cwd=tmp_path)
+            assert r.returncode == 2, r.stdout + r.stderr
+            assert "Traceback" not in r.stdout + r.stderr
+            lines = r.stderr.strip().splitlines()
+            assert len(lines) == 1 and f"sweep journal s.h5.sweep is in use by pid {first.pid}" in lines[0], r.stderr
+        assert first.poll() is None
+    finally:
+        first.send_signal(signal.SIGINT)
+        _, stderr = first.communicate(timeout=60)
+    assert first.returncode == 130, stderr
+    assert "continue with --resume" in stderr and "Traceback" not in stderr
+    assert (journal / "spec.json").exists() and not list(journal.glob("*.tmp*"))
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
+def test_sweep_workers_die_with_their_parent(tmp_path, sig):
+    # Two local workers; the sweep is killed once both run and a case is journaled. No worker survives
+    # (checked in /proc), and the caller's pipes close at once (a surviving worker would hold them).
+    # SIGTERM is handled like Ctrl-C: exit 143, the journal kept, and --resume then completes it.
+    proc = _popen([*SLOW_SWEEP, "--workers", "2", "-o", "k.h5"], tmp_path)
+    journal = tmp_path / "k.h5.sweep"
+    workers = _wait_for(lambda: len(_children(proc.pid)) >= 2 and list(journal.glob("case-*.npz"))
+                        and _children(proc.pid))
+    assert workers and len(workers) == 2, "the workers did not start"
+    proc.send_signal(sig)
+    start = time.monotonic()
+    _, stderr = proc.communicate(timeout=30)  # EOF on both pipes: nobody holds them any more
+    assert time.monotonic() - start < 10
+    assert _wait_for(lambda: not any(_alive(w) for w in workers), timeout=10), "a worker outlived the sweep"
+    if sig == signal.SIGKILL:
+        assert proc.returncode == -signal.SIGKILL
+        return
+    assert proc.returncode == 143, stderr
+    assert "Traceback" not in stderr
+    assert "sweep terminated (SIGTERM)" in stderr and "continue with --resume" in stderr
+    assert (journal / "spec.json").exists() and not (tmp_path / "k.h5").exists()
+    kept = len(list(journal.glob("case-*.npz")))
+    assert 1 <= kept < 200
+    resumed = run(*SLOW_SWEEP, "--workers", "2", "-o", "k.h5", "--resume", cwd=tmp_path)
+    assert resumed.returncode == 0, resumed.stderr
+    assert "wrote /sweep (200 cases, 0 failed)" in resumed.stdout and not journal.exists()
+
+
+def test_workers_beyond_the_cores_are_capped(tmp_path, monkeypatch):
+    # --workers 64 on this machine: a note naming the core count, and the pool gets at most that
+    # many processes (in-process check of what the pool is given).
+    from beltdyn import sweep as sw
+
+    r = run("sweep", SMOKE, "--param", "tension.target=200,250,300,350", "--analysis", "static", "--workers", "64",
+            "-o", "w.h5", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    cores = sw.available_cores()
+    assert f"note: --workers 64 is more than the {cores} available cores; using {cores}" in r.stdout
+    seen = []
+    import concurrent.futures
+
+    class Spy(concurrent.futures.ProcessPoolExecutor):
+        def __init__(self, max_workers=None, **kw):
+            seen.append(max_workers)
+            super().__init__(max_workers=max_workers, **kw)
+
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", Spy)
+    from beltdyn.config import load_config
+
+    cfg = load_config(SMOKE)
+    spec = sw.make_spec(cfg, [("tension.target", "150:350:40")], analysis="static", zip_=False)
+    sw.run_sweep(cfg, spec, journal=sw.Journal(tmp_path / "in.h5"), workers=64)
+    assert seen == ([min(64, cores)] if cores > 1 else [])
+    assert len(sw.Journal(tmp_path / "in.h5").done()) == 40
+
+
+def test_param_and_sweep_table_together_is_a_usage_error(tmp_path):
+    # [sweep.params] in the file and --param on the command line: exit 2 naming both, nothing run.
+    cfg = tmp_path / "swept.toml"
+    cfg.write_text(SMOKE.read_text() + '\n[sweep]\nanalysis = "static"\n[sweep.params]\n"tension.target" = "200,300"\n')
+    r = run("sweep", cfg, "--param", "belt.EI=0.02,1", "-o", "x.h5", cwd=tmp_path)
+    assert r.returncode == 2, r.stdout + r.stderr
+    line = r.stderr.strip()
+    assert line.startswith(f"error: {cfg}: --param: give the parameters either in [sweep.params] (tension.target) "
+                           "or with --param (belt.EI), not both"), line
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["swept.toml"]
+    ok = run("sweep", cfg, "-o", "x.h5", cwd=tmp_path)  # the table alone still works
+    assert ok.returncode == 0, ok.stderr
+    assert "Sweep: static, 2 cases" in ok.stdout
+
+
+@pytest.mark.parametrize("enabled", [True, False], ids=["spectrum", "no-spectrum"])
+def test_every_sweep_value_is_validated_before_any_case_runs(tmp_path, enabled):
+    # A transient sweep over transient.duration whose second value ends before transient.spectrum.start
+    # (1 s in the example): exit 2 naming transient.spectrum.start and that case, before anything is
+    # journaled; also with the spectrum disabled (each case used to fail with a numpy ValueError).
+    r = run("sweep", TRANSIENT, "--analysis", "transient", "--param", "transient.duration=1.5,0.5",
+            "--set", f"transient.spectrum.enabled={str(enabled).lower()}", "-o", "t.h5", cwd=tmp_path)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "Traceback" not in r.stdout + r.stderr
+    line = r.stderr.strip()
+    assert line.startswith(f"error: {TRANSIENT}: transient.spectrum.start: must be < transient.duration"), line
+    assert "(in the sweep case transient.duration=0.5)" in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_later_bad_value_of_a_grid_is_named(tmp_path):
+    from beltdyn.config import load_config
+    from beltdyn.errors import ConfigError
+    from beltdyn.sweep import make_spec
+
+    with pytest.raises(ConfigError) as err:
+        make_spec(load_config(BENCH), [("belt.EI", "0.02,1"), ("pulleys[1].radius", "0.1016,-0.1")],
+                  analysis="modal", zip_=False)
+    assert err.value.key == "pulleys[1].radius" and "must be > 0" in str(err.value)
+    assert "in the sweep case belt.EI=0.02, pulleys[1].radius=-0.1" in str(err.value)
+
+
+def test_journal_writes_are_fsynced(tmp_path, monkeypatch):
+    # Every case file is fsync'ed before its rename, and the journal folder after it (and spec.json).
+    import stat
+
+    from beltdyn.sweep import Journal
+
+    synced = []
+    real = os.fsync
+
+    def spy(fd):
+        synced.append("dir" if stat.S_ISDIR(os.fstat(fd).st_mode) else "file")
+        real(fd)
+
+    monkeypatch.setattr(os, "fsync", spy)
+    j = Journal(tmp_path / "x.h5")
+    with j:
+        j.start({"a": 1}, "0" * 64)
+        assert synced == ["file", "dir"]
+        synced.clear()
+        j.write(3, {"failed": 0, "frequency": np.arange(3.0)})
+        assert synced == ["file", "dir"]
+        assert j.done() == {3} and not list(j.dir.glob("*.tmp*"))
+    assert j.dir.exists()  # journaled: kept
+
+
+# ------------------------------------------------------------------------------ 3. output files
+def test_read_only_output_is_reported_as_such(tmp_path):
+    # An existing, read-only results file: exit 2, "cannot write results to ro.h5: permission denied"
+    # (not "cannot create a temporary file"), also with --force; the file and folder unchanged.
+    first = run("geometry", SMOKE, "-o", "ro.h5", cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    out = tmp_path / "ro.h5"
+    out.chmod(0o444)
+    before = out.read_bytes()
+    for extra in ([], ["--force"]):
+        r = run("static", SMOKE, "-o", "ro.h5", *extra, cwd=tmp_path)
+        assert r.returncode == 2, r.stdout + r.stderr
+        assert r.stderr.strip().splitlines() == ["error: cannot write results to ro.h5: permission denied (the file "
+                                                 "is read-only; make it writable or choose another output path)"]
+        assert "temporary" not in r.stderr
+    assert out.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["ro.h5"]
+
+
+@pytest.mark.parametrize("kind", ["text", "foreign", "corrupt"])
+def test_force_replaces_a_foreign_or_corrupt_output(tmp_path, kind):
+    # Without --force: exit 2, the message says --force replaces it, the file untouched. With --force:
+    # exit 0 and a beltdyn results file in its place.
+    from beltdyn.config import config_hash, load_config
+    from beltdyn.results_io import read_root_attrs
+
+    out = tmp_path / "out.h5"
+    if kind == "text":
+        out.write_text("my notes\n")
+    elif kind == "foreign":
+        with h5py.File(out, "w") as f:
+            f["x"] = np.arange(4)
+    else:
+        assert run("geometry", SMOKE, "-o", "out.h5", cwd=tmp_path).returncode == 0
+        out.write_bytes(out.read_bytes()[:1500])
+    before = out.read_bytes()
+    r = run("geometry", SMOKE, "-o", "out.h5", cwd=tmp_path)
+    assert r.returncode == 2, r.stdout + r.stderr
+    assert "--force replaces it" in r.stderr and "Traceback" not in r.stderr
+    assert out.read_bytes() == before
+    f = run("geometry", SMOKE, "-o", "out.h5", "--force", cwd=tmp_path)
+    assert f.returncode == 0, f.stderr
+    assert read_root_attrs(out)["config_sha256"] == config_hash(load_config(SMOKE))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out.h5"]
+
+
+# ------------------------------------------------------------------------------- 4. modal --rtol
+def test_rtol_not_met_exits_1_with_table_and_file(tmp_path):
+    # A tolerance below round-off cannot be met: the refinement table and the modes are printed, the
+    # file is written (/modal complete, mesh_converged = 0), and one error line says it does NOT meet
+    # rtol: exit 1.
+    r = run("modal", SMOKE, "--rtol", "1e-15", "--modes", "2", "-o", "r.h5", cwd=tmp_path)
+    assert r.returncode == 1, r.stdout + r.stderr
+    assert "Mesh refinement to rtol = 1e-15" in r.stdout and "does NOT meet" in r.stdout
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: modal: the modes do NOT meet rtol = 1e-15"), r.stderr
+    with h5py.File(tmp_path / "r.h5") as f:
+        assert f["modal"].attrs["status"] == "complete" and f["modal"].attrs["mesh_converged"] == 0
+        assert "frequency" in f["modal"]
+
+
+def test_rtol_rerun_on_its_own_output_is_accepted(tmp_path):
+    # The file records the chosen mesh's configuration (config_sha256) and the given one
+    # (base_config_sha256): the same `modal --rtol` command on it again is accepted (exit 0, same
+    # choice); a plain `static` of the given configuration is still refused (other mesh) unless --force.
+    from beltdyn.config import config_hash, load_config
+    from beltdyn.results_io import read_root_attrs
+
+    args = ["modal", SMOKE, "--rtol", "1e-3", "--modes", "4", "-o", "r.h5"]
+    first = run(*args, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr
+    attrs = read_root_attrs(tmp_path / "r.h5")
+    base = config_hash(load_config(SMOKE))
+    assert attrs["base_config_sha256"] == base and attrs["config_sha256"] != base
+    again = run(*args, cwd=tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert again.stdout.splitlines()[-1] == first.stdout.splitlines()[-1]
+    plain = run("static", SMOKE, "-o", "r.h5", cwd=tmp_path)
+    assert plain.returncode == 2 and "holds results of a different configuration" in plain.stderr
+
+
+# ------------------------------------------------------------------------ 5. the stored peak table
+def test_transient_peak_table_is_stored(tmp_path):
+    # /transient/peaks holds the printed table row by row: series, channel, frequency (Hz), amplitude
+    # with its unit, harmonic, nearest mode and a relation text; the file opens in xarray.
+    r = run("transient", TRANSIENT, "-o", "tr.h5", "--duration", "0.3", "--set", "transient.spectrum.start=0.1",
+            cwd=tmp_path, timeout=300)
+    assert r.returncode == 0, r.stderr
+    table = r.stdout[r.stdout.index("Dominant spectral peaks"):]
+    with h5py.File(tmp_path / "tr.h5") as f:
+        g = f["transient/peaks"]
+        assert g["frequency"].attrs["units"] == "Hz" and g["mode_frequency"].attrs["units"] == "Hz"
+        assert g["amplitude"].attrs["units"] == "mixed (see amplitude_unit)"
+        channels = g["channel"].asstr()[()]
+        units = g["amplitude_unit"].asstr()[()]
+        relation = g["relation"].asstr()[()]
+        freq, amp, harm = g["frequency"][()], g["amplitude"][()], g["harmonic"][()]
+        assert set(g["series"].asstr()[()]) <= {"span_tension", "hub_load", "bearing_force", "midspan_displacement",
+                                                "pulley_speed", "driver_torque"}
+    rows = [line for line in table.splitlines() if line.startswith("│")]
+    assert len(rows) == len(channels) > 0
+    for row, ch, u, fr, a, h, rel in zip(rows, channels, units, freq, amp, harm, relation):
+        cells = [c.strip() for c in row.strip("│").split("│")]
+        assert cells[0] == ch and cells[1] == f"{fr:.3f}" and cells[2] == f"{a:.4g} {u}"
+        assert (cells[3] == "-") == (h == 0) and (h == 0 or f"harmonic {h} of the excitation (45 Hz)" in rel)
+    xr = pytest.importorskip("xarray")
+    tree = xr.open_datatree(tmp_path / "tr.h5", engine="h5netcdf")
+    assert tree["transient/peaks"].dataset.sizes["peak"] == len(channels)
+
+
+# ---------------------------------------------------------------------------------------- 6. units
+def test_mixed_unit_datasets_carry_dof_units(tmp_path):
+    # q, spring_preload and the mode shapes no longer claim units "1": they point to a per-DOF unit
+    # variable derived from the DOF map (rotation rad, slide / x / y and node positions m, slopes 1).
+    r = run("modal", SMOKE, "-o", "m.h5", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "m.h5") as f:
+        for group in ("static", "modal"):
+            labels = f[group]["dof"].asstr()[()]
+            units = f[group]["dof_unit"].asstr()[()]
+            assert f[group]["dof_unit"].dims[0][0].name == f[group]["dof"].name
+            for lab, unit in zip(labels, units):
+                expect = ("rad" if lab.endswith("rotation") else "1" if lab.endswith("'")
+                          else "m" if lab.endswith((" slide", " x", " y", " r1", " r2")) else None)
+                assert unit == expect, (lab, unit)
+        assert f["static/q"].attrs["units"] == "mixed (see dof_unit)"
+        assert f["modal/shape"].attrs["units"] == "mixed (see dof_unit)"
+        assert f["static/spring_preload"].attrs["units"] == "mixed (see dof_force_unit)"
+        force_units = f["static/dof_force_unit"].asstr()[()]
+        assert all(fu == ("N" if u == "m" else "N m") for fu, u in zip(force_units, f["static/dof_unit"].asstr()[()]))
+        assert set(units) == {"rad", "m", "1"}
+
+
+def test_swept_parameters_carry_their_units(tmp_path):
+    from beltdyn.export import param_units
+
+    r = run("sweep", SMOKE, "--analysis", "static", "--param", "tension.target=200,300", "--param",
+            "pulleys.A.radius=0.0375,0.04", "--param", "static.load_steps=1,2", "-o", "s.h5", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "s.h5") as f:
+        assert f["sweep/param_tension_target"].attrs["units"] == "N"
+        assert f["sweep/param_pulleys_A_radius"].attrs["units"] == "m"
+        assert f["sweep/param_static_load_steps"].attrs["units"] == "1"
+    assert [param_units(k) for k in ("belt.EA", "belt.EI", "belt.mass_per_length", "mesh.elements_per_span",
+                                     "pulleys[1].radius", "pulleys.1.center[0]", "transient.hub_force[0].frequency",
+                                     "transient.rotation.0.speed", "belt.nonsense")] == [
+        "N", "N m^2", "kg/m", "1", "m", "m", "Hz", "rad/s", "unknown"]
+
+
+# -------------------------------------------------------------------------------------- 7. console
+def test_span_angles_are_printed_and_stored_in_the_half_open_circle(tmp_path):
+    # A drive whose span C-A runs at -183.07 deg by the tangent construction: printed as 176.9339 deg,
+    # stored in (-pi, pi]; every printed angle in (-180, 180].
+    sets = ["--set", "pulleys[0].radius=0.15", "--set", "pulleys[1].radius=0.05", "--set", "pulleys[0].adjustable=false"]
+    r = run("geometry", SMOKE, *sets, "-o", "g.h5", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    spans = r.stdout[r.stdout.index("Spans"):].splitlines()
+    rows = {cells[0]: float(cells[2]) for cells in
+            ([c.strip() for c in line.strip("│").split("│")] for line in spans if line.startswith("│"))}
+    assert rows["C-A"] == pytest.approx(176.9339, abs=1e-4)
+    assert all(-180 < a <= 180 for a in rows.values())
+    with h5py.File(tmp_path / "g.h5") as f:
+        stored = f["geometry/span_angle"][()]
+    assert np.all((stored > -np.pi) & (stored <= np.pi))
+    assert np.degrees(stored[1]) == pytest.approx(176.9339, abs=1e-4)
+
+
+def test_piped_tables_are_not_cut(tmp_path):
+    # 12 modes of the --rtol table: 13 columns, wider than 80 and than 130. Piped, also with
+    # FORCE_COLOR and COLUMNS=80 (rich then took the pipe for an 80-column terminal): every cell whole,
+    # no ellipsis, each mesh row with its 12 estimates.
+    for extra in ({}, {"FORCE_COLOR": "1", "COLUMNS": "80"}):
+        r = run("modal", SMOKE, "--rtol", "1e-4", "--modes", "12", "-o", "r.h5", cwd=tmp_path, env=_env(**extra))
+        assert r.returncode == 0, r.stderr
+        assert "…" not in r.stdout and "..." not in r.stdout
+        table = r.stdout[:r.stdout.index("Modes (")]
+        rows = [line for line in table.splitlines() if line.startswith("│")]
+        assert len(rows) >= 3
+        for row in rows:
+            cells = [c.strip() for c in row.strip("│").split("│")]
+            assert len(cells) == 13 and all(re.fullmatch(r"\d\.\de[-+]\d\d|nan", c) for c in cells[1:]), row
+        assert max(len(line) for line in r.stdout.splitlines()) > 130
+
+
+def test_narrow_terminal_folds_cells_instead_of_cutting_them(tmp_path):
+    # In a 50-column terminal (a pty) a table wider than that folds its cells: no ellipsis.
+    import fcntl
+    import pty
+    import struct
+    import termios
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 50, 0, 0))
+    env = _env(COLUMNS="50", LINES="40")
+    proc = subprocess.Popen([*BELTDYN, "geometry", str(SMOKE), "-o", "g.h5"], cwd=tmp_path, env=env,
+                            stdin=slave, stdout=slave, stderr=slave)
+    os.close(slave)
+    chunks = []
+    while True:
+        try:
+            data = os.read(master, 4096)
+        except OSError:  # EIO: the child closed the terminal
+            break
+        if not data:
+            break
+        chunks.append(data)
+    os.close(master)
+    assert proc.wait(timeout=60) == 0
+    out = re.sub(r"\x1b\[[0-9;]*m", "", b"".join(chunks).decode())  # bold and italics stay with NO_COLOR
+    assert "Pulleys" in out and "…" not in out
+    table = [line for line in out.splitlines() if line[:1] in "┏┃┡│└"]
+    assert table and max(len(line) for line in table) <= 50
+    assert "0.89" in out and "6600" in out  # the x of pulley C, folded over two lines, not cut
+
+
+def test_license_is_an_spdx_string():
+    import tomllib
+
+    meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert meta["project"]["license"] == "MIT"
+    assert "setuptools>=77" in meta["build-system"]["requires"]
+
+
+@pytest.mark.slow
+def test_build_has_no_license_warning(tmp_path):
+    # Building the package (isolated build environment, as `make test` does) gives no setuptools
+    # warning about the license, and the metadata carries License-Expression: MIT.
+    r = subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-v", "-w", str(tmp_path), str(ROOT)],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    log = r.stdout + r.stderr
+    assert "project.license` as a TOML table is deprecated" not in log
+    assert "BuildBackendWarning" not in log
+    import zipfile
+
+    (wheel,) = tmp_path.glob("beltdyn-*.whl")
+    with zipfile.ZipFile(wheel) as z:
+        meta = z.read(next(n for n in z.namelist() if n.endswith("METADATA"))).decode()
+    assert "License-Expression: MIT" in meta
