@@ -169,6 +169,7 @@ def test_second_sweep_on_a_running_journal_is_refused_with_its_pid(tmp_path):
     assert (journal / "spec.json").exists() and not list(journal.glob("*.tmp*"))
 
 
+@pytest.mark.slow  # flaked once in two full-suite runs on 2 loaded cores (journal count outside [1, 200)); see the note
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGKILL], ids=["SIGTERM", "SIGKILL"])
 def test_sweep_workers_die_with_their_parent(tmp_path, sig):
     # Two local workers; the sweep is killed once both run and a case is journaled. No worker survives
