@@ -267,7 +267,7 @@ class BeltSpans:
         tab = self.kernel_tables
         out = np.zeros(self.n_dof + 1)
         bk.reduced_force(np.append(q, 0.0), self.e0, self.T, self.idx, self.tsel, tab.dS, tab.d2S, tab.wEA, tab.wEI,
-                         tab.Kb, tab.curvature, out, self.elements)
+                         tab.Kb, tab.curvature, out)
         return out[: self.n_dof]
 
     def force_and_blocks(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -278,7 +278,7 @@ class BeltSpans:
         out = np.zeros(self.n_dof + 1)
         blocks = np.empty((self.T.shape[0], self.T.shape[2], self.T.shape[2]))
         bk.reduced_force_and_tangent_blocks(np.append(q, 0.0), self.e0, self.T, self.idx, self.tsel, tab.dS, tab.d2S,
-                                            tab.wEA, tab.wEI, tab.Kb, tab.curvature, out, blocks, self.elements)
+                                            tab.wEA, tab.wEI, tab.Kb, tab.curvature, out, blocks)
         return out[: self.n_dof], blocks
 
     def mean_tension_and_gradient(self, q: np.ndarray) -> tuple[float, np.ndarray]:
@@ -313,10 +313,7 @@ class BeltSpans:
         ge = ancf.gravity_forces(el, gravity)[ends]
         damped = self.damping_axial > 0.0 or self.damping_bending > 0.0
         for b in range(B):
-            if tab.curvature == 2:
-                fe = ancf.internal_forces(ancf_subset(el, ends), np.ascontiguousarray(E[b, ends]))
-            else:
-                bk.element_forces(np.ascontiguousarray(E[b, ends]), *sub, fe)
+            bk.element_forces(np.ascontiguousarray(E[b, ends]), *sub, fe)
             F[b] = fe - ge
             if damped and Ed is not None:
                 bk.element_damping(np.ascontiguousarray(E[b, ends]), np.ascontiguousarray(Ed[b, ends]), sub[0], sub[1],
@@ -342,17 +339,6 @@ class BeltSpans:
         t1 = t1 / np.linalg.norm(t1, axis=-1, keepdims=True)
         return np.stack([-np.einsum("bsd,bsd->bs", F_end[:, :, 0], t0), np.einsum("bsd,bsd->bs", F_end[:, :, 1], t1)],
                         axis=-1)
-
-
-def ancf_subset(el: ancf.ElementSet, els: np.ndarray) -> ancf.ElementSet:
-    """The ElementSet of a subset of elements."""
-    import dataclasses
-
-    fields_ = {}
-    for f in dataclasses.fields(el):
-        v = getattr(el, f.name)
-        fields_[f.name] = v[els] if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == el.n_elem else v
-    return ancf.ElementSet(**fields_)
 
 
 def _sub_tables(tab, els: np.ndarray) -> tuple:
