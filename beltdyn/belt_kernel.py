@@ -114,241 +114,271 @@ def tables_from_elements(el: ancf.ElementSet) -> KernelTables:
                         curvature=int(CURVATURE_CODE[el.curvature]))
 
 
-# ------------------------------------------------------------------------------------ one element
-@njit(cache=True)
-def _slope(ev, tab, k, g):
-    """sum_a tab[k, g, a] e_a: r' (tab = dS) or r'' (tab = d2S) of the 8-vector ev."""
-    x = tab[k, g, 0] * ev[0] + tab[k, g, 1] * ev[2] + tab[k, g, 2] * ev[4] + tab[k, g, 3] * ev[6]
-    y = tab[k, g, 0] * ev[1] + tab[k, g, 1] * ev[3] + tab[k, g, 2] * ev[5] + tab[k, g, 3] * ev[7]
+# ------------------------------------------------------------------------------------ element sets
+# Implementation note (measured with numba 0.68): helpers that take arrays and contain loops or
+# branches kept reference-count operations inside the element loop (inlined or not), 2-6x slower
+# than flat code; so the loops are written out flat and only the branch- and loop-free `_slope`
+# is shared.  Scratch arrays are allocated once per call, never per element.
+@njit(cache=True, inline="always")
+def _slope(E, r, tab, k, g):
+    """sum_a tab[k, g, a] e_a for e = E[r]: r' (tab = dS) or r'' (tab = d2S) at Gauss point g."""
+    x = tab[k, g, 0] * E[r, 0] + tab[k, g, 1] * E[r, 2] + tab[k, g, 2] * E[r, 4] + tab[k, g, 3] * E[r, 6]
+    y = tab[k, g, 0] * E[r, 1] + tab[k, g, 1] * E[r, 3] + tab[k, g, 2] * E[r, 5] + tab[k, g, 3] * E[r, 7]
     return x, y
 
 
 @njit(cache=True)
-def _add_kb(ev, Kb, k, scale, fo):
-    """fo += scale * Kb[k] @ ev."""
-    for i in range(8):
-        acc = 0.0
-        for j in range(8):
-            acc += Kb[k, i, j] * ev[j]
-        fo[i] += scale * acc
-
-
-@njit(cache=True)
-def _mirror_upper(Ko):
-    """Copy the upper triangle of the 8 x 8 Ko onto its lower triangle (exact symmetry)."""
-    for i in range(8):
-        for j in range(i):
-            Ko[i, j] = Ko[j, i]
-
-
-@njit(cache=True)
-def _force_one(ev, k, dS, d2S, wEA, wEI, Kb, curvature, fo):
-    """fo (8,) = dU/de of element k at ev (8,)."""
-    for i in range(8):
-        fo[i] = 0.0
-    for g in range(dS.shape[1]):
-        rx, ry = _slope(ev, dS, k, g)
-        A = rx * rx + ry * ry
-        s = 0.5 * wEA[k, g] * (A - 1.0)  # wEA eps
-        if curvature == _EXACT:
-            px, py = _slope(ev, d2S, k, g)
-            c = rx * py - ry * px
-            iA = 1.0 / A
-            uc = wEI[k, g] * c * (iA * iA * iA)
-            s -= 3.0 * uc * c * iA  # + 2 u_A (gA = 2 G)
-            for a in range(4):
-                D = dS[k, g, a]
-                D2 = d2S[k, g, a]
-                fo[2 * a] += s * D * rx + uc * (D * py - D2 * ry)
-                fo[2 * a + 1] += s * D * ry + uc * (D2 * rx - D * px)
-        else:
-            for a in range(4):
-                D = dS[k, g, a]
-                fo[2 * a] += s * D * rx
-                fo[2 * a + 1] += s * D * ry
-    if curvature == _LINEAR:
-        _add_kb(ev, Kb, k, 1.0, fo)
-
-
-@njit(cache=True)
-def _force_tangent_one(ev, k, dS, d2S, wEA, wEI, Kb, curvature, fo, Ko, w):
-    """fo (8,) = dU/de and Ko (8, 8) = dfo/de of element k at ev (8,); w (16,) scratch."""
-    for i in range(8):
-        fo[i] = 0.0
-        for j in range(8):
-            Ko[i, j] = 0.0
-    for g in range(dS.shape[1]):
-        rx, ry = _slope(ev, dS, k, g)
-        A = rx * rx + ry * ry
-        s = 0.5 * wEA[k, g] * (A - 1.0)  # coefficient of P_q (secant matrix)
-        for a in range(4):
-            D = dS[k, g, a]
-            w[2 * a] = D * rx  # G
-            w[2 * a + 1] = D * ry
-        if curvature == _EXACT:
-            px, py = _slope(ev, d2S, k, g)
-            c = rx * py - ry * px
-            iA = 1.0 / A
-            ca = wEI[k, g] * (iA * iA * iA)  # a = wEI / A^3
-            uc = ca * c
-            s -= 3.0 * uc * c * iA
-            cG = wEA[k, g] - 12.0 * uc * c * iA * iA  # wEA - 12 wEI c^2 / A^5
-            t = 6.0 * c * iA
-            for a in range(4):
-                D = dS[k, g, a]
-                D2 = d2S[k, g, a]
-                gx = D * py - D2 * ry  # gc
-                gy = D2 * rx - D * px
-                fo[2 * a] += s * w[2 * a] + uc * gx
-                fo[2 * a + 1] += s * w[2 * a + 1] + uc * gy
-                w[8 + 2 * a] = gx - t * w[2 * a]  # h = gc - 6 c/A G
-                w[9 + 2 * a] = gy - t * w[2 * a + 1]
-            for i in range(8):
-                gi = cG * w[i]
-                hi = ca * w[8 + i]
-                for j in range(i, 8):
-                    Ko[i, j] += gi * w[j] + hi * w[8 + j]
-            # u_c (Q + Q^T): (2a, 2b+1) += u_c (D_a D2_b - D2_a D_b), (2a+1, 2b) the negative
-            for a in range(4):
-                Da = dS[k, g, a]
-                D2a = d2S[k, g, a]
-                for b in range(a, 4):
-                    q = uc * (Da * d2S[k, g, b] - D2a * dS[k, g, b])
-                    Ko[2 * a, 2 * b + 1] += q
-                    if b > a:
-                        Ko[2 * a + 1, 2 * b] -= q
-        else:
-            cG = wEA[k, g]
-            for i in range(8):
-                fo[i] += s * w[i]
-                gi = cG * w[i]
-                for j in range(i, 8):
-                    Ko[i, j] += gi * w[j]
-        for a in range(4):  # s P_q
-            sa = s * dS[k, g, a]
-            for b in range(a, 4):
-                p = sa * dS[k, g, b]
-                Ko[2 * a, 2 * b] += p
-                Ko[2 * a + 1, 2 * b + 1] += p
-    if curvature == _LINEAR:
-        _add_kb(ev, Kb, k, 1.0, fo)
-        for i in range(8):
-            for j in range(i, 8):
-                Ko[i, j] += Kb[k, i, j]
-    _mirror_upper(Ko)
-
-
-@njit(cache=True)
-def _damping_one(ev, evd, k, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fo):
-    """fo (8,) Kelvin-Voigt damping force of element k at ev, velocities evd (8,)."""
-    for i in range(8):
-        fo[i] = 0.0
-    bend = eta_b != 0.0 and curvature == _EXACT
-    if eta_a != 0.0 or bend:
-        for g in range(dS.shape[1]):
-            rx, ry = _slope(ev, dS, k, g)
-            vx, vy = _slope(evd, dS, k, g)
-            if eta_a != 0.0:
-                sa = eta_a * wEA[k, g] * (rx * vx + ry * vy)  # eta_a wEA (G . Ed)
-                for a in range(4):
-                    D = dS[k, g, a]
-                    fo[2 * a] += sa * D * rx
-                    fo[2 * a + 1] += sa * D * ry
-            if bend:
-                px, py = _slope(ev, d2S, k, g)
-                wx, wy = _slope(evd, d2S, k, g)
-                A = rx * rx + ry * ry
-                cdot = vx * py - vy * px + rx * wy - ry * wx  # gc . Ed
-                sb = eta_b * wEI[k, g] * cdot / (A * A * A)
-                for a in range(4):
-                    D = dS[k, g, a]
-                    D2 = d2S[k, g, a]
-                    fo[2 * a] += sb * (D * py - D2 * ry)
-                    fo[2 * a + 1] += sb * (D2 * rx - D * px)
-    if curvature == _LINEAR and eta_b != 0.0:
-        _add_kb(evd, Kb, k, eta_b, fo)
-
-
-@njit(cache=True)
-def _damping_matrix_one(ev, k, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, Co, w):
-    """Co (8, 8) = d fd / d Ed of element k at ev (8,); w (16,) scratch."""
-    for i in range(8):
-        for j in range(8):
-            Co[i, j] = 0.0
-    bend = eta_b != 0.0 and curvature == _EXACT
-    if eta_a != 0.0 or bend:
-        for g in range(dS.shape[1]):
-            rx, ry = _slope(ev, dS, k, g)
-            ca = eta_a * wEA[k, g]
-            cb = 0.0
-            if bend:
-                px, py = _slope(ev, d2S, k, g)
-                A = rx * rx + ry * ry
-                cb = eta_b * wEI[k, g] / (A * A * A)
-            for a in range(4):
-                D = dS[k, g, a]
-                w[2 * a] = D * rx
-                w[2 * a + 1] = D * ry
-                if bend:
-                    D2 = d2S[k, g, a]
-                    w[8 + 2 * a] = D * py - D2 * ry
-                    w[9 + 2 * a] = D2 * rx - D * px
-            for i in range(8):
-                gi = ca * w[i]
-                for j in range(i, 8):
-                    Co[i, j] += gi * w[j]
-            if bend:
-                for i in range(8):
-                    hi = cb * w[8 + i]
-                    for j in range(i, 8):
-                        Co[i, j] += hi * w[8 + j]
-    if curvature == _LINEAR and eta_b != 0.0:
-        for i in range(8):
-            for j in range(i, 8):
-                Co[i, j] += eta_b * Kb[k, i, j]
-    _mirror_upper(Co)
-
-
-# ------------------------------------------------------------------------------------ element sets
-@njit(cache=True)
 def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f):
     """f (n, 8) = dU/de at E (n, 8), as `ancf.internal_forces` (Eq. 14 + Eq. 17 or Eq. 16)."""
-    for k in range(E.shape[0]):
-        _force_one(E[k], k, dS, d2S, wEA, wEI, Kb, curvature, f[k])
+    n, nq, _ = dS.shape
+    for k in range(n):
+        for i in range(8):
+            f[k, i] = 0.0
+        for g in range(nq):
+            rx, ry = _slope(E, k, dS, k, g)
+            A = rx * rx + ry * ry
+            s = 0.5 * wEA[k, g] * (A - 1.0)  # wEA eps
+            if curvature == _EXACT:
+                px, py = _slope(E, k, d2S, k, g)
+                c = rx * py - ry * px
+                iA = 1.0 / A
+                uc = wEI[k, g] * c * (iA * iA * iA)
+                s -= 3.0 * uc * c * iA  # + 2 u_A (gA = 2 G)
+                for a in range(4):
+                    D = dS[k, g, a]
+                    D2 = d2S[k, g, a]
+                    f[k, 2 * a] += s * D * rx + uc * (D * py - D2 * ry)
+                    f[k, 2 * a + 1] += s * D * ry + uc * (D2 * rx - D * px)
+            else:
+                for a in range(4):
+                    D = dS[k, g, a]
+                    f[k, 2 * a] += s * D * rx
+                    f[k, 2 * a + 1] += s * D * ry
+        if curvature == _LINEAR:
+            for i in range(8):
+                acc = 0.0
+                for j in range(8):
+                    acc += Kb[k, i, j] * E[k, j]
+                f[k, i] += acc
 
 
 @njit(cache=True)
 def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K):
     """f (n, 8) = dU/de and K (n, 8, 8) = df/de (exactly symmetric) at E (n, 8), as
-    `ancf.internal_forces_and_tangent`."""
-    w = np.empty(16)
-    for k in range(E.shape[0]):
-        _force_tangent_one(E[k], k, dS, d2S, wEA, wEI, Kb, curvature, f[k], K[k], w)
+    `ancf.internal_forces_and_tangent`.
+
+    Per element, a first pass over the Gauss points stores their coefficients; then every entry is
+    one sum over the Gauss points.  The axial part has Kronecker structure: the (i, j) component
+    block of sum_q [cG G G^T + s P_q] is sum_q (cG r'_i r'_j + s delta_ij) D D^T.
+    """
+    n, nq, _ = dS.shape
+    exact = curvature == _EXACT
+    cf = np.empty((5, nq))  # s r'_x, s r'_y, cG r'_x r'_x + s, cG r'_x r'_y, cG r'_y r'_y + s
+    ce = np.empty((6, nq))  # "exact": u_c, a = wEI/A^3, u_c r''_y, u_c r'_y, u_c r'_x, u_c r''_x
+    h = np.empty((nq, 8))  # "exact": h = gc - 6 c/A G
+    for k in range(n):
+        for g in range(nq):
+            rx, ry = _slope(E, k, dS, k, g)
+            A = rx * rx + ry * ry
+            s = 0.5 * wEA[k, g] * (A - 1.0)  # coefficient of P_q in the secant matrix
+            cG = wEA[k, g]  # coefficient of G G^T
+            if exact:
+                px, py = _slope(E, k, d2S, k, g)
+                c = rx * py - ry * px
+                iA = 1.0 / A
+                ca = wEI[k, g] * (iA * iA * iA)
+                uc = ca * c
+                s -= 3.0 * uc * c * iA
+                cG -= 12.0 * uc * c * iA * iA  # wEA - 12 wEI c^2 / A^5
+                t = 6.0 * c * iA
+                for a in range(4):
+                    D = dS[k, g, a]
+                    D2 = d2S[k, g, a]
+                    h[g, 2 * a] = D * py - D2 * ry - t * D * rx
+                    h[g, 2 * a + 1] = D2 * rx - D * px - t * D * ry
+                ce[0, g] = uc
+                ce[1, g] = ca
+                ce[2, g] = uc * py
+                ce[3, g] = uc * ry
+                ce[4, g] = uc * rx
+                ce[5, g] = uc * px
+            cf[0, g] = s * rx
+            cf[1, g] = s * ry
+            cf[2, g] = cG * rx * rx + s
+            cf[3, g] = cG * rx * ry
+            cf[4, g] = cG * ry * ry + s
+        for a in range(4):
+            fx = 0.0
+            fy = 0.0
+            for g in range(nq):
+                fx += dS[k, g, a] * cf[0, g]
+                fy += dS[k, g, a] * cf[1, g]
+            f[k, 2 * a] = fx
+            f[k, 2 * a + 1] = fy
+            for b in range(a, 4):
+                kxx = 0.0
+                kxy = 0.0
+                kyy = 0.0
+                for g in range(nq):
+                    DD = dS[k, g, a] * dS[k, g, b]
+                    kxx += cf[2, g] * DD
+                    kxy += cf[3, g] * DD
+                    kyy += cf[4, g] * DD
+                K[k, 2 * a, 2 * b] = kxx
+                K[k, 2 * a, 2 * b + 1] = kxy
+                K[k, 2 * a + 1, 2 * b] = kxy
+                K[k, 2 * a + 1, 2 * b + 1] = kyy
+                if b > a:
+                    K[k, 2 * b, 2 * a] = kxx
+                    K[k, 2 * b + 1, 2 * a] = kxy
+                    K[k, 2 * b, 2 * a + 1] = kxy
+                    K[k, 2 * b + 1, 2 * a + 1] = kyy
+        if curvature == _LINEAR:
+            for i in range(8):
+                fi = 0.0
+                for j in range(8):
+                    fi += Kb[k, i, j] * E[k, j]
+                f[k, i] += fi
+                for j in range(i, 8):
+                    kb = Kb[k, i, j]
+                    K[k, i, j] += kb
+                    if j > i:
+                        K[k, j, i] += kb
+        elif exact:
+            for a in range(4):  # f += u_c gc
+                fx = 0.0
+                fy = 0.0
+                for g in range(nq):
+                    D = dS[k, g, a]
+                    D2 = d2S[k, g, a]
+                    fx += D * ce[2, g] - D2 * ce[3, g]
+                    fy += D2 * ce[4, g] - D * ce[5, g]
+                f[k, 2 * a] += fx
+                f[k, 2 * a + 1] += fy
+            for i in range(8):  # a h h^T
+                for j in range(i, 8):
+                    v = 0.0
+                    for g in range(nq):
+                        v += ce[1, g] * h[g, i] * h[g, j]
+                    K[k, i, j] += v
+                    if j > i:
+                        K[k, j, i] += v
+            # u_c (Q + Q^T): (2a, 2b+1) and (2b+1, 2a) += q_ab, (2a+1, 2b) and (2b, 2a+1) -= q_ab,
+            # q_ab = sum_q u_c (D_a D2_b - D2_a D_b) (zero for a == b)
+            for a in range(4):
+                for b in range(a + 1, 4):
+                    qq = 0.0
+                    for g in range(nq):
+                        qq += ce[0, g] * (dS[k, g, a] * d2S[k, g, b] - d2S[k, g, a] * dS[k, g, b])
+                    K[k, 2 * a, 2 * b + 1] += qq
+                    K[k, 2 * b + 1, 2 * a] += qq
+                    K[k, 2 * a + 1, 2 * b] -= qq
+                    K[k, 2 * b, 2 * a + 1] -= qq
 
 
 @njit(cache=True)
 def element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd):
     """fd (n, 8) Kelvin-Voigt belt damping force at E, Ed (n, 8) (module docstring); zeros when
     eta_a == eta_b == 0."""
-    n = E.shape[0]
+    n, nq, _ = dS.shape
+    fd[:, :] = 0.0
     if eta_a == 0.0 and eta_b == 0.0:
-        fd[:, :] = 0.0
         return
-    for k in range(n):
-        _damping_one(E[k], Ed[k], k, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd[k])
+    bend = eta_b != 0.0 and curvature == _EXACT
+    if eta_a != 0.0 or bend:
+        for k in range(n):
+            for g in range(nq):
+                rx, ry = _slope(E, k, dS, k, g)
+                vx, vy = _slope(Ed, k, dS, k, g)
+                sa = eta_a * wEA[k, g] * (rx * vx + ry * vy)  # eta_a wEA (G . Ed)
+                if bend:
+                    px, py = _slope(E, k, d2S, k, g)
+                    wx, wy = _slope(Ed, k, d2S, k, g)
+                    A = rx * rx + ry * ry
+                    cdot = vx * py - vy * px + rx * wy - ry * wx  # gc . Ed
+                    sb = eta_b * wEI[k, g] * cdot / (A * A * A)
+                    for a in range(4):
+                        D = dS[k, g, a]
+                        D2 = d2S[k, g, a]
+                        fd[k, 2 * a] += sa * D * rx + sb * (D * py - D2 * ry)
+                        fd[k, 2 * a + 1] += sa * D * ry + sb * (D2 * rx - D * px)
+                else:
+                    for a in range(4):
+                        D = dS[k, g, a]
+                        fd[k, 2 * a] += sa * D * rx
+                        fd[k, 2 * a + 1] += sa * D * ry
+    if curvature == _LINEAR and eta_b != 0.0:
+        for k in range(n):
+            for i in range(8):
+                acc = 0.0
+                for j in range(8):
+                    acc += Kb[k, i, j] * Ed[k, j]
+                fd[k, i] += eta_b * acc
 
 
 @njit(cache=True)
 def element_damping_matrix(E, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C):
     """C (n, 8, 8) = d fd / d Ed at E (n, 8): eta_a sum_q wEA G G^T + eta_b B (module docstring),
-    symmetric positive semi-definite for eta_a, eta_b >= 0."""
-    n = E.shape[0]
+    exactly symmetric, positive semi-definite for eta_a, eta_b >= 0 (same scheme as
+    `element_forces_tangent`)."""
+    n, nq, _ = dS.shape
     if eta_a == 0.0 and eta_b == 0.0:
         C[:, :, :] = 0.0
         return
-    w = np.empty(16)
+    bend = eta_b != 0.0 and curvature == _EXACT
+    cf = np.empty((4, nq))  # eta_a wEA r'_x r'_x, .. r'_x r'_y, .. r'_y r'_y; eta_b wEI/A^3
+    gc = np.empty((nq, 8))
     for k in range(n):
-        _damping_matrix_one(E[k], k, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C[k], w)
+        for g in range(nq):
+            rx, ry = _slope(E, k, dS, k, g)
+            ca = eta_a * wEA[k, g]
+            cf[0, g] = ca * rx * rx
+            cf[1, g] = ca * rx * ry
+            cf[2, g] = ca * ry * ry
+            if bend:
+                px, py = _slope(E, k, d2S, k, g)
+                A = rx * rx + ry * ry
+                cf[3, g] = eta_b * wEI[k, g] / (A * A * A)
+                for a in range(4):
+                    D = dS[k, g, a]
+                    D2 = d2S[k, g, a]
+                    gc[g, 2 * a] = D * py - D2 * ry
+                    gc[g, 2 * a + 1] = D2 * rx - D * px
+        for a in range(4):
+            for b in range(a, 4):
+                kxx = 0.0
+                kxy = 0.0
+                kyy = 0.0
+                for g in range(nq):
+                    DD = dS[k, g, a] * dS[k, g, b]
+                    kxx += cf[0, g] * DD
+                    kxy += cf[1, g] * DD
+                    kyy += cf[2, g] * DD
+                C[k, 2 * a, 2 * b] = kxx
+                C[k, 2 * a, 2 * b + 1] = kxy
+                C[k, 2 * a + 1, 2 * b] = kxy
+                C[k, 2 * a + 1, 2 * b + 1] = kyy
+                if b > a:
+                    C[k, 2 * b, 2 * a] = kxx
+                    C[k, 2 * b + 1, 2 * a] = kxy
+                    C[k, 2 * b, 2 * a + 1] = kxy
+                    C[k, 2 * b + 1, 2 * a + 1] = kyy
+        if curvature == _LINEAR and eta_b != 0.0:
+            for i in range(8):
+                for j in range(i, 8):
+                    kb = eta_b * Kb[k, i, j]
+                    C[k, i, j] += kb
+                    if j > i:
+                        C[k, j, i] += kb
+        elif bend:
+            for i in range(8):
+                for j in range(i, 8):
+                    v = 0.0
+                    for g in range(nq):
+                        v += cf[3, g] * gc[g, i] * gc[g, j]
+                    C[k, i, j] += v
+                    if j > i:
+                        C[k, j, i] += v
 
 
 @njit(cache=True)
@@ -356,15 +386,14 @@ def element_strain_energy(E, dS, d2S, wEA, wEI, Kb, curvature, U):
     """U (n,) element strain energy at E (n, 8), as `ancf.strain_energy` (Eq. 13 + Eq. 16/17)."""
     n, nq, _ = dS.shape
     for k in range(n):
-        ev = E[k]
         u = 0.0
         for g in range(nq):
-            rx, ry = _slope(ev, dS, k, g)
+            rx, ry = _slope(E, k, dS, k, g)
             A = rx * rx + ry * ry
             eps = 0.5 * (A - 1.0)
             u += 0.5 * wEA[k, g] * (eps * eps)
             if curvature == _EXACT:
-                px, py = _slope(ev, d2S, k, g)
+                px, py = _slope(E, k, d2S, k, g)
                 c = rx * py - ry * px
                 u += 0.5 * wEI[k, g] * (c * c / (A * A * A))
         if curvature == _LINEAR:
@@ -372,8 +401,8 @@ def element_strain_energy(E, dS, d2S, wEA, wEI, Kb, curvature, U):
             for i in range(8):
                 acc = 0.0
                 for j in range(8):
-                    acc += Kb[k, i, j] * ev[j]
-                ub += ev[i] * acc
+                    acc += Kb[k, i, j] * E[k, j]
+                ub += E[k, i] * acc
             u += 0.5 * ub
         U[k] = u
 
@@ -386,7 +415,7 @@ def element_min_axial_force(E, dS, EA, out):
     for k in range(n):
         lo = np.inf
         for g in range(nq):
-            rx, ry = _slope(E[k], dS, k, g)
+            rx, ry = _slope(E, k, dS, k, g)
             v = EA[k] * 0.5 * (rx * rx + ry * ry - 1.0)
             if v < lo:
                 lo = v
@@ -413,124 +442,113 @@ def joint_selection(T: np.ndarray, idx: np.ndarray, n_dof: int) -> np.ndarray:
 
 
 @njit(cache=True)
-def _gather_row(q_ext, T, idx, tsel, k, out):
-    """out (8,) = T[k] q_ext[idx[k]] (identity path: q_ext[idx[k, :8]])."""
-    if tsel[k] < 0:
-        for i in range(8):
-            out[i] = q_ext[idx[k, i]]
-    else:
-        m = T.shape[2]
-        for i in range(8):
-            acc = 0.0
-            for j in range(m):
-                acc += T[k, i, j] * q_ext[idx[k, j]]
-            out[i] = acc
-
-
-@njit(cache=True)
-def _scatter_row(fk, T, idx, tsel, k, out):
-    """out[idx[k]] += T[k]^T fk (identity path: out[idx[k, :8]] += fk)."""
-    if tsel[k] < 0:
-        for i in range(8):
-            out[idx[k, i]] += fk[i]
-    else:
-        for j in range(T.shape[2]):
-            acc = 0.0
-            for i in range(8):
-                acc += T[k, i, j] * fk[i]
-            out[idx[k, j]] += acc
-
-
-@njit(cache=True)
-def _reduce_row(Kk, T, tsel, k, out, W):
-    """out (m, m) = T[k]^T Kk T[k] for a symmetric Kk (8, 8), exactly symmetric; W (8, m) scratch.
-    Identity path: Kk in the leading 8 x 8 block, zeros elsewhere."""
-    m = T.shape[2]
-    if tsel[k] < 0:
-        for p in range(m):
-            for j in range(m):
-                out[p, j] = Kk[p, j] if (p < 8 and j < 8) else 0.0
-        return
-    for i in range(8):  # W = Kk T[k], skipping the zeros of T
-        for j in range(m):
-            W[i, j] = 0.0
-    for l in range(8):
-        for j in range(m):
-            t = T[k, l, j]
-            if t != 0.0:
-                for i in range(8):
-                    W[i, j] += Kk[i, l] * t
-    for p in range(m):
-        for j in range(p, m):
-            acc = 0.0
-            for i in range(8):
-                acc += T[k, i, p] * W[i, j]
-            out[p, j] = acc
-            out[j, p] = acc
-
-
-@njit(cache=True)
 def gather(q_ext, e0, T, idx, tsel, E):
     """E (n, 8) = e0 + T q_ext[idx] per element (q_ext (n_dof + 1,), q_ext[n_dof] = 0)."""
-    for k in range(E.shape[0]):
-        row = E[k]
-        _gather_row(q_ext, T, idx, tsel, k, row)
-        for i in range(8):
-            row[i] += e0[k, i]
+    n, _, m = T.shape
+    for k in range(n):
+        if tsel[k] < 0:
+            for i in range(8):
+                E[k, i] = e0[k, i] + q_ext[idx[k, i]]
+        else:
+            for i in range(8):
+                acc = 0.0
+                for j in range(m):
+                    acc += T[k, i, j] * q_ext[idx[k, j]]
+                E[k, i] = e0[k, i] + acc
 
 
 @njit(cache=True)
 def gather_velocity(v_ext, T, idx, tsel, Ed):
     """Ed (n, 8) = T v_ext[idx] per element (element velocities: `gather` without the offset)."""
-    for k in range(Ed.shape[0]):
-        _gather_row(v_ext, T, idx, tsel, k, Ed[k])
+    n, _, m = T.shape
+    for k in range(n):
+        if tsel[k] < 0:
+            for i in range(8):
+                Ed[k, i] = v_ext[idx[k, i]]
+        else:
+            for i in range(8):
+                acc = 0.0
+                for j in range(m):
+                    acc += T[k, i, j] * v_ext[idx[k, j]]
+                Ed[k, i] = acc
 
 
 @njit(cache=True)
 def scatter_vector(fe, T, idx, tsel, out):
     """out (n_dof + 1,) += T^T fe per element, fe (n, 8) (accumulates; out[n_dof] is padding)."""
-    for k in range(fe.shape[0]):
-        _scatter_row(fe[k], T, idx, tsel, k, out)
+    n, _, m = T.shape
+    for k in range(n):
+        if tsel[k] < 0:
+            for i in range(8):
+                out[idx[k, i]] += fe[k, i]
+        else:
+            for j in range(m):
+                acc = 0.0
+                for i in range(8):
+                    acc += T[k, i, j] * fe[k, i]
+                out[idx[k, j]] += acc
 
 
 @njit(cache=True)
 def reduce_blocks(Ke, T, tsel, out):
-    """out (n, m, m) = T^T Ke T per element for symmetric Ke (n, 8, 8); out is exactly symmetric."""
-    W = np.empty((8, T.shape[2]))
-    for k in range(Ke.shape[0]):
-        _reduce_row(Ke[k], T, tsel, k, out[k], W)
+    """out (n, m, m) = T^T Ke T per element for symmetric Ke (n, 8, 8), exactly symmetric.
+    Identity path: Ke in the leading 8 x 8 block, zeros elsewhere."""
+    n, _, m = T.shape
+    W = np.empty((8, m))
+    for k in range(n):
+        if tsel[k] < 0:
+            for p in range(8):
+                for j in range(8):
+                    out[k, p, j] = Ke[k, p, j]
+                for j in range(8, m):
+                    out[k, p, j] = 0.0
+            for p in range(8, m):
+                for j in range(m):
+                    out[k, p, j] = 0.0
+            continue
+        for i in range(8):  # W = Ke T, skipping the zeros of T
+            for j in range(m):
+                W[i, j] = 0.0
+        for l in range(8):
+            for j in range(m):
+                t = T[k, l, j]
+                if t != 0.0:
+                    for i in range(8):
+                        W[i, j] += Ke[k, i, l] * t
+        for p in range(m):
+            for j in range(p, m):
+                acc = 0.0
+                for i in range(8):
+                    acc += T[k, i, p] * W[i, j]
+                out[k, p, j] = acc
+                out[k, j, p] = acc
 
 
 @njit(cache=True)
 def reduced_force(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out):
     """f_out (n_dof + 1,) = sum_e T^T f_e(e0 + T q_ext[idx]), the reduced elastic force
-    (overwritten; f_out[n_dof] is padding)."""
-    ev = np.empty(8)
-    fk = np.empty(8)
+    (overwritten; f_out[n_dof] is padding).  Allocates its (n, 8) scratch once per call."""
+    n = T.shape[0]
+    E = np.empty((n, 8))
+    fe = np.empty((n, 8))
+    gather(q_ext, e0, T, idx, tsel, E)
+    element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe)
     f_out[:] = 0.0
-    for k in range(T.shape[0]):
-        _gather_row(q_ext, T, idx, tsel, k, ev)
-        for i in range(8):
-            ev[i] += e0[k, i]
-        _force_one(ev, k, dS, d2S, wEA, wEI, Kb, curvature, fk)
-        _scatter_row(fk, T, idx, tsel, k, f_out)
+    scatter_vector(fe, T, idx, tsel, f_out)
 
 
 @njit(cache=True)
 def reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out,
                                      blocks_out):
     """The reduced elastic force f_out (n_dof + 1,) (overwritten, as `reduced_force`) and the
-    tangent blocks blocks_out (n, m, m) = T^T K_e T, fused per element (no (n, 8, 8) temporaries)."""
-    ev = np.empty(8)
-    fk = np.empty(8)
-    Kk = np.empty((8, 8))
-    w = np.empty(16)
-    W = np.empty((8, T.shape[2]))
+    tangent blocks blocks_out (n, m, m) = T^T K_e T of the Newton solvers, in one call.
+    Allocates its (n, 8) and (n, 8, 8) scratch once per call."""
+    n = T.shape[0]
+    E = np.empty((n, 8))
+    fe = np.empty((n, 8))
+    Ke = np.empty((n, 8, 8))
+    gather(q_ext, e0, T, idx, tsel, E)
+    element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, fe, Ke)
     f_out[:] = 0.0
-    for k in range(T.shape[0]):
-        _gather_row(q_ext, T, idx, tsel, k, ev)
-        for i in range(8):
-            ev[i] += e0[k, i]
-        _force_tangent_one(ev, k, dS, d2S, wEA, wEI, Kb, curvature, fk, Kk, w)
-        _scatter_row(fk, T, idx, tsel, k, f_out)
-        _reduce_row(Kk, T, tsel, k, blocks_out[k], W)
+    scatter_vector(fe, T, idx, tsel, f_out)
+    reduce_blocks(Ke, T, tsel, blocks_out)
