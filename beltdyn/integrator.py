@@ -244,7 +244,7 @@ def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, min_elem)
                 gross[belt.idx[e, j]] += abs(s)
     f_dmp[:] = 0.0
     if belt.eta_a != 0.0 or belt.eta_b != 0.0:
-        bk.gather(v_ext, np.zeros_like(belt.e0), belt.T, belt.idx, belt.tsel, Ed)
+        bk.gather_velocity(v_ext, belt.T, belt.idx, belt.tsel, Ed)
         bk.element_damping(E, Ed, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, belt.eta_a,
                            belt.eta_b, fd)
         bk.scatter_vector(fd, belt.T, belt.idx, belt.tsel, f_dmp)

@@ -147,10 +147,6 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
     from . import integrator as itg
     from .belt_kernel import CURVATURE_CODE
 
-    if system.belt.elements.curvature == "exact":
-        from .errors import ConfigError
-
-        raise ConfigError("the transient analysis supports curvature \"linear\" or \"none\"", key="model.curvature")
     n = system.n_dof
     u_nom = belt_travel(system)
     # constraints: prescribed rotations (any number); the first with a speed carries the belt travel
