@@ -968,10 +968,11 @@ def _commit(f, tmp: Path, path: Path) -> None:
     finally:
         os.close(fd)
     os.replace(tmp, path)
-    _fsync_dir(path.parent)
+    fsync_dir(path.parent)
 
 
-def _fsync_dir(directory: Path) -> None:
+def fsync_dir(directory: Path) -> None:
+    """fsync a folder (its entries: a rename into it is durable); best effort."""
     try:
         fd = os.open(directory, os.O_RDONLY)
     except OSError:

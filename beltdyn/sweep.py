@@ -41,6 +41,7 @@ import numpy as np
 
 from .config import DriveConfig, config_hash, resolved_toml
 from .errors import ConfigError, OutputError
+from .results_io import fsync_dir
 
 ANALYSES = ("static", "modal", "transient")
 MAC_LOST = 0.5  # below this MAC a tracked mode counts as lost (it left the computed modes)
@@ -388,7 +389,7 @@ class Journal:
         self._discard = False
         data = json.dumps({"sha256": digest, "spec": spec_json}, indent=1).encode()
         self._put("spec.json", lambda fh: fh.write(data))
-        _fsync_dir(self.dir)
+        fsync_dir(self.dir)
 
     def digest(self) -> str:
         return json.loads((self.dir / "spec.json").read_text())["sha256"]
@@ -412,7 +413,7 @@ class Journal:
 
     def sync(self) -> None:
         """Make the renames durable (fsync of the journal folder)."""
-        _fsync_dir(self.dir)
+        fsync_dir(self.dir)
 
     def _put(self, name: str, fill) -> None:
         stem, _, ext = name.partition(".")
@@ -461,19 +462,6 @@ def _lock_holder(fd: int) -> int | None:
             return int(text)
         time.sleep(0.01)
     return None
-
-
-def _fsync_dir(directory: Path) -> None:
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
 
 
 # ------------------------------------------------------------------------------------ running

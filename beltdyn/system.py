@@ -164,12 +164,12 @@ class BearingSprings(LinearComponent):
 
     def observe(self, system: "System", q: np.ndarray, preload: np.ndarray) -> dict[str, np.ndarray]:
         d = system.dofs
+        k_of = dict(zip(self.dofs.tolist(), np.diag(self.stiffness)))  # the springs are diagonal
         rows = []
         for j in self.pulleys:
             F = np.zeros((q.shape[0], 2))
             for dof, vec in zip(d.trans_dof[j], d.trans_dir[j]):
-                k = float(self.stiffness[list(self.dofs).index(dof), list(self.dofs).index(dof)])
-                F += (preload[dof] - k * q[:, dof])[:, None] * vec
+                F += (preload[dof] - k_of[dof] * q[:, dof])[:, None] * vec
             rows.append(F)
         return {"bearing_force": np.stack(rows, axis=1)}
 

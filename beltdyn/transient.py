@@ -393,8 +393,8 @@ def initial_state(problem: StepProblem, rho_inf: float, step: float):
     kin = itg.kinetic_energy(lin, v, tmp)
     pot = itg.potential_energy(belt, lin, q, np.append(q, 0.0), E, np.empty(n_elem), tmp, tmp2)
     scal[itg.E0], scal[itg.KIN0], scal[itg.POT0] = kin + pot, kin, pot
-    return itg.State(q=q, v=v, a=a, f0=f0, fd0=f_dmp[:n].copy(), F0=F0, R0=np.zeros(max(len(cons.dof), 1)) + (
-        np.pad(R0, (0, max(len(cons.dof), 1) - len(R0)))), scal=scal)
+    R0 = np.pad(R0, (0, max(len(R0), 1) - len(R0)))  # the stepper needs at least one slot
+    return itg.State(q=q, v=v, a=a, f0=f0, fd0=f_dmp[:n].copy(), F0=F0, R0=R0, scal=scal)
 
 
 def residual_noise(belt) -> float:
