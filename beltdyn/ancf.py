@@ -494,11 +494,17 @@ def make_elements(length, EA, EI, rho, *, curvature: str = "linear", n_gauss: in
     if len(uniq) == L.shape[0]:
         return _make_elements_all(length, EA, EI, rho, curvature=curvature, n_gauss=n_gauss)
     base = _make_elements_all(uniq, EA, EI, rho, curvature=curvature, n_gauss=n_gauss)
-    inverse = inverse.ravel()
+    return subset(base, inverse.ravel())
+
+
+def subset(el: ElementSet, index: np.ndarray) -> ElementSet:
+    """The elements ``index`` (k,) of ``el`` (repeats allowed), tables gathered, not recomputed."""
+    index = np.asarray(index, dtype=np.int64)
+    n = el.n_elem
     fields_ = {}
-    for f in dataclasses.fields(base):
-        value = getattr(base, f.name)
-        if isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == len(uniq):
-            value = _readonly(value[inverse])
+    for f in dataclasses.fields(el):
+        value = getattr(el, f.name)
+        if isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == n:
+            value = _readonly(value[index])
         fields_[f.name] = value
     return ElementSet(**fields_)

@@ -53,6 +53,7 @@ import numpy as np
 from numba import njit
 
 from . import ancf
+from .system import joint_selection  # noqa: F401  (set-up helper, pure numpy, lives with the joints)
 
 __all__ = [
     "CURVATURE_CODE",
@@ -423,24 +424,6 @@ def element_min_axial_force(E, dS, EA, out):
 
 
 # ------------------------------------------------------------------------------------ reduced coordinates
-def joint_selection(T: np.ndarray, idx: np.ndarray, n_dof: int) -> np.ndarray:
-    """tsel (n_elem,) int64: -1 where element k has T[k] == [I8 | 0] exactly and idx[k, 8:] all
-    equal the padding index n_dof (identity fast path), else k (its own row of T).
-
-    T (n_elem, 8, m) and idx (n_elem, m) with m >= 8.
-    """
-    T = np.asarray(T)
-    idx = np.asarray(idx)
-    if T.ndim != 3 or T.shape[1] != 8 or T.shape[2] < 8:
-        raise ValueError(f"T must have shape (n_elem, 8, m >= 8), got {T.shape}")
-    if idx.shape != (T.shape[0], T.shape[2]):
-        raise ValueError(f"idx must have shape {(T.shape[0], T.shape[2])}, got {idx.shape}")
-    ident = np.zeros(T.shape[1:])
-    ident[:, :8] = np.eye(8)
-    ok = np.all(T == ident, axis=(1, 2)) & np.all(idx[:, 8:] == n_dof, axis=1)
-    return np.where(ok, -1, np.arange(T.shape[0])).astype(np.int64)
-
-
 @njit(cache=True)
 def gather(q_ext, e0, T, idx, tsel, E):
     """E (n, 8) = e0 + T q_ext[idx] per element (q_ext (n_dof + 1,), q_ext[n_dof] = 0)."""

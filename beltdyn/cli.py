@@ -278,7 +278,7 @@ def _rtol_not_met(ref, rtol: float, output) -> None:
                       "(/modal mesh_converged = 0)", analysis="modal", step="mesh refinement")
 
 
-def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None):
+def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None, compiled: bool = False):
     """geometry -> system -> static (-> modal) through the library pipeline; writes the groups reached,
     and a failed group for the stage that failed."""
     from .errors import SolverError
@@ -287,7 +287,7 @@ def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None):
 
     job.add(geometry_group(job.layout))
     try:
-        run = analyse(job.cfg, modal=modal, n_modes=n_modes, layout=job.layout)
+        run = analyse(job.cfg, modal=modal, n_modes=n_modes, layout=job.layout, compiled=compiled)
     except SolverError as exc:
         part = getattr(exc, "partial", None)
         if part is not None and part.static is not None:

@@ -32,12 +32,19 @@ class Analysis:
 
 
 def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_modes: int | None = None,
-            layout: Layout | None = None) -> Analysis:
-    """Geometry, system, and the static equilibrium and modes if asked for (modal implies static)."""
+            layout: Layout | None = None, compiled: bool = False) -> Analysis:
+    """Geometry, system, and the static equilibrium and modes if asked for (modal implies static).
+
+    compiled: belt forces by the compiled kernel, for a process that evaluates them many times (a
+    sweep, a transient follows); the numpy reference otherwise, which spares numba's ~0.3 s start-up
+    (the two agree to 1e-12, tests/test_belt_kernel.py)."""
     from .system import build_system
 
     layout = layout or layout_from_config(cfg)
-    out = Analysis(config=cfg, layout=layout, system=build_system(cfg, layout))
+    system = build_system(cfg, layout)
+    if compiled:
+        system = system.with_belt(compiled=True)
+    out = Analysis(config=cfg, layout=layout, system=system)
     if not (static or modal):
         return out
     from .static import solve_static

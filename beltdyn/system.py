@@ -196,6 +196,7 @@ class BeltSpans:
     prestrain_stretch: float = 1.0
     damping_axial: float = 0.0  # Kelvin-Voigt retardation times (s), set by the transient options
     damping_bending: float = 0.0
+    compiled: bool = False  # forces by the compiled kernel (`belt_kernel`) instead of the numpy `ancf`
 
     @property
     def n_span(self) -> int:
@@ -259,9 +260,15 @@ class BeltSpans:
         """(n_elem, m, m) blocks T^T Ke T."""
         return np.matmul(np.matmul(self.Tt, Ke), self.T)
 
-    # -------------------------------------------------------------------- forces (compiled kernel)
+    # -------------------------------------------------------------------- forces
+    # Two implementations of one element, held equal to 1e-12 by tests/test_belt_kernel.py: the
+    # vectorized numpy `ancf` (no compilation: static and modal, a few dozen evaluations, where numba's
+    # ~0.3 s start-up is never paid back) and the compiled `belt_kernel` (`compiled=True`: the time
+    # stepper, thousands of evaluations). bench/run.py measures both.
     def force(self, q: np.ndarray) -> np.ndarray:
         """Reduced elastic force of the belt (n_dof,)."""
+        if not self.compiled:
+            return self.reduce_vector(ancf.internal_forces(self.elements, self.element_coordinates(q)))
         from . import belt_kernel as bk
 
         tab = self.kernel_tables
@@ -272,6 +279,9 @@ class BeltSpans:
 
     def force_and_blocks(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Reduced elastic force (n_dof,) and the tangent blocks T^T K_e T (n_elem, m, m)."""
+        if not self.compiled:
+            fe, Ke = ancf.internal_forces_and_tangent(self.elements, self.element_coordinates(q))
+            return self.reduce_vector(fe), self.reduce_blocks(Ke)
         from . import belt_kernel as bk
 
         tab = self.kernel_tables
@@ -300,18 +310,24 @@ class BeltSpans:
         """Force of each span on its end nodes, (B, n_span, 2 ends, 2), from element states
         E, Ed (B, n_elem, 8): internal (elastic + belt damping) - weight of the end elements, position
         rows. The pulley holds the node with this force (plus `end_inertia`); the belt pushes back."""
-        from . import belt_kernel as bk
-
         el = self.elements
-        tab = self.kernel_tables
         ends = np.concatenate([self.first, self.last])
         B = E.shape[0]
+        damped = self.damping_axial > 0.0 or self.damping_bending > 0.0
+        n = self.n_span
+        if not self.compiled and not (damped and Ed is not None):
+            sub_el = ancf.subset(el, ends)
+            ge = ancf.gravity_forces(sub_el, gravity)
+            F = np.stack([ancf.internal_forces(sub_el, E[b, ends]) for b in range(B)]) - ge
+            return np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2)
+        from . import belt_kernel as bk
+
+        tab = self.kernel_tables
         F = np.empty((B, len(ends), 8))
         sub = _sub_tables(tab, ends)
         fe = np.empty((len(ends), 8))
         fd = np.empty((len(ends), 8))
         ge = ancf.gravity_forces(el, gravity)[ends]
-        damped = self.damping_axial > 0.0 or self.damping_bending > 0.0
         for b in range(B):
             bk.element_forces(np.ascontiguousarray(E[b, ends]), *sub, fe)
             F[b] = fe - ge
@@ -319,7 +335,6 @@ class BeltSpans:
                 bk.element_damping(np.ascontiguousarray(E[b, ends]), np.ascontiguousarray(Ed[b, ends]), sub[0], sub[1],
                                    sub[2], sub[3], sub[4], sub[5], self.damping_axial, self.damping_bending, fd)
                 F[b] += fd
-        n = self.n_span
         return np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2)
 
     def end_inertia(self, Ea: np.ndarray) -> np.ndarray:
@@ -468,10 +483,13 @@ class System:
         return _assemble(self.layout, self.dofs, self.belt, self.components + tuple(extra), pulley_names=self.pulley_names,
                          driver=self.driver, tension=self.tension, gravity=self.gravity, dense=self.dense)
 
-    def with_belt_damping(self, axial: float, bending: float) -> "System":
-        belt = BeltSpans(**{**{k: v for k, v in self.belt.__dict__.items() if not k.startswith("_")},
-                            "damping_axial": float(axial), "damping_bending": float(bending)})
+    def with_belt(self, **changes) -> "System":
+        """The same system with belt fields changed (e.g. damping_axial, compiled)."""
+        belt = BeltSpans(**{**{k: v for k, v in self.belt.__dict__.items() if not k.startswith("_")}, **changes})
         return System(**{**{k: v for k, v in self.__dict__.items() if not k.startswith("_")}, "belt": belt})
+
+    def with_belt_damping(self, axial: float, bending: float) -> "System":
+        return self.with_belt(damping_axial=float(axial), damping_bending=float(bending))
 
     # -------------------------------------------------------------------- assembly
     def assemble(self, blocks: np.ndarray, *, linear: bool = True, diagonal: np.ndarray | None = None):
@@ -707,14 +725,30 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stre
     T = np.take_along_axis(T, order[:, None, :], axis=2)
     used = max(int((idx != pad).sum(axis=1).max()), 8)
     T, idx = np.ascontiguousarray(T[:, :, :used]), np.ascontiguousarray(idx[:, :used]).astype(np.int64)
-    from .belt_kernel import joint_selection
-
     el = ancf.make_elements(np.repeat(L_ref / n_e, n_e), cfg.belt.EA, cfg.belt.EI, cfg.belt.mass_per_length,
                             curvature=cfg.model.curvature, n_gauss=cfg.model.gauss_points)
     return BeltSpans(elements=el, elem_span=elem_span, span_elements=span_elements, T=T, idx=idx,
                      tsel=joint_selection(T, idx, n_dof), e0=e0, n_dof=n_dof, reference_length=L_ref,
                      reference_direction=t_dir, reference_normal=normals, prestrain_stretch=lam)
 
+
+
+def joint_selection(T: np.ndarray, idx: np.ndarray, n_dof: int) -> np.ndarray:
+    """tsel (n_elem,) int64: -1 where element k has T[k] == [I8 | 0] exactly and idx[k, 8:] all
+    equal the padding index n_dof (identity fast path), else k (its own row of T).
+
+    T (n_elem, 8, m) and idx (n_elem, m) with m >= 8.
+    """
+    T = np.asarray(T)
+    idx = np.asarray(idx)
+    if T.ndim != 3 or T.shape[1] != 8 or T.shape[2] < 8:
+        raise ValueError(f"T must have shape (n_elem, 8, m >= 8), got {T.shape}")
+    if idx.shape != (T.shape[0], T.shape[2]):
+        raise ValueError(f"idx must have shape {(T.shape[0], T.shape[2])}, got {idx.shape}")
+    ident = np.zeros(T.shape[1:])
+    ident[:, :8] = np.eye(8)
+    ok = np.all(T == ident, axis=(1, 2)) & np.all(idx[:, 8:] == n_dof, axis=1)
+    return np.where(ok, -1, np.arange(T.shape[0])).astype(np.int64)
 
 def pulley_components(cfg: DriveConfig, dofs: DofMap) -> tuple[LinearComponent, ...]:
     """Pulley inertia (rotation DOFs), pulley mass and weight (translation DOFs, paper Eq. 20) and

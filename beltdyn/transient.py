@@ -525,7 +525,9 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
     from . import integrator as itg
 
     setup = setup or prepare(system, static, opts)
-    system = system.with_belt_damping(opts.damping.belt_axial, opts.damping.belt_bending)
+    # the time stepper evaluates the belt thousands of times: the compiled kernel (system.BeltSpans)
+    system = system.with_belt(damping_axial=float(opts.damping.belt_axial),
+                              damping_bending=float(opts.damping.belt_bending), compiled=True)
     symmetric = True  # no transport terms yet: S is symmetric (the band LU is the fallback)
     problem = StepProblem(
         belt=setup.belt, linear=setup.linear, forcing=setup.forcing, constraints=setup.constraints,

@@ -189,3 +189,35 @@ def test_transient_with_either_curvature_conserves_energy(curvature):
     assert s.status == "complete" and s.energy_error < 1e-3
     _, ref = history("linear")
     assert np.abs(h - ref).max() <= 1e-3 * np.ptp(ref)
+
+
+@pytest.mark.parametrize("curvature", ["none", "linear", "exact"])
+def test_numpy_and_compiled_belt_forces_agree_through_the_system(curvature):
+    # Static and modal evaluate the belt with the numpy reference (`ancf`), the stepper with the
+    # compiled kernel (`belt_kernel`): through the whole joint map (reduced force, tangent, joint
+    # reactions) they agree to 1e-12 relative on a random state about the static equilibrium.
+    cfg, system = bench([f"model.curvature='{curvature}'", "mesh.elements_per_span=6"])
+    q = solve_static(system, cfg.static).q
+    rng = np.random.default_rng(7)
+    q = q + 1e-3 * rng.standard_normal(q.shape)
+    fast = system.with_belt(compiled=True)
+    f_np, K_np = system.force_and_tangent(q)
+    f_c, K_c = fast.force_and_tangent(q)
+    K_np, K_c = (np.asarray(K.todense()) if hasattr(K, "todense") else K for K in (K_np, K_c))
+    assert np.abs(f_c - f_np).max() <= 1e-12 * np.abs(f_np).max()
+    assert np.abs(K_c - K_np).max() <= 1e-12 * np.abs(K_np).max()
+    hub_np, span_np = system.joint_reactions(q)
+    hub_c, span_c = fast.joint_reactions(q)
+    assert np.abs(hub_c - hub_np).max() <= 1e-12 * np.abs(hub_np).max()
+    assert np.abs(span_c - span_np).max() <= 1e-12 * np.abs(span_np).max()
+
+
+def test_static_and_modal_do_not_load_numba():
+    # Start-up: `beltdyn modal` must not pay numba's ~0.3 s import and cache load (bench/run.py times it).
+    import subprocess
+    import sys
+
+    code = ("import sys; from beltdyn.config import load_config; from beltdyn.pipeline import analyse; "
+            f"analyse(load_config({str(BENCH)!r}), modal=True); print('numba' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "False"
