@@ -34,6 +34,8 @@ ConfigArg = typer.Argument(..., help="TOML drive description.", show_default=Fal
 OutOpt = typer.Option(None, "--output", "-o", help="HDF5 results file [default: results/<config stem>.h5].")
 SetOpt = typer.Option(None, "--set", help="Override a dotted config key: KEY=VALUE (TOML literal).", metavar="KEY=VALUE")
 ForceOpt = typer.Option(False, "--force", help="Replace a results file written for a different configuration.")
+ForceLargeOpt = typer.Option(False, "--force-large",
+                             help="Write histories larger than transient.max_output_mb (default 1000 MB).")
 
 
 PIPE_WIDTH = 1000  # console width when the output is not a terminal: tables at their natural width
@@ -342,7 +344,7 @@ SPECTRUM_SERIES = ("span_tension", "hub_load", "bearing_force", "midspan_displac
 
 @app.command()
 def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
-              force: bool = ForceOpt,
+              force: bool = ForceOpt, force_large: bool = ForceLargeOpt,
               duration: Optional[float] = typer.Option(None, "--duration", min=0.0, help="Simulated time, s [default: transient.duration]."),
               step: Optional[float] = typer.Option(None, "--step", min=0.0, help="Time step, s [default: transient.step].")) -> None:
     """Nonlinear time response (generalized-alpha) with streamed histories and their spectra."""
@@ -360,11 +362,29 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
 
             raise ConfigError("no [transient] table: add one (duration, step, excitations)", file=cfg.source,
                               key="transient")
+        _check_output_volume(job, force_large)
         spec_opts = cfg.transient.spectrum
         run = _static_pipeline(job, modal=spec_opts.enabled)
-        _run_transient(job, run)
+        _run_transient(job, run, force_large=force_large)
 
     _run(body)
+
+
+def _check_output_volume(job: "_Job", force_large: bool) -> None:
+    """Before any work: histories above transient.max_output_mb need --force-large (exit 2)."""
+    from .system import build_system
+    from .transient import output_volume
+
+    opts = job.cfg.transient
+    n_samples, volume = output_volume(build_system(job.cfg, job.layout), opts)
+    if volume > opts.max_output_mb * 1e6 and not force_large:
+        from .errors import ConfigError
+
+        raise ConfigError(f"the histories would take {volume / 1e6:.4g} MB ({n_samples:,} samples every "
+                          f"{opts.output_interval:g} s over {opts.duration:g} s), above transient.max_output_mb = "
+                          f"{opts.max_output_mb:g} MB: raise transient.output_interval, record fewer series "
+                          f"([transient.record]) or pass --force-large", file=str(job.cfg.source),
+                          key="transient.output_interval")
 
 
 def _warm_kernels(con) -> None:
@@ -385,7 +405,7 @@ def _warm_kernels(con) -> None:
         raise KeyboardInterrupt
 
 
-def _run_transient(job: "_Job", run) -> None:
+def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
     import numpy as np
 
     from .results_io import GroupData, StreamWriter, Variable
@@ -394,8 +414,8 @@ def _run_transient(job: "_Job", run) -> None:
     cfg = job.cfg
     opts = cfg.transient
     model, res, mres = run.system, run.static, run.modal
-    _warm_kernels(_console())
     setup = prepare(model, res, opts)
+    _warm_kernels(_console())
     shapes = {name: len(v) for name, v in setup.coords.items()}
     series = {s.name: (tuple(shapes[d] for d in s.dims), s.units, s.dims) for s in setup.series}
     keep = {s.name for s in setup.series if s.name in SPECTRUM_SERIES} if opts.spectrum.enabled else set()
@@ -404,6 +424,11 @@ def _run_transient(job: "_Job", run) -> None:
              "output_interval_s": opts.output_interval, "start": opts.start}
     with StreamWriter(job.output, "transient", series=series, coords=setup.coords, attrs=attrs,
                       config_toml=job.toml, config_sha256=job.sha, force=True) as writer:
+        if "dof" in setup.coords:  # full state recorded: the unit of each DOF beside q and v
+            from .export import dof_unit_variable
+
+            writer.add_variables((dof_unit_variable(model),))
+
         def sink(t, batch):
             writer.append(t, batch)
 

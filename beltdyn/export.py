@@ -32,7 +32,7 @@ def dof_force_unit(unit: str) -> str:
     return "N" if unit == "m" else "N m"
 
 
-def _dof_unit_variable(model: DriveModel) -> Variable:
+def dof_unit_variable(model: DriveModel) -> Variable:
     return Variable(name="dof_unit", data=dof_units(model), dims=("dof",), units="1",
                     description="unit of each generalized coordinate (rad, m, or 1 for a slope)")
 
@@ -123,7 +123,7 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
                      description="travel of the adjustable pulley from its given centre"),
             Variable(name="q", data=res.q, dims=("dof",), units=MIXED,
                      description="independent coordinates from the reference state, each in its dof_unit"),
-            _dof_unit_variable(model),
+            dof_unit_variable(model),
             Variable(name="dof_force_unit", data=[dof_force_unit(u) for u in dof_units(model)], dims=("dof",),
                      units="1", description="unit of the generalized force on each DOF (N for m, N m for rad or 1)"),
             Variable(name="spring_preload", data=res.spring_preload, dims=("dof",), units="mixed (see dof_force_unit)",
@@ -161,7 +161,7 @@ def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
             Variable(name="shape", data=res.shapes, dims=("mode", "dof"), units=MIXED,
                      description="mass-normalized mode shapes (phi^T M phi = 1): entry i in dof_unit[i] "
                                  "per sqrt(kg m^2)"),
-            _dof_unit_variable(model),
+            dof_unit_variable(model),
             Variable(name="rigid_frequency", data=res.rigid_frequency, dims=("rigid",), units="Hz"),
         ),
         attrs={"n_rigid": int(res.n_rigid), "solver": res.solver, "n_dof": int(model.n_dof)},

@@ -98,6 +98,18 @@ def accuracy_warnings(opts: TransientOptions, *, energy_error: float, excitation
     return tuple(out)
 
 
+def output_volume(system: System, opts: TransientOptions) -> tuple[int, int]:
+    """(samples, bytes) the run's histories will write: float64 values of every recorded series plus
+    the time, at every output time from 0 to the duration (the spectra and attributes are small).
+    Known before any analysis runs."""
+    cons_dof = [int(system.rot_dof[system.pulley_index(r.pulley)]) for r in opts.rotation]
+    series, coords = _series(system, opts, cons_dof)
+    shapes = {name: len(v) for name, v in coords.items()}
+    per_sample = 1 + sum(int(np.prod([shapes[d] for d in s.dims], dtype=np.int64)) for s in series)
+    n = int(math.floor(opts.duration / opts.output_interval + 1e-9)) + 1
+    return n, 8 * n * per_sample
+
+
 def belt_travel(system: System) -> np.ndarray:
     """u_nom (n_dof,): the rigid belt loop advanced by 1 m (pulley rotations +-1/R, nodes along t)."""
     u = np.zeros(system.n_dof)
@@ -265,9 +277,10 @@ def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
                               description="generalized force each prescribed rotation applies"))
     if rec.full_state:
         coords["dof"] = list(system.dof_labels)
-        out.append(Series(name="q", dims=("dof",), units="mixed (see dof units)", description="independent coordinates"))
-        out.append(Series(name="v", dims=("dof",), units="mixed (see dof units, per s)",
-                          description="their time derivatives"))
+        out.append(Series(name="q", dims=("dof",), units="mixed (see dof_unit)",
+                          description="independent coordinates from the reference state, each in its dof_unit"))
+        out.append(Series(name="v", dims=("dof",), units="mixed (see dof_unit, per s)",
+                          description="their time derivatives, each in its dof_unit per s"))
     return tuple(out), coords
 
 

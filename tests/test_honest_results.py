@@ -426,6 +426,21 @@ def test_mixed_unit_datasets_carry_dof_units(tmp_path):
         assert set(units) == {"rad", "m", "1"}
 
 
+def test_transient_full_state_carries_dof_units(tmp_path):
+    # /transient q and v (transient.record.full_state) point to a dof_unit variable on the dof axis,
+    # the same per-DOF units as /static.
+    r = run("transient", TRANSIENT, "-o", "t.h5", "--duration", "0.01", "--set", "transient.record.full_state=true",
+            "--set", "transient.spectrum.enabled=false", cwd=tmp_path, timeout=300)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "t.h5") as f:
+        g = f["transient"]
+        assert g["q"].attrs["units"] == "mixed (see dof_unit)"
+        assert g["v"].attrs["units"] == "mixed (see dof_unit, per s)"
+        assert g["dof_unit"].dims[0][0].name == g["dof"].name == g["q"].dims[1][0].name
+        assert list(g["dof_unit"].asstr()[()]) == list(f["static/dof_unit"].asstr()[()])
+        assert list(g["dof"].asstr()[()]) == list(f["static/dof"].asstr()[()])
+
+
 def test_swept_parameters_carry_their_units(tmp_path):
     from beltdyn.export import param_units
 
@@ -532,3 +547,38 @@ def test_build_has_no_license_warning(tmp_path):
     with zipfile.ZipFile(wheel) as z:
         meta = z.read(next(n for n in z.namelist() if n.endswith("METADATA"))).decode()
     assert "License-Expression: MIT" in meta
+
+
+# ------------------------------------------------------------------------ output volume guard
+def test_output_volume_estimate_is_the_written_volume(tmp_path):
+    # The estimate that guards --force-large counts every float64 value the histories will hold: it
+    # equals the bytes of the time-dependent datasets actually written (exactly).
+    from beltdyn.config import load_config
+    from beltdyn.system import build_system
+    from beltdyn.transient import output_volume
+
+    sets = ["transient.duration=0.01", "transient.output_interval=1e-4", "transient.spectrum.enabled=false"]
+    r = run("transient", TRANSIENT, "-o", "t.h5", *[a for s in sets for a in ("--set", s)], cwd=tmp_path, timeout=300)
+    assert r.returncode == 0, r.stderr
+    cfg = load_config(TRANSIENT, sets)
+    n, volume = output_volume(build_system(cfg), cfg.transient)
+    with h5py.File(tmp_path / "t.h5") as f:
+        g = f["transient"]
+        written = [ds for ds in g.values() if isinstance(ds, h5py.Dataset) and ds.shape and ds.shape[0] == n]
+        assert n == g["time"].shape[0] == 101
+        assert volume == sum(ds.size * ds.dtype.itemsize for ds in written)
+
+
+def test_output_above_the_bound_needs_force_large(tmp_path):
+    # 1 ms at 1e-8 s output interval = 100,001 samples, about 18 MB, above a 10 MB bound: exit 2 before
+    # any work (no file), naming the key, the volume and --force-large; with --force-large it is written.
+    args = ["transient", TRANSIENT, "-o", "big.h5", "--duration", "0.001", "--set", "transient.output_interval=1e-8",
+            "--set", "transient.max_output_mb=10", "--set", "transient.spectrum.enabled=false"]
+    r = run(*args, cwd=tmp_path, timeout=300)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert "transient.output_interval" in r.stderr and "--force-large" in r.stderr and "MB" in r.stderr
+    assert not list(tmp_path.glob("big.h5*"))
+    r = run(*args, "--force-large", cwd=tmp_path, timeout=300)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "big.h5") as f:
+        assert f["transient"].attrs["status"] == "complete" and f["transient/time"].shape == (100001,)
