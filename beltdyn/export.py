@@ -158,6 +158,10 @@ def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
             Variable(name="energy_share", data=res.energy_share, dims=("mode", "energy_kind"), units="1",
                      description="share of the modal kinetic energy"),
             Variable(name="span_share", data=res.span_share, dims=("mode", "belt_span"), units="1"),
+            Variable(name="midspan_displacement", data=res.midspan_displacement, dims=("mode", "belt_span"),
+                     units="m per sqrt(kg m^2)",
+                     description="mid-span displacement of each mass-normalized shape across the chord between the "
+                                 "span's moving end points (the definition of /transient midspan_displacement)"),
             Variable(name="shape", data=res.shapes, dims=("mode", "dof"), units=MIXED,
                      description="mass-normalized mode shapes (phi^T M phi = 1): entry i in dof_unit[i] "
                                  "per sqrt(kg m^2)"),

@@ -38,6 +38,7 @@ class ModalResult:
     label: tuple[str, ...]
     energy_share: np.ndarray  # (n_modes, 4) kinetic-energy shares, columns as KINDS
     span_share: np.ndarray  # (n_modes, n_span) span (axial + transverse) share of the kinetic energy
+    midspan_displacement: np.ndarray  # (n_modes, n_span) mid-span motion across the moving chord per shape
     n_rigid: int
     rigid_frequency: np.ndarray  # (n_rigid,) Hz (numerically ~0)
     solver: str
@@ -116,9 +117,12 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     freq = np.sqrt(np.maximum(w_el, 0.0)) / (2 * np.pi)
     shapes = v_el.T.copy()
     kind, order, span, label, share, sshare = classify(model, shapes, freq)
+    belt = model.belt
+    mid = belt.midspan_displacement_linear(belt.element_coordinates(q),
+                                           belt.element_coordinates_batch(shapes, offset=False))
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order, span=span, label=label, energy_share=share,
-        span_share=sshare, n_rigid=n_rigid, rigid_frequency=np.sqrt(np.abs(w[rigid])) / (2 * np.pi),
+        span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid, rigid_frequency=np.sqrt(np.abs(w[rigid])) / (2 * np.pi),
         solver=name)
 
 

@@ -306,6 +306,49 @@ class BeltSpans:
         total = float(el.length.sum())
         return float((el.wL * N).sum() / total), self.reduce_vector(g) / total
 
+    # -------------------------------------------------------------------- mid-span motion
+    @property
+    def midspan_point(self) -> tuple[np.ndarray, np.ndarray]:
+        """(elements (n_span,), shape functions (n_span, 4)) of each span's mid-span point: the middle
+        node (even mesh) or the middle of the middle element (odd mesh). Cached."""
+        mid = self.__dict__.get("_mid")
+        if mid is None:
+            n_e = len(self.span_elements[0])
+            k, xi = (n_e // 2, 0.0) if n_e % 2 == 0 else ((n_e - 1) // 2, 0.5)
+            els = np.array([self.span_elements[s][k] for s in range(self.n_span)])
+            s_fun, _, _ = ancf.shape_functions(np.array([xi]), self.elements.length[els])
+            mid = (els, s_fun[:, 0, :])
+            object.__setattr__(self, "_mid", mid)
+        return mid
+
+    def midspan_displacement(self, E: np.ndarray) -> np.ndarray:
+        """(B, n_span) transverse displacement of the mid-span point from the chord between the span's
+        current end points, along the chord's normal z x t (m), for element states E (B, n_elem, 8).
+        Rigid motion of the span (its ends moving with the pulleys) and axial motion give none."""
+        p, r0, c = self._midspan_terms(E)
+        n = np.stack([-c[..., 1], c[..., 0]], axis=-1) / np.linalg.norm(c, axis=-1, keepdims=True)
+        return np.einsum("bsd,bsd->bs", p - r0, n)
+
+    def midspan_displacement_linear(self, E: np.ndarray, dE: np.ndarray) -> np.ndarray:
+        """(B, n_span) the first-order change of `midspan_displacement` at the state E (n_elem, 8) for
+        element motions dE (B, n_elem, 8) (mode shapes). With the chord c = r1 - r0, n = J c / |c|:
+        d(delta) = (dp - dr0) . n + (p - r0) . dn,  dn = J dc / |c| - J c (c . dc) / |c|^3."""
+        p, r0, c = self._midspan_terms(E[None])
+        dp, dr0, dc = self._midspan_terms(dE, offset=False)
+        norm = np.linalg.norm(c, axis=-1, keepdims=True)
+        Jc = np.stack([-c[..., 1], c[..., 0]], axis=-1)
+        Jdc = np.stack([-dc[..., 1], dc[..., 0]], axis=-1)
+        dn = Jdc / norm - Jc * (np.einsum("bsd,bsd->bs", c, dc)[..., None] / norm ** 3)
+        return np.einsum("bsd,bsd->bs", dp - dr0, Jc / norm) + np.einsum("bsd,bsd->bs", p - r0, dn)
+
+    def _midspan_terms(self, E: np.ndarray, offset: bool = True):
+        """Mid-span point p, start r0 and chord c = r_end - r0, each (B, n_span, 2)."""
+        els, sfun = self.midspan_point
+        B = E.shape[0]
+        p = np.einsum("sk,bskd->bsd", sfun, E[:, els].reshape(B, len(els), 4, 2))
+        r0 = E[:, self.first, 0:2]
+        return p, r0, E[:, self.last, 4:6] - r0
+
     def end_forces(self, E: np.ndarray, Ed: np.ndarray | None, gravity: np.ndarray) -> np.ndarray:
         """Force of each span on its end nodes, (B, n_span, 2 ends, 2), from element states
         E, Ed (B, n_elem, 8): internal (elastic + belt damping) - weight of the end elements, position

@@ -571,15 +571,6 @@ class Observers:
     setup: TransientSetup
 
     def __post_init__(self) -> None:
-        belt = self.system.belt
-        n_e = len(belt.span_elements[0])
-        # mid-span point: the middle node (even mesh) or the middle of the middle element (odd mesh)
-        k, xi = (n_e // 2, 0.0) if n_e % 2 == 0 else ((n_e - 1) // 2, 0.5)
-        from . import ancf
-
-        els = np.array([belt.span_elements[s][k] for s in range(belt.n_span)])
-        s_fun, _, _ = ancf.shape_functions(np.array([xi]), belt.elements.length[els])
-        self.mid = (els, s_fun[:, 0, :])
         self.names = {s.name for s in self.setup.series}
 
     def compute(self, t, q, v, a, energy, reaction) -> dict[str, np.ndarray]:
@@ -615,14 +606,7 @@ class Observers:
                 if obs.name in names:
                     out.update(c.observe(sysm, q, setup.preload))
         if "midspan_displacement" in names:
-            els, sfun = self.mid
-            B = q.shape[0]
-            pos = np.einsum("sk,bskd->bsd", sfun, E[:, els].reshape(B, len(els), 4, 2))
-            r0 = E[:, belt.first, 0:2]
-            r1 = E[:, belt.last, 4:6]
-            chord = r1 - r0
-            nrm = np.stack([-chord[..., 1], chord[..., 0]], axis=-1) / np.linalg.norm(chord, axis=-1, keepdims=True)
-            out["midspan_displacement"] = np.einsum("bsd,bsd->bs", pos - r0, nrm)
+            out["midspan_displacement"] = belt.midspan_displacement(E)
         if "energy" in names:
             out["energy"] = energy
         if "driver_torque" in names:
