@@ -413,6 +413,10 @@ class Rotation:
     frequency: float = key(NONNEGFLOAT, 0.0, doc="frequency of the fluctuation", units="Hz")
     phase: float = key(FLOAT, 0.0, doc="phase of the fluctuation", units="rad")
     fluctuation_ramp: float = key(NONNEGFLOAT, 0.0, doc="smooth fade-in of the fluctuation", units="s")
+    order: float = key(NONNEGFLOAT, 0.0, omit_default=True,
+                       doc="engine order: the fluctuation runs at order x the nominal rotation (phase order x "
+                           "nominal angle, so it follows the speed ramp) instead of at `frequency`; a "
+                           "4-cylinder crank fires at order 2", units="1")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -888,8 +892,13 @@ def _check_transient(chk: _Checker, t: TransientOptions, pulleys: tuple[Pulley, 
         _pulley_index(chk, f"{key}.pulley", r.pulley, names)
         if r.amplitude and r.speed_amplitude:
             raise chk.fail(f"{key}.speed_amplitude", "give either amplitude (angle) or speed_amplitude, not both")
-        if (r.amplitude or r.speed_amplitude) and not r.frequency > 0:
-            raise chk.fail(f"{key}.frequency", "a fluctuation needs frequency > 0")
+        if r.order > 0:
+            if r.frequency:
+                raise chk.fail(f"{key}.frequency", "give either order (follows the speed) or frequency, not both")
+            if r.speed == 0.0:
+                raise chk.fail(f"{key}.order", "an engine-order fluctuation needs a mean speed (speed != 0)")
+        elif (r.amplitude or r.speed_amplitude) and not r.frequency > 0:
+            raise chk.fail(f"{key}.frequency", "a fluctuation needs frequency > 0 (or an engine order)")
     if len(t.rotation) > 1:
         raise chk.fail("transient.rotation[1]", "only one pulley rotation can be prescribed")
     loads = []

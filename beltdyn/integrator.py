@@ -62,7 +62,7 @@ Csr = namedtuple("Csr", ["indptr", "indices", "data"])
 Linear = namedtuple("Linear", ["K", "q_ref", "C", "M"])  # constant stiffness, its reference state, damping, mass
 Forcing = namedtuple("Forcing", ["constant", "load_dof", "load_coef", "load_sig", "sig_params", "tab_ptr", "tab_t",
                                  "tab_v", "nominal_mass", "nominal_rotation", "nominal_scale"])
-Constraints = namedtuple("Constraints", ["dof", "params"])  # dof (k,), params (k, 8): rotation law + static offset
+Constraints = namedtuple("Constraints", ["dof", "params"])  # dof (k,), params (k, 9): rotation law (rotation_state)
 Check = namedtuple("Check", ["group", "n_groups", "tol", "max_iter", "noise"])
 StepOptions = namedtuple("StepOptions", ["am", "af", "beta", "gamma", "t_stop", "dt_out", "max_steps"])
 Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind 0 band Cholesky, 1 band LU
@@ -138,23 +138,31 @@ def rotation_state(rot, t):
     """Prescribed rotation: (nominal angle, speed, acceleration), (fluctuation angle, speed, acceleration).
 
     rot = [speed Omega, ramp T_r, angle amplitude A, speed amplitude B, frequency f, phase phi, fade T_f,
-           static angle offset] (the offset is added to the prescribed DOF by the caller).
-    Nominal: speed ramps linearly to Omega over T_r. Fluctuation: w(t) * A sin(wt + phi) for an angle
-    amplitude, or the angle whose speed is w(t) * B sin(wt + phi) (integrated analytically, zero at t=0
-    for the unfaded part), w(t) the smoothstep fade-in over T_f.
+           static angle offset, engine order k] (the offset is added to the prescribed DOF by the caller).
+    Nominal: speed ramps linearly to Omega over T_r. Fluctuation: w(t) * A sin(psi) for an angle
+    amplitude, or the angle whose speed is w(t) * B sin(psi) (zero at t=0 for the unfaded part), w(t)
+    the smoothstep fade-in over T_f. The phase psi = 2 pi f t + phi, or with an engine order k > 0
+    psi = k theta_nominal(t) + phi (it follows the ramp). With an order, a speed amplitude is the
+    angle (B / (k Omega)) (cos phi - cos psi): speed amplitude B at the mean speed, in proportion below.
     """
-    om, tr, A, B, f, phi, tf = rot[0], rot[1], rot[2], rot[3], rot[4], rot[5], rot[6]
+    om, tr, A, B, f, phi, tf, k = rot[0], rot[1], rot[2], rot[3], rot[4], rot[5], rot[6], rot[8]
     if tr > 0.0 and t < tr:
         th, thd, thdd = 0.5 * om * t * t / tr, om * t / tr, om / tr
     else:
         th, thd, thdd = om * (t - 0.5 * tr), om, 0.0
-    w = 2.0 * np.pi * f
+    if k > 0.0:
+        psi, psid, psidd = k * th + phi, k * thd, k * thdd
+    else:
+        psi, psid, psidd = 2.0 * np.pi * f * t + phi, 2.0 * np.pi * f, 0.0
     if A != 0.0:
-        g, gd, gdd = A * np.sin(w * t + phi), A * w * np.cos(w * t + phi), -A * w * w * np.sin(w * t + phi)
-    elif B != 0.0 and w > 0.0:
-        g = (B / w) * (np.cos(phi) - np.cos(w * t + phi))
-        gd = B * np.sin(w * t + phi)
-        gdd = B * w * np.cos(w * t + phi)
+        g = A * np.sin(psi)
+        gd = A * psid * np.cos(psi)
+        gdd = A * (psidd * np.cos(psi) - psid * psid * np.sin(psi))
+    elif B != 0.0 and (k > 0.0 or f > 0.0):
+        c = B / (k * om) if k > 0.0 else B / psid
+        g = c * (np.cos(phi) - np.cos(psi))
+        gd = c * psid * np.sin(psi)
+        gdd = c * (psidd * np.sin(psi) + psid * psid * np.cos(psi))
     else:
         g, gd, gdd = 0.0, 0.0, 0.0
     s, sd, sdd = smoothstep(t, tf)

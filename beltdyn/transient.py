@@ -163,17 +163,17 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
     u_nom = belt_travel(system)
     # constraints: prescribed rotations (any number); the first with a speed carries the belt travel
     cons_dof, cons_par = [], []
-    nom_rot, nom_scale, f_exc = np.zeros(8), 0.0, None
+    nom_rot, nom_scale, f_exc = np.zeros(9), 0.0, None
     for r in opts.rotation:
         d = int(system.rot_dof[system.pulley_index(r.pulley)])
         par = np.array([r.speed, r.ramp_time, r.amplitude, r.speed_amplitude, r.frequency, r.phase, r.fluctuation_ramp,
-                        static.q[d] if opts.start == "static" else 0.0])
+                        static.q[d] if opts.start == "static" else 0.0, r.order])
         cons_dof.append(d)
         cons_par.append(par)
         if r.speed != 0.0 and nom_scale == 0.0:
             nom_rot, nom_scale = par.copy(), 1.0 / u_nom[d]
-        if f_exc is None and (r.amplitude or r.speed_amplitude):
-            f_exc = r.frequency
+        if f_exc is None and (r.amplitude or r.speed_amplitude):  # at the mean speed for an engine order
+            f_exc = r.order * abs(r.speed) / (2.0 * np.pi) if r.order > 0 else r.frequency
     # loads: one channel per (signal, DOF)
     params, tabs_t, tabs_v, ptr = [], [], [], [0]
     load_dof, load_coef, load_sig = [], [], []
@@ -225,7 +225,7 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
         tab_v=np.array(tabs_v, dtype=float), nominal_mass=np.asarray(M @ u_nom).ravel().astype(float),
         nominal_rotation=nom_rot, nominal_scale=float(nom_scale))
     constraints = itg.Constraints(dof=np.array(cons_dof, dtype=np.int64),
-                                  params=np.array(cons_par, dtype=float).reshape(-1, 8))
+                                  params=np.array(cons_par, dtype=float).reshape(-1, 9))
     perm, bandwidth = band_order(system)
     q0 = static.q.copy() if opts.start == "static" else np.zeros(n)
     series, coords = _series(system, opts, cons_dof)
@@ -638,7 +638,7 @@ def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.
     forcing = itg.Forcing(constant=np.zeros(n), load_dof=np.zeros(0, dtype=np.int64), load_coef=np.zeros(0),
                           load_sig=np.zeros(0, dtype=np.int64), sig_params=np.zeros((0, 5)),
                           tab_ptr=np.zeros(1, dtype=np.int64), tab_t=np.zeros(0), tab_v=np.zeros(0),
-                          nominal_mass=np.zeros(n), nominal_rotation=np.zeros(8), nominal_scale=0.0)
+                          nominal_mass=np.zeros(n), nominal_rotation=np.zeros(9), nominal_scale=0.0)
     cons = itg.Constraints(dof=np.zeros(0, dtype=np.int64), params=np.zeros((0, 8)))
     am, af, beta, gamma = itg.alpha_parameters(rho_inf)
 

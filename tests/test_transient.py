@@ -358,3 +358,70 @@ def test_spectrum_window_after_the_end_is_a_config_error():
 
     with pytest.raises(ConfigError, match="transient.spectrum.start"):
         load_config(ROOT / "configs/examples/bench_transient_small.toml", ["transient.duration=0.5"])
+
+
+# ------------------------------------------------------------------------------ engine order
+def _law(**kw):
+    """rotation_state parameters: speed, ramp, A, B, f, phi, fade, offset, order."""
+    keys = ("speed", "ramp", "A", "B", "f", "phi", "fade", "offset", "order")
+    return np.array([float(kw.get(k, 0.0)) for k in keys])
+
+
+@pytest.mark.parametrize("law", [
+    dict(speed=80.0, ramp=0.3, A=0.01, phi=0.4, order=2.0),
+    dict(speed=-60.0, ramp=0.2, B=3.0, phi=0.2, order=1.5, fade=0.05),
+    dict(speed=80.0, A=0.02, f=45.0, phi=0.1, fade=0.1),
+    dict(speed=50.0, ramp=0.1, B=2.0, f=30.0),
+])
+def test_rotation_law_derivatives_are_consistent(law):
+    # Speed and acceleration of the nominal and fluctuation parts against central differences of the
+    # angle (h = 1e-6 s, within 1e-5 of the largest value), in and after the ramp and the fade-in.
+    from beltdyn.integrator import rotation_state
+
+    rot, h = _law(**law), 1e-6
+    for t in (0.013, 0.07, 0.18, 0.31, 0.5):
+        st = np.array(rotation_state(rot, t))
+        fwd, bwd = np.array(rotation_state(rot, t + h)), np.array(rotation_state(rot, t - h))
+        d = (fwd - bwd) / (2 * h)
+        for x, dx in ((0, 1), (1, 2), (3, 4), (4, 5)):
+            scale = max(abs(st[dx]), abs(d[x]), 1e-9)
+            assert abs(d[x] - st[dx]) <= 1e-5 * max(scale, 1.0), (law, t, x, d[x], st[dx])
+
+
+@pytest.mark.parametrize("kind", ["A", "B"])
+def test_engine_order_at_constant_speed_is_the_harmonic_at_order_times_speed(kind):
+    # At a constant mean speed Omega (no ramp) order k is the fluctuation at f = k Omega / (2 pi) with
+    # the same phase: identical laws to 1e-12.
+    from beltdyn.integrator import rotation_state
+
+    om, k = 83.0, 2.0
+    by_order = _law(speed=om, phi=0.3, order=k, **{kind: 0.01})
+    by_freq = _law(speed=om, phi=0.3, f=k * om / (2 * np.pi), **{kind: 0.01})
+    for t in np.linspace(0.0, 0.2, 17):
+        a, b = np.array(rotation_state(by_order, t)), np.array(rotation_state(by_freq, t))
+        assert np.allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
+
+
+def test_engine_order_follows_the_speed_ramp():
+    # During a linear ramp theta_nom = Omega t^2 / (2 T_r): the fluctuation's phase is k theta_nom, so its
+    # zero crossings sit where k theta_nom = m pi (the frequency rises with the speed).
+    from beltdyn.integrator import rotation_state
+
+    om, tr, k = 100.0, 1.0, 2.0
+    rot = _law(speed=om, ramp=tr, A=0.01, order=k)
+    for m in (3, 10, 25):  # t_m < T_r: inside the ramp
+        t_m = np.sqrt(2 * tr * m * np.pi / (k * om))
+        assert abs(rotation_state(rot, t_m)[3]) < 1e-12
+
+
+@pytest.mark.parametrize("sets,key", [
+    (["transient.rotation[0].order=2", "transient.rotation[0].frequency=45"], "transient.rotation[0].frequency"),
+    (["transient.rotation[0].order=2", "transient.rotation[0].speed=0", "transient.rotation[0].frequency=0"],
+     "transient.rotation[0].order"),
+])
+def test_engine_order_bad_input_names_the_key(sets, key):
+    from beltdyn.errors import ConfigError
+
+    with pytest.raises(ConfigError) as err:
+        load_config(ROOT / "configs" / "examples" / "bench_transient_small.toml", sets)
+    assert err.value.key == key
