@@ -789,7 +789,11 @@ def _print_geometry(layout) -> None:
     con.print(s)
     extra = ""
     if layout.adjust_index is not None:
-        extra = f"; adjustable pulley {layout.names[layout.adjust_index]} moved {layout.adjust_offset * 1e3:.4f} mm along its slide"
+        name = layout.names[layout.adjust_index]
+        if layout.adjust_kind == "arm":
+            extra = f"; the arm of pulley {name} turned {math.degrees(layout.adjust_offset):.4f} deg about its pivot"
+        else:
+            extra = f"; adjustable pulley {name} moved {layout.adjust_offset * 1e3:.4f} mm along its slide"
     con.print(f"belt length {layout.belt_length:.10f} m{extra}")
 
 

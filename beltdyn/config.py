@@ -31,8 +31,8 @@ from typing import Any, NamedTuple
 from .errors import ConfigError
 
 SIDES = ("inside", "backside")
-SUPPORTS = ("fixed", "slide", "bearing")
-TENSION_MODES = ("adjust", "prestrain")
+SUPPORTS = ("fixed", "slide", "bearing", "arm")
+TENSION_MODES = ("adjust", "prestrain", "spring")
 CURVATURES = ("linear", "exact", "none")
 MAX_GAUSS_POINTS = 64  # beltdyn.ancf's quadrature table (not imported: it would load numba at start-up)
 
@@ -302,8 +302,14 @@ class Pulley:
 
     side: the belt touches it from the inside of the loop or on its backside.
     support: "fixed" centre (rotation only), "slide" (moves along slide_direction against
-    bearing_stiffness, N/m) or "bearing" (moves in x and y against bearing_stiffness (kx, ky), N/m).
-    adjustable: the pulley moved along its slide to fit L0 and to set the tension.
+    bearing_stiffness, N/m), "bearing" (moves in x and y against bearing_stiffness (kx, ky), N/m) or
+    "arm" (a tensioner: the centre turns about arm_pivot on an arm of length |center - arm_pivot|,
+    angle phi counter-clockwise from +x, against the torsion spring arm_stiffness (zero torque at
+    arm_free_angle), viscous arm_damping and the dry friction torque arm_friction; the pulley's mass
+    adds m l^2 to arm_inertia through the kinematics).
+    adjustable: the pulley moved along its slide (turned on its arm) to fit L0 and to set the tension.
+    friction: effective coefficient of friction belt-pulley (V-ribbed: the wedge-effective value), for
+    the slip margin.
     driver: its rotation is held in the static analysis and reacts the applied torques.
     slide_range: (min, max) travel along the slide from `center`, m (None: unbounded).
     """
@@ -320,14 +326,45 @@ class Pulley:
     bearing_stiffness: tuple[float, float] = key(STIFFNESS, (0.0, 0.0),
                                                  doc="spring of a slide (one number) or a bearing ([kx, ky])",
                                                  units="N/m")
-    adjustable: bool = key(BOOL, False, doc="moved along its slide to fit L0 and to set the tension")
+    adjustable: bool = key(BOOL, False, doc="moved along its slide (turned on its arm) to fit L0 and to set "
+                                            "the tension")
     driver: bool = key(BOOL, False, doc="rotation held in the static analysis, reacting the applied torques")
     slide_range: tuple[float, float] | None = key(RANGE2, None, doc="[min, max] travel along the slide from "
                                                                     "center (not set: unbounded)", units="m")
+    arm_pivot: tuple[float, float] | None = key(VEC2, None, doc="fixed pivot of a tensioner arm (support = "
+                                                                "\"arm\"); the arm runs to `center`", units="m")
+    arm_inertia: float = key(NONNEGFLOAT, 0.0, omit_default=True,
+                             doc="inertia of the arm alone about its pivot (the pulley's adds itself)", units="kg m^2")
+    arm_stiffness: float = key(NONNEGFLOAT, 0.0, omit_default=True, doc="torsion spring of the arm",
+                               units="N m/rad")
+    arm_free_angle: float | None = key(FLOAT, None, doc="arm angle (counter-clockwise from +x) at which the "
+                                                        "spring torque is zero", units="rad")
+    arm_damping: float = key(NONNEGFLOAT, 0.0, omit_default=True, doc="viscous damping of the arm",
+                             units="N m s/rad")
+    arm_friction: float = key(NONNEGFLOAT, 0.0, omit_default=True,
+                              doc="dry friction torque of the arm's pivot damper (transient only)", units="N m")
+    arm_range: tuple[float, float] | None = key(RANGE2, None, doc="[min, max] arm angle between the stops",
+                                                units="rad")
+    friction: float | None = key(POSFLOAT, None, doc="effective belt-pulley friction coefficient (slip margin)",
+                                 units="1")
 
     @property
     def n_translation(self) -> int:
-        return {"fixed": 0, "slide": 1, "bearing": 2}[self.support]
+        return {"fixed": 0, "slide": 1, "bearing": 2, "arm": 0}[self.support]
+
+    @property
+    def arm_length(self) -> float:
+        """l = |center - arm_pivot| (m), 0 without an arm."""
+        if self.arm_pivot is None:
+            return 0.0
+        return math.hypot(self.center[0] - self.arm_pivot[0], self.center[1] - self.arm_pivot[1])
+
+    @property
+    def arm_angle(self) -> float:
+        """The drawn arm angle (rad): direction arm_pivot -> center."""
+        if self.arm_pivot is None:
+            return 0.0
+        return math.atan2(self.center[1] - self.arm_pivot[1], self.center[0] - self.arm_pivot[0])
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -336,15 +373,18 @@ class Tension:
     Default mode: "adjust" when a pulley is adjustable, else "prestrain".
 
     mode "adjust": spans stress-free in the L0 geometry, the adjustable pulley moved along its slide
-    until the mean span tension equals the target (the paper's bench). mode "prestrain": pulley
-    centres kept, the spans' reference length shortened so that their initial tension is the target.
+    (or turned on its arm) until the mean span tension equals the target (the paper's bench). mode
+    "prestrain": pulley centres kept, the spans' reference length shortened so that their initial
+    tension is the target. mode "spring": spans stress-free in the L0 geometry (the adjustable arm
+    turned to fit L0), then the arm's spring (arm_free_angle) turns the arm until equilibrium: the
+    tension is an output (no target).
     """
 
     target: float | None = key(POSFLOAT, None, doc="static span tension (not set: the geometry alone decides)",
                                units="N")
     mode: str = key(_Choice(*TENSION_MODES), "adjust",
-                    doc="move the adjustable pulley, or prestrain the spans (default: adjust if a pulley is "
-                        "adjustable)")
+                    doc="move the adjustable pulley, prestrain the spans, or let the tensioner arm's spring "
+                        "set it (default: adjust if a pulley is adjustable)")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -364,12 +404,23 @@ class ModelOptions:
 
 
 @dataclass(frozen=True, kw_only=True)
+class StaticTorque:
+    """[[static.torque]]: an accessory torque in the static load case (the driver reacts it)."""
+
+    pulley: str = key(STR, doc="name of the pulley it acts on (not the driver)")
+    value: float = key(FLOAT, doc="torque on the pulley, counter-clockwise positive", units="N m")
+
+
+@dataclass(frozen=True, kw_only=True)
 class StaticOptions:
-    """Newton settings: relative force tolerance, iterations per load step, number of load steps."""
+    """Newton settings: relative force tolerance, iterations per load step, number of load steps;
+    torque: the static load case's accessory torques (they also act, constant, in a transient)."""
 
     tolerance: float = key(POSFLOAT, 1e-10, doc="Newton tolerance, relative to the force scale")
     max_iterations: int = key(POSINT, 40, doc="Newton iterations per load step")
     load_steps: int = key(POSINT, 1, doc="number of load steps")
+    torque: tuple[StaticTorque, ...] = key(_Array(StaticTorque), (), omit_default=True,
+                                           doc="[[static.torque]]: accessory torques of the static load case")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -839,10 +890,40 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>") -> DriveCon
     if tension.target is not None and tension.mode == "adjust" and not adjustable:
         raise chk.fail("tension.mode", "mode \"adjust\" needs one pulley with adjustable = true "
                        "(or use mode = \"prestrain\")")
+    if tension.mode == "spring":
+        _check_spring_tension(chk, tension, pulleys)
+    _check_static_torques(chk, cfg.static, pulleys)
     transient = cfg.transient
     if transient is not None:
         transient = _check_transient(chk, transient, pulleys, file)
     return replace(cfg, pulleys=pulleys, tension=tension, transient=transient, source=file)
+
+
+def _check_spring_tension(chk: _Checker, tension: Tension, pulleys: tuple[Pulley, ...]) -> None:
+    """mode "spring": an arm pulley with a spring and its free angle sets the tension (no target)."""
+    if tension.target is not None:
+        raise chk.fail("tension.target", "with mode = \"spring\" the arm's spring sets the tension (an output): "
+                                         "remove tension.target, or use mode = \"adjust\"")
+    arms = [i for i, p in enumerate(pulleys) if p.support == "arm"]
+    if not arms:
+        raise chk.fail("tension.mode", "mode \"spring\" needs a pulley with support = \"arm\"")
+    for i in arms:
+        p = pulleys[i]
+        if p.arm_free_angle is None:
+            raise chk.fail(f"pulleys[{i}].arm_free_angle", "missing key: tension mode \"spring\" needs the angle "
+                                                          "at which the arm's spring torque is zero (rad)")
+        if not p.arm_stiffness > 0:
+            raise chk.fail(f"pulleys[{i}].arm_stiffness", "tension mode \"spring\" needs arm_stiffness > 0")
+
+
+def _check_static_torques(chk: _Checker, opts: StaticOptions, pulleys: tuple[Pulley, ...]) -> None:
+    names = [p.name for p in pulleys]
+    driver = next((i for i, p in enumerate(pulleys) if p.driver), 0)
+    for i, tq in enumerate(opts.torque):
+        j = _pulley_index(chk, f"static.torque[{i}].pulley", tq.pulley, names)
+        if j == driver:
+            raise chk.fail(f"static.torque[{i}].pulley", f"'{tq.pulley}' is the driver: its rotation is held and "
+                                                         f"reacts the torques; put the torque on an accessory")
 
 
 def _check_pulleys(chk: _Checker, raw: list[dict[str, Any]], pulleys: tuple[Pulley, ...]) -> tuple[Pulley, ...]:
@@ -860,8 +941,21 @@ def _check_pulleys(chk: _Checker, raw: list[dict[str, Any]], pulleys: tuple[Pull
                            "use support = \"slide\" or \"bearing\"")
         if p.support == "slide" and isinstance(praw.get("bearing_stiffness"), list):
             raise chk.fail(f"{key}.bearing_stiffness", "a slide has one stiffness (N/m along the slide)")
-        if p.adjustable and p.support != "slide":
-            raise chk.fail(f"{key}.adjustable", "the adjustable pulley needs support = \"slide\"")
+        if p.adjustable and p.support not in ("slide", "arm"):
+            raise chk.fail(f"{key}.adjustable", "the adjustable pulley needs support = \"slide\" or \"arm\"")
+        arm_keys = [k for k in ("arm_pivot", "arm_inertia", "arm_stiffness", "arm_free_angle", "arm_damping",
+                                "arm_friction", "arm_range") if k in praw]
+        if p.support != "arm" and arm_keys:
+            raise chk.fail(f"{key}.{arm_keys[0]}", "only a pulley with support = \"arm\" has arm settings")
+        if p.support == "arm":
+            if p.arm_pivot is None:
+                raise chk.fail(f"{key}.arm_pivot", "missing key: an arm pulley needs arm_pivot = [x, y] (m)")
+            if any(p.bearing_stiffness):
+                raise chk.fail(f"{key}.bearing_stiffness", "an arm pulley has no bearing spring: its arm has "
+                                                          "arm_stiffness (N m/rad)")
+            if p.arm_length <= p.radius:
+                raise chk.fail(f"{key}.arm_pivot", f"the pivot lies inside the pulley (arm length "
+                                                  f"{p.arm_length:.6g} m <= radius {p.radius:g} m)")
         if p.slide_range is not None and p.support != "slide":
             raise chk.fail(f"{key}.slide_range", "only a slide pulley has a slide range")
         out.append(p)

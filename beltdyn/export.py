@@ -96,7 +96,8 @@ def geometry_group(layout: Layout) -> GroupData:
             Variable(name="belt_length", data=np.array(layout.belt_length), dims=(), units="m"),
         ),
         attrs={"orientation": "counter-clockwise" if layout.orientation > 0 else "clockwise",
-               "adjust_offset_m": float(layout.adjust_offset)},
+               **({"adjust_turn_rad": float(layout.adjust_offset)} if layout.adjust_kind == "arm"
+                  else {"adjust_offset_m": float(layout.adjust_offset)})},
     )
 
 

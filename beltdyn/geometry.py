@@ -49,6 +49,7 @@ class Layout:
     belt_length: float  # m
     adjust_offset: float = 0.0  # m, travel of the adjustable pulley along its slide from its given centre
     adjust_index: int | None = None
+    adjust_kind: str = "slide"  # "slide": adjust_offset in m along the slide; "arm": the angle (rad) the arm turned
 
     @property
     def n(self) -> int:
@@ -183,17 +184,31 @@ def fit_adjustable(
     direction: np.ndarray,
     target_length: float,
     slide_range: tuple[float, float] | None = None,
+    pivot: np.ndarray | None = None,
     tol: float = 1e-13,
     max_iter: int = 100,
 ) -> Layout:
     """Newton on the offset s along `direction` of pulley `index` until the belt length equals L0.
 
-    Backtracks when a step leaves the feasible region; raises GeometryError (key belt.length) when
-    L0 cannot be reached.
+    With a `pivot` (a tensioner arm) s is the angle (rad, counter-clockwise) the arm turns about the
+    pivot instead, and slide_range bounds that angle offset. Backtracks when a step leaves the
+    feasible region; raises GeometryError (key belt.length) when L0 cannot be reached.
     """
     center = np.array(center, dtype=float)
     direction = np.asarray(direction, dtype=float)
     name = names[index]
+    arm = None if pivot is None else np.asarray(pivot, dtype=float)
+    how = "moving pulley" if arm is None else "turning the arm of pulley"
+    where = "along its slide" if arm is None else "about its pivot"
+
+    def offset_point(s: float) -> np.ndarray:
+        """The pulley's centre at offset s, and d centre / ds."""
+        if arm is None:
+            return center[index] + s * direction, direction
+        r = center[index] - arm
+        c, sn = math.cos(s), math.sin(s)
+        rot = np.array([c * r[0] - sn * r[1], sn * r[0] + c * r[1]])
+        return arm + rot, np.array([-rot[1], rot[0]])
     try:
         base = compute_layout(center, radius, side_sign, names)
     except GeometryError as exc:
@@ -202,7 +217,7 @@ def fit_adjustable(
 
     def layout_at(s: float) -> Layout:
         c = center.copy()
-        c[index] = center[index] + s * direction
+        c[index] = offset_point(s)[0]
         return compute_layout(c, radius, side_sign, names, orientation=orientation)
 
     s, lay = 0.0, base
@@ -210,11 +225,13 @@ def fit_adjustable(
         f = lay.belt_length - target_length
         if abs(f) <= tol * target_length:
             break
-        slope = float(belt_length_gradient(lay, index) @ direction)
-        if abs(slope) < 1e-9:
+        slope = float(belt_length_gradient(lay, index) @ offset_point(s)[1])
+        if abs(slope) < 1e-9 * (1.0 if arm is None else float(np.hypot(*(center[index] - arm)))):
             raise GeometryError(
-                f"moving pulley '{name}' along its slide does not change the belt length "
-                f"(slide_direction perpendicular to the belt pull)", f"pulleys[{index}].slide_direction")
+                f"{how} '{name}' {where} does not change the belt length "
+                + ("(slide_direction perpendicular to the belt pull)" if arm is None else
+                   "(the arm points along the belt pull)"),
+                f"pulleys[{index}].{'slide_direction' if arm is None else 'arm_pivot'}")
         step = -f / slope
         for _ in range(60):
             try:
@@ -230,19 +247,26 @@ def fit_adjustable(
         if trial is None or abs(trial.belt_length - target_length) >= abs(f):
             word = "short" if f > 0 else "long"
             raise GeometryError(
-                f"L0 = {target_length:.6g} m is too {word}: moving pulley '{name}' along its slide "
+                f"L0 = {target_length:.6g} m is too {word}: {how} '{name}' {where} "
                 f"cannot make the belt fit (closest belt length {lay.belt_length:.6g} m at offset {s:.6g} m)",
                 "belt.length")
         s, lay = s + step, trial
     else:
         raise GeometryError(f"L0 fit did not converge (belt length {lay.belt_length:.9g} m)", "belt.length")
     if slide_range is not None and not (slide_range[0] <= s <= slide_range[1]):
-        word = "short" if s * float(belt_length_gradient(lay, index) @ direction) < 0 else "long"
+        word = "short" if s * float(belt_length_gradient(lay, index) @ offset_point(s)[1]) < 0 else "long"
+        if arm is None:
+            raise GeometryError(
+                f"L0 = {target_length:.6g} m is too {word} to reach along the slide of pulley '{name}': "
+                f"needs an offset of {s:.6g} m, slide_range is [{slide_range[0]:g}, {slide_range[1]:g}] m",
+                "belt.length")
+        phi0 = math.atan2(*(center[index] - arm)[::-1])
         raise GeometryError(
-            f"L0 = {target_length:.6g} m is too {word} to reach along the slide of pulley '{name}': "
-            f"needs an offset of {s:.6g} m, slide_range is [{slide_range[0]:g}, {slide_range[1]:g}] m",
-            "belt.length")
-    return Layout(**{**lay.__dict__, "adjust_offset": s, "adjust_index": index})
+            f"L0 = {target_length:.6g} m is too {word} to reach with the arm of pulley '{name}': needs the "
+            f"arm at {phi0 + s:.6g} rad, between its stops arm_range = [{phi0 + slide_range[0]:g}, "
+            f"{phi0 + slide_range[1]:g}] rad", "belt.length")
+    return Layout(**{**lay.__dict__, "adjust_offset": s, "adjust_index": index,
+                     "adjust_kind": "slide" if arm is None else "arm"})
 
 
 def layout_from_config(cfg: DriveConfig) -> Layout:
@@ -254,9 +278,35 @@ def layout_from_config(cfg: DriveConfig) -> Layout:
     try:
         a = cfg.adjustable_index
         if a is None:
-            return compute_layout(center, radius, side, names)
-        p = cfg.pulleys[a]
-        return fit_adjustable(center, radius, side, names, index=a, direction=np.array(p.slide_direction),
-                              target_length=cfg.belt.length, slide_range=p.slide_range)
+            lay = compute_layout(center, radius, side, names)
+        else:
+            p = cfg.pulleys[a]
+            if p.support == "arm":
+                phi0 = p.arm_angle if p.arm_range is None else unwrap_near(p.arm_angle, sum(p.arm_range) / 2)
+                rng = None if p.arm_range is None else (p.arm_range[0] - phi0, p.arm_range[1] - phi0)
+                lay = fit_adjustable(center, radius, side, names, index=a, direction=np.zeros(2),
+                                     target_length=cfg.belt.length, slide_range=rng, pivot=np.array(p.arm_pivot))
+            else:
+                lay = fit_adjustable(center, radius, side, names, index=a, direction=np.array(p.slide_direction),
+                                     target_length=cfg.belt.length, slide_range=p.slide_range)
     except GeometryError as exc:
         raise ConfigError(str(exc), file=cfg.source, key=exc.key) from None
+    for j, p in enumerate(cfg.pulleys):  # stops that exclude the (fitted) arm angle
+        if p.support == "arm" and p.arm_range is not None:
+            phi = unwrap_near(arm_angle(lay, j, np.array(p.arm_pivot)), sum(p.arm_range) / 2)
+            if not p.arm_range[0] <= phi <= p.arm_range[1]:
+                raise ConfigError(f"the arm of pulley '{p.name}' sits at {phi:.6g} rad, outside its stops "
+                                  f"[{p.arm_range[0]:g}, {p.arm_range[1]:g}] rad", file=cfg.source,
+                                  key=f"pulleys[{j}].arm_range")
+    return lay
+
+
+def unwrap_near(angle: float, ref: float) -> float:
+    """angle + 2 pi k, the one nearest to ref."""
+    return float(angle + TWO_PI * round((ref - angle) / TWO_PI))
+
+
+def arm_angle(layout: Layout, j: int, pivot: np.ndarray) -> float:
+    """The angle (rad, counter-clockwise from +x) of the arm pivot -> centre of pulley j."""
+    d = layout.center[j] - np.asarray(pivot, dtype=float)
+    return math.atan2(float(d[1]), float(d[0]))

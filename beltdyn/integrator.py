@@ -35,6 +35,14 @@ output time, kinetic + strain (belt + linear components about q_ref) - work of t
 and reactions (trapezoid of the power over each step) + dissipated (belt and constant damping) -
 initial = balance error.
 
+Tensioner arms (`Arms`): the state q, v, a lives on the joint coordinates p = [q_ind, u] (see
+system.ArmJoints): the independent coordinates first (n_q), then each arm pulley's centre offset u =
+c(phi) - c(phi_ref), kept kinematically exact (`complete`: u, u' = c' phi', u'' = c' phi'' + c'' phi'^2).
+Forces are evaluated on p and the residual projected on q by J(q)^T (`project`); the generalized-alpha
+weights apply to the projected terms, each at its own time (Chung-Hulbert for nonlinear systems).
+An arm's dry friction torque is regularized, -T_f tanh(phi' / omega_f) (omega_f = `ARM_FRICTION_SPEED`):
+smooth, within 1 % of T_f above 2.6 omega_f; it dissipates like the dampers.
+
 Array conventions: belt data as `belt_kernel` (T (n_elem, 8, m), idx (n_elem, m) with padding
 index n, tsel, e0 (n_elem, 8), dS/d2S (n_elem, n_qp, 4), wEA/wEI (n_elem, n_qp), Kb (n_elem, 8, 8)).
 """
@@ -69,6 +77,15 @@ Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind
 State = namedtuple("State", ["q", "v", "a", "f0", "fd0", "F0", "R0", "scal"])
 Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n"])
 Events = namedtuple("Events", ["data", "n", "slack"])
+# tensioner arms: q index of the angle, p index of the centre offset x (y: + 1), arm length, angle at q = 0,
+# dry friction torque and its regularization speed; n_q the independent coordinates (p[:n_q] = q)
+Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction", "omega_f", "n_q"])
+ARM_FRICTION_SPEED = 1e-3  # rad/s: the dry friction torque is T_f tanh(phi' / ARM_FRICTION_SPEED)
+
+
+def no_arms(n: int) -> Arms:
+    return Arms(dof=np.zeros(0, dtype=np.int64), slot=np.zeros(0, dtype=np.int64), length=np.zeros(0),
+                angle=np.zeros(0), friction=np.zeros(0), omega_f=np.zeros(0), n_q=n)
 # scal slots
 T_NOW, H, T_OUT, WORK, DISS, STEPS, E0, WORST, MOVED, KIN0, POT0 = range(11)
 N_SCAL = 11
@@ -302,7 +319,54 @@ def kinetic_energy(lin, v, Mv):
 
 
 @njit(cache=True)
-def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
+def complete(arms, q, v, a):
+    """The arm pulleys' centre offsets (p entries after n_q) from the arm angles, exactly."""
+    for k in range(arms.dof.shape[0]):
+        d, s, L, ang = arms.dof[k], arms.slot[k], arms.length[k], arms.angle[k]
+        phi = ang + q[d]
+        c, sn = np.cos(phi), np.sin(phi)
+        w = v[d]
+        q[s] = L * (c - np.cos(ang))
+        q[s + 1] = L * (sn - np.sin(ang))
+        v[s] = -L * sn * w
+        v[s + 1] = L * c * w
+        a[s] = -L * sn * a[d] - L * c * w * w
+        a[s + 1] = L * c * a[d] - L * sn * w * w
+
+
+@njit(cache=True)
+def project(arms, q, x, out):
+    """out (n_q,) = J(q)^T x for x (n_p,) on the joint coordinates."""
+    for i in range(arms.n_q):
+        out[i] = x[i]
+    for k in range(arms.dof.shape[0]):
+        d, s, L = arms.dof[k], arms.slot[k], arms.length[k]
+        phi = arms.angle[k] + q[d]
+        out[d] += -L * np.sin(phi) * x[s] + L * np.cos(phi) * x[s + 1]
+
+
+@njit(cache=True)
+def project_abs(arms, q, x, out):
+    """out (n_q,) = |J(q)|^T x (round-off scales)."""
+    for i in range(arms.n_q):
+        out[i] = x[i]
+    for k in range(arms.dof.shape[0]):
+        d, s, L = arms.dof[k], arms.slot[k], arms.length[k]
+        phi = arms.angle[k] + q[d]
+        out[d] += L * (abs(np.sin(phi)) * x[s] + abs(np.cos(phi)) * x[s + 1])
+
+
+@njit(cache=True)
+def arm_friction(arms, v, f):
+    """Add the arms' regularized dry friction torques T_f tanh(phi' / omega_f) to f (on the angles)."""
+    for k in range(arms.dof.shape[0]):
+        if arms.friction[k] != 0.0:
+            d = arms.dof[k]
+            f[d] += arms.friction[k] * np.tanh(v[d] / arms.omega_f[k])
+
+
+@njit(cache=True)
+def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms):
     """Advance the state until t_stop, a full buffer, a refactorization request or the step budget.
 
     Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
@@ -310,10 +374,11 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
     each output time (exact at that step) and the constraint reactions. info (4,): on HALVE the
     time, the scaled residual, the worst DOF and the iterations.
     """
-    q, v, a = state.q, state.v, state.a
+    q, v, a = state.q, state.v, state.a  # on the joint coordinates p (n); q[:nq] independent
     th = state.scal
     am, af, beta, gamma = opts.am, opts.af, opts.beta, opts.gamma
     n = q.shape[0]
+    nq = arms.n_q
     n_elem = belt.T.shape[0]
     n_con = cons.dof.shape[0]
     B = out.t.shape[0]
@@ -333,16 +398,30 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
     q1 = np.empty(n)
     v1 = np.empty(n)
     a1 = np.empty(n)
-    R = np.empty(n)
     dq = np.empty(n)
     Ma = np.empty(n)
     Ma0 = np.empty(n)
     Cv = np.empty(n)
     Cv0 = np.empty(n)
     Kd = np.empty(n)
+    fi = np.empty(n)
+    fl = np.empty(n)
     tmp = np.empty(n)
     tmp2 = np.empty(n)
-    work = np.empty(n)
+    # the same terms projected on q (J^T at their own state): new (1) and old (0)
+    R = np.empty(nq)
+    Ma_q = np.empty(nq)
+    Cv_q = np.empty(nq)
+    fi_q = np.empty(nq)
+    F1_q = np.empty(nq)
+    Fc_q = np.empty(nq)
+    fl_q = np.empty(nq)
+    Ma0_q = np.empty(nq)
+    Cv0_q = np.empty(nq)
+    f0_q = np.empty(nq)
+    F0_q = np.empty(nq)
+    dx = np.empty(nq)
+    work = np.empty(nq)
     sig_val = np.empty(F.sig_params.shape[0])
     res_g = np.empty(G)
     scale_g = np.empty(G)
@@ -352,6 +431,10 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
     min_span = np.empty(max(belt.n_span, 1))
     csr_matvec(lin.M, a, Ma0)
     csr_matvec(lin.C, v, Cv0)
+    project(arms, q, Ma0, Ma0_q)
+    project(arms, q, Cv0, Cv0_q)
+    project(arms, q, state.f0, f0_q)
+    project(arms, q, state.F0, F0_q)
     eps = np.finfo(np.float64).eps
     steps = 0
     while True:
@@ -365,7 +448,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
         t1 = t + h
         c_a = 1.0 / (beta * h * h)
         c_v = gamma / (beta * h)
-        for i in range(n):  # predictor: same acceleration
+        for i in range(nq):  # predictor: same acceleration
             a1[i] = a[i]
             q1[i] = q[i] + h * v[i] + h * h * a[i] * 0.5
             v1[i] = v[i] + h * a[i]
@@ -375,6 +458,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
             q1[d] = cons.params[k, 7] + g  # the static rotation plus the prescribed fluctuation
             v1[d] = gd
             a1[d] = gdd
+        complete(arms, q1, v1, a1)
         external_forces(F, cons, t1, F1, sig_val)
         converged = False
         prev = np.inf
@@ -386,31 +470,39 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
                 q_ext[i] = q1[i]
                 v_ext[i] = v1[i]
             belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, min_elem)
+            arm_friction(arms, v1, f_dmp)
             for i in range(n):
                 dq[i] = q1[i] - lin.q_ref[i]
             csr_matvec(lin.K, dq, Kd)
             csr_matvec(lin.M, a1, Ma)
             csr_matvec(lin.C, v1, Cv)
+            for i in range(n):
+                fi[i] = f_el[i] + Kd[i] + f_dmp[i]
+                fl[i] = gross[i] + abs(Kd[i]) + abs(F.constant[i])
+            project(arms, q1, Ma, Ma_q)
+            project(arms, q1, Cv, Cv_q)
+            project(arms, q1, fi, fi_q)
+            project(arms, q1, F1, F1_q)
+            project(arms, q1, F.constant, Fc_q)
+            project_abs(arms, q1, fl, fl_q)
             for g in range(G):
                 res_g[g] = 0.0
                 scale_g[g] = 0.0
                 floor_g[g] = 0.0
             finite = True
-            for i in range(n):
-                fi = f_el[i] + Kd[i] + f_dmp[i]
-                R[i] = ((1.0 - am) * Ma[i] + am * Ma0[i]
-                        + (1.0 - af) * (Cv[i] + fi - F1[i]) + af * (Cv0[i] + state.f0[i] - state.F0[i]))
+            for i in range(nq):
+                R[i] = ((1.0 - am) * Ma_q[i] + am * Ma0_q[i]
+                        + (1.0 - af) * (Cv_q[i] + fi_q[i] - F1_q[i]) + af * (Cv0_q[i] + f0_q[i] - F0_q[i]))
                 g = chk.group[i]
-                sc = abs(Ma[i]) + abs(Cv[i]) + abs(fi - F.constant[i]) + abs(F1[i] - F.constant[i])
+                sc = abs(Ma_q[i]) + abs(Cv_q[i]) + abs(fi_q[i] - Fc_q[i]) + abs(F1_q[i] - Fc_q[i])
                 if sc > scale_g[g]:
                     scale_g[g] = sc
-                fl = gross[i] + abs(Kd[i]) + abs(F.constant[i])
-                if fl > floor_g[g]:
-                    floor_g[g] = fl
+                if fl_q[i] > floor_g[g]:
+                    floor_g[g] = fl_q[i]
             for k in range(n_con):
                 R[cons.dof[k]] = 0.0
             res = 0.0
-            for i in range(n):
+            for i in range(nq):
                 r = abs(R[i])
                 if not np.isfinite(r):
                     finite = False
@@ -435,16 +527,17 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
                 break
             if it >= chk.max_iter:
                 break
-            factor_solve(fac, R, dq, work)
+            factor_solve(fac, R, dx, work)
             for k in range(n_con):
-                dq[cons.dof[k]] = 0.0
+                dx[cons.dof[k]] = 0.0
             norm = 0.0
-            for i in range(n):
-                d = -dq[i]
+            for i in range(nq):
+                d = -dx[i]
                 q1[i] += d
                 v1[i] += c_v * d
                 a1[i] += c_a * d
                 norm += d * d
+            complete(arms, q1, v1, a1)
             it += 1
             if it >= 3 and norm > 0.25 * prev:  # convergence rate worse than 1/2 per iteration
                 break
@@ -466,7 +559,8 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
         if out.n[0] + n_pend > B:
             return BUFFER_FULL
         fresh = False
-        # accepted: power of external forces and reactions, dissipation (trapezoid)
+        # accepted: power of external forces and reactions, dissipation (trapezoid), on p (power is
+        # invariant: F . v_p = (J^T F) . v_q)
         p_ext = 0.0
         p_dis = 0.0
         for i in range(n):
@@ -474,7 +568,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
             p_dis += 0.5 * ((Cv[i] + f_dmp[i]) * v1[i] + (Cv0[i] + state.fd0[i]) * v[i])
         for k in range(n_con):
             d = cons.dof[k]
-            R1[k] = Ma[d] + Cv[d] + f_el[d] + Kd[d] + f_dmp[d] - F1[d]
+            R1[k] = Ma_q[d] + Cv_q[d] + fi_q[d] - F1_q[d]
             p_ext += 0.5 * (R1[k] * v1[d] + state.R0[k] * v[d])
         W_old, D_old = th[WORK], th[DISS]
         th[WORK] = W_old + h * p_ext
@@ -503,6 +597,8 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
                 out.q[k, i] = h00 * q[i] + h10 * h * v[i] + h01 * q1[i] + h11 * h * v1[i]
                 out.v[k, i] = h00 * v[i] + h10 * h * a[i] + h01 * v1[i] + h11 * h * a1[i]
                 out.a[k, i] = (1.0 - s) * a[i] + s * a1[i]
+            if arms.dof.shape[0] > 0:  # the dependent entries stay kinematically exact
+                complete(arms, out.q[k], out.v[k], out.a[k])
             out.energy[k, 0] = kin
             out.energy[k, 1] = pot
             out.energy[k, 2] = th[WORK]
@@ -532,11 +628,16 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info):
             q[i] = q1[i]
             v[i] = v1[i]
             a[i] = a1[i]
-            state.f0[i] = f_el[i] + Kd[i] + f_dmp[i]
+            state.f0[i] = fi[i]
             state.fd0[i] = f_dmp[i]
             state.F0[i] = F1[i]
             Ma0[i] = Ma[i]
             Cv0[i] = Cv[i]
+        for i in range(nq):
+            Ma0_q[i] = Ma_q[i]
+            Cv0_q[i] = Cv_q[i]
+            f0_q[i] = fi_q[i]
+            F0_q[i] = F1_q[i]
         for k in range(n_con):
             state.R0[k] = R1[k]
         th[T_NOW] = t1

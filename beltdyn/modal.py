@@ -50,9 +50,10 @@ def ordinal(n: int) -> str:
 
 
 def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "auto") -> ModalResult:
-    """The lowest `n_modes` elastic modes about the equilibrium q."""
-    _, K = model.force_and_tangent(q)
-    M = model.mass
+    """The lowest `n_modes` elastic modes about the equilibrium q (tangent of the loaded residual:
+    with tensioner arms the loads' geometric term and the mass J^T M J at q)."""
+    _, K = model.equilibrium(q)
+    M = model.mass_matrix(q)
     n = model.n_dof
     use_dense = model.dense if solver == "auto" else solver == "dense"
     n_want = min(n, n_modes + 2)  # one rigid mode is expected; more raise a mechanism error
@@ -116,26 +117,39 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     w_el, v_el = w[~rigid][:n_modes], v[:, ~rigid][:, :n_modes]
     freq = np.sqrt(np.maximum(w_el, 0.0)) / (2 * np.pi)
     shapes = v_el.T.copy()
-    kind, order, span, label, share, sshare = classify(model, shapes, freq)
+    kind, order, span, label, share, sshare = classify(model, shapes, freq, q)
     belt = model.belt
-    mid = belt.midspan_displacement_linear(belt.element_coordinates(q),
-                                           belt.element_coordinates_batch(shapes, offset=False))
+    mid = belt.midspan_displacement_linear(belt.element_coordinates(model.expand(q)),
+                                           belt.element_coordinates_batch(model.expand_motion(q, shapes),
+                                                                          offset=False))
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order, span=span, label=label, energy_share=share,
         span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid, rigid_frequency=np.sqrt(np.abs(w[rigid])) / (2 * np.pi),
         solver=name)
 
 
-def energy_shares(model: System, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Kinetic-energy shares of mass-normalized shapes (n_modes, n_dof), from the system's components.
 
     Returns shares (n_modes, len(KINDS)), span_long (n_modes, n_span), span_trans (n_modes, n_span)
     (all divided by the total) and the transverse nodal motion (n_modes, n_elem, 4).
     """
-    kinds, span_long, span_trans, b = model.kinetic_energy_shares(shapes)
+    kinds, span_long, span_trans, b = model.kinetic_energy_shares(shapes, q)
     total = kinds.sum(axis=1, keepdims=True)
     total[total == 0] = 1.0
     return kinds / total, span_long / total, span_trans / total, b
+
+
+def _parts(shares: np.ndarray, span_long: np.ndarray, span_trans: np.ndarray, layout) -> list[str]:
+    """The parts of a mode's kinetic energy, largest first, as words: the pulley kinds as a whole,
+    the belt per span and direction ("transverse span 2 (C-T) 34 %")."""
+    parts = [(float(shares[i]), f"{KINDS[i]} {shares[i]:.0%}") for i in range(len(KINDS))
+             if KINDS[i] not in ("longitudinal", "transverse")]
+    for s in range(len(span_long)):
+        parts.append((float(span_trans[s]), f"transverse span {s + 1} ({layout.span_name(s)}) {span_trans[s]:.0%}"))
+        parts.append((float(span_long[s]), f"longitudinal span {s + 1} ({layout.span_name(s)}) {span_long[s]:.0%}"))
+    return [text for _, text in sorted(parts, key=lambda x: -x[0])]
 
 
 def half_waves(w: np.ndarray, threshold: float = 0.05) -> int:
@@ -145,9 +159,11 @@ def half_waves(w: np.ndarray, threshold: float = 0.05) -> int:
     return int(np.count_nonzero(s[1:] != s[:-1])) + 1
 
 
-def classify(model: System, shapes: np.ndarray, freq: np.ndarray):
-    """kind, order, span, label, energy shares and span shares of each mode."""
-    shares, span_long, span_trans, b = energy_shares(model, shapes)
+def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray | None = None):
+    """kind, order, span, label, energy shares and span shares of each mode. A mode whose largest
+    share stays below 1/2 is "mixed" and its label names its two largest parts (e.g. the tensioner
+    arm coupled with the transverse motion of an adjacent span)."""
+    shares, span_long, span_trans, b = energy_shares(model, shapes, q)
     n_modes = shapes.shape[0]
     wsamp = np.matmul(model.belt.sampling_table(8)[None], b[..., None])[..., 0]  # (k, n_elem, 8) samples
     kinds, orders, spans, labels = [], np.zeros(n_modes, dtype=int), np.zeros(n_modes, dtype=int), []
@@ -175,6 +191,8 @@ def classify(model: System, shapes: np.ndarray, freq: np.ndarray):
         text = f"{ordinal(order)} {kind}"
         if span:
             text += f", span {span} ({names.span_name(span - 1)})"
+        if kind == "mixed":
+            text += ": " + " + ".join(_parts(shares[k], span_long[k], span_trans[k], names)[:2])
         labels.append(text)
     span_share = span_long + span_trans
     return tuple(kinds), orders, spans, tuple(labels), shares, span_share

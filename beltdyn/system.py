@@ -39,8 +39,8 @@ from .errors import ConfigError
 from .geometry import Layout, layout_from_config
 
 DENSE_LIMIT = 200  # models up to this many DOFs use dense linear algebra
-DOF_GROUPS = ("span", "rotation", "translation")
-ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse")
+DOF_GROUPS = ("span", "rotation", "translation", "arm")
+ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse", "tensioner")
 
 
 def _z_cross(n: np.ndarray) -> np.ndarray:
@@ -54,7 +54,12 @@ class DofMap:
 
     labels/units (n_dof,); group (n_dof,) int index into DOF_GROUPS; rot_dof (n_pulley,);
     trans_dof[j] the translation DOFs of pulley j with trans_dir[j] (k, 2) their directions (m per
-    unit q); span_slices[s] the contiguous DOF range of span s's own coordinates.
+    unit q); span_slices[s] the contiguous DOF range of span s's own coordinates; arm_dof (n_pulley,)
+    the arm angle DOF of a tensioner pulley (-1 for other supports).
+
+    Joint coordinates p: the independent coordinates q (the first n_q) followed by `dependent` ones,
+    the centre offsets (x, y) of the arm pulleys, u = c(phi) - c(phi_ref), which the belt and the
+    pulley's mass see as a bearing's translations (`ArmJoints` gives them from q).
     """
 
     labels: tuple[str, ...]
@@ -64,10 +69,18 @@ class DofMap:
     trans_dof: tuple[tuple[int, ...], ...]
     trans_dir: tuple[np.ndarray, ...]
     span_slices: tuple[slice, ...]
+    arm_dof: np.ndarray | None = None
+    dependent: int = 0
 
     @property
     def n(self) -> int:
+        """Joint coordinates p (independent and dependent)."""
         return len(self.labels)
+
+    @property
+    def n_q(self) -> int:
+        """Independent coordinates q."""
+        return len(self.labels) - self.dependent
 
 
 def number_dofs(cfg: DriveConfig) -> DofMap:
@@ -89,8 +102,13 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
         return len(labels) - 1
 
     comp = (("r1", "m"), ("r2", "m"), ("r1'", "1"), ("r2'", "1"))
+    arm_dof = np.full(len(cfg.pulleys), -1, dtype=int)
     for j, p in enumerate(cfg.pulleys):
-        if p.support == "slide":
+        if p.support == "arm":
+            arm_dof[j] = add(f"pulley {p.name} arm", "rad", "arm")
+            trans_dof.append(())  # filled with the dependent centre offsets below
+            trans_dir.append(np.eye(2))
+        elif p.support == "slide":
             trans_dof.append((add(f"pulley {p.name} slide", "m", "translation"),))
             trans_dir.append(np.array([p.slide_direction], dtype=float))
         elif p.support == "bearing":
@@ -106,8 +124,13 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
             for c, unit in (comp[2:] if node in (1, n_e + 1) else comp):
                 add(f"span {s} node {node} {c}", unit, "span")
         span_slices.append(slice(start, len(labels)))
+    n_q = len(labels)
+    for j, p in enumerate(cfg.pulleys):  # the arm pulleys' centre offsets: dependent, after q
+        if p.support == "arm":
+            trans_dof[j] = tuple(add(f"pulley {p.name} {axis} (arm)", "m", "translation") for axis in "xy")
     return DofMap(labels=tuple(labels), units=tuple(units), group=np.array(group, dtype=np.int64), rot_dof=rot_dof,
-                  trans_dof=tuple(trans_dof), trans_dir=tuple(trans_dir), span_slices=tuple(span_slices))
+                  trans_dof=tuple(trans_dof), trans_dir=tuple(trans_dir), span_slices=tuple(span_slices),
+                  arm_dof=arm_dof, dependent=len(labels) - n_q)
 
 
 # ------------------------------------------------------------------------------------ components
@@ -474,6 +497,95 @@ class TensionSetting:
 
 
 @dataclass(frozen=True, kw_only=True)
+class ArmJoints:
+    """Exact kinematics of the tensioner arms: joint coordinates p = P(q) from the independent q.
+
+    Arm k turns about pivot[k]; its angle is phi = angle[k] + q[dof[k]] (angle: the arm angle of the
+    layout, q = 0), and its pulley's centre c(phi) = pivot + l (cos phi, sin phi). The dependent
+    coordinates p[slot[k]], p[slot[k] + 1] are the centre offsets u = c(phi) - c(angle), which the belt
+    joints and the pulley's mass and weight see as a bearing's translations. So the pulley's mass adds
+    m l^2 to the arm's inertia through J^T M J, its weight the moment m g . c'(phi), and every force on
+    the pulley the geometric stiffness F . c''(phi) (paper Eq. 24 with the constraint eliminated).
+
+    J = dp/dq (n_p, n_q): the identity on q, and dc/dphi = l (-sin phi, cos phi) in the arm columns.
+    """
+
+    dof: np.ndarray  # (a,) q index of each arm angle
+    slot: np.ndarray  # (a,) p index of each arm pulley's x offset (y: slot + 1)
+    pivot: np.ndarray  # (a, 2) m
+    length: np.ndarray  # (a,) m
+    angle: np.ndarray  # (a,) rad, arm angle at q = 0
+    n_q: int
+    n_p: int
+    friction: np.ndarray | None = None  # (a,) N m, dry friction torque of each arm's pivot damper (transient)
+
+    def phi(self, q: np.ndarray) -> np.ndarray:
+        """(..., a) arm angles."""
+        return self.angle + q[..., self.dof]
+
+    def first(self, phi: np.ndarray) -> np.ndarray:
+        """dc/dphi (..., a, 2)."""
+        return self.length[:, None] * np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+
+    def second(self, phi: np.ndarray) -> np.ndarray:
+        """d2c/dphi2 (..., a, 2)."""
+        return -self.length[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+
+    def expand(self, q: np.ndarray) -> np.ndarray:
+        """p (..., n_p) from q (..., n_q)."""
+        phi = self.phi(q)
+        u = self.length[:, None] * (np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+                                    - np.stack([np.cos(self.angle), np.sin(self.angle)], axis=-1))
+        return np.concatenate([q, u.reshape(*q.shape[:-1], -1)], axis=-1)
+
+    def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """J(q) dq (..., n_p): velocities, or mode shapes about q."""
+        du = np.einsum("...kd,...k->...kd", self.first(self.phi(q)), dq[..., self.dof])
+        return np.concatenate([dq, du.reshape(*dq.shape[:-1], -1)], axis=-1)
+
+    def expand_acceleration(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """J a + (d2c/dphi2) phidot^2 (..., n_p)."""
+        phi = self.phi(q)
+        w = v[..., self.dof]
+        du = np.einsum("...kd,...k->...kd", self.first(phi), a[..., self.dof]) + \
+            np.einsum("...kd,...k->...kd", self.second(phi), w * w)
+        return np.concatenate([a, du.reshape(*a.shape[:-1], -1)], axis=-1)
+
+    def project(self, q: np.ndarray, f: np.ndarray) -> np.ndarray:
+        """J(q)^T f: a force (..., n_p) on the joint coordinates -> (..., n_q)."""
+        out = f[..., : self.n_q].copy()
+        fu = f[..., self.n_q:].reshape(*f.shape[:-1], len(self.dof), 2)
+        out[..., self.dof] += np.einsum("...kd,...kd->...k", self.first(self.phi(q)), fu)
+        return out
+
+    def jacobian(self, q: np.ndarray):
+        """J(q) (n_p, n_q) CSR."""
+        from scipy.sparse import coo_matrix
+
+        dc = self.first(self.phi(q))
+        rows = np.concatenate([np.arange(self.n_q), self.slot, self.slot + 1])
+        cols = np.concatenate([np.arange(self.n_q), self.dof, self.dof])
+        vals = np.concatenate([np.ones(self.n_q), dc[:, 0], dc[:, 1]])
+        return coo_matrix((vals, (rows, cols)), shape=(self.n_p, self.n_q)).tocsr()
+
+    def project_matrix(self, q: np.ndarray, K, f: np.ndarray, *, dense: bool):
+        """J^T K J + the geometric term sum_k (f_u,k . c''(phi_k)) on (phi_k, phi_k), for the force
+        f (n_p,) on the joint coordinates whose derivative K (n_p, n_p) is."""
+        J = self.jacobian(q)
+        fu = f[self.n_q:].reshape(len(self.dof), 2)
+        geo = np.einsum("kd,kd->k", self.second(self.phi(q)), fu)
+        if dense:
+            Jd = J.toarray()
+            out = Jd.T @ K @ Jd
+            out[self.dof, self.dof] += geo
+            return out
+        from scipy.sparse import coo_matrix
+
+        out = (J.T @ K @ J).tocsr()
+        return (out + coo_matrix((geo, (self.dof, self.dof)), shape=out.shape)).tocsr()
+
+
+@dataclass(frozen=True, kw_only=True)
 class System:
     """The drive: DOF map, belt, components, assembled constant matrices. n = n_dof."""
 
@@ -492,15 +604,40 @@ class System:
     linear_stiffness: object  # (n, n) dense, or CSR data (nnz,) in the pattern, or None
     linear_damping: object  # (n, n) dense array or CSR, or None (constant component damping)
     linear_offset: np.ndarray | None = None  # (n,) sum of K_c free_c: the components' force is K q - offset
+    loads: np.ndarray | None = None  # (n_p,) constant applied forces of the static load case (accessory torques)
+    arms: ArmJoints | None = None  # tensioner arms: p = P(q); None: p = q
+
+    # The belt, the components, mass, pattern, gravity_force, loads and the linear matrices live on the
+    # joint coordinates p (n_p); the analyses see the independent q (n_dof). Without arms p = q.
 
     # -------------------------------------------------------------------- names kept from the model
     @property
     def n_dof(self) -> int:
+        return self.dofs.n_q
+
+    @property
+    def n_p(self) -> int:
         return self.dofs.n
 
     @property
     def dof_labels(self) -> tuple[str, ...]:
-        return self.dofs.labels
+        return self.dofs.labels[: self.dofs.n_q]
+
+    @property
+    def dof_units(self) -> tuple[str, ...]:
+        return self.dofs.units[: self.dofs.n_q]
+
+    @property
+    def dof_groups(self) -> np.ndarray:
+        return self.dofs.group[: self.dofs.n_q]
+
+    def expand(self, q: np.ndarray) -> np.ndarray:
+        """The joint coordinates p (..., n_p) of q (..., n_dof)."""
+        return q if self.arms is None else self.arms.expand(q)
+
+    def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
+        """Velocities or mode shapes dq (..., n_dof) about q on the joint coordinates."""
+        return dq if self.arms is None else self.arms.expand_motion(q, dq)
 
     @property
     def rot_dof(self) -> np.ndarray:
@@ -524,7 +661,8 @@ class System:
     def with_components(self, *extra: LinearComponent) -> "System":
         """A system with more components (matrices and pattern rebuilt)."""
         return _assemble(self.layout, self.dofs, self.belt, self.components + tuple(extra), pulley_names=self.pulley_names,
-                         driver=self.driver, tension=self.tension, gravity=self.gravity, dense=self.dense)
+                         driver=self.driver, tension=self.tension, gravity=self.gravity, dense=self.dense,
+                         loads=self.loads, arms=self.arms)
 
     def with_belt(self, **changes) -> "System":
         """The same system with belt fields changed (e.g. damping_axial, compiled)."""
@@ -537,8 +675,8 @@ class System:
     # -------------------------------------------------------------------- assembly
     def assemble(self, blocks: np.ndarray, *, linear: bool = True, diagonal: np.ndarray | None = None):
         """Element blocks (n_elem, m, m) (+ the components' constant stiffness, + a diagonal)
-        -> dense (n, n) or CSR."""
-        n, pat = self.n_dof, self.pattern
+        -> dense (n_p, n_p) or CSR, on the joint coordinates."""
+        n, pat = self.n_p, self.pattern
         if self.dense:
             K = np.bincount(pat.flat, weights=blocks.ravel(), minlength=(n + 1) ** 2).reshape(n + 1, n + 1)[:n, :n]
             if linear and self.linear_stiffness is not None:
@@ -557,9 +695,9 @@ class System:
         return csr_matrix((data, pat.indices, pat.indptr), shape=(n, n))
 
     def linear_force(self, q: np.ndarray) -> np.ndarray:
-        """The components' force K q - offset."""
+        """The components' force K p - offset (joint coordinates p)."""
         if self.linear_stiffness is None:
-            return np.zeros(self.n_dof)
+            return np.zeros(self.n_p)
         f = self.linear_stiffness @ q if self.dense else self.linear_matrix() @ q
         return f - self.linear_offset if self.linear_offset is not None else f
 
@@ -567,29 +705,78 @@ class System:
         """The components' constant stiffness as a matrix (dense or CSR), zeros if none."""
         from scipy.sparse import csr_matrix
 
+        n = self.n_p
         if self.dense:
-            return self.linear_stiffness if self.linear_stiffness is not None else np.zeros((self.n_dof, self.n_dof))
+            return self.linear_stiffness if self.linear_stiffness is not None else np.zeros((n, n))
         data = self.linear_stiffness if self.linear_stiffness is not None else np.zeros(self.pattern.nnz)
-        return csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=(self.n_dof, self.n_dof))
+        return csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=(n, n))
 
     # -------------------------------------------------------------------- forces
     def internal_force(self, q: np.ndarray) -> np.ndarray:
-        """f(q): belt elastic force + components' K q (preloads excluded)."""
-        return self.belt.force(q) + self.linear_force(q)
+        """f(q) (n_dof,): belt elastic force + components' K q (preloads excluded)."""
+        p = self.expand(q)
+        f = self.belt.force(p) + self.linear_force(p)
+        return f if self.arms is None else self.arms.project(q, f)
 
     def force_and_tangent(self, q: np.ndarray):
-        """Internal force (n,) and tangent stiffness K_t = df/dq (dense or CSR)."""
-        f, blocks = self.belt.force_and_blocks(q)
-        return f + self.linear_force(q), self.assemble(blocks)
+        """Internal force (n_dof,) and tangent stiffness K_t = df/dq (dense or CSR). With arms the
+        geometric term is that of the internal force alone (see `equilibrium` for the loaded one)."""
+        if self.arms is None:
+            f, blocks = self.belt.force_and_blocks(q)
+            return f + self.linear_force(q), self.assemble(blocks)
+        return self.equilibrium(q, 0.0)
+
+    def external_force(self, load_factor: float = 1.0) -> np.ndarray:
+        """(n_p,) the static load case on the joint coordinates: weight and accessory torques."""
+        F = load_factor * self.gravity_force
+        return F + load_factor * self.loads if self.loads is not None else F
+
+    def equilibrium(self, q: np.ndarray, load_factor: float = 1.0):
+        """r(q) = J^T (f(p) - F) (n_dof,) and its tangent dr/dq: the static residual before the spring
+        preloads, F the static load case scaled by load_factor. Without arms r = f - F, dr/dq = K_t."""
+        p = self.expand(q)
+        f, blocks = self.belt.force_and_blocks(p)
+        f = f + self.linear_force(p) - self.external_force(load_factor)
+        K = self.assemble(blocks)
+        if self.arms is None:
+            return f, K
+        return self.arms.project(q, f), self.arms.project_matrix(q, K, f, dense=self.dense)
+
+    def tangent_on_joints(self, q: np.ndarray):
+        """The internal force's tangent on the joint coordinates p at P(q) (n_p, n_p)."""
+        _, blocks = self.belt.force_and_blocks(self.expand(q))
+        return self.assemble(blocks)
+
+    def project_matrix(self, q: np.ndarray, A):
+        """J(q)^T A J(q) for a matrix A on the joint coordinates (A itself without arms)."""
+        if self.arms is None:
+            return A
+        J = self.arms.jacobian(q)
+        if self.dense and not hasattr(A, "tocsr"):
+            Jd = J.toarray()
+            return Jd.T @ np.asarray(A) @ Jd
+        return (J.T @ A @ J).tocsr()
+
+    def mass_matrix(self, q: np.ndarray | None = None):
+        """The mass matrix on q at the state q: J^T M J (constant without arms)."""
+        if self.arms is None:
+            return self.mass
+        q = np.zeros(self.n_dof) if q is None else q
+        J = self.arms.jacobian(q)
+        if self.dense:
+            Jd = J.toarray()
+            return Jd.T @ self.mass @ Jd
+        return (J.T @ self.mass @ J).tocsr()
 
     def mean_tension_and_gradient(self, q: np.ndarray) -> tuple[float, np.ndarray]:
-        return self.belt.mean_tension_and_gradient(q)
+        T, g = self.belt.mean_tension_and_gradient(self.expand(q))
+        return T, (g if self.arms is None else self.arms.project(q, g))
 
     def joint_reactions(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Static hub loads (n_pulley, 2), N, the force of the belt on each pulley, and span tensions
         (n_span, 2), N, at the start and end of each span, from the joint reactions (exact for the
         discrete equilibrium even where the strain is tiny)."""
-        E = self.belt.element_coordinates(q)[None]
+        E = self.belt.element_coordinates(self.expand(q))[None]
         F = self.belt.end_forces(E, None, self.gravity)
         return self.hub_loads(F)[0], self.belt.end_tensions(E, F)[0]
 
@@ -601,6 +788,7 @@ class System:
         return hub[:, :n]
 
     def pulley_centers(self, q: np.ndarray) -> np.ndarray:
+        q = self.expand(q)
         c = self.layout.center.copy()
         for j, (dofs, dirs) in enumerate(zip(self.trans_dof, self.trans_dir)):
             for d, v in zip(dofs, dirs):
@@ -608,8 +796,9 @@ class System:
         return c
 
     # -------------------------------------------------------------------- energy
-    def kinetic_energy_shares(self, shapes: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Kinetic-energy split of shapes (n_modes, n_dof) by kind.
+    def kinetic_energy_shares(self, shapes: np.ndarray, q: np.ndarray | None = None
+                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Kinetic-energy split of shapes (n_modes, n_dof) about the state q by kind.
 
         Returns kinds (n_modes, len(ENERGY_KINDS)) absolute (not normalized), span_long and
         span_trans (n_modes, n_span), and the transverse nodal motion b (n_modes, n_elem, 4). The
@@ -619,6 +808,8 @@ class System:
         belt = self.belt
         el = belt.elements
         n_modes = shapes.shape[0]
+        if self.arms is not None:
+            shapes = self.arms.expand_motion(np.zeros(self.n_dof) if q is None else q, shapes)
         de = belt.element_coordinates_batch(shapes, offset=False).reshape(n_modes, el.n_elem, 4, 2)
         t = belt.reference_direction[belt.elem_span]
         nrm = belt.reference_normal[belt.elem_span]
@@ -643,7 +834,7 @@ class System:
 
 def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[LinearComponent, ...], *,
               pulley_names: tuple[str, ...], driver: int, tension: TensionSetting, gravity: np.ndarray,
-              dense: bool | None) -> System:
+              dense: bool | None, loads: np.ndarray | None = None, arms: ArmJoints | None = None) -> System:
     """Pattern, mass, weight and the components' constant matrices of a system."""
     n = dofs.n
     use_dense = n <= DENSE_LIMIT if dense is None else dense
@@ -687,7 +878,7 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
             fg[c.dofs] += c.weight @ g
     stub = System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names, driver=driver,
                   tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=None, gravity_force=fg,
-                  linear_stiffness=None, linear_damping=None)
+                  linear_stiffness=None, linear_damping=None, loads=loads, arms=arms)
     Mb = stub.assemble(belt.reduce_blocks(belt.elements.mass), linear=False)
     if use_dense:
         M = Mb + (M_comp if M_comp is not None else 0.0)
@@ -793,15 +984,24 @@ def joint_selection(T: np.ndarray, idx: np.ndarray, n_dof: int) -> np.ndarray:
     ok = np.all(T == ident, axis=(1, 2)) & np.all(idx[:, 8:] == n_dof, axis=1)
     return np.where(ok, -1, np.arange(T.shape[0])).astype(np.int64)
 
-def pulley_components(cfg: DriveConfig, dofs: DofMap) -> tuple[LinearComponent, ...]:
-    """Pulley inertia (rotation DOFs), pulley mass and weight (translation DOFs, paper Eq. 20) and
-    the bearing springs (Eq. 21): only on the DOFs the supports allow."""
+def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = None) -> tuple[LinearComponent, ...]:
+    """Pulley inertia (rotation DOFs), pulley mass and weight (translation DOFs, paper Eq. 20), the
+    bearing springs (Eq. 21): only on the DOFs the supports allow; and each tensioner arm's inertia,
+    torsion spring and viscous damper on its angle (the arm pulley's mass sits on its dependent
+    centre offsets: its m l^2 comes through the arm kinematics)."""
     rot = dofs.rot_dof
     out: list[LinearComponent] = [LinearComponent(
         name="pulley inertia", dofs=rot.copy(), mass=np.diag([p.inertia for p in cfg.pulleys]),
         energy_kind="rotational")]
     t_dofs, t_mass, t_weight, k_spring, supported = [], [], [], [], []
+    a_dofs, a_mass, a_weight = [], [], []
     for j, p in enumerate(cfg.pulleys):
+        if p.support == "arm":
+            for d, v in zip(dofs.trans_dof[j], dofs.trans_dir[j]):
+                a_dofs.append(d)
+                a_mass.append(p.mass)
+                a_weight.append(p.mass * v)
+            continue
         for k, (d, v) in enumerate(zip(dofs.trans_dof[j], dofs.trans_dir[j])):
             t_dofs.append(d)
             t_mass.append(p.mass * float(v @ v))
@@ -815,7 +1015,50 @@ def pulley_components(cfg: DriveConfig, dofs: DofMap) -> tuple[LinearComponent, 
                                    energy_kind="translational"))
         out.append(BearingSprings(name="bearing springs", dofs=d, stiffness=np.diag(k_spring), pulleys=tuple(supported),
                                   pulley_names=tuple(cfg.pulleys[j].name for j in supported)))
+    if a_dofs:
+        out.append(LinearComponent(name="arm pulley mass", dofs=np.array(a_dofs, dtype=np.int64), mass=np.diag(a_mass),
+                                   weight=np.array(a_weight), energy_kind="tensioner"))
+    for j, p in enumerate(cfg.pulleys):
+        if p.support != "arm":
+            continue
+        free = None
+        if p.arm_free_angle is not None and p.arm_stiffness > 0 and layout is not None:
+            from .geometry import arm_angle, unwrap_near
+
+            ref = arm_angle(layout, j, np.array(p.arm_pivot))
+            free = np.array([unwrap_near(p.arm_free_angle, ref) - ref])
+        out.append(LinearComponent(
+            name=f"tensioner arm {p.name}", dofs=np.array([dofs.arm_dof[j]], dtype=np.int64),
+            mass=np.array([[p.arm_inertia]]) if p.arm_inertia > 0 else None,
+            stiffness=np.array([[p.arm_stiffness]]) if p.arm_stiffness > 0 else None,
+            damping=np.array([[p.arm_damping]]) if p.arm_damping > 0 else None, free=free, energy_kind="tensioner"))
     return tuple(out)
+
+
+def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap) -> ArmJoints | None:
+    """The arms' kinematics about the layout's arm angles (None without arms)."""
+    arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
+    if not arms:
+        return None
+    from .geometry import arm_angle
+
+    pivot = np.array([cfg.pulleys[j].arm_pivot for j in arms], dtype=float)
+    return ArmJoints(dof=np.array([dofs.arm_dof[j] for j in arms], dtype=np.int64),
+                     slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64), pivot=pivot,
+                     length=np.hypot(*(layout.center[arms] - pivot).T),
+                     angle=np.array([arm_angle(layout, j, pivot[k]) for k, j in enumerate(arms)]),
+                     n_q=dofs.n_q, n_p=dofs.n, friction=np.array([cfg.pulleys[j].arm_friction for j in arms]))
+
+
+def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
+    """(n_p,) the accessory torques of [[static.torque]] on the pulley rotations (None if none)."""
+    if not cfg.static.torque:
+        return None
+    F = np.zeros(dofs.n)
+    names = [p.name for p in cfg.pulleys]
+    for tq in cfg.static.torque:
+        F[dofs.rot_dof[names.index(tq.pulley)]] += tq.value
+    return F
 
 
 def stretch_for_tension(tension: float, EA: float) -> float:
@@ -856,11 +1099,15 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *, prestrain_st
     target = cfg.tension.target
     adjust = target is not None and cfg.tension.mode == "adjust"
     a = cfg.adjustable_index
-    tension = TensionSetting(target=target, mode=cfg.tension.mode if target is not None else "geometry",
-                             adjust_dof=int(dofs.trans_dof[a][0]) if adjust and a is not None else -1)
-    return _assemble(layout, dofs, belt, pulley_components(cfg, dofs) + tuple(extra),
+    adjust_dof = -1
+    if adjust and a is not None:
+        adjust_dof = int(dofs.arm_dof[a]) if cfg.pulleys[a].support == "arm" else int(dofs.trans_dof[a][0])
+    mode = "spring" if cfg.tension.mode == "spring" else (cfg.tension.mode if target is not None else "geometry")
+    tension = TensionSetting(target=target, mode=mode, adjust_dof=adjust_dof)
+    return _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout) + tuple(extra),
                      pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index, tension=tension,
-                     gravity=np.asarray(cfg.model.gravity, dtype=float), dense=dense)
+                     gravity=np.asarray(cfg.model.gravity, dtype=float), dense=dense,
+                     loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs))
 
 
 __all__ = ["System", "DofMap", "BeltSpans", "LinearComponent", "BearingSprings", "Observation", "TensionSetting",

@@ -111,8 +111,9 @@ def output_volume(system: System, opts: TransientOptions) -> tuple[int, int]:
 
 
 def belt_travel(system: System) -> np.ndarray:
-    """u_nom (n_dof,): the rigid belt loop advanced by 1 m (pulley rotations +-1/R, nodes along t)."""
-    u = np.zeros(system.n_dof)
+    """u_nom (n_p,): the rigid belt loop advanced by 1 m (pulley rotations +-1/R, nodes along t; the
+    pulley centres stay)."""
+    u = np.zeros(system.n_p)
     lay = system.layout
     for j in range(lay.n):
         n_out = lay.start_normal[j]
@@ -130,6 +131,29 @@ def belt_travel(system: System) -> np.ndarray:
     return u
 
 
+def p_to_q(system: System) -> np.ndarray:
+    """(n_p,) the independent coordinate each joint coordinate depends on (an arm pulley's centre
+    offsets: its arm angle)."""
+    m = np.arange(system.n_p)
+    if system.arms is not None:
+        m[system.arms.slot] = system.arms.dof
+        m[system.arms.slot + 1] = system.arms.dof
+    return m
+
+
+def stepper_arms(system: System):
+    """integrator.Arms of the system (no arms: the identity map)."""
+    from . import integrator as itg
+
+    a = system.arms
+    if a is None:
+        return itg.no_arms(system.n_dof)
+    fric = a.friction if a.friction is not None else np.zeros(len(a.dof))
+    return itg.Arms(dof=a.dof.astype(np.int64), slot=a.slot.astype(np.int64), length=a.length.astype(float),
+                    angle=a.angle.astype(float), friction=fric, omega_f=np.full(len(a.dof), itg.ARM_FRICTION_SPEED),
+                    n_q=int(system.n_dof))
+
+
 def band_order(system: System) -> tuple[np.ndarray, int]:
     """Reverse Cuthill-McKee order of the coupling graph (elements and components) and the
     half-bandwidth it gives (about twice an element's: the belt loop closes on itself)."""
@@ -137,8 +161,9 @@ def band_order(system: System) -> tuple[np.ndarray, int]:
     from scipy.sparse.csgraph import reverse_cuthill_mckee
 
     n = system.n_dof
+    to_q = p_to_q(system)
     rows, cols = element_pairs(system.belt.idx)
-    keep = (rows < n) & (cols < n)
+    keep = (rows < system.n_p) & (cols < system.n_p)
     rows, cols = [rows[keep]], [cols[keep]]
     for c in system.components:
         for mat in (c.stiffness, c.damping, c.mass):
@@ -146,7 +171,7 @@ def band_order(system: System) -> tuple[np.ndarray, int]:
                 r, cc = np.nonzero(mat)
                 rows.append(c.dofs[r])
                 cols.append(c.dofs[cc])
-    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    rows, cols = to_q[np.concatenate(rows)], to_q[np.concatenate(cols)]
     G = csr_matrix((np.ones(len(rows) + n), (np.r_[rows, np.arange(n)], np.r_[cols, np.arange(n)])), shape=(n, n))
     perm = np.asarray(reverse_cuthill_mckee(G, symmetric_mode=True), dtype=np.int64)
     inv = np.empty_like(perm)
@@ -159,7 +184,7 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
     from . import integrator as itg
     from .belt_kernel import CURVATURE_CODE
 
-    n = system.n_dof
+    n = system.n_p
     u_nom = belt_travel(system)
     # constraints: prescribed rotations (any number); the first with a speed carries the belt travel
     cons_dof, cons_par = [], []
@@ -201,12 +226,14 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
     d = opts.damping
     C = system.linear_damping
     if d.rayleigh_mass or d.rayleigh_stiffness:
-        _, K0 = system.force_and_tangent(static.q)
+        K0 = system.tangent_on_joints(static.q)
         ray = d.rayleigh_mass * M + d.rayleigh_stiffness * K0
         C = ray if C is None else C + ray
-    q_ref = static.q.copy()
+    q_ref = system.expand(static.q)
     K_lin = system.linear_matrix()
-    constant = static.spring_preload + system.gravity_force - np.asarray(K_lin @ q_ref).ravel()
+    preload = np.zeros(n)
+    preload[: system.n_dof] = static.spring_preload
+    constant = preload + system.external_force(1.0) - np.asarray(K_lin @ q_ref).ravel()
     if system.linear_offset is not None:  # the components' force is K q - offset
         constant = constant + system.linear_offset
     tab = system.belt.kernel_tables
@@ -227,12 +254,12 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
     constraints = itg.Constraints(dof=np.array(cons_dof, dtype=np.int64),
                                   params=np.array(cons_par, dtype=float).reshape(-1, 9))
     perm, bandwidth = band_order(system)
-    q0 = static.q.copy() if opts.start == "static" else np.zeros(n)
+    q0 = q_ref.copy() if opts.start == "static" else np.zeros(n)
     series, coords = _series(system, opts, cons_dof)
     return TransientSetup(series=series, coords=coords, belt=belt_data, linear=linear, forcing=forcing,
-                          constraints=constraints, groups=system.dofs.group.astype(np.int64), C=C, perm=perm,
+                          constraints=constraints, groups=system.dof_groups.astype(np.int64), C=C, perm=perm,
                           bandwidth=bandwidth, q0=q0, v0=np.zeros(n), u_nom=u_nom, nom_scale=nom_scale,
-                          excitation_frequency=f_exc, preload=static.spring_preload.copy())
+                          excitation_frequency=f_exc, preload=preload)
 
 
 def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
@@ -314,7 +341,8 @@ def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool):
     return Factor(kind=1, ab=np.ascontiguousarray(lu), piv=piv.astype(np.int64), perm=perm, kl=u, ku=u)
 
 
-def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: float, rho_inf: float):
+def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: float, rho_inf: float,
+                      v: np.ndarray | None = None):
     """S = c_m M + c_c (C + C_belt(q)) + (1 - alpha_f) K_t(q), prescribed DOFs held (identity)."""
     from . import belt_kernel as bk
     from .integrator import alpha_parameters
@@ -322,16 +350,30 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
     am, af, beta, gamma = alpha_parameters(rho_inf)
     c_m = (1.0 - am) / (beta * h * h)
     c_c = (1.0 - af) * gamma / (beta * h)
-    _, K = system.force_and_tangent(q)
-    S = (1.0 - af) * K + c_m * system.mass
+    q = q[: system.n_dof]  # the stepper's state is on the joint coordinates: q is its head
+    if system.arms is None:
+        _, K = system.force_and_tangent(q)
+    else:  # the loaded tangent (the arm's geometric term of the static loads; a Newton matrix only)
+        _, K = system.equilibrium(q, 1.0)
+    S = (1.0 - af) * K + c_m * system.mass_matrix(q)
     b = setup.belt
     if b.eta_a or b.eta_b:
-        E = system.belt.element_coordinates(q)
+        E = system.belt.element_coordinates(system.expand(q))
         Ce = np.empty((E.shape[0], 8, 8))
         bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce)
-        S = S + c_c * system.assemble(system.belt.reduce_blocks(Ce), linear=False)
+        S = S + c_c * system.project_matrix(q, system.assemble(system.belt.reduce_blocks(Ce), linear=False))
     if setup.C is not None:
-        S = S + c_c * setup.C
+        S = S + c_c * system.project_matrix(q, setup.C)
+    if system.arms is not None and system.arms.friction is not None and np.any(system.arms.friction):
+        from .integrator import ARM_FRICTION_SPEED
+
+        from scipy.sparse import diags
+
+        w = v[system.arms.dof] if v is not None else np.zeros(len(system.arms.dof))
+        D = np.zeros(system.n_dof)  # d(T_f tanh(w / w_f))/dw: the friction's damping at the current speed
+        D[system.arms.dof] = system.arms.friction / ARM_FRICTION_SPEED / np.cosh(np.minimum(
+            np.abs(w) / ARM_FRICTION_SPEED, 300.0)) ** 2
+        S = S + c_c * (np.diag(D) if not hasattr(S, "tocsr") else diags(D))
     return _hold(S, setup.constraints.dof)
 
 
@@ -368,8 +410,9 @@ class StepProblem:
     groups: np.ndarray
     q0: np.ndarray
     v0: np.ndarray
-    factor: Callable
+    factor: Callable  # factor(q, h, v) -> integrator.Factor at the state (q, v) for the step h
     labels: tuple[str, ...]
+    arms: tuple | None = None  # integrator.Arms (None: no arms, q = p)
 
 
 def initial_state(problem: StepProblem, rho_inf: float, step: float):
@@ -379,15 +422,19 @@ def initial_state(problem: StepProblem, rho_inf: float, step: float):
 
     lin, F, cons, belt = problem.linear, problem.forcing, problem.constraints, problem.belt
     n = len(problem.q0)
+    arms = problem.arms if problem.arms is not None else itg.no_arms(n)
+    nq = int(arms.n_q)
     q, v = problem.q0.copy(), problem.v0.copy()
     a = np.zeros(n)
     for k, d in enumerate(cons.dof):
         st = itg.rotation_state(cons.params[k], 0.0)
         q[d], v[d], a[d] = cons.params[k, 7] + st[3], st[4], st[5]
+    itg.complete(arms, q, v, a)  # with the arm accelerations 0 so far: a holds the centripetal part h
     n_elem = belt.T.shape[0]
     E, Ed, fe, fd = (np.empty((n_elem, 8)) for _ in range(4))
     f_el, f_dmp, gross = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1)
     itg.belt_forces(belt, np.append(q, 0.0), np.append(v, 0.0), E, Ed, fe, fd, f_el, f_dmp, gross, np.empty(n_elem))
+    itg.arm_friction(arms, v, f_dmp)
     Kd, Cv, F0 = np.empty(n), np.empty(n), np.empty(n)
     itg.csr_matvec(lin.K, q - lin.q_ref, Kd)
     itg.csr_matvec(lin.C, v, Cv)
@@ -396,10 +443,21 @@ def initial_state(problem: StepProblem, rho_inf: float, step: float):
     from scipy.sparse import csr_matrix
 
     Md = csr_matrix((lin.M.data, lin.M.indices, lin.M.indptr), shape=(n, n)).toarray()
-    rhs = F0 - Cv - f0 - Md[:, cons.dof] @ a[cons.dof]
-    free = np.setdiff1d(np.arange(n), cons.dof)
-    a[free] = np.linalg.solve(Md[np.ix_(free, free)], rhs[free])
-    R0 = np.array([(Md @ a)[d] + Cv[d] + f0[d] - F0[d] for d in cons.dof])
+    # J^T (M (J a_q + h) + C v + f - F) = 0 on the free independent DOFs (J = I without arms)
+    from scipy.sparse import coo_matrix
+
+    phi = arms.angle + q[arms.dof]
+    J = coo_matrix((np.r_[np.ones(nq), -arms.length * np.sin(phi), arms.length * np.cos(phi)],
+                    (np.r_[np.arange(nq), arms.slot, arms.slot + 1], np.r_[np.arange(nq), arms.dof, arms.dof])),
+                   shape=(n, nq)).tocsr()
+    h = a.copy()
+    h[:nq] = 0.0
+    Mq = np.asarray((J.T @ (J.T @ Md).T))  # J^T M J (M symmetric)
+    rhs = J.T @ (F0 - Cv - f0 - Md @ h) - Mq[:, cons.dof] @ a[cons.dof]
+    free = np.setdiff1d(np.arange(nq), cons.dof)
+    a[free] = np.linalg.solve(Mq[np.ix_(free, free)], rhs[free])
+    itg.complete(arms, q, v, a)
+    R0 = (J.T @ (Md @ a + Cv + f0 - F0))[cons.dof]
     scal = np.zeros(itg.N_SCAL)
     scal[itg.H] = step
     tmp, tmp2 = np.empty(n), np.empty(n)
@@ -443,6 +501,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
 
     am, af, beta, gamma = itg.alpha_parameters(rho_inf)
     n = len(problem.q0)
+    arms = problem.arms if problem.arms is not None else itg.no_arms(n)
     state = initial_state(problem, rho_inf, step)
     th = state.scal
     chk = itg.Check(group=problem.groups, n_groups=int(problem.groups.max(initial=0)) + 1, tol=float(tolerance),
@@ -458,7 +517,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     n_total_out = int(math.floor(duration / output_interval + 1e-9)) + 1
     opts = itg.StepOptions(am=am, af=af, beta=beta, gamma=gamma, t_stop=float(duration), dt_out=float(output_interval),
                            max_steps=2000)
-    fac = problem.factor(state.q, th[itg.H])
+    fac = problem.factor(state.q, th[itg.H], state.v)
     fresh = True
     run = _Run()
     run.refactors = 1
@@ -482,7 +541,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     try:
         while True:
             code = itg.run_steps(state, problem.belt, problem.linear, problem.forcing, problem.constraints, chk, opts,
-                                 fac, fresh, out, ev, info)
+                                 fac, fresh, out, ev, info, arms)
             collect_events()
             if th[itg.STEPS] > run.steps:
                 fresh = False
@@ -497,11 +556,11 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
                     calm += 1
                     if calm >= 2:
                         th[itg.H] = min(2.0 * th[itg.H], step)
-                        fac, fresh, calm = problem.factor(state.q, th[itg.H]), True, 0
+                        fac, fresh, calm = problem.factor(state.q, th[itg.H], state.v), True, 0
                         run.refactors += 1
                 continue
             if code == itg.REFACTOR:
-                fac, fresh, calm = problem.factor(state.q, th[itg.H]), True, 0
+                fac, fresh, calm = problem.factor(state.q, th[itg.H], state.v), True, 0
                 run.refactors += 1
                 continue
             # HALVE
@@ -516,7 +575,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
             min_h = min(min_h, th[itg.H])
             run.halvings += 1
             calm = 0
-            fac, fresh = problem.factor(state.q, th[itg.H]), True
+            fac, fresh = problem.factor(state.q, th[itg.H], state.v), True
             run.refactors += 1
         drain()
     except KeyboardInterrupt:
@@ -545,8 +604,9 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
     problem = StepProblem(
         belt=setup.belt, linear=setup.linear, forcing=setup.forcing, constraints=setup.constraints,
         groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels,
-        factor=lambda q, h: band_factor(_iteration_matrix(system, setup, q, h, opts.rho_inf), setup.perm,
-                                        setup.bandwidth, symmetric=symmetric))
+        factor=lambda q, h, v=None: band_factor(_iteration_matrix(system, setup, q, h, opts.rho_inf, v), setup.perm,
+                                                setup.bandwidth, symmetric=symmetric),
+        arms=stepper_arms(system))
     observer = Observers(system=system, setup=setup)
     run, th, min_h, events = drive(
         problem, rho_inf=opts.rho_inf, step=opts.step, min_step=opts.min_step, duration=opts.duration,
@@ -613,9 +673,9 @@ class Observers:
             out["driver_torque"] = reaction[:, 0].copy()
         if "constraint_reaction" in names:
             out["constraint_reaction"] = reaction.copy()
-        if "q" in names:
-            out["q"] = q.copy()
-            out["v"] = v.copy()
+        if "q" in names:  # the independent coordinates (the head of the joint coordinates)
+            out["q"] = q[:, : sysm.n_dof].copy()
+            out["v"] = v[:, : sysm.n_dof].copy()
         return out
 
 
@@ -642,7 +702,7 @@ def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.
     cons = itg.Constraints(dof=np.zeros(0, dtype=np.int64), params=np.zeros((0, 8)))
     am, af, beta, gamma = itg.alpha_parameters(rho_inf)
 
-    def factor(q, h):
+    def factor(q, h, v=None):
         S = (1 - am) / (beta * h * h) * M + (1 - af) * gamma / (beta * h) * Cm + (1 - af) * K
         return band_factor(S, np.arange(n, dtype=np.int64), max(n - 1, 0), symmetric=bool(np.allclose(S, S.T)))
 
