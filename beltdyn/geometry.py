@@ -262,9 +262,9 @@ def fit_adjustable(
                 "belt.length")
         phi0 = math.atan2(*(center[index] - arm)[::-1])
         raise GeometryError(
-            f"L0 = {target_length:.6g} m is too {word} to reach with the arm of pulley '{name}': needs the "
-            f"arm at {phi0 + s:.6g} rad, between its stops arm_range = [{phi0 + slide_range[0]:g}, "
-            f"{phi0 + slide_range[1]:g}] rad", "belt.length")
+            f"the stops exclude the fitted arm angle: L0 = {target_length:.6g} m needs the arm of pulley "
+            f"'{name}' at {phi0 + s:.6g} rad, its stops are [{phi0 + slide_range[0]:g}, {phi0 + slide_range[1]:g}] "
+            f"rad (move the stops or change L0)", f"pulleys[{index}].arm_range")
     return Layout(**{**lay.__dict__, "adjust_offset": s, "adjust_index": index,
                      "adjust_kind": "slide" if arm is None else "arm"})
 

