@@ -1,0 +1,47 @@
+"""Slip margins of the pulleys: the Euler-Eytelwein (capstan) limit on each wrap.
+
+A belt on a pulley of wrap angle beta transmits the tension ratio T_tight / T_slack without slipping
+as long as  ln(T_tight / T_slack) <= mu beta,  mu the effective belt-pulley friction coefficient (for
+a V-ribbed belt the wedge-effective value mu / sin(half groove angle), as the user gives it). So
+
+    mu_required = ln(T_tight / T_slack) / beta,     margin = mu / mu_required,
+
+with T_tight and T_slack the larger and smaller of the tensions in the two spans at the pulley (the
+end of the arriving span, the start of the departing one) and beta the loaded wrap angle (the
+geometry at the solved pulley positions). margin > 1: no slip; margin < 1: the pulley slips. A slack
+span (tension <= 0) gives mu_required = inf and margin 0; equal tensions mu_required = 0 and margin
+inf. Pulleys without a friction value get NaN margins. Once the running belt is modelled the
+tensions are reduced by the centrifugal part rho v^2 before the ratio is taken.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def pulley_tensions(span_tension: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(T_in, T_out) (..., n): the tension of the span arriving at each pulley (its end) and of the
+    span leaving it (its start), from span_tension (..., n_span, 2) (span s runs pulley s -> s + 1)."""
+    t_in = np.roll(span_tension[..., 1], 1, axis=-1)
+    t_out = span_tension[..., 0]
+    return t_in, t_out
+
+
+def required_friction(span_tension: np.ndarray, wrap: np.ndarray, centrifugal: float = 0.0) -> np.ndarray:
+    """mu_required (..., n) = ln(T_tight / T_slack) / wrap, inf where a span is slack."""
+    t_in, t_out = pulley_tensions(span_tension)
+    t_in, t_out = t_in - centrifugal, t_out - centrifugal
+    tight, slack = np.maximum(t_in, t_out), np.minimum(t_in, t_out)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mu = np.where(slack > 0.0, np.log(np.where(slack > 0.0, tight / np.where(slack > 0, slack, 1.0), 1.0))
+                      / np.asarray(wrap), np.inf)
+    return mu
+
+
+def slip_margin(mu_required: np.ndarray, friction: np.ndarray) -> np.ndarray:
+    """friction / mu_required (..., n): inf where no ratio is needed, 0 where slack, NaN without friction."""
+    f = np.asarray(friction, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        m = np.where(mu_required > 0.0, f / np.where(mu_required > 0.0, mu_required, 1.0), np.inf)
+    m = np.where(np.isinf(mu_required), 0.0, m)
+    return np.where(np.isnan(f), np.nan, m)
