@@ -60,7 +60,8 @@ def _predictor(system: System, stretch: float, adjust_dof: int, driver_dof: int)
                 if dof in col:
                     A[s, col[dof]] += sign * float(model.T[el, rows, k] @ t[s])
         ends.append((e_first, e_last))
-    target = (stretch - 1.0) * model.reference_length
+    lam0 = model.span_stretch if model.span_stretch is not None else model.prestrain_stretch
+    target = (stretch - lam0) * model.reference_length  # elongation still needed from the stretch at q = 0
     x = np.linalg.lstsq(A, target, rcond=None)[0]
     q = np.zeros(system.n_dof)
     q[unknowns] = x
@@ -132,6 +133,66 @@ def _null_dof(K, dense: bool, labels: tuple[str, ...], rank1=None) -> str:
     return labels[int(np.argmax(np.abs(vec)))]
 
 
+class ResidualScales:
+    """The allowed static residual of each row, by DOF group (`DofMap.group`):
+
+    - span rows: tol * S + floor, S the tension scale: the target tension (or, without one, the
+      spans' prestrain force EA (lambda^3 - lambda)/2), at least the largest weight on a span row
+      and 1e-9 EA;
+    - rotation rows of pulley j: tol * max(S R_j, |weight torque|, |K q|) + floor R_j, a torque scale
+      (N m) with R_j the pulley's radius: a tension error dT on one side of a free pulley is a torque
+      error dT R_j;
+    - translation rows: tol * max(S, |weight|, |K| |q|) + floor, the forces on the pulley: the belt
+      pull, its weight and the force of its bearing spring from the displacement q in this system
+      (sum_k |K_ik q_k|); a constant spring preload does not count (it would hide errors of the
+      size of the tolerance times the preload).
+
+    floor: the belt's round-off (eps_GL = (r'.r' - 1)/2 loses ~machine epsilon, times EA, per Gauss
+    point, and the bending force's share), in N.
+    """
+
+    def __init__(self, system: System) -> None:
+        from .system import DOF_GROUPS
+
+        d = system.dofs
+        n = d.n
+        self.span = d.group == DOF_GROUPS.index("span")
+        self.rotation = d.group == DOF_GROUPS.index("rotation")
+        self.translation = d.group == DOF_GROUPS.index("translation")
+        self.lever = np.ones(n)  # m: converts a force scale into the row's scale
+        self.lever[d.rot_dof] = system.layout.radius
+        target = system.tension.target
+        el = system.belt.elements
+        EA = float(el.EA.max())
+        if target is not None:
+            S = abs(float(target))
+        else:
+            lam = np.asarray(system.belt.span_stretch if system.belt.span_stretch is not None
+                             else system.belt.prestrain_stretch, dtype=float)
+            S = float(np.abs(0.5 * EA * (lam**3 - lam)).max(initial=0.0))
+        self.tension_scale = max(S, 1e-9 * EA)
+        self.weight = np.abs(system.gravity_force)
+        self.K_abs = None
+        if system.linear_stiffness is not None:
+            K = system.linear_matrix()
+            self.K_abs = np.abs(K) if system.dense else abs(K)
+
+    def scale(self, q: np.ndarray, lam: float) -> np.ndarray:
+        """(n,) the force (N) or torque (N m) scale of each row."""
+        g = abs(lam) * self.weight
+        S = max(self.tension_scale, float(g[self.span].max(initial=0.0)))
+        out = np.maximum(S * self.lever, g)
+        if self.K_abs is not None:
+            kq = np.asarray(self.K_abs @ np.abs(q)).ravel()
+            other = ~self.span
+            out[other] = np.maximum(out[other], kq[other])
+        return out
+
+    def allowed(self, q: np.ndarray, lam: float, tol: float, floor: float) -> np.ndarray:
+        """(n,) the allowed residual of each row: tol * scale + floor (times the lever arm)."""
+        return tol * self.scale(q, lam) + floor * self.lever
+
+
 class _Fail(Exception):
     """A failed Newton solve: message, scaled residual, DOF label at fault."""
 
@@ -144,9 +205,8 @@ class _Problem:
     """The static equations of one drive: residual, Jacobian and Newton with line search.
 
     Held ("pinned") DOFs keep their value: their residual rows are zero and their Jacobian rows and
-    columns those of the identity. Residuals are scaled by the allowed residual, tolerance * force
-    scale + a round-off floor (eps_GL = (r'.r' - 1)/2 loses ~machine epsilon, times EA, summed over
-    elements), so that err <= 1 means converged.
+    columns those of the identity. Each residual row is scaled by its allowed residual (`allowed`),
+    so that err = max |R_i| / allowed_i <= 1 means converged.
     """
 
     def __init__(self, system: System, opts: StaticOptions) -> None:
@@ -164,23 +224,21 @@ class _Problem:
         self.history: list[tuple[float, float]] = []
         self.has_load = bool(np.any(system.gravity_force != 0.0))
         self.EA = float(el.EA.max())
+        self.scales = ResidualScales(system)
 
     def tension_tolerance(self) -> float:
         """Allowed error of the mean tension: relative tolerance + round-off of EA eps (~EA * eps)."""
         return self.opts.tolerance * abs(self.target) + 100 * np.finfo(float).eps * self.EA
 
-    def allowed(self, lam: float) -> float:
-        scale = max(abs(self.target) if self.target else 0.0,
-                    float(np.abs(lam * self.model.gravity_force).max(initial=0.0)),
-                    1e-9 * self.EA)
-        return self.opts.tolerance * scale + self.noise
+    def allowed(self, q: np.ndarray, lam: float) -> np.ndarray:
+        return self.scales.allowed(q, lam, self.opts.tolerance, self.noise)
 
     def evaluate(self, q: np.ndarray, lam: float, pinned: np.ndarray, bordered: bool):
         """Residual (pinned rows zero), Jacobian, err = max scaled |R|, and the bordered rank-1 term."""
         m = self.model
         f, K = m.force_and_tangent(q)
         R = f - self.preload - lam * m.gravity_force
-        scaled = np.abs(R) / self.allowed(lam)
+        scaled = np.abs(R) / self.allowed(q, lam)
         rank1 = None
         if bordered:  # the slide equation of the adjustable pulley becomes T(q) = target
             T, dT = m.mean_tension_and_gradient(q)
@@ -324,10 +382,28 @@ def solve_static(system: System, options: StaticOptions) -> StaticResult:
         raise SolverError(f"{fail} (residual scaled so that 1 means converged)", analysis="static",
                           step=f"load factor {lam:.4g}", residual=fail.err, item=fail.dof) from None
     if prob.adjust:  # the bearing spring's preload follows from the adjustable pulley's slide equation
+        _check_travel(model, q)
         f = model.internal_force(q)
         prob.preload[prob.a] = f[prob.a] - model.gravity_force[prob.a]
     hist = np.array(prob.history).reshape(-1, 2)
     return _result(model, q, prob.preload, hist[:, 0], hist[:, 1], len(hist), prob.driver)
+
+
+def _check_travel(system: System, q: np.ndarray) -> None:
+    """The tension step's travel of the adjustable pulley (from its given centre) within its slide_range."""
+    ts = system.tension
+    lim = ts.adjust_range
+    if lim is None:
+        return
+    travel = system.layout.adjust_offset + float(q[ts.adjust_dof])
+    span = max(abs(lim[0]), abs(lim[1]), 1e-3)
+    if lim[0] - 1e-12 * span <= travel <= lim[1] + 1e-12 * span:
+        return
+    raise SolverError(
+        f"tension.target = {ts.target:g} N needs pulley '{ts.adjust_name}' to travel {travel:.6g} m along its slide "
+        f"(from its given centre), outside its slide_range [{lim[0]:g}, {lim[1]:g}] m; lower the target or "
+        f"widen the slide_range", analysis="static", step="tension step",
+        item=system.dof_labels[ts.adjust_dof])
 
 
 def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -> StaticResult:
@@ -343,3 +419,162 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -
         driver_torque=float(f[driver_dof]), adjust_offset=offset,
         residual_history=np.array(hist_r), load_factor_history=np.array(hist_l), iterations=iterations,
         tension_mode=model.tension.mode)
+
+
+# ------------------------------------------------------------------------------------ solved geometry
+MAX_PASSES = 25
+
+
+@dataclass(frozen=True, kw_only=True)
+class SolvedDrive:
+    """The static equilibrium on the solved geometry: the final system (laid out at the solved pulley
+    positions) and its static result."""
+
+    system: System
+    static: StaticResult
+    passes: int  # layouts solved on (the first included)
+    solves: int  # static solves (prestrain iterations included)
+    movement: np.ndarray  # (passes,) largest pulley displacement from its laid centre after each pass, m
+
+
+def _moves(system: System, q: np.ndarray) -> np.ndarray:
+    """(n,) displacement of each pulley centre from its laid centre, m."""
+    return np.linalg.norm(system.pulley_centers(q) - system.layout.center, axis=1)
+
+
+def _material_stretch(layout, material: float, weight: np.ndarray) -> np.ndarray:
+    """Span stretches (n,) that put the belt of undeformed length `material` on `layout` with its
+    wraps unstretched: reference lengths sum to material - sum(arc lengths), shared in proportion to
+    `weight` (chord length / expected stretch of each span)."""
+    free_length = material - float(layout.arc_length.sum())
+    if not free_length > 0.0:
+        raise SolverError(f"the belt ({material:.6g} m) is shorter than its wraps ({layout.arc_length.sum():.6g} m) "
+                          "at the solved pulley positions", analysis="static", step="re-lay")
+    ref = free_length * weight / weight.sum()
+    return layout.span_length / ref
+
+
+def _expected_stretch(st: StaticResult, EA: float) -> np.ndarray:
+    """(n,) stretch of each span at its solved mean tension (a weight of `_material_stretch`)."""
+    N = st.span_tension.mean(axis=1)
+    return np.array([max(stretch_for_tension(float(t), EA), 0.5) for t in N])
+
+
+def _meet_prestrain(build, layout, lam: float, free: np.ndarray, options: StaticOptions, slope: float | None):
+    """Secant on the spans' uniform prestrain stretch lam until the static mean tension equals the
+    target (the pulleys free on their bearings). Returns (system, static, lam, slope, solves)."""
+    system = build(layout, lam, free)
+    target = float(system.tension.target)
+    EA = float(system.belt.elements.EA.max())
+    tol_T = options.tolerance * abs(target) + 100 * np.finfo(float).eps * EA
+    if slope is None:
+        slope = 0.5 * EA * (3.0 * lam**2 - 1.0)  # rigid supports
+    prev = None
+    for it in range(options.max_iterations):
+        if it:
+            system = build(layout, lam, free)
+        st = solve_static(system, options)
+        g = st.mean_tension - target
+        if abs(g) <= tol_T:
+            return system, st, lam, slope, it + 1
+        if prev is not None:
+            secant = (g - prev[1]) / (lam - prev[0])
+            if not (np.isfinite(secant) and secant > 1e-9 * EA):
+                raise SolverError(
+                    f'tension.mode = "prestrain" cannot reach tension.target = {target:g} N: the mean span tension '
+                    f"({st.mean_tension:.6g} N at span stretch {lam:.9g}) does not grow with the prestrain "
+                    f"(dT/dstretch = {secant:.3g} N); a support gives way without limit", analysis="static",
+                    step=f"prestrain iteration {it + 1}", residual=abs(g) / tol_T, item="tension.target")
+            slope = secant
+        prev = (lam, g)
+        new = lam - g / slope
+        lam = new if new > 1.0 else 1.0 + 0.5 * (lam - 1.0)
+    raise SolverError(f'tension.mode = "prestrain": the mean span tension did not reach tension.target = '
+                      f"{target:g} N in {options.max_iterations} prestrain iterations (last {st.mean_tension:.9g} N)",
+                      analysis="static", step="prestrain iteration", residual=abs(g) / tol_T, item="tension.target")
+
+
+def solve_static_on_solved_geometry(system: System, build, options: StaticOptions, *,
+                                    max_passes: int = MAX_PASSES) -> SolvedDrive:
+    """Static equilibrium with the belt laid out at the solved pulley positions.
+
+    `system` is laid out on the L0 fit (`build_system`); build(layout, prestrain_stretch, spring_free)
+    builds the same drive on another layout (see `build_system`). A pulley that moves in the static
+    solve (the adjustable pulley's tension travel, a bearing's deflection) leaves its spans meeting it
+    off tangent (the joints keep the tangent points of the layout), so the layout is laid anew at the
+    solved centres (`geometry.relay`: tangent points, spans and wraps recomputed), the system rebuilt
+    and solved again, until no pulley moves more than tolerance * (shortest span) from its laid centre.
+
+    The reference (stress-free) state of the re-laid spans, by tension mode:
+    - "adjust" (and no target with an adjustable pulley): the belt of undeformed length L0 lies on the
+      spans and the wraps, the wraps unstretched (as in the L0 geometry of DESIGN section 2, where the
+      spans are stress-free and moving the pulley stretches the spans only): the spans' reference
+      lengths sum to L0 - sum(R_j wrap_j) of the new layout, shared in proportion to chord / solved
+      stretch. The first layout is predicted: the adjustable pulley placed where spans stretched to the
+      target tension fit (`geometry.fit_adjustable` with arc_weight), so one or two passes suffice.
+    - "prestrain": a uniform span stretch, iterated (secant, `_meet_prestrain`) until the static mean
+      tension equals the target with every pulley free on its bearing.
+    - no target, no adjustable pulley: the belt of length L0 stretched uniformly onto the new path.
+    Bearing springs stay anchored at the given centres (spring_free); the adjustable pulley's spring in
+    mode "adjust" carries the preload its slide equation asks for, as before.
+    """
+    from .geometry import GeometryError, fit_adjustable, relay
+    from .system import stretch_for_tension as _stretch
+
+    ts = system.tension
+    lay = system.layout
+    d = system.dofs
+    n_dof = d.n
+    trans = np.array([k for dofs in d.trans_dof for k in dofs], dtype=np.int64)
+    anchored = trans[trans != ts.adjust_dof] if ts.mode == "adjust" else trans
+    conserve = ts.mode == "adjust" or (ts.mode == "geometry" and lay.adjust_index is not None)
+    prestrain = ts.mode == "prestrain" and ts.target is not None
+    EA = float(system.belt.elements.EA.max())
+    material = float(system.belt.reference_length.sum() + lay.arc_length.sum())
+    free = np.zeros(n_dof)
+    if ts.mode == "adjust" and ts.target is not None:  # predictor: spans at the target stretch fit
+        lam_T = _stretch(float(ts.target), EA)
+        j = lay.adjust_index
+        try:
+            fit = fit_adjustable(lay.center, lay.radius, lay.side_sign, lay.names, index=j,
+                                 direction=d.trans_dir[j][0], target_length=lam_T * material, arc_weight=lam_T,
+                                 orientation=lay.orientation)
+            pred = relay(lay, fit.center, adjust_offset=lay.adjust_offset + fit.adjust_offset)
+            system = build(pred, _material_stretch(pred, material, pred.span_length), None)
+            lay = pred
+        except (GeometryError, SolverError):
+            pass  # no prediction: start from the L0 fit
+    lam_p, slope = float(system.belt.prestrain_stretch), None
+    movement: list[float] = []
+    solves = 0
+    for p in range(1, max_passes + 1):
+        if prestrain:
+            system, st, lam_p, slope, k = _meet_prestrain(build, lay, lam_p, free, options, slope)
+            solves += k
+        else:
+            st = solve_static(system, options)
+            solves += 1
+        moves = _moves(system, st.q)
+        movement.append(float(moves.max(initial=0.0)))
+        tol_x = options.tolerance * float(lay.span_length.min())
+        if not trans.size or movement[-1] <= tol_x:
+            return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement))
+        try:
+            lay = relay(lay, st.pulley_center, adjust_offset=st.adjust_offset if lay.adjust_index is not None else None)
+        except GeometryError as exc:
+            j = int(np.argmax(moves))
+            raise SolverError(f"no belt path through the solved pulley positions: {exc}", analysis="static",
+                              step=f"re-lay pass {p}", item=f"pulley {lay.names[j]}") from None
+        free = free.copy()
+        free[anchored] -= st.q[anchored]
+        if conserve:
+            system = build(lay, _material_stretch(lay, material, lay.span_length / _expected_stretch(st, EA)), free)
+        elif prestrain:
+            lam_p = float(lay.span_length.sum() / system.belt.reference_length.sum())
+        else:
+            system = build(lay, None, free)
+    j = int(np.argmax(_moves(system, st.q)))
+    raise SolverError(f"the solved geometry did not settle in {max_passes} re-lay passes: pulley "
+                      f"'{lay.names[j]}' still moves {movement[-1]:.3g} m from its laid centre "
+                      f"(allowed {tol_x:.3g} m)", analysis="static", step=f"re-lay pass {max_passes}",
+                      item=f"pulley {lay.names[j]}")
