@@ -442,22 +442,28 @@ def _moves(system: System, q: np.ndarray) -> np.ndarray:
     return np.linalg.norm(system.pulley_centers(q) - system.layout.center, axis=1)
 
 
-def _material_stretch(layout, material: float, weight: np.ndarray) -> np.ndarray:
-    """Span stretches (n,) that put the belt of undeformed length `material` on `layout` with its
-    wraps unstretched: reference lengths sum to material - sum(arc lengths), shared in proportion to
-    `weight` (chord length / expected stretch of each span)."""
-    free_length = material - float(layout.arc_length.sum())
-    if not free_length > 0.0:
-        raise SolverError(f"the belt ({material:.6g} m) is shorter than its wraps ({layout.arc_length.sum():.6g} m) "
-                          "at the solved pulley positions", analysis="static", step="re-lay")
-    ref = free_length * weight / weight.sum()
-    return layout.span_length / ref
+def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
+    """Span reference lengths (n,) on layout `new` of the belt whose spans had `reference_length` on
+    layout `old`, the wraps unstretched: where a tangent point moves along its pulley by an arc
+    R dpsi in the direction of belt travel, that much belt passes from the span onto the wrap (or
+    back). The total, sum(reference lengths) + sum(arc lengths), is kept. Pulley rotations stay
+    coordinates of the system (the joints slide the span ends along the tangent lines)."""
+    from .geometry import TWO_PI
 
+    def turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        d = np.arctan2(b[:, 1], b[:, 0]) - np.arctan2(a[:, 1], a[:, 0])
+        return (d + np.pi) % TWO_PI - np.pi
 
-def _expected_stretch(st: StaticResult, EA: float) -> np.ndarray:
-    """(n,) stretch of each span at its solved mean tension (a weight of `_material_stretch`)."""
-    N = st.span_tension.mean(axis=1)
-    return np.array([max(stretch_for_tension(float(t), EA), 0.5) for t in N])
+    sigma = new.orientation * new.side_sign  # sense in which the belt travels around each pulley
+    nxt = np.roll(np.arange(new.n), -1)
+    onto_start = new.radius * sigma * turn(old.start_normal, new.start_normal)  # span s leaving pulley s
+    onto_end = -new.radius[nxt] * sigma[nxt] * turn(old.end_normal, new.end_normal)  # span s reaching pulley s+1
+    out = reference_length - onto_start - onto_end
+    if not np.all(out > 0.0):
+        s = int(np.argmin(out))
+        raise SolverError(f"span {new.span_name(s)} has no belt left at the solved pulley positions (reference "
+                          f"length {out[s]:.3g} m)", analysis="static", step="re-lay", item=f"span {s + 1}")
+    return out
 
 
 def _meet_prestrain(build, layout, lam: float, free: np.ndarray, options: StaticOptions, slope: float | None):
@@ -530,17 +536,17 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     conserve = ts.mode == "adjust" or (ts.mode == "geometry" and lay.adjust_index is not None)
     prestrain = ts.mode == "prestrain" and ts.target is not None
     EA = float(system.belt.elements.EA.max())
-    material = float(system.belt.reference_length.sum() + lay.arc_length.sum())
     free = np.zeros(n_dof)
     if ts.mode == "adjust" and ts.target is not None:  # predictor: spans at the target stretch fit
         lam_T = _stretch(float(ts.target), EA)
+        material = float(system.belt.reference_length.sum() + lay.arc_length.sum())  # L0
         j = lay.adjust_index
         try:
             fit = fit_adjustable(lay.center, lay.radius, lay.side_sign, lay.names, index=j,
                                  direction=d.trans_dir[j][0], target_length=lam_T * material, arc_weight=lam_T,
                                  orientation=lay.orientation)
             pred = relay(lay, fit.center, adjust_offset=lay.adjust_offset + fit.adjust_offset)
-            system = build(pred, _material_stretch(pred, material, pred.span_length), None)
+            system = build(pred, pred.span_length / carried_reference(lay, pred, system.belt.reference_length), None)
             lay = pred
         except (GeometryError, SolverError):
             pass  # no prediction: start from the L0 fit
@@ -560,7 +566,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         if not trans.size or movement[-1] <= tol_x:
             return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement))
         try:
-            lay = relay(lay, st.pulley_center, adjust_offset=st.adjust_offset if lay.adjust_index is not None else None)
+            new = relay(lay, st.pulley_center, adjust_offset=st.adjust_offset if lay.adjust_index is not None else None)
         except GeometryError as exc:
             j = int(np.argmax(moves))
             raise SolverError(f"no belt path through the solved pulley positions: {exc}", analysis="static",
@@ -568,10 +574,14 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         free = free.copy()
         free[anchored] -= st.q[anchored]
         if conserve:
-            system = build(lay, _material_stretch(lay, material, lay.span_length / _expected_stretch(st, EA)), free)
+            ref = carried_reference(lay, new, system.belt.reference_length)
+            lay = new
+            system = build(lay, lay.span_length / ref, free)
         elif prestrain:
-            lam_p = float(lay.span_length.sum() / system.belt.reference_length.sum())
+            lam_p = float(new.span_length.sum() / system.belt.reference_length.sum())
+            lay = new
         else:
+            lay = new
             system = build(lay, None, free)
     j = int(np.argmax(_moves(system, st.q)))
     raise SolverError(f"the solved geometry did not settle in {max_passes} re-lay passes: pulley "
