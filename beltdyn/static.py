@@ -355,20 +355,34 @@ class _Problem:
                     abs(g) / tol_T, m.dof_labels[a])
 
 
-def solve_static(system: System, options: StaticOptions) -> StaticResult:
+def solve_static(system: System, options: StaticOptions, *, q0: np.ndarray | None = None) -> StaticResult:
     """Static equilibrium of the drive (raises SolverError naming step, residual and DOF).
 
     Tension mode "adjust": a bordered Newton on (equilibrium, T = target) from the linear axial
     predictor, which converges in one or two iterations for taut spans; if it fails (sagging spans,
     strong nonlinearity), an outer Newton on the slide offset around inner equilibrium solves with
-    load stepping on the weight. Other modes: equilibrium with load stepping.
+    load stepping on the weight. Other modes: equilibrium with load stepping. q0: a start (n_dof,)
+    instead of the predictor (warm start; the driver's rotation is held at q0's value); if Newton
+    fails from it, the solve starts over as without it.
+
+    One system, one layout: the joints keep the tangent points of `system.layout`, so a pulley that
+    moves far meets its spans off tangent; `solve_static_on_solved_geometry` (what
+    `pipeline.analyse` calls) lays the belt out again at the solved positions.
     """
     model = system
     prob = _Problem(system, options)
     n = model.n_dof
     pinned = np.array([prob.driver])
     try:
-        if prob.adjust:
+        q = None
+        if q0 is not None:
+            try:
+                q = prob.newton(np.array(q0, dtype=float), 1.0, pinned, bordered=prob.adjust)
+            except _Fail:
+                prob.history.clear()
+        if q is not None:
+            pass
+        elif prob.adjust:
             q0 = _predictor(model, stretch_for_tension(prob.target, prob.EA), prob.a, prob.driver)
             try:
                 q = prob.newton(q0, 1.0, pinned, bordered=True, max_iterations=8)
