@@ -316,3 +316,20 @@ def test_rotation_rows_are_held_to_the_torque_scale():
     assert res.iterations >= 1
     assert imbalance(res, C) <= tol * T
     assert imbalance(res, C) < 0.2 * tau / R_C
+
+
+def test_bearing_forces_balance_the_belt_on_the_solved_layout():
+    # The re-laid system anchors the bearing springs at the given centres: the spring force reported
+    # (`bearing_force`, what the transient records) holds each supported pulley against the belt and
+    # its weight: spring + hub load + m g = 0 along the pulley's DOFs, 1e-8 relative to the hub load.
+    cfg = load_config(THREE)
+    run = analyse(cfg)
+    sysm, st = run.system, run.static
+    springs = next(c for c in sysm.components if c.observations(sysm))
+    F = springs.observe(sysm, st.q[None], st.spring_preload)["bearing_force"][0]
+    g = np.array(cfg.model.gravity)
+    for row, j in enumerate(springs.pulleys):
+        total = F[row] + st.hub_load[j] + cfg.pulleys[j].mass * g
+        dirs = sysm.trans_dir[j]
+        assert np.abs(dirs @ total).max() <= 1e-8 * np.linalg.norm(st.hub_load[j]), (j, total)
+    assert springs.free is not None and np.any(springs.free != 0.0)  # C sits displaced from its given centre
