@@ -470,11 +470,6 @@ class SolvedDrive:
     movement: np.ndarray  # (passes,) largest pulley displacement from its laid centre after each pass, m
 
 
-def _moves(system: System, q: np.ndarray) -> np.ndarray:
-    """(n,) displacement of each pulley centre from its laid centre, m."""
-    return np.linalg.norm(system.pulley_centers(q) - system.layout.center, axis=1)
-
-
 def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
     """Span reference lengths (n,) on layout `new` of the belt whose spans had `reference_length` on
     layout `old`, the wraps unstretched: where a tangent point moves along its pulley by an arc
@@ -533,6 +528,36 @@ def _meet_prestrain(build, layout, lam: float, free: np.ndarray, options: Static
                       analysis="static", step="prestrain iteration", residual=abs(g) / tol_T, item="tension.target")
 
 
+def _predicted_centers(system: System, anchored: set, fit, tol_x: float) -> np.ndarray:
+    """Pulley centres (n, 2) of the drive under a uniform belt tension T = target: the adjustable pulley
+    where `fit(centers)` places it (mode "adjust"), every spring-supported pulley deflected by its
+    bearing springs under the belt's pull T (t_out - t_in) of that layout and the weight on its DOFs
+    (`gravity_force`, the pulley's and its share of the belt's). A fixed point over layouts (cheap
+    geometry); the static passes correct what it leaves out (sag, bending)."""
+    from .geometry import relay
+
+    lay0 = system.layout
+    T = float(system.tension.target)
+    k_diag = np.asarray(system.linear_matrix().diagonal()).ravel()
+    anchored_set = anchored
+    centers = lay0.center.copy()
+    for _ in range(50):
+        lay = fit(centers) if fit is not None else relay(lay0, centers)
+        t = lay.span_direction
+        pull = T * (t - np.roll(t, 1, axis=0))  # span j leaves pulley j along t_j, span j-1 arrives along t_j-1
+        new = lay.center.copy()
+        for j, (dofs, dirs) in enumerate(zip(system.trans_dof, system.trans_dir)):
+            new[j] = lay0.center[j] if any(k in anchored_set for k in dofs) else lay.center[j]
+            for k, v in zip(dofs, dirs):
+                if k in anchored_set and k_diag[k] > 0.0:
+                    new[j] = new[j] + v * (float(pull[j] @ v) + float(system.gravity_force[k])) / k_diag[k]
+        done = float(np.abs(new - centers).max()) <= tol_x
+        centers = new
+        if done:
+            break
+    return centers
+
+
 def solve_static_on_solved_geometry(system: System, build, options: StaticOptions, *,
                                     max_passes: int = MAX_PASSES) -> SolvedDrive:
     """Static equilibrium with the belt laid out at the solved pulley positions.
@@ -542,48 +567,81 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     solve (the adjustable pulley's tension travel, a bearing's deflection) leaves its spans meeting it
     off tangent (the joints keep the tangent points of the layout), so the layout is laid anew at the
     solved centres (`geometry.relay`: tangent points, spans and wraps recomputed), the system rebuilt
-    and solved again, until no pulley moves more than tolerance * (shortest span) from its laid centre.
+    and solved again, until no pulley moves more than tolerance x (shortest span) from its laid centre.
+    The first layout is predicted (`_predicted_centers`: the drive under a uniform tension, pure
+    geometry), and from the third pass on the next centres are extrapolated (Aitken) when the passes
+    contract steadily: one pass without weight, two or three with it.
 
     The reference (stress-free) state of the re-laid spans, by tension mode:
     - "adjust" (and no target with an adjustable pulley): the belt of undeformed length L0 lies on the
       spans and the wraps, the wraps unstretched (as in the L0 geometry of DESIGN section 2, where the
-      spans are stress-free and moving the pulley stretches the spans only): the spans' reference
-      lengths sum to L0 - sum(R_j wrap_j) of the new layout, shared in proportion to chord / solved
-      stretch. The first layout is predicted: the adjustable pulley placed where spans stretched to the
-      target tension fit (`geometry.fit_adjustable` with arc_weight), so one or two passes suffice.
+      spans are stress-free and moving the pulley stretches the spans only): `carried_reference` moves
+      belt between span and wrap where a tangent point moves, so the spans' reference lengths sum to
+      L0 - sum(R_j wrap_j) on every layout, and the pulley rotations stay what they were.
     - "prestrain": a uniform span stretch, iterated (secant, `_meet_prestrain`) until the static mean
       tension equals the target with every pulley free on its bearing.
     - no target, no adjustable pulley: the belt of length L0 stretched uniformly onto the new path.
-    Bearing springs stay anchored at the given centres (spring_free); the adjustable pulley's spring in
-    mode "adjust" carries the preload its slide equation asks for, as before.
+    Bearing springs stay anchored where they were relaxed on the L0 fit (spring_free); the adjustable
+    pulley's spring in mode "adjust" carries the preload its slide equation asks for, as before.
     """
-    from .geometry import GeometryError, fit_adjustable, relay
+    from .geometry import GeometryError, Layout, fit_adjustable, relay
     from .system import stretch_for_tension as _stretch
 
     ts = system.tension
-    lay = system.layout
+    lay0 = lay = system.layout
     d = system.dofs
     n_dof = d.n
     trans = np.array([k for dofs in d.trans_dof for k in dofs], dtype=np.int64)
-    anchored = trans[trans != ts.adjust_dof] if ts.mode == "adjust" else trans
+    anchored = set((trans[trans != ts.adjust_dof] if ts.mode == "adjust" else trans).tolist())
     conserve = ts.mode == "adjust" or (ts.mode == "geometry" and lay.adjust_index is not None)
     prestrain = ts.mode == "prestrain" and ts.target is not None
     EA = float(system.belt.elements.EA.max())
-    free = np.zeros(n_dof)
-    if ts.mode == "adjust" and ts.target is not None:  # predictor: spans at the target stretch fit
-        lam_T = _stretch(float(ts.target), EA)
-        material = float(system.belt.reference_length.sum() + lay.arc_length.sum())  # L0
-        j = lay.adjust_index
+    tol_x = options.tolerance * float(lay0.span_length.min())
+
+    def lay_out(old: Layout, centers: np.ndarray, ref_old: np.ndarray, step: str):
+        """(layout, spring_free, system or None) at `centers`, the belt carried over from `old`."""
+        a = old.adjust_index
+        offset = None if a is None else old.adjust_offset + float((centers[a] - old.center[a]) @ d.trans_dir[a][0])
         try:
-            fit = fit_adjustable(lay.center, lay.radius, lay.side_sign, lay.names, index=j,
-                                 direction=d.trans_dir[j][0], target_length=lam_T * material, arc_weight=lam_T,
-                                 orientation=lay.orientation)
-            pred = relay(lay, fit.center, adjust_offset=lay.adjust_offset + fit.adjust_offset)
-            system = build(pred, pred.span_length / carried_reference(lay, pred, system.belt.reference_length), None)
-            lay = pred
-        except (GeometryError, SolverError):
-            pass  # no prediction: start from the L0 fit
+            new = relay(old, centers, adjust_offset=offset)
+        except GeometryError as exc:
+            j = int(np.argmax(np.linalg.norm(centers - old.center, axis=1)))
+            raise SolverError(f"no belt path through the solved pulley positions: {exc}", analysis="static",
+                              step=step, item=f"pulley {old.names[j]}") from None
+        free = np.zeros(n_dof)  # the springs stay relaxed where they were on the L0 fit
+        for j, (dofs, dirs) in enumerate(zip(d.trans_dof, d.trans_dir)):
+            for k, v in zip(dofs, dirs):
+                if k in anchored:
+                    free[k] = -float((centers[j] - lay0.center[j]) @ v)
+        if conserve:
+            return new, free, build(new, new.span_length / carried_reference(old, new, ref_old), free)
+        if prestrain:
+            return new, free, None  # built by _meet_prestrain
+        return new, free, build(new, None, free)
+
+    free = np.zeros(n_dof)
     lam_p, slope = float(system.belt.prestrain_stretch), None
+    if ts.target is not None and (trans.size or ts.mode == "adjust"):  # predicted first layout
+        fit = None
+        if ts.mode == "adjust":
+            lam_T = _stretch(float(ts.target), EA)
+            material = float(system.belt.reference_length.sum() + lay0.arc_length.sum())  # L0
+            j = lay0.adjust_index
+
+            def fit(centers):  # the adjustable pulley where spans at the target stretch fit
+                return fit_adjustable(centers, lay0.radius, lay0.side_sign, lay0.names, index=j,
+                                      direction=d.trans_dir[j][0], target_length=lam_T * material,
+                                      arc_weight=lam_T, orientation=lay0.orientation)
+        try:
+            centers = _predicted_centers(system, anchored, fit, tol_x)
+            lay, free, built = lay_out(lay0, centers, system.belt.reference_length, "prediction")
+            if prestrain:
+                lam_p = _stretch(float(ts.target), EA)
+            else:
+                system = built
+        except (GeometryError, SolverError):
+            lay, free = lay0, np.zeros(n_dof)  # no prediction: start from the L0 fit
+    prev_step = None
     movement: list[float] = []
     solves = 0
     for p in range(1, max_passes + 1):
@@ -593,30 +651,25 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         else:
             st = solve_static(system, options)
             solves += 1
-        moves = _moves(system, st.q)
-        movement.append(float(moves.max(initial=0.0)))
-        tol_x = options.tolerance * float(lay.span_length.min())
+        step = st.pulley_center - lay.center
+        movement.append(float(np.linalg.norm(step, axis=1).max(initial=0.0)))
         if not trans.size or movement[-1] <= tol_x:
             return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement))
-        try:
-            new = relay(lay, st.pulley_center, adjust_offset=st.adjust_offset if lay.adjust_index is not None else None)
-        except GeometryError as exc:
-            j = int(np.argmax(moves))
-            raise SolverError(f"no belt path through the solved pulley positions: {exc}", analysis="static",
-                              step=f"re-lay pass {p}", item=f"pulley {lay.names[j]}") from None
-        free = free.copy()
-        free[anchored] -= st.q[anchored]
-        if conserve:
-            ref = carried_reference(lay, new, system.belt.reference_length)
-            lay = new
-            system = build(lay, lay.span_length / ref, free)
-        elif prestrain:
-            lam_p = float(new.span_length.sum() / system.belt.reference_length.sum())
-            lay = new
+        # the next layout: at the solved centres, extrapolated (Aitken) where the passes contract steadily
+        centers = st.pulley_center
+        if prev_step is not None:
+            rho = float(np.vdot(step, prev_step) / np.vdot(prev_step, prev_step))
+            cos = float(np.vdot(step, prev_step) / (np.linalg.norm(step) * np.linalg.norm(prev_step)))
+            if abs(rho) < 0.5 and abs(cos) > 0.9:  # steps along one line, shrinking (or alternating)
+                centers = centers + rho / (1.0 - rho) * step
+        prev_step = step
+        ref_old = system.belt.reference_length
+        lay, free, built = lay_out(lay, centers, ref_old, f"re-lay pass {p}")
+        if prestrain:
+            lam_p = float(lay.span_length.sum() / ref_old.sum())
         else:
-            lay = new
-            system = build(lay, None, free)
-    j = int(np.argmax(_moves(system, st.q)))
+            system = built
+    j = int(np.argmax(np.linalg.norm(step, axis=1)))
     raise SolverError(f"the solved geometry did not settle in {max_passes} re-lay passes: pulley "
                       f"'{lay.names[j]}' still moves {movement[-1]:.3g} m from its laid centre "
                       f"(allowed {tol_x:.3g} m)", analysis="static", step=f"re-lay pass {max_passes}",
