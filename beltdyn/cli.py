@@ -243,7 +243,7 @@ def _refined_modal(job: "_Job", n_modes: int, rtol: float) -> None:
     from .results_io import check_target
 
     check_target(job.output, config_sha256=job.sha, force=job.force)
-    job.add(geometry_group(model.layout))
+    job.add(geometry_group(job.layout))  # the L0 fit (the mesh does not change it); /static: the solved layout
     job.add(static_group(model, st, cfg.tension.target))
     group = modal_group(model, md)
     attrs = dict(group.attrs, rtol=rtol, chosen_elements_per_span=int(ref.elements[ref.chosen]),

@@ -185,14 +185,19 @@ def fit_adjustable(
     target_length: float,
     slide_range: tuple[float, float] | None = None,
     pivot: np.ndarray | None = None,
+    arc_weight: float = 1.0,
+    orientation: int | None = None,
     tol: float = 1e-13,
     max_iter: int = 100,
 ) -> Layout:
     """Newton on the offset s along `direction` of pulley `index` until the belt length equals L0.
 
     With a `pivot` (a tensioner arm) s is the angle (rad, counter-clockwise) the arm turns about the
-    pivot instead, and slide_range bounds that angle offset. Backtracks when a step leaves the
-    feasible region; raises GeometryError (key belt.length) when L0 cannot be reached.
+    pivot instead, and slide_range bounds that angle offset. With arc_weight w != 1 the length fitted
+    is sum(span lengths) + w sum(arc lengths) (the path of a belt whose spans are stretched by w and
+    whose wraps are not, times w: see `static`); the slope is then that of the belt length, and the
+    iteration converges linearly. Backtracks when a step leaves the feasible region; raises
+    GeometryError (key belt.length) when L0 cannot be reached.
     """
     center = np.array(center, dtype=float)
     direction = np.asarray(direction, dtype=float)
@@ -210,7 +215,7 @@ def fit_adjustable(
         rot = np.array([c * r[0] - sn * r[1], sn * r[0] + c * r[1]])
         return arm + rot, np.array([-rot[1], rot[0]])
     try:
-        base = compute_layout(center, radius, side_sign, names)
+        base = compute_layout(center, radius, side_sign, names, orientation=orientation)
     except GeometryError as exc:
         raise GeometryError(f"at the given centre of the adjustable pulley: {exc}", exc.key) from None
     orientation = base.orientation
@@ -220,9 +225,12 @@ def fit_adjustable(
         c[index] = offset_point(s)[0]
         return compute_layout(c, radius, side_sign, names, orientation=orientation)
 
+    def length(lay: Layout) -> float:
+        return lay.belt_length + (arc_weight - 1.0) * float(lay.arc_length.sum())
+
     s, lay = 0.0, base
     for _ in range(max_iter):
-        f = lay.belt_length - target_length
+        f = length(lay) - target_length
         if abs(f) <= tol * target_length:
             break
         slope = float(belt_length_gradient(lay, index) @ offset_point(s)[1])
@@ -239,20 +247,20 @@ def fit_adjustable(
             except GeometryError:
                 step *= 0.5
                 continue
-            if abs(trial.belt_length - target_length) < abs(f) or abs(step) < 1e-15:
+            if abs(length(trial) - target_length) < abs(f) or abs(step) < 1e-15:
                 break
             step *= 0.5
         else:
             trial = None
-        if trial is None or abs(trial.belt_length - target_length) >= abs(f):
+        if trial is None or abs(length(trial) - target_length) >= abs(f):
             word = "short" if f > 0 else "long"
             raise GeometryError(
                 f"L0 = {target_length:.6g} m is too {word}: {how} '{name}' {where} "
-                f"cannot make the belt fit (closest belt length {lay.belt_length:.6g} m at offset {s:.6g} m)",
+                f"cannot make the belt fit (closest belt length {length(lay):.6g} m at offset {s:.6g} m)",
                 "belt.length")
         s, lay = s + step, trial
     else:
-        raise GeometryError(f"L0 fit did not converge (belt length {lay.belt_length:.9g} m)", "belt.length")
+        raise GeometryError(f"L0 fit did not converge (belt length {length(lay):.9g} m)", "belt.length")
     if slide_range is not None and not (slide_range[0] <= s <= slide_range[1]):
         word = "short" if s * float(belt_length_gradient(lay, index) @ offset_point(s)[1]) < 0 else "long"
         if arm is None:
@@ -267,6 +275,15 @@ def fit_adjustable(
             f"rad (move the stops or change L0)", f"pulleys[{index}].arm_range")
     return Layout(**{**lay.__dict__, "adjust_offset": s, "adjust_index": index,
                      "adjust_kind": "slide" if arm is None else "arm"})
+
+
+def relay(layout: Layout, center: np.ndarray, *, adjust_offset: float | None = None) -> Layout:
+    """The same belt path laid anew with the pulleys at `center` (n, 2): tangent points, spans,
+    wraps and belt length recomputed, the loop's orientation kept. adjust_offset: the adjustable
+    pulley's travel from its given centre at `center` (default: unchanged)."""
+    lay = compute_layout(center, layout.radius, layout.side_sign, layout.names, orientation=layout.orientation)
+    return Layout(**{**lay.__dict__, "adjust_index": layout.adjust_index,
+                     "adjust_offset": layout.adjust_offset if adjust_offset is None else float(adjust_offset)})
 
 
 def layout_from_config(cfg: DriveConfig) -> Layout:

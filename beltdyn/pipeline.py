@@ -3,6 +3,18 @@
 What the CLI, the sweeps, the benchmarks and the tests call; the analyses themselves take a
 `System` and their options, never the configuration. A solver failure is re-raised with the
 results that were reached attached (`exc.partial`, an `Analysis`), so a caller can still write them.
+
+Solved geometry. The static analysis runs on the layout at the solved pulley positions
+(`static.solve_static_on_solved_geometry`): the system is first laid out on the L0 fit
+(`geometry.layout_from_config`), and whenever the static solve moves a pulley (the adjustable
+pulley's tension travel, a bearing's deflection) the belt path is laid anew at the solved centres,
+with tangent points, spans and wraps recomputed and the spans' reference lengths keeping the belt's
+undeformed length L0, the system rebuilt and solved again until the pulleys stay where they are laid.
+So the spans meet every pulley on its tangent, and a free pulley's two span tensions balance. The
+modal and transient analyses run on that final system. `Analysis.layout` and `Analysis.system` are
+the final (solved) ones; `Analysis.fit_layout` is the L0 fit, which is what `/geometry` shows (the
+answer to "where must the adjustable pulley sit for the belt of length L0 to fit"); `/static`
+holds the solved pulley centres.
 """
 
 from __future__ import annotations
@@ -25,32 +37,38 @@ class Analysis:
     """What one run reached: the system, and the static / modal results asked for (None otherwise)."""
 
     config: DriveConfig
-    layout: Layout
-    system: "System | None" = None
+    layout: Layout  # the final layout: at the solved pulley positions once the static analysis ran
+    system: "System | None" = None  # the final system (laid out on `layout`)
     static: "StaticResult | None" = None
     modal: "ModalResult | None" = None
+    fit_layout: Layout | None = None  # the L0 fit (what /geometry shows)
+    static_passes: int = 0  # layouts the static analysis solved on (1: no pulley moved)
 
 
 def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_modes: int | None = None,
             layout: Layout | None = None, compiled: bool = False) -> Analysis:
-    """Geometry, system, and the static equilibrium and modes if asked for (modal implies static).
+    """Geometry, system, and the static equilibrium (on the solved geometry) and modes if asked for
+    (modal implies static). `layout`: the L0 fit, if already computed.
 
     compiled: belt forces by the compiled kernel, for a process that evaluates them many times (a
     sweep, a transient follows); the numpy reference otherwise, which spares numba's ~0.3 s start-up
     (the two agree to 1e-12, tests/test_belt_kernel.py)."""
     from .system import build_system
 
+    def build(lay: Layout, stretch=None, spring_free=None) -> "System":
+        system = build_system(cfg, lay, prestrain_stretch=stretch, spring_free=spring_free)
+        return system.with_belt(compiled=True) if compiled else system
+
     layout = layout or layout_from_config(cfg)
-    system = build_system(cfg, layout)
-    if compiled:
-        system = system.with_belt(compiled=True)
-    out = Analysis(config=cfg, layout=layout, system=system)
+    out = Analysis(config=cfg, layout=layout, system=build(layout), fit_layout=layout)
     if not (static or modal):
         return out
-    from .static import solve_static
+    from .static import solve_static_on_solved_geometry
 
     try:
-        out = replace(out, static=solve_static(out.system, cfg.static))
+        solved = solve_static_on_solved_geometry(out.system, build, cfg.static)
+        out = replace(out, layout=solved.system.layout, system=solved.system, static=solved.static,
+                      static_passes=solved.passes)
         if modal:
             from .modal import solve_modes
 

@@ -7,7 +7,26 @@ f_int the belt's internal force (Eqs. 14, 17) mapped through the joints, k_s the
 is held (it reacts the applied torques and removes the belt's rigid rotation). With tension mode
 "adjust" the equation of the adjustable pulley's slide is replaced by  T(q) - T_target = 0,  T the
 length-weighted mean true axial force of the spans: moving the pulley sets the tension and the
-bearing spring's preload follows from the slide equation afterwards.
+bearing spring's preload follows from the slide equation afterwards; the travel it takes is held to
+the pulley's slide_range (a SolverError names the pulley, the travel needed and the limit).
+
+Convergence is measured per DOF group (`ResidualScales`): span rows against the tension scale,
+rotation rows against the torque scale tension x pulley radius, translation rows against the forces
+on the pulley (belt pull, weight, the bearing spring's force from the displacement, not a constant
+preload), each plus the belt's round-off floor; err <= 1 means converged.
+
+Solved geometry (`solve_static_on_solved_geometry`, what `pipeline.analyse` runs). One system keeps
+the tangent points of its layout: a pulley that moves in the solve (the tension travel, a bearing's
+deflection) meets its spans off tangent, and a free pulley's two span tensions then differ. So the
+belt is laid out anew at the solved pulley centres (`geometry.relay`), the system rebuilt and solved
+again until the pulleys stay where they are laid (movement <= tolerance x the shortest span; one or
+two passes with the predictor, a few more when bearings deflect). The belt's stress-free state: in
+mode "adjust" it is the belt of undeformed length L0 over spans and wraps, the wraps unstretched
+(DESIGN section 2: spans stress-free in the L0 geometry, the tension from moving the pulley); where
+a tangent point moves along its pulley, that arc of belt passes between span and wrap
+(`carried_reference`), so sum(span reference lengths) + sum(R_j wrap_j) = L0 on every layout, and
+the bordered Newton meets the target on the final one. In mode "prestrain" the spans' common stretch
+is iterated (secant) until the mean tension meets the target with every pulley free on its bearing.
 """
 
 from __future__ import annotations
@@ -49,23 +68,25 @@ def _predictor(system: System, stretch: float, adjust_dof: int, driver_dof: int)
     model = system.belt
     n = system.layout.n
     unknowns = [int(system.rot_dof[j]) for j in range(n) if int(system.rot_dof[j]) != driver_dof] + [adjust_dof]
-    col = {d: i for i, d in enumerate(unknowns)}
-    A = np.zeros((n, len(unknowns)))
+    A_p = np.zeros((n, system.n_p + 1))  # on the joint coordinates (an arm's centre offsets), padding last
     t = model.reference_direction
     ends = []
     for s in range(n):
         e_first, e_last = model.span_elements[s][0], model.span_elements[s][-1]
         for el, rows, sign in ((e_first, slice(0, 2), -1.0), (e_last, slice(4, 6), 1.0)):
             for k, dof in enumerate(model.idx[el]):
-                if dof in col:
-                    A[s, col[dof]] += sign * float(model.T[el, rows, k] @ t[s])
+                A_p[s, dof] += sign * float(model.T[el, rows, k] @ t[s])
         ends.append((e_first, e_last))
-    target = (stretch - 1.0) * model.reference_length
+    A_p = A_p[:, : system.n_p]
+    A_q = A_p if system.arms is None else np.asarray(A_p @ system.arms.jacobian(np.zeros(system.n_dof)).toarray())
+    A = A_q[:, unknowns]
+    lam0 = model.span_stretch if model.span_stretch is not None else model.prestrain_stretch
+    target = (stretch - lam0) * model.reference_length  # elongation still needed from the stretch at q = 0
     x = np.linalg.lstsq(A, target, rcond=None)[0]
     q = np.zeros(system.n_dof)
     q[unknowns] = x
     # Straight chords between the moved end nodes.
-    e = model.element_coordinates(q)
+    e = model.element_coordinates(system.expand(q))
     n_e = len(model.span_elements[0])
     frac = np.arange(1, n_e) / n_e
     for s, (e_first, e_last) in enumerate(ends):
@@ -132,6 +153,79 @@ def _null_dof(K, dense: bool, labels: tuple[str, ...], rank1=None) -> str:
     return labels[int(np.argmax(np.abs(vec)))]
 
 
+class ResidualScales:
+    """The allowed static residual of each row, by DOF group (`DofMap.group`):
+
+    - span rows: tol * S + floor, S the tension scale: the target tension (or, without one, the
+      spans' prestrain force EA (lambda^3 - lambda)/2), at least the largest weight on a span row
+      and 1e-9 EA;
+    - rotation rows of pulley j: tol * max(S R_j, |weight torque|, |K q|) + floor R_j, a torque scale
+      (N m) with R_j the pulley's radius: a tension error dT on one side of a free pulley is a torque
+      error dT R_j;
+    - translation rows: tol * max(S, |weight|, |K| |q|) + floor, the forces on the pulley: the belt
+      pull, its weight and the force of its bearing spring from the displacement q in this system
+      (sum_k |K_ik q_k|); a constant spring preload does not count (it would hide errors of the
+      size of the tolerance times the preload).
+
+    floor: the belt's round-off (eps_GL = (r'.r' - 1)/2 loses ~machine epsilon, times EA, per Gauss
+    point, and the bending force's share), in N.
+    """
+
+    def __init__(self, system: System) -> None:
+        from .system import DOF_GROUPS
+
+        d = system.dofs
+        n = system.n_dof
+        group = system.dof_groups
+        self.system = system
+        self.span = group == DOF_GROUPS.index("span")
+        self.rotation = group == DOF_GROUPS.index("rotation")
+        self.translation = group == DOF_GROUPS.index("translation")
+        self.lever = np.ones(n)  # m: converts a force scale into the row's scale
+        self.lever[d.rot_dof] = system.layout.radius
+        if system.arms is not None:  # an arm's row is a torque about its pivot: the arm length
+            self.lever[system.arms.dof] = system.arms.length
+        target = system.tension.target
+        el = system.belt.elements
+        EA = float(el.EA.max())
+        if target is not None:
+            S = abs(float(target))
+        else:
+            lam = np.asarray(system.belt.span_stretch if system.belt.span_stretch is not None
+                             else system.belt.prestrain_stretch, dtype=float)
+            S = float(np.abs(0.5 * EA * (lam**3 - lam)).max(initial=0.0))
+        self.tension_scale = max(S, 1e-9 * EA)
+        self.weight = self._on_q(np.abs(system.external_force(1.0)))  # weight and accessory torques
+        self.K_abs = None
+        if system.linear_stiffness is not None:
+            K = system.linear_matrix()
+            self.K_abs = np.abs(K) if system.dense else abs(K)
+
+    def _on_q(self, x: np.ndarray) -> np.ndarray:
+        """A non-negative scale on the joint coordinates (n_p,) -> on q: |J|^T x at q = 0."""
+        a = self.system.arms
+        if a is None:
+            return x
+        out = x[: a.n_q].copy()
+        out[a.dof] += np.abs(a.first(a.angle) * x[a.n_q:].reshape(-1, 2)).sum(axis=1)
+        return out
+
+    def scale(self, q: np.ndarray, lam: float) -> np.ndarray:
+        """(n,) the force (N) or torque (N m) scale of each row."""
+        g = abs(lam) * self.weight
+        S = max(self.tension_scale, float(g[self.span].max(initial=0.0)))
+        out = np.maximum(S * self.lever, g)
+        if self.K_abs is not None:
+            kq = self._on_q(np.asarray(self.K_abs @ np.abs(self.system.expand(q))).ravel())
+            other = ~self.span
+            out[other] = np.maximum(out[other], kq[other])
+        return out
+
+    def allowed(self, q: np.ndarray, lam: float, tol: float, floor: float) -> np.ndarray:
+        """(n,) the allowed residual of each row: tol * scale + floor (times the lever arm)."""
+        return tol * self.scale(q, lam) + floor * self.lever
+
+
 class _Fail(Exception):
     """A failed Newton solve: message, scaled residual, DOF label at fault."""
 
@@ -144,9 +238,8 @@ class _Problem:
     """The static equations of one drive: residual, Jacobian and Newton with line search.
 
     Held ("pinned") DOFs keep their value: their residual rows are zero and their Jacobian rows and
-    columns those of the identity. Residuals are scaled by the allowed residual, tolerance * force
-    scale + a round-off floor (eps_GL = (r'.r' - 1)/2 loses ~machine epsilon, times EA, summed over
-    elements), so that err <= 1 means converged.
+    columns those of the identity. Each residual row is scaled by its allowed residual (`allowed`),
+    so that err = max |R_i| / allowed_i <= 1 means converged.
     """
 
     def __init__(self, system: System, opts: StaticOptions) -> None:
@@ -162,25 +255,23 @@ class _Problem:
         bend = float((np.abs(el.K_bend) @ np.abs(system.belt.e0)[:, :, None]).max(initial=0.0))
         self.noise = 1e3 * np.finfo(float).eps * (float(el.EA.max()) * np.sqrt(el.n_elem) + bend)
         self.history: list[tuple[float, float]] = []
-        self.has_load = bool(np.any(system.gravity_force != 0.0))
+        self.has_load = bool(np.any(system.external_force(1.0) != 0.0))
         self.EA = float(el.EA.max())
+        self.scales = ResidualScales(system)
 
     def tension_tolerance(self) -> float:
         """Allowed error of the mean tension: relative tolerance + round-off of EA eps (~EA * eps)."""
         return self.opts.tolerance * abs(self.target) + 100 * np.finfo(float).eps * self.EA
 
-    def allowed(self, lam: float) -> float:
-        scale = max(abs(self.target) if self.target else 0.0,
-                    float(np.abs(lam * self.model.gravity_force).max(initial=0.0)),
-                    1e-9 * self.EA)
-        return self.opts.tolerance * scale + self.noise
+    def allowed(self, q: np.ndarray, lam: float) -> np.ndarray:
+        return self.scales.allowed(q, lam, self.opts.tolerance, self.noise)
 
     def evaluate(self, q: np.ndarray, lam: float, pinned: np.ndarray, bordered: bool):
         """Residual (pinned rows zero), Jacobian, err = max scaled |R|, and the bordered rank-1 term."""
         m = self.model
-        f, K = m.force_and_tangent(q)
-        R = f - self.preload - lam * m.gravity_force
-        scaled = np.abs(R) / self.allowed(lam)
+        R, K = m.equilibrium(q, lam)  # J^T (f - lam F), F the weight and the accessory torques
+        R = R - self.preload
+        scaled = np.abs(R) / self.allowed(q, lam)
         rank1 = None
         if bordered:  # the slide equation of the adjustable pulley becomes T(q) = target
             T, dT = m.mean_tension_and_gradient(q)
@@ -260,7 +351,7 @@ class _Problem:
             g = T - self.target
             if abs(g) <= tol_T:
                 return q
-            _, K = m.force_and_tangent(q)
+            _, K = m.equilibrium(q, 1.0)
             col = np.asarray(K[:, a]).ravel() if m.dense else K.getcol(a).toarray().ravel()
             col[pinned] = 0.0
             K = _pin(K, pinned, m.dense)
@@ -297,20 +388,34 @@ class _Problem:
                     abs(g) / tol_T, m.dof_labels[a])
 
 
-def solve_static(system: System, options: StaticOptions) -> StaticResult:
+def solve_static(system: System, options: StaticOptions, *, q0: np.ndarray | None = None) -> StaticResult:
     """Static equilibrium of the drive (raises SolverError naming step, residual and DOF).
 
     Tension mode "adjust": a bordered Newton on (equilibrium, T = target) from the linear axial
     predictor, which converges in one or two iterations for taut spans; if it fails (sagging spans,
     strong nonlinearity), an outer Newton on the slide offset around inner equilibrium solves with
-    load stepping on the weight. Other modes: equilibrium with load stepping.
+    load stepping on the weight. Other modes: equilibrium with load stepping. q0: a start (n_dof,)
+    instead of the predictor (warm start; the driver's rotation is held at q0's value); if Newton
+    fails from it, the solve starts over as without it.
+
+    One system, one layout: the joints keep the tangent points of `system.layout`, so a pulley that
+    moves far meets its spans off tangent; `solve_static_on_solved_geometry` (what
+    `pipeline.analyse` calls) lays the belt out again at the solved positions.
     """
     model = system
     prob = _Problem(system, options)
     n = model.n_dof
     pinned = np.array([prob.driver])
     try:
-        if prob.adjust:
+        q = None
+        if q0 is not None:
+            try:
+                q = prob.newton(np.array(q0, dtype=float), 1.0, pinned, bordered=prob.adjust)
+            except _Fail:
+                prob.history.clear()
+        if q is not None:
+            pass
+        elif prob.adjust:
             q0 = _predictor(model, stretch_for_tension(prob.target, prob.EA), prob.a, prob.driver)
             try:
                 q = prob.newton(q0, 1.0, pinned, bordered=True, max_iterations=8)
@@ -323,23 +428,306 @@ def solve_static(system: System, options: StaticOptions) -> StaticResult:
         lam = getattr(fail, "lam", 1.0)
         raise SolverError(f"{fail} (residual scaled so that 1 means converged)", analysis="static",
                           step=f"load factor {lam:.4g}", residual=fail.err, item=fail.dof) from None
+    _check_stops(model, q)
     if prob.adjust:  # the bearing spring's preload follows from the adjustable pulley's slide equation
-        f = model.internal_force(q)
-        prob.preload[prob.a] = f[prob.a] - model.gravity_force[prob.a]
+        _check_travel(model, q)
+        r, _ = model.equilibrium(q)
+        prob.preload[prob.a] = r[prob.a]
     hist = np.array(prob.history).reshape(-1, 2)
     return _result(model, q, prob.preload, hist[:, 0], hist[:, 1], len(hist), prob.driver)
+
+
+def _check_travel(system: System, q: np.ndarray) -> None:
+    """The tension step's travel of the adjustable pulley (from its given centre) within its slide_range."""
+    ts = system.tension
+    lim = ts.adjust_range
+    if lim is None or ts.adjust_dof < 0 or system.dof_groups[ts.adjust_dof] != 2:  # arms: `_check_stops`
+        return
+    travel = system.layout.adjust_offset + float(q[ts.adjust_dof])
+    span = max(abs(lim[0]), abs(lim[1]), 1e-3)
+    if lim[0] - 1e-12 * span <= travel <= lim[1] + 1e-12 * span:
+        return
+    raise SolverError(
+        f"tension.target = {ts.target:g} N needs pulley '{ts.adjust_name}' to travel {travel:.6g} m along its slide "
+        f"(from its given centre), outside its slide_range [{lim[0]:g}, {lim[1]:g}] m; lower the target or "
+        f"widen the slide_range", analysis="static", step="tension step",
+        item=system.dof_labels[ts.adjust_dof])
+
+
+def _check_stops(system: System, q: np.ndarray) -> None:
+    """Every tensioner arm's equilibrium angle between its stops (arm_range)."""
+    a = system.arms
+    if a is None or a.stops is None:
+        return
+    from .geometry import unwrap_near
+
+    for k, (lo, hi) in enumerate(a.stops):
+        if np.isnan(lo):
+            continue
+        phi = unwrap_near(float(a.angle[k] + q[a.dof[k]]), 0.5 * (lo + hi))
+        if lo - 1e-12 <= phi <= hi + 1e-12:
+            continue
+        ts = system.tension
+        why = (f"tension.target = {ts.target:g} N needs" if ts.adjust_dof == int(a.dof[k]) else
+               "the static equilibrium puts")
+        raise SolverError(f"{why} the arm of pulley '{a.names[k]}' at {phi:.6g} rad, outside its stops "
+                          f"arm_range = [{lo:g}, {hi:g}] rad; change the target, the spring or the stops",
+                          analysis="static", step="tension step" if ts.adjust_dof == int(a.dof[k]) else "equilibrium",
+                          item=system.dof_labels[int(a.dof[k])])
 
 
 def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -> StaticResult:
     lay = model.layout
     hub, span_tension = model.joint_reactions(q)
-    f = model.internal_force(q) - preload - model.gravity_force
+    f = model.equilibrium(q)[0] - preload
     T_mean, _ = model.mean_tension_and_gradient(q)
     a = lay.adjust_index
-    offset = lay.adjust_offset + (float(q[model.trans_dof[a][0]]) if a is not None else 0.0)
+    if a is None:
+        offset = 0.0
+    elif lay.adjust_kind == "arm":
+        offset = lay.adjust_offset + float(q[model.dofs.arm_dof[a]])
+    else:
+        offset = lay.adjust_offset + float(q[model.trans_dof[a][0]])
     return StaticResult(
         q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
         hub_load=hub, pulley_center=model.pulley_centers(q), pulley_rotation=q[model.rot_dof].copy(),
         driver_torque=float(f[driver_dof]), adjust_offset=offset,
         residual_history=np.array(hist_r), load_factor_history=np.array(hist_l), iterations=iterations,
         tension_mode=model.tension.mode)
+
+
+# ------------------------------------------------------------------------------------ solved geometry
+MAX_PASSES = 25
+
+
+@dataclass(frozen=True, kw_only=True)
+class SolvedDrive:
+    """The static equilibrium on the solved geometry: the final system (laid out at the solved pulley
+    positions) and its static result."""
+
+    system: System
+    static: StaticResult
+    passes: int  # layouts solved on (the first included)
+    solves: int  # static solves (prestrain iterations included)
+    movement: np.ndarray  # (passes,) largest pulley displacement from its laid centre after each pass, m
+
+
+def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
+    """Span reference lengths (n,) on layout `new` of the belt whose spans had `reference_length` on
+    layout `old`, the wraps unstretched: where a tangent point moves along its pulley by an arc
+    R dpsi in the direction of belt travel, that much belt passes from the span onto the wrap (or
+    back). The total, sum(reference lengths) + sum(arc lengths), is kept. Pulley rotations stay
+    coordinates of the system (the joints slide the span ends along the tangent lines)."""
+    from .geometry import TWO_PI
+
+    def turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        d = np.arctan2(b[:, 1], b[:, 0]) - np.arctan2(a[:, 1], a[:, 0])
+        return (d + np.pi) % TWO_PI - np.pi
+
+    sigma = new.orientation * new.side_sign  # sense in which the belt travels around each pulley
+    nxt = np.roll(np.arange(new.n), -1)
+    onto_start = new.radius * sigma * turn(old.start_normal, new.start_normal)  # span s leaving pulley s
+    onto_end = -new.radius[nxt] * sigma[nxt] * turn(old.end_normal, new.end_normal)  # span s reaching pulley s+1
+    out = reference_length - onto_start - onto_end
+    if not np.all(out > 0.0):
+        s = int(np.argmin(out))
+        raise SolverError(f"span {new.span_name(s)} has no belt left at the solved pulley positions (reference "
+                          f"length {out[s]:.3g} m)", analysis="static", step="re-lay", item=f"span {s + 1}")
+    return out
+
+
+def _meet_prestrain(build, layout, lam: float, free: np.ndarray, options: StaticOptions, slope: float | None):
+    """Secant on the spans' uniform prestrain stretch lam until the static mean tension equals the
+    target (the pulleys free on their bearings). Returns (system, static, lam, slope, solves)."""
+    system = build(layout, lam, free)
+    target = float(system.tension.target)
+    EA = float(system.belt.elements.EA.max())
+    tol_T = options.tolerance * abs(target) + 100 * np.finfo(float).eps * EA
+    if slope is None:
+        slope = 0.5 * EA * (3.0 * lam**2 - 1.0)  # rigid supports
+    prev = None
+    for it in range(options.max_iterations):
+        if it:
+            system = build(layout, lam, free)
+        st = solve_static(system, options)
+        g = st.mean_tension - target
+        if abs(g) <= tol_T:
+            return system, st, lam, slope, it + 1
+        if prev is not None:
+            secant = (g - prev[1]) / (lam - prev[0])
+            if not (np.isfinite(secant) and secant > 1e-9 * EA):
+                raise SolverError(
+                    f'tension.mode = "prestrain" cannot reach tension.target = {target:g} N: the mean span tension '
+                    f"({st.mean_tension:.6g} N at span stretch {lam:.9g}) does not grow with the prestrain "
+                    f"(dT/dstretch = {secant:.3g} N); a support gives way without limit", analysis="static",
+                    step=f"prestrain iteration {it + 1}", residual=abs(g) / tol_T, item="tension.target")
+            slope = secant
+        prev = (lam, g)
+        new = lam - g / slope
+        lam = new if new > 1.0 else 1.0 + 0.5 * (lam - 1.0)
+    raise SolverError(f'tension.mode = "prestrain": the mean span tension did not reach tension.target = '
+                      f"{target:g} N in {options.max_iterations} prestrain iterations (last {st.mean_tension:.9g} N)",
+                      analysis="static", step="prestrain iteration", residual=abs(g) / tol_T, item="tension.target")
+
+
+def _predicted_centers(system: System, anchored: set, fit, tol_x: float) -> np.ndarray:
+    """Pulley centres (n, 2) of the drive under a uniform belt tension T = target: the adjustable pulley
+    where `fit(centers)` places it (mode "adjust"), every spring-supported pulley deflected by its
+    bearing springs under the belt's pull T (t_out - t_in) of that layout and the weight on its DOFs
+    (`gravity_force`, the pulley's and its share of the belt's). A fixed point over layouts (cheap
+    geometry); the static passes correct what it leaves out (sag, bending)."""
+    from .geometry import relay
+
+    lay0 = system.layout
+    T = float(system.tension.target)
+    k_diag = np.asarray(system.linear_matrix().diagonal()).ravel()
+    anchored_set = anchored
+    centers = lay0.center.copy()
+    for _ in range(50):
+        lay = fit(centers) if fit is not None else relay(lay0, centers)
+        t = lay.span_direction
+        pull = T * (t - np.roll(t, 1, axis=0))  # span j leaves pulley j along t_j, span j-1 arrives along t_j-1
+        new = lay.center.copy()
+        for j, (dofs, dirs) in enumerate(zip(system.trans_dof, system.trans_dir)):
+            new[j] = lay0.center[j] if any(k in anchored_set for k in dofs) else lay.center[j]
+            for k, v in zip(dofs, dirs):
+                if k in anchored_set and k_diag[k] > 0.0:
+                    new[j] = new[j] + v * (float(pull[j] @ v) + float(system.gravity_force[k])) / k_diag[k]
+        done = float(np.abs(new - centers).max()) <= tol_x
+        centers = new
+        if done:
+            break
+    return centers
+
+
+def solve_static_on_solved_geometry(system: System, build, options: StaticOptions, *,
+                                    max_passes: int = MAX_PASSES) -> SolvedDrive:
+    """Static equilibrium with the belt laid out at the solved pulley positions.
+
+    `system` is laid out on the L0 fit (`build_system`); build(layout, prestrain_stretch, spring_free)
+    builds the same drive on another layout (see `build_system`). A pulley that moves in the static
+    solve (the adjustable pulley's tension travel, a bearing's deflection) leaves its spans meeting it
+    off tangent (the joints keep the tangent points of the layout), so the layout is laid anew at the
+    solved centres (`geometry.relay`: tangent points, spans and wraps recomputed), the system rebuilt
+    and solved again, until no pulley moves more than tolerance x (shortest span) from its laid centre.
+    The first layout is predicted (`_predicted_centers`: the drive under a uniform tension, pure
+    geometry), and from the third pass on the next centres are extrapolated (Aitken) when the passes
+    contract steadily: one pass without weight, two or three with it.
+
+    The reference (stress-free) state of the re-laid spans, by tension mode:
+    - "adjust" (and no target with an adjustable pulley): the belt of undeformed length L0 lies on the
+      spans and the wraps, the wraps unstretched (as in the L0 geometry of DESIGN section 2, where the
+      spans are stress-free and moving the pulley stretches the spans only): `carried_reference` moves
+      belt between span and wrap where a tangent point moves, so the spans' reference lengths sum to
+      L0 - sum(R_j wrap_j) on every layout, and the pulley rotations stay what they were.
+    - "prestrain": a uniform span stretch, iterated (secant, `_meet_prestrain`) until the static mean
+      tension equals the target with every pulley free on its bearing.
+    - no target, no adjustable pulley: the belt of length L0 stretched uniformly onto the new path.
+    Bearing springs stay anchored where they were relaxed on the L0 fit (spring_free); the adjustable
+    pulley's spring in mode "adjust" carries the preload its slide equation asks for, as before.
+    """
+    from .geometry import GeometryError, Layout, fit_adjustable, relay
+    from .system import stretch_for_tension as _stretch
+
+    ts = system.tension
+    lay0 = lay = system.layout
+    d = system.dofs
+    n_dof = d.n
+    arm_of = {} if system.arms is None else {int(s_): k for k, s_ in enumerate(system.arms.slot)}
+    trans = np.array([k for dofs in d.trans_dof for k in dofs if (dofs[0] if dofs else -1) not in arm_of],
+                     dtype=np.int64)  # spring-supported translations (an arm pulley's offsets are not)
+    anchored = set((trans[trans != ts.adjust_dof] if ts.mode == "adjust" else trans).tolist())
+    conserve = ts.mode in ("adjust", "spring") or (ts.mode == "geometry" and lay.adjust_index is not None)
+    moving = bool(trans.size) or system.arms is not None
+    prestrain = ts.mode == "prestrain" and ts.target is not None
+    EA = float(system.belt.elements.EA.max())
+    tol_x = options.tolerance * float(lay0.span_length.min())
+
+    def lay_out(old: Layout, centers: np.ndarray, ref_old: np.ndarray, step: str):
+        """(layout, spring_free, system or None) at `centers`, the belt carried over from `old`."""
+        a = old.adjust_index
+        if a is None:
+            offset = None
+        elif old.adjust_kind == "arm":  # the further turn of the arm about its pivot
+            pv = system.arms.pivot[arm_of[d.trans_dof[a][0]]]
+            turn = np.arctan2(*(centers[a] - pv)[::-1]) - np.arctan2(*(old.center[a] - pv)[::-1])
+            offset = old.adjust_offset + float((turn + np.pi) % (2 * np.pi) - np.pi)
+        else:
+            offset = old.adjust_offset + float((centers[a] - old.center[a]) @ d.trans_dir[a][0])
+        try:
+            new = relay(old, centers, adjust_offset=offset)
+        except GeometryError as exc:
+            j = int(np.argmax(np.linalg.norm(centers - old.center, axis=1)))
+            raise SolverError(f"no belt path through the solved pulley positions: {exc}", analysis="static",
+                              step=step, item=f"pulley {old.names[j]}") from None
+        free = np.zeros(n_dof)  # the springs stay relaxed where they were on the L0 fit
+        for j, (dofs, dirs) in enumerate(zip(d.trans_dof, d.trans_dir)):
+            for k, v in zip(dofs, dirs):
+                if k in anchored:
+                    free[k] = -float((centers[j] - lay0.center[j]) @ v)
+        if conserve:
+            return new, free, build(new, new.span_length / carried_reference(old, new, ref_old), free)
+        if prestrain:
+            return new, free, None  # built by _meet_prestrain
+        return new, free, build(new, None, free)
+
+    free = np.zeros(n_dof)
+    lam_p, slope = float(system.belt.prestrain_stretch), None
+    if ts.target is not None and (moving or ts.mode == "adjust"):  # predicted first layout
+        fit = None
+        if ts.mode == "adjust":
+            lam_T = _stretch(float(ts.target), EA)
+            material = float(system.belt.reference_length.sum() + lay0.arc_length.sum())  # L0
+            j = lay0.adjust_index
+
+            pivot = None if lay0.adjust_kind != "arm" else system.arms.pivot[arm_of[d.trans_dof[j][0]]]
+
+            def fit(centers):  # the adjustable pulley where spans at the target stretch fit
+                lay_f = fit_adjustable(centers, lay0.radius, lay0.side_sign, lay0.names, index=j,
+                                       direction=d.trans_dir[j][0], target_length=lam_T * material,
+                                       arc_weight=lam_T, orientation=lay0.orientation, pivot=pivot)
+                if pivot is not None:  # the turn counts from the drawn arm angle, as on the L0 fit
+                    lay_f = Layout(**{**lay_f.__dict__, "adjust_offset": lay0.adjust_offset + lay_f.adjust_offset})
+                return lay_f
+        try:
+            centers = _predicted_centers(system, anchored, fit, tol_x)
+            lay, free, built = lay_out(lay0, centers, system.belt.reference_length, "prediction")
+            if prestrain:
+                lam_p = _stretch(float(ts.target), EA)
+            else:
+                system = built
+        except (GeometryError, SolverError):
+            lay, free = lay0, np.zeros(n_dof)  # no prediction: start from the L0 fit
+    prev_step = None
+    movement: list[float] = []
+    solves = 0
+    for p in range(1, max_passes + 1):
+        if prestrain:
+            system, st, lam_p, slope, k = _meet_prestrain(build, lay, lam_p, free, options, slope)
+            solves += k
+        else:
+            st = solve_static(system, options)
+            solves += 1
+        step = st.pulley_center - lay.center
+        movement.append(float(np.linalg.norm(step, axis=1).max(initial=0.0)))
+        if not moving or movement[-1] <= tol_x:
+            return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement))
+        # the next layout: at the solved centres, extrapolated (Aitken) where the passes contract steadily
+        centers = st.pulley_center
+        if prev_step is not None:
+            rho = float(np.vdot(step, prev_step) / np.vdot(prev_step, prev_step))
+            cos = float(np.vdot(step, prev_step) / (np.linalg.norm(step) * np.linalg.norm(prev_step)))
+            if abs(rho) < 0.5 and abs(cos) > 0.9:  # steps along one line, shrinking (or alternating)
+                centers = centers + rho / (1.0 - rho) * step
+        prev_step = step
+        ref_old = system.belt.reference_length
+        lay, free, built = lay_out(lay, centers, ref_old, f"re-lay pass {p}")
+        if prestrain:
+            lam_p = float(lay.span_length.sum() / ref_old.sum())
+        else:
+            system = built
+    j = int(np.argmax(np.linalg.norm(step, axis=1)))
+    raise SolverError(f"the solved geometry did not settle in {max_passes} re-lay passes: pulley "
+                      f"'{lay.names[j]}' still moves {movement[-1]:.3g} m from its laid centre "
+                      f"(allowed {tol_x:.3g} m)", analysis="static", step=f"re-lay pass {max_passes}",
+                      item=f"pulley {lay.names[j]}")

@@ -188,11 +188,12 @@ class BearingSprings(LinearComponent):
     def observe(self, system: "System", q: np.ndarray, preload: np.ndarray) -> dict[str, np.ndarray]:
         d = system.dofs
         k_of = dict(zip(self.dofs.tolist(), np.diag(self.stiffness)))  # the springs are diagonal
+        free = dict(zip(self.dofs.tolist(), self.free if self.free is not None else np.zeros(len(self.dofs))))
         rows = []
         for j in self.pulleys:
             F = np.zeros((q.shape[0], 2))
             for dof, vec in zip(d.trans_dof[j], d.trans_dir[j]):
-                F += (preload[dof] - k_of[dof] * q[:, dof])[:, None] * vec
+                F += (preload[dof] - k_of[dof] * (q[:, dof] - free[dof]))[:, None] * vec
             rows.append(F)
         return {"bearing_force": np.stack(rows, axis=1)}
 
@@ -216,7 +217,8 @@ class BeltSpans:
     reference_length: np.ndarray  # (n_span,) reference (unstretched) length of each span
     reference_direction: np.ndarray  # (n_span, 2) unit direction of each span at q = 0
     reference_normal: np.ndarray  # (n_span, 2) unit normal (z x t) of each span at q = 0
-    prestrain_stretch: float = 1.0
+    prestrain_stretch: float = 1.0  # mean stretch of the spans at q = 0: sum of chord lengths / sum of reference lengths
+    span_stretch: np.ndarray | None = None  # (n_span,) stretch of each span at q = 0 (None: prestrain_stretch for all)
     damping_axial: float = 0.0  # Kelvin-Voigt retardation times (s), set by the transient options
     damping_bending: float = 0.0
     compiled: bool = False  # forces by the compiled kernel (`belt_kernel`) instead of the numpy `ancf`
@@ -494,6 +496,8 @@ class TensionSetting:
     target: float | None
     mode: str
     adjust_dof: int  # -1 when no DOF is moved
+    adjust_range: tuple[float, float] | None = None  # allowed total travel of the adjustable pulley (slide_range), m
+    adjust_name: str = ""  # name of the adjustable pulley
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -518,6 +522,8 @@ class ArmJoints:
     n_q: int
     n_p: int
     friction: np.ndarray | None = None  # (a,) N m, dry friction torque of each arm's pivot damper (transient)
+    stops: np.ndarray | None = None  # (a, 2) rad, arm_range (NaN: none)
+    names: tuple[str, ...] = ()  # the arm pulleys' names
 
     def phi(self, q: np.ndarray) -> np.ndarray:
         """(..., a) arm angles."""
@@ -909,14 +915,18 @@ def _in_pattern(A, pattern: Pattern):
 
 
 # ------------------------------------------------------------------------------------ building
-def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stretch: float = 1.0) -> BeltSpans:
-    """Mesh each span and join its end nodes to the pulleys (constant-Jacobian joints)."""
+def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
+               prestrain_stretch: float | np.ndarray = 1.0) -> BeltSpans:
+    """Mesh each span and join its end nodes to the pulleys (constant-Jacobian joints).
+
+    prestrain_stretch: the stretch of the spans at q = 0 (chord length / reference length), one
+    number for all spans or one per span (n_span,)."""
     n_p = layout.n
     n_e = cfg.mesh.elements_per_span
     n_dof = dofs.n
     pad = n_dof
-    lam = prestrain_stretch
-    L_ref = layout.span_length / lam
+    lam_s = np.broadcast_to(np.asarray(prestrain_stretch, dtype=float), (n_p,)).copy()
+    L_ref = layout.span_length / lam_s
     t_dir = layout.span_direction
     normals = np.column_stack([-t_dir[:, 1], t_dir[:, 0]])
     n_elem = n_p * n_e
@@ -934,7 +944,7 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stre
         a, b = layout.span_start[s], layout.span_end[s]
         nodes = a + np.outer(frac, b - a)
         e0[els, 0:2], e0[els, 4:6] = nodes[:-1], nodes[1:]
-        e0[els, 2:4] = e0[els, 6:8] = lam * t_dir[s]
+        e0[els, 2:4] = e0[els, 6:8] = lam_s[s] * t_dir[s]
         base = dofs.span_slices[s].start
         node_dof = base + 2 + 4 * (np.arange(n_e + 1) - 1)  # first DOF of each node (interior nodes)
         node_dof[0], node_dof[-1] = base - 2, base + 2 + 4 * (n_e - 1) - 2  # so that +2, +3 are gradients
@@ -961,9 +971,11 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stre
     T, idx = np.ascontiguousarray(T[:, :, :used]), np.ascontiguousarray(idx[:, :used]).astype(np.int64)
     el = ancf.make_elements(np.repeat(L_ref / n_e, n_e), cfg.belt.EA, cfg.belt.EI, cfg.belt.mass_per_length,
                             curvature=cfg.model.curvature, n_gauss=cfg.model.gauss_points)
+    uniform = bool(np.all(lam_s == lam_s[0]))
+    lam = float(lam_s[0]) if uniform else float(layout.span_length.sum() / L_ref.sum())
     return BeltSpans(elements=el, elem_span=elem_span, span_elements=span_elements, T=T, idx=idx,
                      tsel=joint_selection(T, idx, n_dof), e0=e0, n_dof=n_dof, reference_length=L_ref,
-                     reference_direction=t_dir, reference_normal=normals, prestrain_stretch=lam)
+                     reference_direction=t_dir, reference_normal=normals, prestrain_stretch=lam, span_stretch=lam_s)
 
 
 
@@ -984,11 +996,17 @@ def joint_selection(T: np.ndarray, idx: np.ndarray, n_dof: int) -> np.ndarray:
     ok = np.all(T == ident, axis=(1, 2)) & np.all(idx[:, 8:] == n_dof, axis=1)
     return np.where(ok, -1, np.arange(T.shape[0])).astype(np.int64)
 
-def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = None) -> tuple[LinearComponent, ...]:
+
+def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = None, *,
+                      spring_free: np.ndarray | None = None) -> tuple[LinearComponent, ...]:
     """Pulley inertia (rotation DOFs), pulley mass and weight (translation DOFs, paper Eq. 20), the
     bearing springs (Eq. 21): only on the DOFs the supports allow; and each tensioner arm's inertia,
     torsion spring and viscous damper on its angle (the arm pulley's mass sits on its dependent
-    centre offsets: its m l^2 comes through the arm kinematics)."""
+    centre offsets: its m l^2 comes through the arm kinematics).
+
+    spring_free (n_dof,): the value of each translation DOF at which its bearing spring is relaxed
+    (None: 0, the pulley at its layout centre). A layout whose pulleys sit displaced from their given
+    centres (`geometry.relay`) anchors the springs at the given centres with it."""
     rot = dofs.rot_dof
     out: list[LinearComponent] = [LinearComponent(
         name="pulley inertia", dofs=rot.copy(), mass=np.diag([p.inertia for p in cfg.pulleys]),
@@ -1013,8 +1031,9 @@ def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = No
         d = np.array(t_dofs, dtype=np.int64)
         out.append(LinearComponent(name="pulley mass", dofs=d, mass=np.diag(t_mass), weight=np.array(t_weight),
                                    energy_kind="translational"))
-        out.append(BearingSprings(name="bearing springs", dofs=d, stiffness=np.diag(k_spring), pulleys=tuple(supported),
-                                  pulley_names=tuple(cfg.pulleys[j].name for j in supported)))
+        free = None if spring_free is None or not np.any(spring_free[d]) else np.asarray(spring_free, dtype=float)[d]
+        out.append(BearingSprings(name="bearing springs", dofs=d, stiffness=np.diag(k_spring), free=free,
+                                  pulleys=tuple(supported), pulley_names=tuple(cfg.pulleys[j].name for j in supported)))
     if a_dofs:
         out.append(LinearComponent(name="arm pulley mass", dofs=np.array(a_dofs, dtype=np.int64), mass=np.diag(a_mass),
                                    weight=np.array(a_weight), energy_kind="tensioner"))
@@ -1047,7 +1066,9 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap) -> ArmJoints | No
                      slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64), pivot=pivot,
                      length=np.hypot(*(layout.center[arms] - pivot).T),
                      angle=np.array([arm_angle(layout, j, pivot[k]) for k, j in enumerate(arms)]),
-                     n_q=dofs.n_q, n_p=dofs.n, friction=np.array([cfg.pulleys[j].arm_friction for j in arms]))
+                     n_q=dofs.n_q, n_p=dofs.n, friction=np.array([cfg.pulleys[j].arm_friction for j in arms]),
+                     stops=np.array([cfg.pulleys[j].arm_range or (np.nan, np.nan) for j in arms], dtype=float),
+                     names=tuple(cfg.pulleys[j].name for j in arms))
 
 
 def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
@@ -1089,9 +1110,15 @@ def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
     return 1.0
 
 
-def build_system(cfg: DriveConfig, layout: Layout | None = None, *, prestrain_stretch: float | None = None,
+def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
+                 prestrain_stretch: float | np.ndarray | None = None, spring_free: np.ndarray | None = None,
                  dense: bool | None = None, extra: tuple[LinearComponent, ...] = ()) -> System:
-    """The one place a system is built from a configuration: geometry, DOFs, belt, pulleys, springs."""
+    """The one place a system is built from a configuration: geometry, DOFs, belt, pulleys, springs.
+
+    layout: the belt path (default: the L0 fit of the configuration); prestrain_stretch: the spans'
+    stretch at q = 0, one number or one per span (default: what the tension mode asks for,
+    `reference_stretch`); spring_free (n_dof,): where the bearing springs are relaxed (default: the
+    layout's centres; see `pulley_components`)."""
     layout = layout or layout_from_config(cfg)
     lam = reference_stretch(cfg, layout) if prestrain_stretch is None else prestrain_stretch
     dofs = number_dofs(cfg)
@@ -1100,11 +1127,26 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *, prestrain_st
     adjust = target is not None and cfg.tension.mode == "adjust"
     a = cfg.adjustable_index
     adjust_dof = -1
-    if adjust and a is not None:
-        adjust_dof = int(dofs.arm_dof[a]) if cfg.pulleys[a].support == "arm" else int(dofs.trans_dof[a][0])
+    adjust_range = None
+    if a is not None:
+        p = cfg.pulleys[a]
+        if p.support == "arm":
+            if adjust:
+                adjust_dof = int(dofs.arm_dof[a])
+            if p.arm_range is not None:  # the stops as the angle turned from the drawn arm angle
+                from .geometry import unwrap_near
+
+                mid = 0.5 * (p.arm_range[0] + p.arm_range[1])
+                drawn = unwrap_near(p.arm_angle, mid)
+                adjust_range = (p.arm_range[0] - drawn, p.arm_range[1] - drawn)
+        else:
+            if adjust:
+                adjust_dof = int(dofs.trans_dof[a][0])
+            adjust_range = p.slide_range
     mode = "spring" if cfg.tension.mode == "spring" else (cfg.tension.mode if target is not None else "geometry")
-    tension = TensionSetting(target=target, mode=mode, adjust_dof=adjust_dof)
-    return _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout) + tuple(extra),
+    tension = TensionSetting(target=target, mode=mode, adjust_dof=adjust_dof, adjust_range=adjust_range,
+                             adjust_name=cfg.pulleys[a].name if a is not None else "")
+    return _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free) + tuple(extra),
                      pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index, tension=tension,
                      gravity=np.asarray(cfg.model.gravity, dtype=float), dense=dense,
                      loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs))
