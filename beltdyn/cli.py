@@ -798,6 +798,9 @@ def _print_geometry(layout) -> None:
 
 
 def _print_static(layout, model, res) -> None:
+    import math
+
+    import numpy as np
     from rich.table import Table
 
     con = _console()
@@ -808,14 +811,48 @@ def _print_static(layout, model, res) -> None:
         t.add_row(layout.span_name(i), f"{res.span_tension[i, 0]:.4f}", f"{res.span_tension[i, 1]:.4f}")
     con.print(t)
     h = Table(title="Pulleys")
-    for col in ("pulley", "x (m)", "y (m)", "hub load x (N)", "hub load y (N)", "|hub load| (N)"):
+    slip = res.slip_margin is not None and not np.all(np.isnan(res.slip_margin))
+    loads = res.applied_torque is not None and np.any(res.applied_torque)
+    cols = ["pulley", "x (m)", "y (m)", "hub load x (N)", "hub load y (N)", "|hub load| (N)"]
+    cols += ["torque (N m)"] if loads else []
+    cols += ["tight (N)", "slack (N)", "mu required", "slip margin"] if slip else []
+    for col in cols:
         h.add_column(col, justify="right" if col != "pulley" else "left")
+    from .slip import pulley_tensions
+
+    t_in, t_out = pulley_tensions(res.span_tension)
     for j, name in enumerate(layout.names):
-        h.add_row(name, f"{res.pulley_center[j, 0]:.7f}", f"{res.pulley_center[j, 1]:.7f}", f"{res.hub_load[j, 0]:.3f}",
-                  f"{res.hub_load[j, 1]:.3f}", f"{float((res.hub_load[j] ** 2).sum()) ** 0.5:.3f}")
+        row = [name, f"{res.pulley_center[j, 0]:.7f}", f"{res.pulley_center[j, 1]:.7f}", f"{res.hub_load[j, 0]:.3f}",
+               f"{res.hub_load[j, 1]:.3f}", f"{float((res.hub_load[j] ** 2).sum()) ** 0.5:.3f}"]
+        if loads:
+            row.append(f"{res.applied_torque[j]:.4g}" if j != model.driver else f"{res.driver_torque:.4g} (driver)")
+        if slip:
+            row += [f"{max(t_in[j], t_out[j]):.3f}", f"{min(t_in[j], t_out[j]):.3f}",
+                    f"{res.required_friction[j]:.4g}", "-" if np.isnan(res.slip_margin[j]) else f"{res.slip_margin[j]:.3g}"]
+        h.add_row(*row)
     con.print(h)
-    con.print(f"mean span tension {res.mean_tension:.6f} N; driver torque {res.driver_torque:.4g} N m; "
-              f"adjustable pulley offset {res.adjust_offset * 1e3:.4f} mm")
+    if res.arm_angle is not None and not np.all(np.isnan(res.arm_angle)):
+        a = Table(title="Tensioner arms")
+        for col in ("pulley", "arm angle (deg)", "spring torque (N m)", "spring free angle (deg)",
+                    "pivot reaction x (N)", "pivot reaction y (N)"):
+            a.add_column(col, justify="right" if col != "pulley" else "left")
+        for j, name in enumerate(layout.names):
+            if np.isnan(res.arm_angle[j]):
+                continue
+            a.add_row(name, f"{math.degrees(res.arm_angle[j]):.4f}", f"{res.arm_torque[j]:.4f}",
+                      "-" if np.isnan(res.arm_free_angle[j]) else f"{math.degrees(res.arm_free_angle[j]):.4f}",
+                      f"{res.pivot_reaction[j, 0]:.3f}", f"{res.pivot_reaction[j, 1]:.3f}")
+        con.print(a)
+    if layout.adjust_index is not None and layout.adjust_kind == "arm":
+        moved = f"the arm of pulley {layout.names[layout.adjust_index]} turned {math.degrees(res.adjust_offset):.4f} deg"
+    else:
+        moved = f"adjustable pulley offset {res.adjust_offset * 1e3:.4f} mm"
+    con.print(f"mean span tension {res.mean_tension:.6f} N; driver torque {res.driver_torque:.4g} N m; {moved}")
+    if slip:
+        for j, name in enumerate(layout.names):
+            if res.slip_margin[j] < 1.0:
+                con.print(f"[bold red]warning:[/] pulley {name} slips: slip margin {res.slip_margin[j]:.3g} < 1 "
+                          f"(needs friction {res.required_friction[j]:.4g})")
 
 
 def _print_modal(mres) -> None:
@@ -823,10 +860,11 @@ def _print_modal(mres) -> None:
 
     con = _console()
     t = Table(title=f"Modes ({mres.solver} solver; {mres.n_rigid} rigid-body mode(s) excluded)")
-    for col in ("mode", "frequency (Hz)", "modal shape", "rot", "trans", "long", "transv"):
+    tens = bool(mres.energy_share[:, 4].any()) if mres.energy_share.shape[1] > 4 else False
+    for col in ("mode", "frequency (Hz)", "modal shape", "rot", "trans", "long", "transv") + (("tens",) if tens else ()):
         t.add_column(col, justify="left" if col == "modal shape" else "right")
     for k in range(len(mres.frequency)):
-        sh = mres.energy_share[k]
+        sh = mres.energy_share[k][: 5 if tens else 4]
         t.add_row(str(k + 1), f"{mres.frequency[k]:.3f}", mres.label[k], *(f"{x:.2f}" for x in sh))
     con.print(t)
 

@@ -23,8 +23,8 @@ MIXED = "mixed (see dof_unit)"
 
 def dof_units(model: DriveModel) -> list[str]:
     """Unit of each generalized coordinate (the system's DOF map): pulley rotation rad, pulley slide /
-    x / y m, span node position r1 / r2 m, span node slope r1' / r2' 1."""
-    return list(model.dofs.units)
+    x / y m, tensioner arm rad, span node position r1 / r2 m, span node slope r1' / r2' 1."""
+    return list(model.dof_units)
 
 
 def dof_force_unit(unit: str) -> str:
@@ -42,6 +42,9 @@ PARAM_UNITS = {
     "belt.length": "m", "belt.EA": "N", "belt.EI": "N m^2", "belt.mass_per_length": "kg/m",
     "pulleys.*.center": "m", "pulleys.*.radius": "m", "pulleys.*.mass": "kg", "pulleys.*.inertia": "kg m^2",
     "pulleys.*.slide_direction": "1", "pulleys.*.bearing_stiffness": "N/m", "pulleys.*.slide_range": "m",
+    "pulleys.*.arm_pivot": "m", "pulleys.*.arm_inertia": "kg m^2", "pulleys.*.arm_stiffness": "N m/rad",
+    "pulleys.*.arm_free_angle": "rad", "pulleys.*.arm_damping": "N m s/rad", "pulleys.*.arm_friction": "N m",
+    "pulleys.*.arm_range": "rad", "pulleys.*.friction": "1", "static.torque.*.value": "N m",
     "tension.target": "N", "mesh.elements_per_span": "1",
     "model.gravity": "m/s^2", "model.gauss_points": "1",
     "static.tolerance": "1", "static.max_iterations": "1", "static.load_steps": "1", "modal.modes": "1",
@@ -125,8 +128,10 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
             Variable(name="pulley_rotation", data=res.pulley_rotation, dims=("pulley",), units="rad"),
             Variable(name="driver_torque", data=np.array(res.driver_torque), dims=(), units="N m",
                      description="torque the driver pulley's support applies to hold it"),
-            Variable(name="adjust_offset", data=np.array(res.adjust_offset), dims=(), units="m",
-                     description="travel of the adjustable pulley from its given centre"),
+            Variable(name="adjust_offset", data=np.array(res.adjust_offset), dims=(),
+                     units="rad" if lay.adjust_kind == "arm" else "m",
+                     description="travel of the adjustable pulley from its given centre (an arm: the angle it turned)"),
+            *_static_extras(res),
             Variable(name="q", data=res.q, dims=("dof",), units=MIXED,
                      description="independent coordinates from the reference state, each in its dof_unit"),
             dof_unit_variable(model),
@@ -141,6 +146,33 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
         attrs={"iterations": int(res.iterations), "tension_mode": res.tension_mode,
                "tension_target_N": float(target) if target is not None else float("nan"),
                "n_dof": int(model.n_dof)},
+    )
+
+
+def _static_extras(res: StaticResult) -> tuple[Variable, ...]:
+    """Arm angles and torques, pivot reactions, the static load case and the slip margins (NaN where a
+    pulley has no arm or no friction value)."""
+    n = len(res.pulley_rotation)
+    nan, nan2 = np.full(n, np.nan), np.full((n, 2), np.nan)
+
+    def val(x, empty):
+        return empty if x is None else x
+
+    return (
+        Variable(name="arm_angle", data=val(res.arm_angle, nan), dims=("pulley",), units="rad",
+                 description="tensioner arm angle, counter-clockwise from +x (NaN: no arm)"),
+        Variable(name="arm_torque", data=val(res.arm_torque, nan), dims=("pulley",), units="N m",
+                 description="torque of the arm's spring on the arm, counter-clockwise positive (NaN: no arm)"),
+        Variable(name="arm_free_angle", data=val(res.arm_free_angle, nan), dims=("pulley",), units="rad",
+                 description="free angle of the arm's spring that gives this equilibrium (NaN: no arm or no spring)"),
+        Variable(name="pivot_reaction", data=val(res.pivot_reaction, nan2), dims=("pulley", "component"), units="N",
+                 description="force of the pivot on the arm (NaN: no arm)"),
+        Variable(name="applied_torque", data=val(res.applied_torque, np.zeros(n)), dims=("pulley",), units="N m",
+                 description="accessory torques of the static load case ([[static.torque]])"),
+        Variable(name="required_friction", data=val(res.required_friction, nan), dims=("pulley",), units="1",
+                 description="ln(T_tight / T_slack) / wrap angle (capstan); inf where a span is slack"),
+        Variable(name="slip_margin", data=val(res.slip_margin, nan), dims=("pulley",), units="1",
+                 description="friction / required_friction (< 1: slips; NaN: no friction given)"),
     )
 
 

@@ -282,7 +282,7 @@ def relay(layout: Layout, center: np.ndarray, *, adjust_offset: float | None = N
     wraps and belt length recomputed, the loop's orientation kept. adjust_offset: the adjustable
     pulley's travel from its given centre at `center` (default: unchanged)."""
     lay = compute_layout(center, layout.radius, layout.side_sign, layout.names, orientation=layout.orientation)
-    return Layout(**{**lay.__dict__, "adjust_index": layout.adjust_index,
+    return Layout(**{**lay.__dict__, "adjust_index": layout.adjust_index, "adjust_kind": layout.adjust_kind,
                      "adjust_offset": layout.adjust_offset if adjust_offset is None else float(adjust_offset)})
 
 

@@ -57,6 +57,14 @@ class StaticResult:
     load_factor_history: np.ndarray  # (n_iter,) load factor of each iteration
     iterations: int
     tension_mode: str
+    # tensioner arms (NaN for pulleys without one), the static load case and the slip margins
+    arm_angle: np.ndarray | None = None  # (n,) rad, counter-clockwise from +x
+    arm_torque: np.ndarray | None = None  # (n,) N m, torque of the arm's spring on the arm (counter-clockwise +)
+    arm_free_angle: np.ndarray | None = None  # (n,) rad, the spring's free angle (what mode "adjust" needs)
+    pivot_reaction: np.ndarray | None = None  # (n, 2) N, force of the pivot on the arm
+    applied_torque: np.ndarray | None = None  # (n,) N m, the accessory torques of the static load case
+    required_friction: np.ndarray | None = None  # (n,) ln(T_tight / T_slack) / wrap (inf: a slack span)
+    slip_margin: np.ndarray | None = None  # (n,) friction / required_friction (NaN: no friction given)
 
 
 def _predictor(system: System, stretch: float, adjust_dof: int, driver_dof: int) -> np.ndarray:
@@ -488,12 +496,45 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -
         offset = lay.adjust_offset + float(q[model.dofs.arm_dof[a]])
     else:
         offset = lay.adjust_offset + float(q[model.trans_dof[a][0]])
+    from .slip import required_friction, slip_margin
+
+    n = lay.n
+    arm_angle, arm_torque, arm_free = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    pivot = np.full((n, 2), np.nan)
+    if model.arms is not None:
+        arms = model.arms
+        for k, d in enumerate(arms.dof):
+            j = next(i for i in range(n) if model.trans_dof[i] and model.trans_dof[i][0] == arms.slot[k])
+            arm_angle[j] = float(arms.angle[k] + q[d])
+            spring = next((c for c in model.components if c.dofs.tolist() == [int(d)] and c.stiffness is not None),
+                          None)
+            if spring is not None:
+                k_s = float(spring.stiffness[0, 0])
+                free = float(spring.free[0]) if spring.free is not None else 0.0
+                arm_torque[j] = -(k_s * (q[d] - free) - preload[d])  # the spring's torque on the arm
+                arm_free[j] = arm_angle[j] + arm_torque[j] / k_s
+            else:
+                arm_torque[j] = 0.0
+            weight = np.zeros(2)
+            for c in model.components:
+                if c.weight is not None:
+                    for i, dd in enumerate(c.dofs):
+                        if dd in (arms.slot[k], arms.slot[k] + 1):
+                            weight += c.weight[i] * model.gravity[int(dd - arms.slot[k])]
+            pivot[j] = -(hub[j] + weight)  # statics of arm + pulley: pivot + belt + weight = 0
+    applied = np.zeros(n)
+    if model.loads is not None:
+        applied = model.loads[model.rot_dof].copy()
+    mu_req = required_friction(span_tension, lay.wrap_angle)
+    friction = model.pulley_friction if model.pulley_friction is not None else np.full(n, np.nan)
     return StaticResult(
         q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
         hub_load=hub, pulley_center=model.pulley_centers(q), pulley_rotation=q[model.rot_dof].copy(),
         driver_torque=float(f[driver_dof]), adjust_offset=offset,
         residual_history=np.array(hist_r), load_factor_history=np.array(hist_l), iterations=iterations,
-        tension_mode=model.tension.mode)
+        tension_mode=model.tension.mode, arm_angle=arm_angle, arm_torque=arm_torque, arm_free_angle=arm_free,
+        pivot_reaction=pivot, applied_torque=applied, required_friction=mu_req,
+        slip_margin=slip_margin(mu_req, friction))
 
 
 # ------------------------------------------------------------------------------------ solved geometry

@@ -612,6 +612,7 @@ class System:
     linear_offset: np.ndarray | None = None  # (n,) sum of K_c free_c: the components' force is K q - offset
     loads: np.ndarray | None = None  # (n_p,) constant applied forces of the static load case (accessory torques)
     arms: ArmJoints | None = None  # tensioner arms: p = P(q); None: p = q
+    pulley_friction: np.ndarray | None = None  # (n_pulley,) belt-pulley friction coefficient, NaN if not given
 
     # The belt, the components, mass, pattern, gravity_force, loads and the linear matrices live on the
     # joint coordinates p (n_p); the analyses see the independent q (n_dof). Without arms p = q.
@@ -668,7 +669,7 @@ class System:
         """A system with more components (matrices and pattern rebuilt)."""
         return _assemble(self.layout, self.dofs, self.belt, self.components + tuple(extra), pulley_names=self.pulley_names,
                          driver=self.driver, tension=self.tension, gravity=self.gravity, dense=self.dense,
-                         loads=self.loads, arms=self.arms)
+                         loads=self.loads, arms=self.arms, friction=self.pulley_friction)
 
     def with_belt(self, **changes) -> "System":
         """The same system with belt fields changed (e.g. damping_axial, compiled)."""
@@ -840,7 +841,8 @@ class System:
 
 def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[LinearComponent, ...], *,
               pulley_names: tuple[str, ...], driver: int, tension: TensionSetting, gravity: np.ndarray,
-              dense: bool | None, loads: np.ndarray | None = None, arms: ArmJoints | None = None) -> System:
+              dense: bool | None, loads: np.ndarray | None = None, arms: ArmJoints | None = None,
+              friction: np.ndarray | None = None) -> System:
     """Pattern, mass, weight and the components' constant matrices of a system."""
     n = dofs.n
     use_dense = n <= DENSE_LIMIT if dense is None else dense
@@ -884,7 +886,7 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
             fg[c.dofs] += c.weight @ g
     stub = System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names, driver=driver,
                   tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=None, gravity_force=fg,
-                  linear_stiffness=None, linear_damping=None, loads=loads, arms=arms)
+                  linear_stiffness=None, linear_damping=None, loads=loads, arms=arms, pulley_friction=friction)
     Mb = stub.assemble(belt.reduce_blocks(belt.elements.mass), linear=False)
     if use_dense:
         M = Mb + (M_comp if M_comp is not None else 0.0)
@@ -1149,7 +1151,8 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
     return _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free) + tuple(extra),
                      pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index, tension=tension,
                      gravity=np.asarray(cfg.model.gravity, dtype=float), dense=dense,
-                     loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs))
+                     loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
+                     friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]))
 
 
 __all__ = ["System", "DofMap", "BeltSpans", "LinearComponent", "BearingSprings", "Observation", "TensionSetting",
