@@ -440,6 +440,10 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
                          energy_balance_error=summary.energy_error, energy_moved_J=summary.energy_moved,
                          step_halvings=summary.step_halvings, smallest_step_s=summary.min_step,
                          n_slack_events=int(len(ev)), warnings=list(summary.warnings))
+        if np.isfinite(summary.worst_slip_margin[0]):
+            writer.set_attrs(worst_slip_margin=summary.worst_slip_margin[0],
+                             worst_slip_time_s=summary.worst_slip_margin[1],
+                             worst_slip_pulley=summary.worst_slip_margin[2])
         spans = [model.layout.span_name(i) for i in range(model.layout.n)]
         if len(ev):
             writer.add_subgroup(GroupData(

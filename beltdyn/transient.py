@@ -73,7 +73,8 @@ class TransientSummary:
     n_outputs: int = 0
     energy_error: float = 0.0  # max |balance error| at the steps / energy moved in the run
     energy_moved: float = 0.0  # J, max of |d kinetic| + |d strain|, |work|, |dissipated|
-    warnings: tuple[str, ...] = ()  # accuracy warnings (see `accuracy_warnings`)
+    warnings: tuple[str, ...] = ()  # accuracy warnings (see `accuracy_warnings`) and slip
+    worst_slip_margin: tuple[float, float, str] = (np.inf, np.nan, "")  # smallest slip margin, time, pulley
 
 
 ENERGY_WARNING = 0.01  # energy-balance error, as a share of the energy moved, above which a run is flagged
@@ -285,6 +286,15 @@ def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
                 if obs.name == "bearing_force":
                     coords["bearing"] = list(c.pulley_names)
                 out.append(Series(name=obs.name, dims=obs.dims, units=obs.units, description=obs.description))
+    if system.arms is not None:
+        coords["arm"] = list(system.arms.names)
+        out.append(Series(name="arm_angle", dims=("arm",), units="rad",
+                          description="tensioner arm angle, counter-clockwise from +x"))
+        out.append(Series(name="arm_speed", dims=("arm",), units="rad/s", description="tensioner arm angular speed"))
+    if rec.span_tension and system.pulley_friction is not None and not np.all(np.isnan(system.pulley_friction)):
+        out.append(Series(name="slip_margin", dims=("pulley",), units="1",
+                          description="friction / (ln(T_tight / T_slack) / wrap) on the loaded wrap (< 1: slips; "
+                                      "NaN: no friction given)"))
     if rec.midspan_displacement:
         out.append(Series(name="midspan_displacement", dims=("span",), units="m",
                           description="mid-span displacement from the chord between the span's current end points, "
@@ -619,7 +629,16 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
                             step_halvings=run.halvings, final_time=float(th[itg.T_NOW]), min_step=float(min_h),
                             slack_events=events, n_outputs=run.delivered, energy_error=error, energy_moved=moved,
                             warnings=accuracy_warnings(opts, energy_error=error, min_step=float(min_h),
-                                                       excitation_frequency=setup.excitation_frequency))
+                                                       excitation_frequency=setup.excitation_frequency)
+                            + _slip_warning(observer.worst_slip),
+                            worst_slip_margin=observer.worst_slip)
+
+
+def _slip_warning(worst: tuple[float, float, str]) -> tuple[str, ...]:
+    margin, t, name = worst
+    if margin < 1.0:
+        return (f"pulley {name} slips: slip margin {margin:.3g} < 1 at t = {t:.6g} s",)
+    return ()
 
 
 # ------------------------------------------------------------------------------------ observers
@@ -632,6 +651,7 @@ class Observers:
 
     def __post_init__(self) -> None:
         self.names = {s.name for s in self.setup.series}
+        self.worst_slip = (np.inf, np.nan, "")  # smallest slip margin, its time and pulley
 
     def compute(self, t, q, v, a, energy, reaction) -> dict[str, np.ndarray]:
         sysm, setup, names = self.system, self.setup, self.names
@@ -658,6 +678,16 @@ class Observers:
             F = belt.end_forces(E, Ed, sysm.gravity)  # internal (elastic + damping) - weight
             if "span_tension" in names:
                 out["span_tension"] = belt.end_tensions(E, F)
+                if "slip_margin" in names:
+                    from .slip import required_friction, slip_margin
+
+                    m = slip_margin(required_friction(out["span_tension"], sysm.layout.wrap_angle),
+                                    sysm.pulley_friction)
+                    out["slip_margin"] = m
+                    finite = np.where(np.isnan(m), np.inf, m)
+                    b, j = np.unravel_index(int(np.argmin(finite)), finite.shape)
+                    if finite[b, j] < self.worst_slip[0]:
+                        self.worst_slip = (float(finite[b, j]), float(t[b]), sysm.layout.names[j])
             if "hub_load" in names:  # the pulley also carries the inertia of the end elements' nodes
                 Ea = belt.element_coordinates_batch(a, offset=False)
                 out["hub_load"] = sysm.hub_loads(F + belt.end_inertia(Ea))
@@ -667,6 +697,10 @@ class Observers:
                     out.update(c.observe(sysm, q, setup.preload))
         if "midspan_displacement" in names:
             out["midspan_displacement"] = belt.midspan_displacement(E)
+        if "arm_angle" in names:
+            arms = sysm.arms
+            out["arm_angle"] = arms.angle + q[:, arms.dof]
+            out["arm_speed"] = v[:, arms.dof].copy()
         if "energy" in names:
             out["energy"] = energy
         if "driver_torque" in names:
