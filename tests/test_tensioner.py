@@ -118,3 +118,68 @@ def test_arm_without_pivot_names_the_key(tmp_path):
     with pytest.raises(ConfigError) as err:
         load_config(cfg)
     assert err.value.key == "pulleys[2].arm_pivot"
+
+
+# ------------------------------------------------------------------------------------ statics
+def _analyse(overrides=(), modal=False):
+    from beltdyn.pipeline import analyse
+
+    return analyse(load_config(ARM, list(overrides)), modal=modal)
+
+
+def _cross(a, b):
+    return a[0] * b[1] - a[1] * b[0]
+
+
+@pytest.mark.parametrize("overrides", [
+    [],
+    ["model.gravity=[0.0, -9.81]"],
+    ["static.torque=[{pulley='C', value=-10.0}]", "model.gravity=[0.0, -9.81]"],
+])
+def test_static_balance_of_the_arm(overrides):
+    # Statics of the arm + pulley, each to 1e-9 of its scale: the spring torque balances the moment of
+    # the belt forces and of the pulley's weight about the pivot; the pivot reaction balances the hub
+    # load and the weight; without weight (straight spans) the hub load is the sum of the two span-end
+    # tension vectors along the spans (the spans meet the pulleys on their tangents);
+    # the free pulley T and the loaded pulley C carry (T_in - T_out) R = applied torque; the driver
+    # reacts them: tau_A / R_A + sum_j tau_j / R_j = 0 (the belt's force balance, all pulleys inside).
+    run = _analyse(overrides)
+    st, lay, cfg = run.static, run.layout, run.config
+    j = 2
+    p = cfg.pulleys[j]
+    g = np.array(cfg.model.gravity)
+    r = st.pulley_center[j] - np.array(p.arm_pivot)
+    moment = _cross(r, st.hub_load[j] + p.mass * g)
+    scale = float(np.abs(st.hub_load[j]).max()) * np.hypot(*r)
+    assert abs(st.arm_torque[j] + moment) <= 1e-9 * scale
+    assert np.allclose(st.pivot_reaction[j], -(st.hub_load[j] + p.mass * g), rtol=0, atol=1e-9 * scale)
+    t = lay.span_direction
+    for k in range(lay.n if not g.any() else 0):  # span k-1 arrives along t[k-1], span k leaves along t[k]
+        pull = st.span_tension[k, 0] * t[k] - st.span_tension[k - 1, 1] * t[k - 1]
+        assert np.allclose(st.hub_load[k], pull, rtol=0, atol=1e-7 * np.abs(st.span_tension).max())
+    applied = st.applied_torque
+    for k in ((1, 2) if not g.any() else ()):  # tension magnitudes: exact for straight spans
+        transmitted = (st.span_tension[k - 1, 1] - st.span_tension[k, 0]) * lay.radius[k]
+        assert abs(transmitted + applied[k]) <= 1e-7 * np.abs(st.span_tension).max() * lay.radius[k]
+    balance = st.driver_torque / lay.radius[0] + sum(applied[k] / lay.radius[k] for k in (1, 2))
+    if not g.any():  # (with weight the sagging spans hold a small torque of their own on the driver)
+        assert abs(balance) <= 1e-7 * np.abs(st.span_tension).max()
+
+
+def test_spring_mode_reproduces_adjust_mode_with_its_free_angle():
+    # Mode "adjust" turns the arm until 200 N and reports the spring's free angle; mode "spring" with that
+    # free angle must land on the same equilibrium: mean tension 200 N within 1e-6, arm angle within 1e-8.
+    adj = _analyse().static
+    free = float(adj.arm_free_angle[2])
+    spr = _analyse([f"pulleys[2].arm_free_angle={free!r}", "tension={mode='spring'}"]).static
+    assert abs(spr.mean_tension - 200.0) <= 1e-6 * 200.0
+    assert abs(spr.arm_angle[2] - adj.arm_angle[2]) <= 1e-8
+
+
+def test_a_torque_that_needs_the_arm_past_its_stop_is_a_named_failure():
+    from beltdyn.errors import SolverError
+
+    with pytest.raises(SolverError) as err:
+        _analyse(["tension.target=2000.0"])
+    assert "stops" in str(err.value) and "pulley 'T'" in str(err.value)
+    assert "arm" in err.value.item
