@@ -462,6 +462,20 @@ def _check_travel(system: System, q: np.ndarray) -> None:
         item=system.dof_labels[ts.adjust_dof])
 
 
+def _check_slack(system: System, st: StaticResult) -> None:
+    """A span in compression at equilibrium: the belt would go slack (it carries no compression; the
+    model's bending stiffness holds it only numerically). A named failure, never a silent result."""
+    T = st.span_tension
+    worst = int(np.argmin(T.min(axis=1)))
+    if T[worst].min() >= -1e-6 * float(np.abs(T).max(initial=1.0)):
+        return
+    loads = " under the accessory torques" if system.loads is not None and np.any(system.loads) else ""
+    raise SolverError(f"span {system.layout.span_name(worst)} is compressed ({T[worst].min():.4g} N){loads}: the belt "
+                      f"goes slack there; raise the tension (tension.target or the tensioner spring) or lower the "
+                      f"loads", analysis="static", step="slack check", residual=float(-T[worst].min()),
+                      item=f"span {worst + 1} ({system.layout.span_name(worst)})")
+
+
 def _check_stops(system: System, q: np.ndarray) -> None:
     """Every tensioner arm's equilibrium angle between its stops (arm_range)."""
     a = system.arms
@@ -752,6 +766,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         step = st.pulley_center - lay.center
         movement.append(float(np.linalg.norm(step, axis=1).max(initial=0.0)))
         if not moving or movement[-1] <= tol_x:
+            _check_slack(system, st)
             return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement))
         # the next layout: at the solved centres, extrapolated (Aitken) where the passes contract steadily
         centers = st.pulley_center

@@ -277,3 +277,13 @@ def test_dry_friction_gives_a_hysteresis_loop_of_width_twice_the_friction_torque
     coef = np.linalg.lstsq(A, MM[slide], rcond=None)[0]
     assert abs(coef[-1] / Tf - 1.0) < 0.02
     assert ph.max() - ph.min() > 0.02  # the arm really swings (about 2 deg)
+
+
+def test_a_load_that_slackens_a_span_is_a_named_failure():
+    # 45 N m on C with the mean tension held at 200 N puts the slack side in compression (-18 N): a
+    # SolverError naming the span, not a result with a compressed belt.
+    from beltdyn.errors import SolverError
+
+    with pytest.raises(SolverError) as err:
+        _analyse(["static.torque=[{pulley='C', value=-45.0}]"])
+    assert err.value.item == "span 2 (C-T)" and "slack" in str(err.value)
