@@ -251,7 +251,8 @@ def sweep_group(cfg, result) -> GroupData:
         ]
     dims_of = {"mean_tension": ((), "N"), "span_tension": (("belt_span", "end"), "N"),
                "hub_load": (("pulley", "component"), "N"), "pulley_center": (("pulley", "component"), "m"),
-               "n_slack_events": ((), "1")}
+               "n_slack_events": ((), "1"), "arm_angle": (("pulley",), "rad"), "arm_torque": (("pulley",), "N m"),
+               "slip_margin": (("pulley",), "1")}
     for key, arr in result.extras.items():
         base = key.replace("_first_harmonic", "").replace("_half_range", "")
         if key in dims_of:

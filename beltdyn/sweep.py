@@ -227,11 +227,16 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
         out["span_tension"] = st.span_tension
         out["hub_load"] = st.hub_load
         out["pulley_center"] = st.pulley_center
+        if model.arms is not None:  # the tensioner's working curve over the swept load
+            out["arm_angle"] = st.arm_angle
+            out["arm_torque"] = st.arm_torque
+        if st.slip_margin is not None and not np.all(np.isnan(st.slip_margin)):
+            out["slip_margin"] = st.slip_margin
         if analysis == "modal":
             md = run.modal
             out["frequency"] = md.frequency
             out["shapes"] = md.shapes
-            out["mshapes"] = np.asarray((model.mass @ md.shapes.T).T)
+            out["mshapes"] = np.asarray((model.mass_matrix(st.q) @ md.shapes.T).T)
             out["kind"] = np.array(md.kind)
             out["order"] = md.order
             out["span"] = md.span

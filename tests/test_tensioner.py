@@ -287,3 +287,28 @@ def test_a_load_that_slackens_a_span_is_a_named_failure():
     with pytest.raises(SolverError) as err:
         _analyse(["static.torque=[{pulley='C', value=-45.0}]"])
     assert err.value.item == "span 2 (C-T)" and "slack" in str(err.value)
+
+
+def test_sweep_over_an_accessory_torque_gives_the_working_curve(tmp_path):
+    # beltdyn sweep over static.torque[0].value in spring mode: /sweep holds the arm angle and spring
+    # torque per case; the slack side loses tension and the arm turns monotonically as the load grows,
+    # and each case equals a single static run of that load (1e-9).
+    import subprocess
+    import sys
+
+    import h5py
+
+    exe = [str(Path(sys.executable).parent / "beltdyn")]
+    sets = ["static.torque=[{pulley='C', value=0.0}]", "pulleys[2].arm_free_angle=3.19", "tension={mode='spring'}",
+            "mesh.elements_per_span=6"]
+    r = subprocess.run([*exe, "sweep", str(ARM), "--param", "static.torque[0].value=0:-30:4", "--analysis", "static",
+                        *[x for s in sets for x in ("--set", s)], "-o", str(tmp_path / "s.h5"), "--workers", "1"],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "s.h5") as f:
+        angle = f["sweep/arm_angle"][:, 2]
+        torque = f["sweep/arm_torque"][:, 2]
+        slack = f["sweep/span_tension"][:, 1, 0]
+    assert np.all(np.diff(angle) > 0) and np.all(np.diff(slack) < 0) and np.all(np.diff(torque) < 0)
+    one = _analyse(sets[1:] + ["static.torque=[{pulley='C', value=-20.0}]"]).static
+    assert abs(one.arm_angle[2] - angle[2]) < 1e-9 and abs(one.arm_torque[2] - torque[2]) < 1e-9 * abs(torque[2])
