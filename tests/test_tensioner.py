@@ -312,3 +312,74 @@ def test_sweep_over_an_accessory_torque_gives_the_working_curve(tmp_path):
     assert np.all(np.diff(angle) > 0) and np.all(np.diff(slack) < 0) and np.all(np.diff(torque) < 0)
     one = _analyse(sets[1:] + ["static.torque=[{pulley='C', value=-20.0}]"]).static
     assert abs(one.arm_angle[2] - angle[2]) < 1e-9 and abs(one.arm_torque[2] - torque[2]) < 1e-9 * abs(torque[2])
+
+
+# ------------------------------------------------------------------------------------ modes
+def _reference_drive_config(tmp_path, *, rho=1e-6, n_el=8, neighbours_locked=False):
+    """The reference drive of tests/reference_tensioner.py (A, T on its arm, C; spans prestrained to
+    200 N at the given centres, the arm spring's free angle from the reference statics) as a config."""
+    import reference_tensioner as rt
+
+    pulleys, arm, EA, T0 = rt.example_drive()
+    geo = rt.loop_geometry(pulleys)
+    length = float(geo["L"].sum() + (np.array([p["radius"] for p in pulleys]) * geo["wrap"]).sum())
+    if neighbours_locked:
+        pulleys[0]["inertia"] = pulleys[2]["inertia"] = 1e2  # with J_T: the 1-DOF limit within 2e-4
+        pulleys[1]["inertia"] = 1e-6
+    free = float(rt.arm_free_angle(pulleys, arm, T0))
+    arm = {**arm, "pivot": [float(x) for x in arm["pivot"]]}
+    pulleys = [{**p, "center": [float(x) for x in p["center"]]} for p in pulleys]
+    lines = [f"[belt]\nlength = {length!r}\nEA = {EA!r}\nEI = 1e-7\nmass_per_length = {rho!r}\n"]
+    for k, p in enumerate(pulleys):
+        lines.append(f"[[pulleys]]\nname = \"{p['name']}\"\ncenter = [{p['center'][0]!r}, {p['center'][1]!r}]\n"
+                     f"radius = {p['radius']!r}\nmass = {p['mass']!r}\ninertia = {p['inertia']!r}\n"
+                     + ("driver = true\n" if k == 0 else "")
+                     + (f"support = \"arm\"\narm_pivot = [{arm['pivot'][0]!r}, {arm['pivot'][1]!r}]\n"
+                        f"arm_inertia = {arm['inertia']!r}\narm_stiffness = {arm['stiffness']!r}\n"
+                        f"arm_free_angle = {free!r}\n" if k == arm["index"] else ""))
+    lines.append(f"[tension]\ntarget = {T0!r}\nmode = \"prestrain\"\n[mesh]\nelements_per_span = {n_el}\n"
+                 f"[modal]\nmodes = 6\n")
+    path = tmp_path / "ref.toml"
+    path.write_text("\n".join(lines))
+    return path, (pulleys, arm, EA, T0)
+
+
+def test_modes_match_the_independent_rigid_belt_model(tmp_path):
+    # tests/reference_tensioner.py: an independent derivation (massless tensioned spans as axial and
+    # transverse springs, rigid pulleys, exact arm kinematics; checked against finite differences of a
+    # separately written nonlinear energy, docs/tensioner_reference.md). beltdyn with a belt of
+    # negligible mass (1e-6 kg/m) and bending (1e-7 N m^2): the tensioner mode (43.02 Hz) and the two
+    # pulley modes within 1e-3, the arm at its reference angle within 1e-9 rad.
+    import reference_tensioner as rt
+
+    from beltdyn.pipeline import analyse
+
+    path, (pulleys, arm, EA, T0) = _reference_drive_config(tmp_path)
+    run = analyse(load_config(path), modal=True)
+    ref = rt.linear_frequencies(pulleys, arm, EA, T0)
+    phi0 = rt.arm_kinematics(pulleys, arm)["phi0"]
+    assert abs(run.static.arm_angle[1] - phi0) < 1e-9
+    got = run.modal.frequency[:3]
+    assert np.allclose(got, ref, rtol=1e-3), (got, ref)
+    assert run.modal.kind[0] == "tensioner"
+
+
+def test_tensioner_frequency_matches_the_one_dof_closed_form(tmp_path):
+    # The same drive with A and C of large inertia (100 kg m^2) and T of negligible inertia (1e-6): the
+    # tensioner mode is the
+    # 1-DOF closed form omega^2 = K_eff / J_eff, K_eff = k_arm + l H.e_r (the arm's geometric term)
+    # + T0 l^2 ((n_in.e_phi)^2/L_in + (n_out.e_phi)^2/L_out) (the spans turning)
+    # + k_in k_out/(k_in + k_out) l^2 ((t_in - t_out).e_phi)^2 (the two spans in series),
+    # J_eff = J_arm + m_T l^2 (docs/tensioner_reference.md). Within 1e-3.
+    import reference_tensioner as rt
+
+    from beltdyn.pipeline import analyse
+
+    # (belt 1e-3 kg/m: the eigen-solver's zero tolerance, ~1e3 eps of the largest K/M, stays below the
+    # 0.8 Hz rotation of A and C)
+    path, (pulleys, arm, EA, T0) = _reference_drive_config(tmp_path, neighbours_locked=True, rho=1e-3)
+    run = analyse(load_config(path), modal=True)
+    one = rt.one_dof_terms(pulleys, arm, EA, T0, limit="neighbours_locked")
+    k = [i for i, kind in enumerate(run.modal.kind) if kind == "tensioner"]
+    assert k, run.modal.label
+    assert abs(run.modal.frequency[k[0]] / one["f"] - 1.0) < 1e-3, (run.modal.frequency[k[0]], one["f"])
