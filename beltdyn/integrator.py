@@ -40,8 +40,13 @@ system.ArmJoints): the independent coordinates first (n_q), then each arm pulley
 c(phi) - c(phi_ref), kept kinematically exact (`complete`: u, u' = c' phi', u'' = c' phi'' + c'' phi'^2).
 Forces are evaluated on p and the residual projected on q by J(q)^T (`project`); the generalized-alpha
 weights apply to the projected terms, each at its own time (Chung-Hulbert for nonlinear systems).
-An arm's dry friction torque is regularized, -T_f tanh(phi' / omega_f) (omega_f = `ARM_FRICTION_SPEED`):
-smooth, within 1 % of T_f above 2.6 omega_f; it dissipates like the dampers.
+An arm's dry friction torque T_f is regularized as an elasto-plastic (bristle, Dahl-type) element: a
+stiff torsion spring k_b = T_f / delta (presliding angle delta = `ARM_PRESLIDING`) from an anchor
+angle z that slides when the torque reaches T_f (a return mapping after each accepted step):
+torque = clip(k_b (phi - z), -T_f, T_f). It sticks exactly (no creep) and slides at exactly T_f;
+its stiffness k_b enters the iteration matrix like a spring, not like a damper over the step, so the
+stick-slip transitions keep the factor (a tanh(phi'/omega) law put T_f / omega / h there and forced
+step halvings). Its work is dissipated, less the bristle's stored energy tau^2 / (2 k_b).
 
 Array conventions: belt data as `belt_kernel` (T (n_elem, 8, m), idx (n_elem, m) with padding
 index n, tsel, e0 (n_elem, 8), dS/d2S (n_elem, n_qp, 4), wEA/wEI (n_elem, n_qp), Kb (n_elem, 8, 8)).
@@ -79,13 +84,13 @@ Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n"])
 Events = namedtuple("Events", ["data", "n", "slack"])
 # tensioner arms: q index of the angle, p index of the centre offset x (y: + 1), arm length, angle at q = 0,
 # dry friction torque and its regularization speed; n_q the independent coordinates (p[:n_q] = q)
-Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction", "omega_f", "n_q"])
-ARM_FRICTION_SPEED = 1e-3  # rad/s: the dry friction torque is T_f tanh(phi' / ARM_FRICTION_SPEED)
+Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction", "bristle", "anchor", "n_q"])
+ARM_PRESLIDING = 1e-4  # rad: presliding angle of the arm's dry friction (bristle stiffness T_f / this)
 
 
 def no_arms(n: int) -> Arms:
     return Arms(dof=np.zeros(0, dtype=np.int64), slot=np.zeros(0, dtype=np.int64), length=np.zeros(0),
-                angle=np.zeros(0), friction=np.zeros(0), omega_f=np.zeros(0), n_q=n)
+                angle=np.zeros(0), friction=np.zeros(0), bristle=np.zeros(0), anchor=np.zeros(0), n_q=n)
 # scal slots
 T_NOW, H, T_OUT, WORK, DISS, STEPS, E0, WORST, MOVED, KIN0, POT0 = range(11)
 N_SCAL = 11
@@ -357,12 +362,31 @@ def project_abs(arms, q, x, out):
 
 
 @njit(cache=True)
-def arm_friction(arms, v, f):
-    """Add the arms' regularized dry friction torques T_f tanh(phi' / omega_f) to f (on the angles)."""
+def arm_friction(arms, q, f):
+    """Add the arms' dry friction torques clip(k_b (phi - z), -T_f, T_f) to f (on the angles); returns
+    the bristles' stored energy sum tau^2 / (2 k_b)."""
+    stored = 0.0
     for k in range(arms.dof.shape[0]):
         if arms.friction[k] != 0.0:
             d = arms.dof[k]
-            f[d] += arms.friction[k] * np.tanh(v[d] / arms.omega_f[k])
+            tau = min(max(arms.bristle[k] * (q[d] - arms.anchor[k]), -arms.friction[k]), arms.friction[k])
+            f[d] += tau
+            stored += 0.5 * tau * tau / arms.bristle[k]
+    return stored
+
+
+@njit(cache=True)
+def slide_anchors(arms, q):
+    """Return mapping after an accepted step: an anchor whose bristle torque exceeds T_f slides along."""
+    for k in range(arms.dof.shape[0]):
+        if arms.friction[k] != 0.0:
+            d = arms.dof[k]
+            e = q[d] - arms.anchor[k]
+            lim = arms.friction[k] / arms.bristle[k]
+            if e > lim:
+                arms.anchor[k] = q[d] - lim
+            elif e < -lim:
+                arms.anchor[k] = q[d] + lim
 
 
 @njit(cache=True)
@@ -437,6 +461,9 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
     project(arms, q, state.F0, F0_q)
     eps = np.finfo(np.float64).eps
     steps = 0
+    tmp[:] = 0.0
+    bristle0 = arm_friction(arms, q, tmp)
+    bristle1 = bristle0
     while True:
         t, h = th[T_NOW], th[H]
         if t >= opts.t_stop - 1e-6 * h:
@@ -470,7 +497,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
                 q_ext[i] = q1[i]
                 v_ext[i] = v1[i]
             belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, min_elem)
-            arm_friction(arms, v1, f_dmp)
+            bristle1 = arm_friction(arms, q1, f_dmp)
             for i in range(n):
                 dq[i] = q1[i] - lin.q_ref[i]
             csr_matvec(lin.K, dq, Kd)
@@ -572,12 +599,13 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             p_ext += 0.5 * (R1[k] * v1[d] + state.R0[k] * v[d])
         W_old, D_old = th[WORK], th[DISS]
         th[WORK] = W_old + h * p_ext
-        th[DISS] = D_old + h * p_dis
+        th[DISS] = D_old + h * p_dis - (bristle1 - bristle0)  # the bristles' stored part is not lost
+        bristle0 = bristle1
         kin = 0.0
         pot = 0.0
         if n_pend > 0:  # energy at this step (exact, not interpolated)
             kin = kinetic_energy(lin, v1, tmp)
-            pot = potential_energy(belt, lin, q1, q_ext, E, U, tmp, tmp2)
+            pot = potential_energy(belt, lin, q1, q_ext, E, U, tmp, tmp2) + bristle1
             bal = kin + pot - th[WORK] + th[DISS] - th[E0]
             if abs(bal) > th[WORST]:
                 th[WORST] = abs(bal)
@@ -640,6 +668,8 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             F0_q[i] = F1_q[i]
         for k in range(n_con):
             state.R0[k] = R1[k]
+        slide_anchors(arms, q)
+        bristle0 = arm_friction(arms, q, tmp)  # after the return mapping (tmp: scratch)
         th[T_NOW] = t1
         th[STEPS] += 1.0
         steps += 1

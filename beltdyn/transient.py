@@ -151,7 +151,9 @@ def stepper_arms(system: System):
         return itg.no_arms(system.n_dof)
     fric = a.friction if a.friction is not None else np.zeros(len(a.dof))
     return itg.Arms(dof=a.dof.astype(np.int64), slot=a.slot.astype(np.int64), length=a.length.astype(float),
-                    angle=a.angle.astype(float), friction=fric, omega_f=np.full(len(a.dof), itg.ARM_FRICTION_SPEED),
+                    angle=a.angle.astype(float), friction=fric,
+                    bristle=np.where(fric > 0, fric / itg.ARM_PRESLIDING, 1.0),
+                    anchor=np.zeros(len(a.dof)),  # the bristles relaxed at the start (set from q0 by `drive`)
                     n_q=int(system.n_dof))
 
 
@@ -352,7 +354,7 @@ def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool):
 
 
 def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: float, rho_inf: float,
-                      v: np.ndarray | None = None):
+                      v: np.ndarray | None = None, arms=None):
     """S = c_m M + c_c (C + C_belt(q)) + (1 - alpha_f) K_t(q), prescribed DOFs held (identity)."""
     from . import belt_kernel as bk
     from .integrator import alpha_parameters
@@ -374,16 +376,13 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
         S = S + c_c * system.project_matrix(q, system.assemble(system.belt.reduce_blocks(Ce), linear=False))
     if setup.C is not None:
         S = S + c_c * system.project_matrix(q, setup.C)
-    if system.arms is not None and system.arms.friction is not None and np.any(system.arms.friction):
-        from .integrator import ARM_FRICTION_SPEED
-
+    if arms is not None and np.any(arms.friction):  # a sticking bristle is a spring k_b on the arm angle
         from scipy.sparse import diags
 
-        w = v[system.arms.dof] if v is not None else np.zeros(len(system.arms.dof))
-        D = np.zeros(system.n_dof)  # d(T_f tanh(w / w_f))/dw: the friction's damping at the current speed
-        D[system.arms.dof] = system.arms.friction / ARM_FRICTION_SPEED / np.cosh(np.minimum(
-            np.abs(w) / ARM_FRICTION_SPEED, 300.0)) ** 2
-        S = S + c_c * (np.diag(D) if not hasattr(S, "tocsr") else diags(D))
+        e = q[arms.dof] - arms.anchor
+        D = np.zeros(system.n_dof)
+        D[arms.dof] = np.where(np.abs(arms.bristle * e) < arms.friction, arms.bristle, 0.0)
+        S = S + (1.0 - af) * (np.diag(D) if not hasattr(S, "tocsr") else diags(D))
     return _hold(S, setup.constraints.dof)
 
 
@@ -444,7 +443,8 @@ def initial_state(problem: StepProblem, rho_inf: float, step: float):
     E, Ed, fe, fd = (np.empty((n_elem, 8)) for _ in range(4))
     f_el, f_dmp, gross = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1)
     itg.belt_forces(belt, np.append(q, 0.0), np.append(v, 0.0), E, Ed, fe, fd, f_el, f_dmp, gross, np.empty(n_elem))
-    itg.arm_friction(arms, v, f_dmp)
+    arms.anchor[:] = q[arms.dof]  # the friction's bristles relaxed at the start
+    itg.arm_friction(arms, q, f_dmp)
     Kd, Cv, F0 = np.empty(n), np.empty(n), np.empty(n)
     itg.csr_matvec(lin.K, q - lin.q_ref, Kd)
     itg.csr_matvec(lin.C, v, Cv)
@@ -611,12 +611,13 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
     system = system.with_belt(damping_axial=float(opts.damping.belt_axial),
                               damping_bending=float(opts.damping.belt_bending), compiled=True)
     symmetric = True  # no transport terms yet: S is symmetric (the band LU is the fallback)
+    arms = stepper_arms(system)
     problem = StepProblem(
         belt=setup.belt, linear=setup.linear, forcing=setup.forcing, constraints=setup.constraints,
         groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels,
-        factor=lambda q, h, v=None: band_factor(_iteration_matrix(system, setup, q, h, opts.rho_inf, v), setup.perm,
-                                                setup.bandwidth, symmetric=symmetric),
-        arms=stepper_arms(system))
+        factor=lambda q, h, v=None: band_factor(_iteration_matrix(system, setup, q, h, opts.rho_inf, v, arms),
+                                                setup.perm, setup.bandwidth, symmetric=symmetric),
+        arms=arms)
     observer = Observers(system=system, setup=setup)
     run, th, min_h, events = drive(
         problem, rho_inf=opts.rho_inf, step=opts.step, min_step=opts.min_step, duration=opts.duration,
