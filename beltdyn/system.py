@@ -574,21 +574,54 @@ class ArmJoints:
         vals = np.concatenate([np.ones(self.n_q), dc[:, 0], dc[:, 1]])
         return coo_matrix((vals, (rows, cols)), shape=(self.n_p, self.n_q)).tocsr()
 
-    def project_matrix(self, q: np.ndarray, K, f: np.ndarray, *, dense: bool):
-        """J^T K J + the geometric term sum_k (f_u,k . c''(phi_k)) on (phi_k, phi_k), for the force
-        f (n_p,) on the joint coordinates whose derivative K (n_p, n_p) is."""
-        J = self.jacobian(q)
-        fu = f[self.n_q:].reshape(len(self.dof), 2)
-        geo = np.einsum("kd,kd->k", self.second(self.phi(q)), fu)
-        if dense:
-            Jd = J.toarray()
-            out = Jd.T @ K @ Jd
-            out[self.dof, self.dof] += geo
+    def project_matrix(self, q: np.ndarray, K, f: np.ndarray | None = None, *, dense: bool):
+        """J^T K J (+ the geometric term sum_k (f_u,k . c''(phi_k)) on (phi_k, phi_k) for the force f
+        (n_p,) on the joint coordinates whose derivative K (n_p, n_p) is; none for f = None)."""
+        dc = self.first(self.phi(q))
+        geo = None
+        if f is not None:
+            fu = f[self.n_q:].reshape(len(self.dof), 2)
+            geo = np.einsum("kd,kd->k", self.second(self.phi(q)), fu)
+        if dense and not hasattr(K, "tocsr"):
+            J = self.jacobian(q).toarray()
+            out = J.T @ np.asarray(K) @ J
+            if geo is not None:
+                out[self.dof, self.dof] += geo
             return out
-        from scipy.sparse import coo_matrix
+        from scipy.sparse import csr_matrix
 
-        out = (J.T @ K @ J).tocsr()
-        return (out + coo_matrix((geo, (self.dof, self.dof)), shape=out.shape)).tocsr()
+        K = csr_matrix(K)
+        fold, ptr, idx, diag = self._folding(K)
+        w = np.ones(self.n_p)
+        w[self.slot], w[self.slot + 1] = dc[:, 0], dc[:, 1]
+        rows = np.repeat(np.arange(self.n_p), np.diff(K.indptr))
+        data = np.bincount(fold, weights=K.data * w[rows] * w[K.indices], minlength=len(idx))
+        if geo is not None:
+            data[diag] += geo
+        return csr_matrix((data, idx, ptr), shape=(self.n_q, self.n_q))
+
+    def _folding(self, K):
+        """For a CSR pattern on p: the slot of each entry in the pattern on q (rows and columns of the
+        dependent offsets folded onto their arm angle), that pattern, and the arms' diagonal slots.
+        Cached per pattern."""
+        cache = self.__dict__.setdefault("_fold_cache", {})
+        key = (K.shape, K.nnz)
+        hit = cache.get(key)
+        if hit is not None and np.array_equal(hit[0], K.indptr) and np.array_equal(hit[1], K.indices):
+            return hit[2:]
+        to = np.arange(self.n_p)
+        to[self.slot], to[self.slot + 1] = self.dof, self.dof
+        rows = np.repeat(np.arange(self.n_p), np.diff(K.indptr))
+        keys = to[rows] * self.n_q + to[K.indices]
+        uniq, fold = np.unique(keys, return_inverse=True)
+        r, c = uniq // self.n_q, uniq % self.n_q
+        ptr = np.zeros(self.n_q + 1, dtype=np.int64)
+        np.add.at(ptr, r + 1, 1)
+        ptr = np.cumsum(ptr)
+        diag = np.searchsorted(uniq, self.dof * self.n_q + self.dof)
+        out = (fold.ravel(), ptr, c.astype(np.int64), diag)
+        cache[key] = (K.indptr.copy(), K.indices.copy(), *out)
+        return out
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -758,22 +791,13 @@ class System:
         """J(q)^T A J(q) for a matrix A on the joint coordinates (A itself without arms)."""
         if self.arms is None:
             return A
-        J = self.arms.jacobian(q)
-        if self.dense and not hasattr(A, "tocsr"):
-            Jd = J.toarray()
-            return Jd.T @ np.asarray(A) @ Jd
-        return (J.T @ A @ J).tocsr()
+        return self.arms.project_matrix(q, A, None, dense=self.dense)
 
     def mass_matrix(self, q: np.ndarray | None = None):
         """The mass matrix on q at the state q: J^T M J (constant without arms)."""
         if self.arms is None:
             return self.mass
-        q = np.zeros(self.n_dof) if q is None else q
-        J = self.arms.jacobian(q)
-        if self.dense:
-            Jd = J.toarray()
-            return Jd.T @ self.mass @ Jd
-        return (J.T @ self.mass @ J).tocsr()
+        return self.project_matrix(np.zeros(self.n_dof) if q is None else q, self.mass)
 
     def mean_tension_and_gradient(self, q: np.ndarray) -> tuple[float, np.ndarray]:
         T, g = self.belt.mean_tension_and_gradient(self.expand(q))
