@@ -655,6 +655,21 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float) -> np.n
     return centers
 
 
+def warm_start(system: System, previous: System, q: np.ndarray) -> np.ndarray:
+    """A start for the static solve on a re-laid system: the previous solution's pulley rotations and
+    belt shape (the span nodes where they were, in the new system's coordinates), the moved supports
+    at their new layout position (0)."""
+    E = previous.belt.element_coordinates(previous.expand(q))
+    belt = system.belt
+    q0 = np.zeros(system.n_dof)
+    q0[system.rot_dof] = q[previous.rot_dof]
+    for s, sl in enumerate(system.dofs.span_slices):
+        els = belt.span_elements[s]
+        d = E[els] - belt.e0[els]
+        q0[sl] = np.concatenate([d[0, 2:4], d[1:, 0:4].ravel(), d[-1, 6:8]])
+    return q0
+
+
 def solve_static_on_solved_geometry(system: System, build, options: StaticOptions, *,
                                     max_passes: int = MAX_PASSES) -> SolvedDrive:
     """Static equilibrium with the belt laid out at the solved pulley positions.
@@ -761,7 +776,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             system, st, lam_p, slope, k = _meet_prestrain(build, lay, lam_p, free, options, slope)
             solves += k
         else:
-            st = solve_static(system, options)
+            st = solve_static(system, options, q0=warm if p > 1 else None)
             solves += 1
         step = st.pulley_center - lay.center
         movement.append(float(np.linalg.norm(step, axis=1).max(initial=0.0)))
@@ -777,11 +792,13 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                 centers = centers + rho / (1.0 - rho) * step
         prev_step = step
         ref_old = system.belt.reference_length
+        prev_system, prev_q = system, st.q
         lay, free, built = lay_out(lay, centers, ref_old, f"re-lay pass {p}")
         if prestrain:
             lam_p = float(lay.span_length.sum() / ref_old.sum())
         else:
             system = built
+            warm = warm_start(system, prev_system, prev_q)
     j = int(np.argmax(np.linalg.norm(step, axis=1)))
     raise SolverError(f"the solved geometry did not settle in {max_passes} re-lay passes: pulley "
                       f"'{lay.names[j]}' still moves {movement[-1]:.3g} m from its laid centre "

@@ -93,6 +93,13 @@ def accuracy_warnings(opts: TransientOptions, *, energy_error: float, excitation
         out.append(f"the step {opts.step:g} s exceeds a tenth of the excitation period "
                    f"({1.0 / excitation_frequency:.4g} s at {excitation_frequency:g} Hz): the response is not "
                    f"resolved; use transient.step <= {0.1 / excitation_frequency:.3g} s")
+    if opts.accuracy is not None and opts.fmax is not None:
+        from .timestep import frequency_error
+
+        e = frequency_error(opts.fmax, opts.step, opts.rho_inf)
+        if not abs(e) <= opts.accuracy * (1.0 + 1e-9):
+            out.append(f"the step {opts.step:g} s misses transient.accuracy = {opts.accuracy:g} at transient.fmax = "
+                       f"{opts.fmax:g} Hz (frequency error {e:+.3g}); leave out --step to get a step that meets it")
     if opts.output_interval < opts.step:
         out.append(f"transient.output_interval {opts.output_interval:g} s is below the step {opts.step:g} s: "
                    f"samples between steps are interpolated, not computed")

@@ -286,7 +286,7 @@ def test_a_load_that_slackens_a_span_is_a_named_failure():
 
     with pytest.raises(SolverError) as err:
         _analyse(["static.torque=[{pulley='C', value=-45.0}]"])
-    assert err.value.item == "span 2 (C-T)" and "slack" in str(err.value)
+    assert err.value.item in ("span 2 (C-T)", "span 3 (T-A)") and "slack" in str(err.value)  # both -18 N
 
 
 def test_sweep_over_an_accessory_torque_gives_the_working_curve(tmp_path):
