@@ -12,9 +12,9 @@ case), with an optimal one-to-one assignment (linear_sum_assignment), so crossin
 near-degenerate upper/lower span pairs keep their identity. Where the DOF counts differ (a mesh
 sweep) the match is by classification (kind, order, span), then by frequency.
 
-Journal: `<output>.sweep/` holds `spec.json` (what the sweep is) and one `case-NNNNNN.npz` per
-finished case, each written atomically and durably (temporary file, fsync, rename, fsync of the
-folder); `--resume` skips the cases found there. The final /sweep group is assembled from the
+Journal: `<output>.sweep/` holds `spec.json` (what the sweep is) and `cases.log`, the finished cases
+appended as checksummed records and fsync'ed per batch (a record torn by a crash is cut off on the
+next lock; see `Journal`); `--resume` skips the cases found there. The final /sweep group is assembled from the
 journal, so an interrupted and resumed sweep gives the same file. A running sweep holds an exclusive
 lock (`flock` on `<output>.sweep/lock`, which records its pid): a second sweep on the same journal is
 refused at once instead of racing it.
@@ -31,6 +31,7 @@ import json
 import math
 import os
 import re
+import struct
 import sys
 import time
 from dataclasses import dataclass
@@ -311,16 +312,29 @@ _HELD_LOCKS: set[int] = set()  # journal lock descriptors of this process (close
 
 
 class Journal:
-    """`<output>.sweep/`: spec.json and case-NNNNNN.npz files, each written atomically and fsync'ed;
-    `lock` (flock) while a sweep runs on it."""
+    """`<output>.sweep/`: spec.json (written atomically) and `cases.log`, one append-only file of the
+    finished cases; `lock` (flock) while a sweep runs on it.
+
+    A record of cases.log: MAGIC (4 bytes), case index (uint32), payload length (uint64), CRC-32 of the
+    payload (uint32), payload (the case's arrays as an .npz, no pickles). Records are appended and the
+    file fsync'ed once per batch of cases; a record cut short by a crash (or failing its CRC) ends the
+    valid log and is cut off when the journal is next locked. The cases of this run stay in memory, so
+    assembling the results reads back only the cases of an earlier run (one file instead of one per
+    case: no temporary file, rename and folder fsync per case)."""
 
     LOCK = "lock"
+    LOG = "cases.log"
+    MAGIC = b"BDC1"
+    _HEAD = struct.Struct("<4sIQI")
 
     def __init__(self, output: Path) -> None:
         self.dir = Path(str(output) + ".sweep")
         self._lock_fd: int | None = None
         self._made_dir = False
         self._discard = False  # remove the folder on unlock (removed while locked)
+        self._cache: dict[int, dict] = {}  # cases written by this process
+        self._index: dict[int, tuple[int, int]] | None = None  # case -> (payload offset, length) in the log
+        self._log = None
 
     def exists(self) -> bool:
         return (self.dir / "spec.json").exists()
@@ -371,6 +385,8 @@ class Journal:
             _HELD_LOCKS.add(fd)
             for stale in self.dir.glob("*.tmp*"):  # partial writes of a run that was killed
                 stale.unlink(missing_ok=True)
+            self._index = None
+            self._scan(truncate=True)  # a record torn by a crash is cut off
             return
         raise OutputError(f"cannot lock the sweep journal {self.dir}: it keeps disappearing")
 
@@ -378,6 +394,9 @@ class Journal:
         fd, self._lock_fd = self._lock_fd, None
         if fd is None:
             return
+        if self._log is not None:
+            self._log.close()
+            self._log = None
         _HELD_LOCKS.discard(fd)
         if self._discard or (self._made_dir and self.dir.is_dir() and not self.exists()):
             # removed while locked, or this run created the folder and journaled nothing (e.g. a usage
@@ -406,26 +425,65 @@ class Journal:
     def digest(self) -> str:
         return json.loads((self.dir / "spec.json").read_text())["sha256"]
 
+    def _scan(self, truncate: bool = False) -> dict[int, tuple[int, int]]:
+        """The valid records of the log (case -> payload offset, length); with truncate, a torn or
+        corrupt tail is cut off (only under the lock)."""
+        if self._index is not None:
+            return self._index
+        import zlib
+
+        index: dict[int, tuple[int, int]] = {}
+        path = self.dir / self.LOG
+        end = 0
+        try:
+            with open(path, "rb") as fh:
+                data = fh.read()
+        except FileNotFoundError:
+            data = b""
+        H = self._HEAD.size
+        while end + H <= len(data):
+            magic, case, length, crc = self._HEAD.unpack_from(data, end)
+            start = end + H
+            if magic != self.MAGIC or start + length > len(data) or zlib.crc32(data[start:start + length]) != crc:
+                break
+            index[case] = (start, length)
+            end = start + length
+        if truncate and end < len(data):
+            with open(path, "r+b") as fh:
+                fh.truncate(end)
+                fh.flush()
+                os.fsync(fh.fileno())
+        self._index = index
+        return index
+
     def done(self) -> set[int]:
-        """Finished cases (a case-NNNNNN.tmp-*.npz left by an interrupted write does not count)."""
-        found = set()
-        for p in self.dir.glob("case-*.npz"):
-            m = re.fullmatch(r"case-(\d+)\.npz", p.name)
-            if m:
-                found.add(int(m.group(1)))
-        return found
+        """Finished cases (a record cut short by a crash does not count)."""
+        return set(self._scan()) | set(self._cache)
 
     def write(self, index: int, result: dict, *, sync_dir: bool = True) -> None:
-        """Write one case: temporary file, fsync, rename into place; then fsync the folder (callers
-        writing several cases at once pass sync_dir=False and call `sync` after the last)."""
-        arrays = {k: np.asarray(v) for k, v in result.items()}
-        self._put(f"case-{index:06d}.npz", lambda fh: np.savez(fh, **arrays))
+        """Append one case to the log (and keep it in memory); durable after `sync` (called here unless
+        sync_dir=False: callers writing several cases at once call `sync` after the last)."""
+        import io
+        import zlib
+
+        buf = io.BytesIO()
+        np.savez(buf, **{k: np.asarray(v) for k, v in result.items()})
+        payload = buf.getvalue()
+        if self._log is None:
+            new = not (self.dir / self.LOG).exists()
+            self._log = open(self.dir / self.LOG, "ab")
+            if new:
+                fsync_dir(self.dir)
+        self._log.write(self._HEAD.pack(self.MAGIC, index, len(payload), zlib.crc32(payload)) + payload)
+        self._cache[index] = {k: np.asarray(v) for k, v in result.items()}
         if sync_dir:
             self.sync()
 
     def sync(self) -> None:
-        """Make the renames durable (fsync of the journal folder)."""
-        fsync_dir(self.dir)
+        """Make the appended cases durable (fsync of the log)."""
+        if self._log is not None:
+            self._log.flush()
+            os.fsync(self._log.fileno())
 
     def _put(self, name: str, fill) -> None:
         stem, _, ext = name.partition(".")
@@ -442,13 +500,28 @@ class Journal:
             raise
 
     def read(self, index: int) -> dict:
-        with np.load(self.dir / f"case-{index:06d}.npz", allow_pickle=False) as z:
+        hit = self._cache.get(index)
+        if hit is not None:
+            return hit
+        import io
+
+        start, length = self._scan()[index]
+        with open(self.dir / self.LOG, "rb") as fh:
+            fh.seek(start)
+            payload = fh.read(length)
+        with np.load(io.BytesIO(payload), allow_pickle=False) as z:
             return {k: z[k] for k in z.files}
 
     def remove(self) -> None:
         """Delete the journal. While locked, the lock file stays until `unlock` (which then removes
         the folder), so that no other sweep can start on it meanwhile."""
         import shutil
+
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+        self._cache.clear()
+        self._index = None
 
         if self._lock_fd is None:
             shutil.rmtree(self.dir, ignore_errors=True)

@@ -122,6 +122,14 @@ def h5_dump(path):
     return out
 
 
+def _journaled(journal: Path) -> int:
+    """Cases in a sweep journal's log (valid records only)."""
+    from beltdyn.sweep import Journal
+
+    j = Journal(journal.parent / journal.name[: -len(".sweep")])
+    return len(j.done()) if (journal / "cases.log").exists() else 0
+
+
 def test_interrupted_sweep_resumes_to_the_same_file(tmp_path):
     # Ctrl-C midway (serial worker so that it is midway), then --resume: no finished case recomputed
     # (the journal keeps its files) and the final /sweep equals an uninterrupted run's (wall times aside).
@@ -137,7 +145,7 @@ def test_interrupted_sweep_resumes_to_the_same_file(tmp_path):
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     journal = Path(str(out) + ".sweep")
     deadline = time.time() + 120
-    while time.time() < deadline and len(list(journal.glob("case-*.npz"))) < 40 and proc.poll() is None:
+    while time.time() < deadline and _journaled(journal) < 40 and proc.poll() is None:
         time.sleep(0.01)
     # Midway for sure on a loaded machine: the sweep is frozen (SIGSTOP) the moment the journal holds 40
     # cases, so that it cannot run on to its end (or into assembling the file) before the Ctrl-C lands;
@@ -148,12 +156,12 @@ def test_interrupted_sweep_resumes_to_the_same_file(tmp_path):
     _, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 130, stderr
     assert "--resume" in stderr
-    kept = {p.name: p.stat().st_mtime_ns for p in journal.glob("case-*.npz") if ".tmp" not in p.name}
-    assert 40 <= len(kept) < 300 and not out.exists()
+    kept = _journaled(journal)
+    log = (journal / "cases.log").read_bytes()
+    assert 40 <= kept < 300 and not out.exists()
     again = subprocess.run([*BELTDYN, *args, "-o", str(out)], cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert again.returncode == 2 and "--resume" in again.stderr  # refuses to start over silently
-    before = {p.name: p.stat().st_mtime_ns for p in journal.glob("case-*.npz") if ".tmp" not in p.name}
-    assert before == kept  # the refused run touched nothing
+    assert (journal / "cases.log").read_bytes() == log  # the refused run touched nothing
     resumed = subprocess.run([*BELTDYN, *args, "-o", str(out), "--resume"], cwd=tmp_path, capture_output=True,
                              text=True, timeout=600)
     assert resumed.returncode == 0, resumed.stderr
@@ -258,3 +266,44 @@ def test_unreachable_scheduler_is_a_usage_error(tmp_path):
     assert r.returncode == 2, r.stderr
     assert "--scheduler" in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "x.h5.sweep").exists() and not (tmp_path / "x.h5").exists()
+
+
+def test_a_torn_journal_record_is_cut_off_and_the_case_recomputed(tmp_path):
+    # A crash in the middle of appending a case: the log ends in half a record. The next lock cuts it off
+    # (the CRC and the length say where the valid log ends), that case counts as not done, --resume
+    # recomputes it, and /sweep equals an uninterrupted run's (wall times aside), to the bit.
+    from beltdyn.sweep import Journal
+
+    args = ["sweep", str(BENCH), "--param", "tension.target=150:300:6", "--workers", "1"]
+    full = subprocess.run([*BELTDYN, *args, "-o", str(tmp_path / "full.h5")], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=300)
+    assert full.returncode == 0, full.stderr
+    # a journal of cases 0-3 written by the library, the last record torn
+    from beltdyn.config import load_config
+    from beltdyn.sweep import make_spec, run_case, spec_hash
+
+    cfg = load_config(BENCH)
+    spec = make_spec(cfg, [("tension.target", "150:300:6")], analysis="modal", zip_=False)
+    out = tmp_path / "cut.h5"
+    from beltdyn.config import resolved_toml
+    from beltdyn.sweep import _assign
+
+    with Journal(out) as j:
+        j.start(spec.to_json(), spec_hash(cfg, spec))
+        for i in range(4):
+            assign = [_assign(p.key, v) for p, v in zip(spec.params, spec.case_values(i))]
+            j.write(i, run_case(resolved_toml(cfg), cfg.source, assign, "modal", spec.n_modes))
+    log = Path(str(out) + ".sweep") / "cases.log"
+    size = log.stat().st_size
+    with open(log, "r+b") as fh:
+        fh.truncate(size - 100)  # case 3's record cut short
+    with Journal(out) as j:
+        assert j.done() == {0, 1, 2}
+    assert log.stat().st_size < size - 100  # the torn record was cut off on lock
+    resumed = subprocess.run([*BELTDYN, *args, "-o", str(out), "--resume"], cwd=tmp_path, capture_output=True,
+                             text=True, timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    a, b = h5_dump(tmp_path / "full.h5"), h5_dump(out)
+    for k in a:
+        if k != "attrs" and "wall_time" not in k:
+            np.testing.assert_array_equal(a[k], b[k], err_msg=k)
