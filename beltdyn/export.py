@@ -263,7 +263,9 @@ def sweep_group(cfg, result) -> GroupData:
             dims, units = ("pulley", "component"), "N"
         elif base == "bearing_force":
             dims, units = ("bearing", "component"), "N"
-            coords["bearing"] = [p.name for p in cfg.pulleys if p.support != "fixed"]
+            from .supports import support_of
+
+            coords["bearing"] = [p.name for p in cfg.pulleys if support_of(p).springs()]
         else:
             continue
         variables.append(Variable(name=key, data=arr, dims=("case", *dims), units=units))

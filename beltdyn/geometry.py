@@ -297,15 +297,10 @@ def layout_from_config(cfg: DriveConfig) -> Layout:
         if a is None:
             lay = compute_layout(center, radius, side, names)
         else:
-            p = cfg.pulleys[a]
-            if p.support == "arm":
-                phi0 = p.arm_angle if p.arm_range is None else unwrap_near(p.arm_angle, sum(p.arm_range) / 2)
-                rng = None if p.arm_range is None else (p.arm_range[0] - phi0, p.arm_range[1] - phi0)
-                lay = fit_adjustable(center, radius, side, names, index=a, direction=np.zeros(2),
-                                     target_length=cfg.belt.length, slide_range=rng, pivot=np.array(p.arm_pivot))
-            else:
-                lay = fit_adjustable(center, radius, side, names, index=a, direction=np.array(p.slide_direction),
-                                     target_length=cfg.belt.length, slide_range=p.slide_range)
+            from .supports import support_of
+
+            lay = fit_adjustable(center, radius, side, names, index=a, target_length=cfg.belt.length,
+                                 **support_of(cfg.pulleys[a]).fit_motion())
     except GeometryError as exc:
         raise ConfigError(str(exc), file=cfg.source, key=exc.key) from None
     for j, p in enumerate(cfg.pulleys):  # stops that exclude the (fitted) arm angle

@@ -439,7 +439,7 @@ def solve_static(system: System, options: StaticOptions, *, q0: np.ndarray | Non
     _check_stops(model, q)
     if prob.adjust:  # the bearing spring's preload follows from the adjustable pulley's slide equation
         _check_travel(model, q)
-        r, _ = model.equilibrium(q)
+        r, _ = model.equilibrium(q, tangent=False)
         prob.preload[prob.a] = r[prob.a]
     hist = np.array(prob.history).reshape(-1, 2)
     return _result(model, q, prob.preload, hist[:, 0], hist[:, 1], len(hist), prob.driver)
@@ -501,7 +501,7 @@ def _check_stops(system: System, q: np.ndarray) -> None:
 def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -> StaticResult:
     lay = model.layout
     hub, span_tension = model.joint_reactions(q)
-    f = model.equilibrium(q)[0] - preload
+    f = model.equilibrium(q, tangent=False)[0] - preload
     T_mean, _ = model.mean_tension_and_gradient(q)
     a = lay.adjust_index
     if a is None:

@@ -101,22 +101,16 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
         group.append(DOF_GROUPS.index(grp))
         return len(labels) - 1
 
+    from .supports import support_of
+
     comp = (("r1", "m"), ("r2", "m"), ("r1'", "1"), ("r2'", "1"))
     arm_dof = np.full(len(cfg.pulleys), -1, dtype=int)
-    for j, p in enumerate(cfg.pulleys):
-        if p.support == "arm":
-            arm_dof[j] = add(f"pulley {p.name} arm", "rad", "arm")
-            trans_dof.append(())  # filled with the dependent centre offsets below
-            trans_dir.append(np.eye(2))
-        elif p.support == "slide":
-            trans_dof.append((add(f"pulley {p.name} slide", "m", "translation"),))
-            trans_dir.append(np.array([p.slide_direction], dtype=float))
-        elif p.support == "bearing":
-            trans_dof.append(tuple(add(f"pulley {p.name} {axis}", "m", "translation") for axis in "xy"))
-            trans_dir.append(np.eye(2))
-        else:
-            trans_dof.append(())
-            trans_dir.append(np.zeros((0, 2)))
+    supports = [support_of(p) for p in cfg.pulleys]
+    for j, (p, sup) in enumerate(zip(cfg.pulleys, supports)):
+        own = [(add(f"pulley {p.name} {suffix}", unit, grp), grp) for suffix, unit, grp in sup.independent()]
+        trans_dof.append(tuple(d for d, grp in own if grp == "translation"))  # dependent ones: below
+        trans_dir.append(sup.directions())
+        arm_dof[j] = next((d for d, grp in own if grp == "arm"), -1)
         rot_dof[j] = add(f"pulley {p.name} rotation", "rad", "rotation")
         start = len(labels)
         s = j + 1
@@ -125,9 +119,9 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
                 add(f"span {s} node {node} {c}", unit, "span")
         span_slices.append(slice(start, len(labels)))
     n_q = len(labels)
-    for j, p in enumerate(cfg.pulleys):  # the arm pulleys' centre offsets: dependent, after q
-        if p.support == "arm":
-            trans_dof[j] = tuple(add(f"pulley {p.name} {axis} (arm)", "m", "translation") for axis in "xy")
+    for j, (p, sup) in enumerate(zip(cfg.pulleys, supports)):  # dependent DOFs (arm offsets): after q
+        if sup.dependent():
+            trans_dof[j] = tuple(add(f"pulley {p.name} {suffix}", unit, grp) for suffix, unit, grp in sup.dependent())
     return DofMap(labels=tuple(labels), units=tuple(units), group=np.array(group, dtype=np.int64), rot_dof=rot_dof,
                   trans_dof=tuple(trans_dof), trans_dir=tuple(trans_dir), span_slices=tuple(span_slices),
                   arm_dof=arm_dof, dependent=len(labels) - n_q)
@@ -467,7 +461,26 @@ def element_pairs(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.repeat(idx[:, :, None], m, axis=2).ravel(), np.repeat(idx[:, None, :], m, axis=1).ravel())
 
 
+_PATTERNS: dict = {}  # make_pattern memo: re-laid systems of one drive share their pattern
+
+
 def make_pattern(idx: np.ndarray, n: int, *, sparse: bool, extra: tuple[np.ndarray, np.ndarray] | None = None) -> Pattern:
+    import hashlib
+
+    h = hashlib.blake2b(np.ascontiguousarray(idx).tobytes(), digest_size=16)
+    if extra is not None:
+        h.update(np.ascontiguousarray(extra[0]).tobytes())
+        h.update(np.ascontiguousarray(extra[1]).tobytes())
+    key = (n, sparse, idx.shape, h.digest())
+    hit = _PATTERNS.get(key)
+    if hit is None:
+        if len(_PATTERNS) > 16:
+            _PATTERNS.clear()
+        hit = _PATTERNS[key] = _make_pattern(idx, n, sparse=sparse, extra=extra)
+    return hit
+
+
+def _make_pattern(idx: np.ndarray, n: int, *, sparse: bool, extra: tuple[np.ndarray, np.ndarray] | None = None) -> Pattern:
     rows, cols = element_pairs(idx)
     flat = rows * (n + 1) + cols
     if not sparse:
@@ -771,10 +784,14 @@ class System:
         F = load_factor * self.gravity_force
         return F + load_factor * self.loads if self.loads is not None else F
 
-    def equilibrium(self, q: np.ndarray, load_factor: float = 1.0):
+    def equilibrium(self, q: np.ndarray, load_factor: float = 1.0, *, tangent: bool = True):
         """r(q) = J^T (f(p) - F) (n_dof,) and its tangent dr/dq: the static residual before the spring
-        preloads, F the static load case scaled by load_factor. Without arms r = f - F, dr/dq = K_t."""
+        preloads, F the static load case scaled by load_factor. Without arms r = f - F, dr/dq = K_t.
+        tangent=False: (r, None)."""
         p = self.expand(q)
+        if not tangent:
+            f = self.belt.force(p) + self.linear_force(p) - self.external_force(load_factor)
+            return (f if self.arms is None else self.arms.project(q, f)), None
         f, blocks = self.belt.force_and_blocks(p)
         f = f + self.linear_force(p) - self.external_force(load_factor)
         K = self.assemble(blocks)
@@ -1033,51 +1050,41 @@ def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = No
     spring_free (n_dof,): the value of each translation DOF at which its bearing spring is relaxed
     (None: 0, the pulley at its layout centre). A layout whose pulleys sit displaced from their given
     centres (`geometry.relay`) anchors the springs at the given centres with it."""
+    from .supports import support_of
+
     rot = dofs.rot_dof
     out: list[LinearComponent] = [LinearComponent(
         name="pulley inertia", dofs=rot.copy(), mass=np.diag([p.inertia for p in cfg.pulleys]),
         energy_kind="rotational")]
-    t_dofs, t_mass, t_weight, k_spring, supported = [], [], [], [], []
-    a_dofs, a_mass, a_weight = [], [], []
+    masses: dict[str, tuple[list, list, list]] = {}  # energy kind -> translational DOFs, masses, weights
+    t_dofs, k_spring, supported = [], [], []
+    own: list[LinearComponent] = []
     for j, p in enumerate(cfg.pulleys):
-        if p.support == "arm":
-            for d, v in zip(dofs.trans_dof[j], dofs.trans_dir[j]):
-                a_dofs.append(d)
-                a_mass.append(p.mass)
-                a_weight.append(p.mass * v)
-            continue
-        for k, (d, v) in enumerate(zip(dofs.trans_dof[j], dofs.trans_dir[j])):
-            t_dofs.append(d)
-            t_mass.append(p.mass * float(v @ v))
-            t_weight.append(p.mass * v)
-            k_spring.append(p.bearing_stiffness[k])
-        if dofs.trans_dof[j]:
+        sup = support_of(p)
+        d_m, m_m, w_m = masses.setdefault(sup.mass_kind, ([], [], []))
+        for d, v in zip(dofs.trans_dof[j], dofs.trans_dir[j]):
+            d_m.append(d)
+            m_m.append(p.mass * float(v @ v))
+            w_m.append(p.mass * v)
+        if sup.springs():
+            t_dofs += list(dofs.trans_dof[j])
+            k_spring += list(sup.springs())
             supported.append(j)
+        if sup.independent():
+            first = dofs.trans_dof[j][0] if dofs.trans_dof[j] and not sup.translation_is_dependent() \
+                else int(dofs.arm_dof[j])
+            own += list(sup.own_components(first, layout, j))
+    names = {"translational": "pulley mass", "tensioner": "arm pulley mass"}
+    for kind, (d_m, m_m, w_m) in masses.items():
+        if d_m:
+            out.append(LinearComponent(name=names.get(kind, f"{kind} pulley mass"), dofs=np.array(d_m, dtype=np.int64),
+                                       mass=np.diag(m_m), weight=np.array(w_m), energy_kind=kind))
     if t_dofs:
         d = np.array(t_dofs, dtype=np.int64)
-        out.append(LinearComponent(name="pulley mass", dofs=d, mass=np.diag(t_mass), weight=np.array(t_weight),
-                                   energy_kind="translational"))
         free = None if spring_free is None or not np.any(spring_free[d]) else np.asarray(spring_free, dtype=float)[d]
         out.append(BearingSprings(name="bearing springs", dofs=d, stiffness=np.diag(k_spring), free=free,
                                   pulleys=tuple(supported), pulley_names=tuple(cfg.pulleys[j].name for j in supported)))
-    if a_dofs:
-        out.append(LinearComponent(name="arm pulley mass", dofs=np.array(a_dofs, dtype=np.int64), mass=np.diag(a_mass),
-                                   weight=np.array(a_weight), energy_kind="tensioner"))
-    for j, p in enumerate(cfg.pulleys):
-        if p.support != "arm":
-            continue
-        free = None
-        if p.arm_free_angle is not None and p.arm_stiffness > 0 and layout is not None:
-            from .geometry import arm_angle, unwrap_near
-
-            ref = arm_angle(layout, j, np.array(p.arm_pivot))
-            free = np.array([unwrap_near(p.arm_free_angle, ref) - ref])
-        out.append(LinearComponent(
-            name=f"tensioner arm {p.name}", dofs=np.array([dofs.arm_dof[j]], dtype=np.int64),
-            mass=np.array([[p.arm_inertia]]) if p.arm_inertia > 0 else None,
-            stiffness=np.array([[p.arm_stiffness]]) if p.arm_stiffness > 0 else None,
-            damping=np.array([[p.arm_damping]]) if p.arm_damping > 0 else None, free=free, energy_kind="tensioner"))
-    return tuple(out)
+    return tuple(out) + tuple(own)
 
 
 def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap) -> ArmJoints | None:
@@ -1154,21 +1161,13 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
     a = cfg.adjustable_index
     adjust_dof = -1
     adjust_range = None
-    if a is not None:
-        p = cfg.pulleys[a]
-        if p.support == "arm":
-            if adjust:
-                adjust_dof = int(dofs.arm_dof[a])
-            if p.arm_range is not None:  # the stops as the angle turned from the drawn arm angle
-                from .geometry import unwrap_near
+    if a is not None:  # the adjustable pulley's first own DOF (a slide's offset, an arm's angle) sets the tension
+        from .supports import support_of
 
-                mid = 0.5 * (p.arm_range[0] + p.arm_range[1])
-                drawn = unwrap_near(p.arm_angle, mid)
-                adjust_range = (p.arm_range[0] - drawn, p.arm_range[1] - drawn)
-        else:
-            if adjust:
-                adjust_dof = int(dofs.trans_dof[a][0])
-            adjust_range = p.slide_range
+        sup = support_of(cfg.pulleys[a])
+        if adjust:
+            adjust_dof = int(dofs.arm_dof[a]) if dofs.arm_dof[a] >= 0 else int(dofs.trans_dof[a][0])
+        adjust_range = sup.travel_limits()
     mode = "spring" if cfg.tension.mode == "spring" else (cfg.tension.mode if target is not None else "geometry")
     tension = TensionSetting(target=target, mode=mode, adjust_dof=adjust_dof, adjust_range=adjust_range,
                              adjust_name=cfg.pulleys[a].name if a is not None else "")
