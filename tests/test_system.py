@@ -5,6 +5,7 @@ transient convergence does not depend on the size of a bearing preload."""
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -232,7 +233,8 @@ def test_a_new_support_is_one_class(monkeypatch):
     from beltdyn.modal import solve_modes
     from beltdyn.pipeline import analyse
 
-    d = np.array([np.cos(0.3), np.sin(0.3)])
+    d = np.array([math.cos(0.3), math.sin(0.3)])
+    dx, dy = float(d[0]), float(d[1])
 
     class TiltedSlide(supports.Support):
         kind = "bearing"
@@ -247,7 +249,7 @@ def test_a_new_support_is_one_class(monkeypatch):
             return (3.0e6,)
 
     three = ROOT / "configs" / "examples" / "three_pulley_backside_idler.toml"
-    ref = analyse(load_config(three, ["pulleys[2].support='slide'", f"pulleys[2].slide_direction=[{d[0]!r}, {d[1]!r}]",
+    ref = analyse(load_config(three, ["pulleys[2].support='slide'", f"pulleys[2].slide_direction=[{dx!r}, {dy!r}]",
                                       "pulleys[2].bearing_stiffness=3.0e6"]), modal=True)
     monkeypatch.setitem(supports.SUPPORT_CLASSES, "bearing", TiltedSlide)
     got = analyse(load_config(three, ["pulleys[2].bearing_stiffness=[3.0e6, 3.0e6]"]), modal=True)
