@@ -83,9 +83,22 @@ class DofMap:
         return len(self.labels) - self.dependent
 
 
+_DOFMAPS: dict = {}  # number_dofs memo: a DofMap depends only on the pulleys' names and supports and the mesh
+
+
 def number_dofs(cfg: DriveConfig) -> DofMap:
-    """DOF order along the loop: pulley j (translations, rotation), then span j (start gradients,
-    interior nodes, end gradients)."""
+    """DOF order along the loop: pulley j (its support's DOFs, rotation), then span j (start
+    gradients, interior nodes, end gradients); the supports' dependent DOFs after all of them."""
+    key = (cfg.mesh.elements_per_span, tuple((p.name, p.support, tuple(p.slide_direction)) for p in cfg.pulleys))
+    hit = _DOFMAPS.get(key)
+    if hit is None:
+        if len(_DOFMAPS) > 64:
+            _DOFMAPS.clear()
+        hit = _DOFMAPS[key] = _number_dofs(cfg)
+    return hit
+
+
+def _number_dofs(cfg: DriveConfig) -> DofMap:
     n_e = cfg.mesh.elements_per_span
     labels: list[str] = []
     units: list[str] = []
@@ -844,7 +857,8 @@ class System:
         return c
 
     # -------------------------------------------------------------------- energy
-    def kinetic_energy_shares(self, shapes: np.ndarray, q: np.ndarray | None = None
+    def kinetic_energy_shares(self, shapes: np.ndarray, q: np.ndarray | None = None, *,
+                              motion: np.ndarray | None = None
                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Kinetic-energy split of shapes (n_modes, n_dof) about the state q by kind.
 
@@ -858,7 +872,7 @@ class System:
         n_modes = shapes.shape[0]
         if self.arms is not None:
             shapes = self.arms.expand_motion(np.zeros(self.n_dof) if q is None else q, shapes)
-        de = belt.element_coordinates_batch(shapes, offset=False).reshape(n_modes, el.n_elem, 4, 2)
+        de = belt.element_coordinates_batch(shapes, offset=False) if motion is None else motion.reshape(n_modes, el.n_elem, 4, 2)
         t = belt.reference_direction[belt.elem_span]
         nrm = belt.reference_normal[belt.elem_span]
         a = np.einsum("kejd,ed->kej", de, t)
