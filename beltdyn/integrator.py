@@ -97,13 +97,7 @@ N_SCAL = 11
 ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
 
 
-def alpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
-    """(alpha_m, alpha_f, beta, gamma) of Chung and Hulbert for spectral radius rho_inf in [0, 1]."""
-    am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
-    af = rho_inf / (rho_inf + 1.0)
-    gamma = 0.5 - am + af
-    beta = 0.25 * (1.0 - am + af) ** 2
-    return am, af, beta, gamma
+from .timestep import alpha_parameters  # noqa: E402,F401  (one definition, numba-free)
 
 
 def empty_csr(n: int) -> Csr:
@@ -340,25 +334,18 @@ def complete(arms, q, v, a):
 
 
 @njit(cache=True)
-def project(arms, q, x, out):
-    """out (n_q,) = J(q)^T x for x (n_p,) on the joint coordinates."""
+def project(arms, q, x, out, absolute=False):
+    """out (n_q,) = J(q)^T x for x (n_p,) on the joint coordinates (|J|^T x with absolute: round-off
+    scales)."""
     for i in range(arms.n_q):
         out[i] = x[i]
     for k in range(arms.dof.shape[0]):
         d, s, L = arms.dof[k], arms.slot[k], arms.length[k]
         phi = arms.angle[k] + q[d]
-        out[d] += -L * np.sin(phi) * x[s] + L * np.cos(phi) * x[s + 1]
-
-
-@njit(cache=True)
-def project_abs(arms, q, x, out):
-    """out (n_q,) = |J(q)|^T x (round-off scales)."""
-    for i in range(arms.n_q):
-        out[i] = x[i]
-    for k in range(arms.dof.shape[0]):
-        d, s, L = arms.dof[k], arms.slot[k], arms.length[k]
-        phi = arms.angle[k] + q[d]
-        out[d] += L * (abs(np.sin(phi)) * x[s] + abs(np.cos(phi)) * x[s + 1])
+        a, b = -L * np.sin(phi), L * np.cos(phi)
+        if absolute:
+            a, b = abs(a), abs(b)
+        out[d] += a * x[s] + b * x[s + 1]
 
 
 @njit(cache=True)
@@ -511,7 +498,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             project(arms, q1, fi, fi_q)
             project(arms, q1, F1, F1_q)
             project(arms, q1, F.constant, Fc_q)
-            project_abs(arms, q1, fl, fl_q)
+            project(arms, q1, fl, fl_q, True)
             for g in range(G):
                 res_g[g] = 0.0
                 scale_g[g] = 0.0
