@@ -539,8 +539,8 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -
     applied = np.zeros(n)
     if model.loads is not None:
         applied = model.loads[model.rot_dof].copy()
-    mu_req = required_friction(span_tension, lay.wrap_angle)
     friction = model.pulley_friction if model.pulley_friction is not None else np.full(n, np.nan)
+    mu_req = required_friction(span_tension, lay.wrap_angle)
     return StaticResult(
         q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
         hub_load=hub, pulley_center=model.pulley_centers(q), pulley_rotation=q[model.rot_dof].copy(),
@@ -548,7 +548,7 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -
         residual_history=np.array(hist_r), load_factor_history=np.array(hist_l), iterations=iterations,
         tension_mode=model.tension.mode, arm_angle=arm_angle, arm_torque=arm_torque, arm_free_angle=arm_free,
         pivot_reaction=pivot, applied_torque=applied, required_friction=mu_req,
-        slip_margin=slip_margin(mu_req, friction))
+        slip_margin=slip_margin(mu_req, friction) if not np.all(np.isnan(friction)) else np.full(n, np.nan))
 
 
 # ------------------------------------------------------------------------------------ solved geometry
@@ -635,9 +635,11 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float) -> np.n
 
     lay0 = system.layout
     T = float(system.tension.target)
-    k_diag = np.asarray(system.linear_matrix().diagonal()).ravel()
+    k_diag = np.asarray(system.linear_matrix().diagonal()).ravel() if anchored else None
     anchored_set = anchored
     centers = lay0.center.copy()
+    if not anchored_set and fit is not None:  # nothing deflects: the fit alone places the pulleys
+        return fit(centers).center
     for _ in range(50):
         lay = fit(centers) if fit is not None else relay(lay0, centers)
         t = lay.span_direction
@@ -768,6 +770,8 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                 system = built
         except (GeometryError, SolverError):
             lay, free = lay0, np.zeros(n_dof)  # no prediction: start from the L0 fit
+    if hasattr(system, "full"):  # a deferred build (pipeline.analyse): solved on the L0 fit after all
+        system = system.full()
     prev_step = None
     movement: list[float] = []
     solves = 0

@@ -391,7 +391,10 @@ class BeltSpans:
         damped = self.damping_axial > 0.0 or self.damping_bending > 0.0
         n = self.n_span
         if not self.compiled and not (damped and Ed is not None):
-            sub_el = ancf.subset(el, ends)
+            sub_el = self.__dict__.get("_end_elements")
+            if sub_el is None:  # the span-end elements' tables (cached)
+                sub_el = ancf.subset(el, ends)
+                object.__setattr__(self, "_end_elements", sub_el)
             ge = ancf.gravity_forces(sub_el, gravity)
             F = np.stack([ancf.internal_forces(sub_el, E[b, ends]) for b in range(B)]) - ge
             return np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2)
@@ -1170,6 +1173,15 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
     lam = reference_stretch(cfg, layout) if prestrain_stretch is None else prestrain_stretch
     dofs = number_dofs(cfg)
     belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam)
+    return _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free) + tuple(extra),
+                     pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index,
+                     tension=tension_setting(cfg, dofs), gravity=np.asarray(cfg.model.gravity, dtype=float),
+                     dense=dense, loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
+                     friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]))
+
+
+def tension_setting(cfg: DriveConfig, dofs: DofMap) -> TensionSetting:
+    """How the configuration sets the tension, on the DOF map."""
     target = cfg.tension.target
     adjust = target is not None and cfg.tension.mode == "adjust"
     a = cfg.adjustable_index
@@ -1183,13 +1195,43 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
             adjust_dof = int(dofs.arm_dof[a]) if dofs.arm_dof[a] >= 0 else int(dofs.trans_dof[a][0])
         adjust_range = sup.travel_limits()
     mode = "spring" if cfg.tension.mode == "spring" else (cfg.tension.mode if target is not None else "geometry")
-    tension = TensionSetting(target=target, mode=mode, adjust_dof=adjust_dof, adjust_range=adjust_range,
-                             adjust_name=cfg.pulleys[a].name if a is not None else "")
-    return _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free) + tuple(extra),
-                     pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index, tension=tension,
-                     gravity=np.asarray(cfg.model.gravity, dtype=float), dense=dense,
-                     loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
-                     friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]))
+    return TensionSetting(target=target, mode=mode, adjust_dof=adjust_dof, adjust_range=adjust_range,
+                          adjust_name=cfg.pulleys[a].name if a is not None else "")
+
+
+class DeferredSystem:
+    """The drive on a layout whose full build waits until something needs it: `pipeline.analyse` hands
+    this to the static analysis, which lays the belt out anew at the predicted solved positions and
+    usually never solves on the L0 fit. Cheap facts (tension, DOF map, layout, arms, the belt's
+    reference lengths, stretch and EA) come without a build; anything else builds (`full`)."""
+
+    def __init__(self, cfg: DriveConfig, layout: Layout, build) -> None:
+        from types import SimpleNamespace
+
+        dofs = number_dofs(cfg)
+        lam = reference_stretch(cfg, layout)
+        self._facts = {
+            "layout": layout, "dofs": dofs, "tension": tension_setting(cfg, dofs), "arms": arm_joints(cfg, layout, dofs),
+            "trans_dof": dofs.trans_dof, "trans_dir": dofs.trans_dir, "rot_dof": dofs.rot_dof,
+            "belt": SimpleNamespace(reference_length=layout.span_length / lam, prestrain_stretch=float(lam),
+                                    span_stretch=None, elements=SimpleNamespace(EA=np.array([cfg.belt.EA]))),
+        }
+        self._build, self._full = build, None
+
+    @property
+    def built(self) -> bool:
+        return self._full is not None
+
+    def full(self) -> System:
+        if self._full is None:
+            self._full = self._build(self._facts["layout"])
+        return self._full
+
+    def __getattr__(self, name: str):
+        facts = self.__dict__.get("_facts", {})
+        if name in facts:
+            return facts[name]
+        return getattr(self.full(), name)
 
 
 __all__ = ["System", "DofMap", "BeltSpans", "LinearComponent", "BearingSprings", "Observation", "TensionSetting",
