@@ -93,20 +93,26 @@ def _predictor(system: System, stretch: float, adjust_dof: int, driver_dof: int)
     x = np.linalg.lstsq(A, target, rcond=None)[0]
     q = np.zeros(system.n_dof)
     q[unknowns] = x
-    # Straight chords between the moved end nodes.
+    return _straight_spans(system, q)
+
+
+def _straight_spans(system: System, q: np.ndarray) -> np.ndarray:
+    """q with every span laid straight between its end nodes (where q's pulley DOFs put them), its
+    nodes evenly spaced and its gradients the chord over the reference length (the stretch)."""
+    model = system.belt
+    q = q.copy()
     e = model.element_coordinates(system.expand(q))
     n_e = len(model.span_elements[0])
     frac = np.arange(1, n_e) / n_e
-    for s, (e_first, e_last) in enumerate(ends):
+    for s, els in enumerate(model.span_elements):
+        e_first, e_last = els[0], els[-1]
         a, b = e[e_first, 0:2], e[e_last, 4:6]
         grad = (b - a) / model.reference_length[s]
-        els = model.span_elements[s]
-        sl = system.dofs.span_slices[s]
         nodes = np.empty((n_e - 1, 4))
         nodes[:, 0:2] = a + np.outer(frac, b - a) - model.e0[els[1:], 0:2]
         nodes[:, 2:4] = grad - model.e0[els[1:], 2:4]
-        block = np.concatenate([grad - model.e0[e_first, 2:4], nodes.ravel(), grad - model.e0[e_last, 6:8]])
-        q[sl] = block
+        q[system.dofs.span_slices[s]] = np.concatenate([grad - model.e0[e_first, 2:4], nodes.ravel(),
+                                                        grad - model.e0[e_last, 6:8]])
     return q
 
 
@@ -658,18 +664,12 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float) -> np.n
 
 
 def warm_start(system: System, previous: System, q: np.ndarray) -> np.ndarray:
-    """A start for the static solve on a re-laid system: the previous solution's pulley rotations and
-    belt shape (the span nodes where they were, in the new system's coordinates), the moved supports
-    at their new layout position (0)."""
-    E = previous.belt.element_coordinates(previous.expand(q))
-    belt = system.belt
+    """A start for the static solve on a re-laid system: the previous solution's pulley rotations, the
+    moved supports at their new layout position (0), the spans straight between their new end nodes
+    (the belt's shape of the previous layout does not fit the moved tangent points)."""
     q0 = np.zeros(system.n_dof)
     q0[system.rot_dof] = q[previous.rot_dof]
-    for s, sl in enumerate(system.dofs.span_slices):
-        els = belt.span_elements[s]
-        d = E[els] - belt.e0[els]
-        q0[sl] = np.concatenate([d[0, 2:4], d[1:, 0:4].ravel(), d[-1, 6:8]])
-    return q0
+    return _straight_spans(system, q0)
 
 
 def solve_static_on_solved_geometry(system: System, build, options: StaticOptions, *,
