@@ -83,7 +83,7 @@ State = namedtuple("State", ["q", "v", "a", "f0", "fd0", "F0", "R0", "scal"])
 Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n"])
 Events = namedtuple("Events", ["data", "n", "slack"])
 # tensioner arms: q index of the angle, p index of the centre offset x (y: + 1), arm length, angle at q = 0,
-# dry friction torque and its regularization speed; n_q the independent coordinates (p[:n_q] = q)
+# dry friction torque, its bristle stiffness and anchor angle (state); n_q the independent coordinates (p[:n_q] = q)
 Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction", "bristle", "anchor", "n_q"])
 ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry friction (bristle stiffness T_f / this);
 # 1e-4 rad gave the same hysteresis (0.1 %) and cost 20 % more Newton work on the FEAD example
