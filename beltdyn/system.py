@@ -367,11 +367,14 @@ class BeltSpans:
         d(delta) = (dp - dr0) . n + (p - r0) . dn,  dn = J dc / |c| - J c (c . dc) / |c|^3."""
         p, r0, c = self._midspan_terms(E[None])
         dp, dr0, dc = self._midspan_terms(dE, offset=False)
-        norm = np.linalg.norm(c, axis=-1, keepdims=True)
-        Jc = np.stack([-c[..., 1], c[..., 0]], axis=-1)
-        Jdc = np.stack([-dc[..., 1], dc[..., 0]], axis=-1)
-        dn = Jdc / norm - Jc * (np.einsum("bsd,bsd->bs", c, dc)[..., None] / norm ** 3)
-        return np.einsum("bsd,bsd->bs", dp - dr0, Jc / norm) + np.einsum("bsd,bsd->bs", p - r0, dn)
+        cx, cy = c[..., 0], c[..., 1]
+        norm = np.hypot(cx, cy)
+        ux, uy = p[..., 0] - r0[..., 0], p[..., 1] - r0[..., 1]
+        dux, duy = dp[..., 0] - dr0[..., 0], dp[..., 1] - dr0[..., 1]
+        # (du . Jc + u . J dc) / |c| - (u . Jc)(c . dc) / |c|^3, J v = (-v_y, v_x)
+        uJc = -ux * cy + uy * cx
+        return ((-dux * cy + duy * cx) + (-ux * dc[..., 1] + uy * dc[..., 0])) / norm \
+            - uJc * (cx * dc[..., 0] + cy * dc[..., 1]) / norm ** 3
 
     def _midspan_terms(self, E: np.ndarray, offset: bool = True):
         """Mid-span point p, start r0 and chord c = r_end - r0, each (B, n_span, 2)."""
