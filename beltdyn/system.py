@@ -878,7 +878,8 @@ class System:
         n_modes = shapes.shape[0]
         if self.arms is not None:
             shapes = self.arms.expand_motion(np.zeros(self.n_dof) if q is None else q, shapes)
-        de = belt.element_coordinates_batch(shapes, offset=False) if motion is None else motion.reshape(n_modes, el.n_elem, 4, 2)
+        de = (belt.element_coordinates_batch(shapes, offset=False) if motion is None else motion).reshape(
+            n_modes, el.n_elem, 4, 2)
         t = belt.reference_direction[belt.elem_span]
         nrm = belt.reference_normal[belt.elem_span]
         a = np.einsum("kejd,ed->kej", de, t)
