@@ -59,6 +59,9 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
         system = build_system(cfg, lay, prestrain_stretch=stretch, spring_free=spring_free)
         return system.with_belt(compiled=True) if compiled else system
 
+    from .system import check_model_size
+
+    check_model_size(cfg)  # before the L0 fit: an impossible mesh is refused at once
     layout = layout or layout_from_config(cfg)
     if not (static or modal):
         return Analysis(config=cfg, layout=layout, system=build(layout), fit_layout=layout)

@@ -29,6 +29,7 @@ matrix (large models).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -1164,6 +1165,40 @@ def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
     return 1.0
 
 
+BYTES_PER_DOF = 10_000  # a generous bound on the memory of static + modal + transient per DOF (bench: ~4.4 kB)
+
+
+def memory_limit() -> int:
+    """Bytes this process may use: the smaller of the physical memory and a cgroup (container) limit."""
+    limit = 1 << 62
+    try:
+        limit = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        pass
+    for path in ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"):
+        try:
+            text = open(path).read().strip()
+        except OSError:
+            continue
+        if text.isdigit():
+            limit = min(limit, int(text))
+    return limit
+
+
+def check_model_size(cfg: DriveConfig) -> None:
+    """A mesh whose model cannot fit in memory is a configuration error before any work (exit 2),
+    not a run that is killed or fails after minutes."""
+    n_e = cfg.mesh.elements_per_span
+    n_dof = len(cfg.pulleys) * (4 * n_e + 3)
+    need = n_dof * BYTES_PER_DOF
+    have = memory_limit()
+    if need > 0.5 * have:
+        most = max(1, int((0.5 * have / BYTES_PER_DOF / len(cfg.pulleys) - 3) // 4))
+        raise ConfigError(f"{n_e} elements per span make a model of {n_dof:,} DOFs, about {need / 1e9:.3g} GB: more "
+                          f"than half of this machine's {have / 1e9:.3g} GB; use at most {most:,} elements per span",
+                          file=cfg.source, key="mesh.elements_per_span")
+
+
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
                  prestrain_stretch: float | np.ndarray | None = None, spring_free: np.ndarray | None = None,
                  dense: bool | None = None, extra: tuple[LinearComponent, ...] = ()) -> System:
@@ -1173,6 +1208,7 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
     stretch at q = 0, one number or one per span (default: what the tension mode asks for,
     `reference_stretch`); spring_free (n_dof,): where the bearing springs are relaxed (default: the
     layout's centres; see `pulley_components`)."""
+    check_model_size(cfg)
     layout = layout or layout_from_config(cfg)
     lam = reference_stretch(cfg, layout) if prestrain_stretch is None else prestrain_stretch
     dofs = number_dofs(cfg)
