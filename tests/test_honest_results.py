@@ -77,12 +77,17 @@ def test_internal_error_is_one_line_and_debug_shows_the_traceback(tmp_path):
 
 
 def test_memory_error_is_one_line_suggesting_a_smaller_mesh(tmp_path):
-    # A real MemoryError: the address space limited to 900 MiB and a mesh of a million elements per
+    # A real MemoryError: the address space limited to 900 MiB and a mesh of up to 100,000 elements per
     # span. Exit 1, one line saying "out of memory" and naming mesh.elements_per_span, no traceback.
     def limit():
         resource.setrlimit(resource.RLIMIT_AS, (900 << 20, 900 << 20))
 
-    r = subprocess.run([*BELTDYN, "modal", str(SMOKE), "--set", "mesh.elements_per_span=1000000", "-o", "m.h5"],
+    # a mesh that passes the size guard (below half the machine's memory) but not the 900 MiB limit
+    from beltdyn.system import BYTES_PER_DOF, memory_limit
+
+    n_e = min(100_000, int(0.4 * memory_limit() / BYTES_PER_DOF / 2 / 4))
+    assert n_e * 8 * 4400 > 2 * (900 << 20)  # the measured ~4.4 kB per DOF: well above the limit
+    r = subprocess.run([*BELTDYN, "modal", str(SMOKE), "--set", f"mesh.elements_per_span={n_e}", "-o", "m.h5"],
                        cwd=tmp_path, capture_output=True, text=True, timeout=120, env=_env(), preexec_fn=limit)
     assert r.returncode == 1, r.stdout + r.stderr
     assert "Traceback" not in r.stdout + r.stderr
