@@ -918,11 +918,10 @@ def _print_static(layout, model, res) -> None:
     else:
         moved = f"adjustable pulley offset {res.adjust_offset * 1e3:.4f} mm"
     con.print(f"mean span tension {res.mean_tension:.6f} N; driver torque {res.driver_torque:.4g} N m; {moved}")
-    if slip:
-        for j, name in enumerate(layout.names):
-            if res.slip_margin[j] < 1.0:
-                con.print(f"[bold red]warning:[/] pulley {name} slips: slip margin {res.slip_margin[j]:.3g} < 1 "
-                          f"(needs friction {res.required_friction[j]:.4g})")
+    from .export import static_warnings
+
+    for w in static_warnings(model, res):
+        con.print(f"[bold yellow]warning:[/] {w}")
 
 
 def _print_modal(mres) -> None:

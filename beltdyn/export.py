@@ -149,9 +149,22 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
     )
 
 
+STRAIN_WARNING = 0.05  # belt strain above which the constant-EA axial law is flagged (real belts: ~1 % at most)
+
+
 def static_warnings(model: DriveModel, res: StaticResult) -> list[str]:
-    """What makes a static result doubtful for the engineer: a pulley that slips (margin < 1)."""
+    """What makes a static result doubtful for the engineer: a strain far beyond a belt's (the axial
+    law with a constant EA means nothing there), a pulley that slips (margin < 1)."""
     out = []
+    from .system import stretch_for_tension
+
+    EA = float(np.max(model.belt.elements.EA))
+    T = float(np.max(res.span_tension))
+    strain = stretch_for_tension(T, EA) - 1.0 if T > 0 else 0.0  # engineering strain of the stretch
+    if strain > STRAIN_WARNING:
+        out.append(f"the belt is stretched by {strain:.1%} (tension {T:.4g} N on "
+                   f"EA = {EA:.4g} N): far beyond a belt's working strain, where the axial law (constant EA) "
+                   f"no longer describes it; check tension.target and belt.EA")
     if res.slip_margin is not None:
         for j, m in enumerate(res.slip_margin):
             if m < 1.0:
