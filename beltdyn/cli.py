@@ -191,6 +191,9 @@ class _Job:
         # early check (before any analysis); a file of a derived configuration (from this base) passes
         # here and is checked strictly, against the configuration actually written, by `write`
         check_target(self.output, config_sha256=self.sha, force=force, base_config_sha256=self.base_sha)
+        from .results_io import lock_output
+
+        lock_output(self.output)  # held until this command ends: no other beltdyn command writes it meanwhile
         self.groups: list = []
 
     def add(self, group) -> None:

@@ -122,6 +122,77 @@ class GroupData:
 # --------------------------------------------------------------------------------------------
 
 
+HELD_LOCKS: set[int] = set()  # lock descriptors of this process (closed in forked sweep workers)
+_OUTPUT_LOCKS: dict[str, int] = {}  # results-file lock path -> its descriptor
+
+
+def lock_output(path: Path) -> None:
+    """Hold `<path>.lock` (flock, exclusive, no waiting) for the rest of this process: a second beltdyn
+    command writing the same results file is refused (OutputError, exit 2, naming the holder's pid)
+    instead of replacing it when it ends (its results would be lost). Released when the process exits
+    (the lock file is removed then)."""
+    import atexit
+    import fcntl
+
+    lock = Path(str(path) + ".lock")
+    key = os.path.abspath(lock)
+    if _OUTPUT_LOCKS.get(key) in HELD_LOCKS:  # this process holds it already
+        return
+    for _ in range(20):
+        try:
+            lock.parent.mkdir(parents=True, exist_ok=True)  # as the writer would (results/ by default)
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+        except OSError:
+            return  # no lock possible here (a read-only folder): the write itself will say why
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            pid = _lock_pid(fd)
+            os.close(fd)
+            who = f"pid {pid}" if pid else "another process"
+            raise OutputError(f"results file {path} is being written by {who} (another beltdyn command on the same "
+                              f"output); wait for it to finish or write to another file with -o") from None
+        try:
+            same = os.stat(lock).st_ino == os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if not same:  # the holder finished and removed the lock file between our open and flock
+            os.close(fd)
+            continue
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        HELD_LOCKS.add(fd)
+        _OUTPUT_LOCKS[key] = fd
+        pid = os.getpid()
+
+        def release() -> None:
+            if os.getpid() == pid and fd in HELD_LOCKS:  # not in a forked child
+                try:
+                    lock.unlink()
+                except OSError:
+                    pass
+                HELD_LOCKS.discard(fd)
+                os.close(fd)
+
+        atexit.register(release)
+        return
+    raise OutputError(f"cannot lock the results file {path}: its lock keeps disappearing")
+
+
+def _lock_pid(fd: int) -> int | None:
+    import time
+
+    for _ in range(20):
+        try:
+            text = os.pread(fd, 32, 0).decode().strip()
+        except OSError:
+            return None
+        if text.isdigit():
+            return int(text)
+        time.sleep(0.01)
+    return None
+
+
 def check_target(path: Path, *, config_sha256: str, force: bool = False,
                  base_config_sha256: str | None = None) -> None:
     """Raise `OutputError` early (before any analysis runs) if `path` cannot receive the results.

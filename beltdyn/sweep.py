@@ -311,7 +311,7 @@ def _run_chunk(base_toml: str, source: str, items: list[tuple[int, list[str]]], 
 
 
 # ------------------------------------------------------------------------------------ the journal
-_HELD_LOCKS: set[int] = set()  # journal lock descriptors of this process (closed in forked workers)
+from .results_io import HELD_LOCKS as _HELD_LOCKS  # noqa: E402  lock descriptors (closed in forked workers)
 
 
 class Journal:

@@ -153,7 +153,7 @@ SLOW_SWEEP = ["sweep", BENCH, "--param", "tension.target=100:600:200", "--set", 
 
 def test_second_sweep_on_a_running_journal_is_refused_with_its_pid(tmp_path):
     # A second `sweep --resume` (and a plain rerun) while the first still runs: exit 2 at once, one line
-    # "sweep journal ... is in use by pid N" with the first one's pid, no traceback; the first sweep
+    # "results file ... is being written by pid N" with the first one's pid, no traceback; the first sweep
     # is not disturbed (Ctrl-C later: exit 130 with its journal intact and no stray temporary files).
     first = _popen([*SLOW_SWEEP, "--workers", "1", "-o", "s.h5"], tmp_path)
     journal = tmp_path / "s.h5.sweep"
@@ -164,7 +164,8 @@ def test_second_sweep_on_a_running_journal_is_refused_with_its_pid(tmp_path):
             assert r.returncode == 2, r.stdout + r.stderr
             assert "Traceback" not in r.stdout + r.stderr
             lines = r.stderr.strip().splitlines()
-            assert len(lines) == 1 and f"sweep journal s.h5.sweep is in use by pid {first.pid}" in lines[0], r.stderr
+            # the results file's lock (any beltdyn command) answers before the journal's own lock
+            assert len(lines) == 1 and f"results file s.h5 is being written by pid {first.pid}" in lines[0], r.stderr
         assert first.poll() is None
     finally:
         first.send_signal(signal.SIGINT)
@@ -655,3 +656,25 @@ def test_an_absurd_belt_strain_is_marked(tmp_path):
     r = run("static", BENCH, "-o", "t.h5", cwd=tmp_path)
     with h5py.File(tmp_path / "t.h5") as f:
         assert len(f["static"].attrs["warnings"]) == 0
+
+
+def test_a_second_command_on_a_results_file_being_written_is_refused(tmp_path):
+    # A transient writing x.h5 holds it: a modal run on x.h5 meanwhile exits 2 naming the writer's pid
+    # (it used to report success and lose its /modal when the transient's final rename replaced the
+    # file). Once the transient is done, the modal run is accepted, and no lock file is left behind.
+    first = subprocess.Popen([*BELTDYN, "transient", TRANSIENT, "--duration", "1.0", "--set",
+                              "transient.spectrum.start=0.5", "-o", "x.h5"], cwd=tmp_path,
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env())
+    try:
+        assert _wait_for(lambda: (tmp_path / "x.h5.lock").exists()), "the transient did not start"
+        r = run("modal", TRANSIENT, "-o", "x.h5", "--force", cwd=tmp_path)
+        assert r.returncode == 2 and f"is being written by pid {first.pid}" in r.stderr, r.stderr
+    finally:
+        out, err = first.communicate(timeout=300)
+    assert first.returncode == 0, err
+    assert not (tmp_path / "x.h5.lock").exists()
+    r = run("modal", TRANSIENT, "--set", "transient.duration=1.0", "--set", "transient.spectrum.start=0.5",
+            "-o", "x.h5", cwd=tmp_path)  # the same configuration
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "x.h5") as f:
+        assert f["transient"].attrs["status"] == "complete" and f["modal"].attrs["status"] == "complete"
