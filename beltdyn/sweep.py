@@ -724,12 +724,14 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
         from distributed import as_completed
 
         with client:
-            futures = [client.submit(_run_chunk, *args, c, spec.analysis, spec.n_modes, pure=False) for c in chunks]
+            # a finished chunk's future is dropped once recorded, so that its results do not stay in memory
+            pending = {client.submit(_run_chunk, *args, c, spec.analysis, spec.n_modes, pure=False) for c in chunks}
             try:
-                for fut in as_completed(futures):
+                for fut in as_completed(list(pending)):
+                    pending.discard(fut)
                     record(fut.result())
             finally:
-                client.cancel(futures)
+                client.cancel(list(pending))
         return assembly
     if n_workers == 1:
         for c in chunks:
@@ -740,11 +742,12 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
 
     pool = ProcessPoolExecutor(max_workers=n_workers, mp_context=mp.get_context("fork"),
                                initializer=_worker_init, initargs=(os.getpid(),))
-    futures = []
     try:
-        futures = [pool.submit(_run_chunk, *args, c, spec.analysis, spec.n_modes) for c in chunks]
-        for fut in cf_completed(futures):
+        # only as_completed holds the futures, and drops each as it yields it: a chunk's results are
+        # not kept in memory once recorded
+        for fut in cf_completed([pool.submit(_run_chunk, *args, c, spec.analysis, spec.n_modes) for c in chunks]):
             record(fut.result())
+            del fut
     except BaseException:  # Ctrl-C, SIGTERM, a journal write error: stop the workers, keep the journal
         _stop_pool(pool)
         raise
@@ -844,8 +847,8 @@ class Assembly:
     shapes are kept only while a later case may still be tracked from them: a case is tracked from its
     nearest tracked ancestor in the spanning tree of the grid (SweepSpec.parent, past failed cases), so
     a case's shapes are dropped once every case that can reach it that way is assembled (`_refs`
-    counts those still to come). A one-parameter sweep holds two cases' shapes at a time, a grid about
-    one line of it, whatever the number of cases."""
+    counts those still to come). Between cases, at most one case per swept parameter is held (the
+    last case, and the first of each line still to be continued), whatever the number of cases."""
 
     BUFFER = 64
 
