@@ -13,14 +13,14 @@ near-degenerate upper/lower span pairs keep their identity. Where the DOF counts
 sweep) the match is by classification (kind, order, span), then by frequency.
 
 Journal: `<output>.sweep/` holds `spec.json` (what the sweep is) and `cases.log`, the finished cases
-appended as checksummed records and fsync'ed per batch (a record torn by a crash is cut off on the
-next lock; see `Journal`); `--resume` skips the cases found there. The results come back from the
-workers in memory and are assembled in case order as they arrive (`Assembly`): only the small per-case
-quantities are kept for every case, mode shapes only while a later case is still to be tracked from
-them; the journal is read back only for the cases of an earlier run, one at a time, so an interrupted
-and resumed sweep gives the same file. A running sweep holds an exclusive
-lock (`flock` on `<output>.sweep/lock`, which records its pid): a second sweep on the same journal is
-refused at once instead of racing it.
+appended as checksummed records, fsync'ed after a batch at most every SYNC_EVERY s and at the end or
+on an interruption (a record torn by a crash is cut off on the next lock; see `Journal`); `--resume`
+skips the cases found there. The results come back from the workers in memory and are assembled in
+case order as they arrive (`Assembly`): only the small per-case quantities are kept for every case,
+mode shapes only while a later case is still to be tracked from them; the journal is read back only
+for the cases of an earlier run, one at a time, so an interrupted and resumed sweep gives the same
+file. A running sweep holds an exclusive lock (`flock` on `<output>.sweep/lock`, which records its
+pid): a second sweep on the same journal is refused at once instead of racing it.
 
 Local workers are forked processes that die with the sweep: each asks the kernel for SIGKILL when its
 parent dies (Linux `prctl(PR_SET_PDEATHSIG)`), ignores Ctrl-C (the parent handles it: the journal is
@@ -50,6 +50,7 @@ from .results_io import fsync_dir
 ANALYSES = ("static", "modal", "transient")
 MAC_LOST = 0.5  # below this MAC a tracked mode counts as lost (it left the computed modes)
 SAFETY = 1.25  # safety factor of the Richardson error estimate (Roache's grid convergence index)
+SYNC_EVERY = 0.5  # s: the journal is fsync'ed after a batch of cases at most this often (and at the end)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -338,8 +339,10 @@ class Journal:
     A record of cases.log is a 20-byte header, MAGIC (4 bytes), case index (uint32), payload length
     (uint64), CRC-32 of the header's first 16 bytes and the payload (uint32), then the payload: the
     case's arrays as raw buffers (see `_encode`; no pickles). Records are appended with plain writes
-    (no temporary file, rename or folder fsync per case) and the log is fsync'ed once per batch
-    (`sync`). A record cut short by a crash, or failing its CRC, ends the valid log: it is cut off when
+    (no temporary file, rename or folder fsync per case) and the log is fsync'ed per batch (`sync`;
+    `run_sweep` at most every SYNC_EVERY seconds, and when it ends or is interrupted: a write reaches
+    the kernel at once and survives the process, the fsync bounds what an operating-system crash can
+    take). A record cut short by a crash, or failing its CRC, ends the valid log: it is cut off when
     the journal is next locked (or written to), and that case counts as not done. A write that fails
     midway (a full disk, an interrupt) is cut off at once. Logs of the previous format (MAGIC `BDC1`,
     .npz payloads) are still read, so an interrupted sweep of that version resumes.
@@ -517,9 +520,14 @@ class Journal:
         writing several cases at once call `sync` after the last)."""
         import zlib
 
-        payload = _encode(result, self.ALIGN)
-        head = self._HEAD.pack(self.MAGIC, index, len(payload), 0)[:16]
-        record = head + struct.pack("<I", zlib.crc32(payload, zlib.crc32(head))) + payload
+        parts = _encode(result, self.ALIGN)
+        length = sum(len(p) for p in parts)
+        head = self._HEAD.pack(self.MAGIC, index, length, 0)[:16]
+        crc = zlib.crc32(head)
+        for p in parts:
+            crc = zlib.crc32(p, crc)
+        record = [head + struct.pack("<I", crc), *parts]
+        size = self._HEAD.size + length
         index_map = self._scan()
         if self._fd is None:
             path = self.dir / self.LOG
@@ -535,17 +543,19 @@ class Journal:
                 raise
             self._fd = fd
         try:
-            view = memoryview(record)
-            while view:
-                view = view[os.write(self._fd, view):]
+            done = os.writev(self._fd, record)
+            if done < size:  # a short write (rare): the rest in plain writes
+                rest = memoryview(b"".join(record))[done:]
+                while rest:
+                    rest = rest[os.write(self._fd, rest):]
         except BaseException:  # a full disk, an interrupt: no half record left behind
             try:
                 os.ftruncate(self._fd, self._end)
             except OSError:
                 pass
             raise
-        index_map[index] = (self._end + self._HEAD.size, len(payload), self.MAGIC)
-        self._end += len(record)
+        index_map[index] = (self._end + self._HEAD.size, length, self.MAGIC)
+        self._end += size
         if sync_dir:
             self.sync()
 
@@ -614,10 +624,11 @@ class Journal:
         self._discard = True
 
 
-def _encode(result: dict, align: int) -> bytes:
-    """A case's arrays as one payload: uint32 length of a JSON header [[name, dtype, shape, order], ...],
-    the header, then each array's raw bytes (C or Fortran order, as it is in memory, so that a case
-    read back computes bit for bit as the one in memory) starting at a multiple of `align`."""
+def _encode(result: dict, align: int) -> list:
+    """A case's arrays as the buffers of one payload (not joined: written with one writev): uint32
+    length of a JSON header [[name, dtype, shape, order], ...], the header, then each array's raw bytes
+    (C or Fortran order, as it is in memory, so that a case read back computes bit for bit as the one
+    in memory) starting at a multiple of `align`."""
     arrays = {k: np.asarray(v) for k, v in result.items()}
     head, parts = [], []
     for k, a in arrays.items():
@@ -625,15 +636,18 @@ def _encode(result: dict, align: int) -> bytes:
             raise TypeError(f"sweep case result {k!r} is an object array (not journaled)")
         order = "F" if a.ndim > 1 and a.flags.f_contiguous and not a.flags.c_contiguous else "C"
         head.append([k, a.dtype.str, list(a.shape), order])
-        parts.append(a.tobytes(order=order))
+        flat = np.ascontiguousarray(a.T if order == "F" else a)  # no copy if it already is
+        parts.append(memoryview(flat.reshape(-1).view(np.uint8)) if flat.size else b"")
     text = json.dumps(head).encode()
-    out = [struct.pack("<I", len(text)), text]
-    pos = 4 + len(text)
+    out = [struct.pack("<I", len(text)) + text]
+    pos = len(out[0])
     for p in parts:
         pad = (-pos) % align
-        out += [b"\0" * pad, p]
+        if pad:
+            out.append(bytes(pad))
+        out.append(p)
         pos += pad + len(p)
-    return b"".join(out)
+    return out
 
 
 def _decode(payload: np.ndarray) -> dict:
@@ -707,19 +721,38 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
     chunks = [items[k:k + chunk] for k in range(0, len(items), chunk)]
     n_workers = min(n_workers, len(chunks))  # no idle processes
     finished = len(done)
+    synced = time.monotonic()
 
     def record(results: list[tuple[int, dict]]) -> None:
-        nonlocal finished
+        nonlocal finished, synced
         for i, res in results:
             journal.write(i, res, sync_dir=False)
             assembly.offer(i, res)
             finished += 1
-        journal.sync()  # one fsync per batch of cases
+        if time.monotonic() - synced >= SYNC_EVERY:  # an fsync per batch of cases, at most every SYNC_EVERY
+            journal.sync()
+            synced = time.monotonic()
         if progress:
             progress(finished, spec.n_cases)
         assembly.advance(journal)
 
-    args = (base, cfg.source)
+    try:
+        _execute(base, cfg.source, spec, chunks, n_workers, client, record)
+    except BaseException:  # Ctrl-C, SIGTERM, a failure: what is journaled is made durable, then it goes on
+        try:
+            journal.sync()
+        except OSError:
+            pass
+        raise
+    journal.sync()
+    return assembly
+
+
+def _execute(base: str, source: str, spec: SweepSpec, chunks: list, n_workers: int, client,
+             record: Callable[[list], None]) -> None:
+    """Run the chunks on Dask, serially in this process, or in a local process pool; `record` each
+    chunk's results as it finishes."""
+    args = (base, source)
     if client is not None:
         from distributed import as_completed
 
@@ -732,11 +765,11 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
                     record(fut.result())
             finally:
                 client.cancel(list(pending))
-        return assembly
+        return
     if n_workers == 1:
         for c in chunks:
             record(_run_chunk(*args, c, spec.analysis, spec.n_modes))
-        return assembly
+        return
     import multiprocessing as mp
     from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
 
@@ -752,7 +785,6 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
         _stop_pool(pool)
         raise
     pool.shutdown(wait=True)
-    return assembly
 
 
 def available_cores() -> int:

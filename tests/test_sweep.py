@@ -538,3 +538,38 @@ def test_sweep_file_equals_the_analysis_of_each_case(tmp_path):
     for key in static[0]:
         want = np.stack([np.full(np.shape(static[0][key]), np.nan) if s is None else s[key] for s in static])
         np.testing.assert_allclose(got[key], want, rtol=1e-12, err_msg=key)
+
+
+def test_the_journal_is_fsynced_at_the_end_and_on_an_interrupt(tmp_path, monkeypatch):
+    # Batches are fsync'ed at most every SYNC_EVERY seconds; whatever the interval, the log is fsync'ed
+    # when the run ends, and when it is interrupted (Ctrl-C after the first batch: those cases are kept).
+    import stat
+
+    from beltdyn import sweep as sw
+
+    synced = []
+    real = os.fsync
+
+    def spy(fd):
+        if stat.S_ISREG(os.fstat(fd).st_mode):
+            synced.append(os.path.basename(os.readlink(f"/proc/self/fd/{fd}")))
+        real(fd)
+
+    monkeypatch.setattr(os, "fsync", spy)
+    monkeypatch.setattr(sw, "SYNC_EVERY", 1e9)
+    cfg = load_config(BENCH)
+    spec = make_spec(cfg, [("tension.target", "150:300:12")], analysis="static", zip_=False)
+    with Journal(tmp_path / "a.h5") as j:
+        res = assemble(spec, j, run_sweep(cfg, spec, journal=j, workers=1))
+    assert not res.failed.any() and synced.count("cases.log") == 1 and synced[-1] == "cases.log"
+    synced.clear()
+
+    def stop(k, n):
+        if k:
+            raise KeyboardInterrupt
+
+    with Journal(tmp_path / "b.h5") as j, pytest.raises(KeyboardInterrupt):
+        run_sweep(cfg, spec, journal=j, workers=1, progress=stop)
+    assert synced[-1] == "cases.log"
+    kept = Journal(tmp_path / "b.h5").done()
+    assert kept and len(kept) < 12
