@@ -64,7 +64,49 @@ def _console(stderr: bool = False):
             super().print(*objects, **kwargs)
 
     width = None if _is_tty(sys.stderr if stderr else sys.stdout) else PIPE_WIDTH
-    return _FoldingConsole(stderr=stderr, highlight=False, soft_wrap=True, width=width)
+    if stderr:
+        return _FoldingConsole(stderr=True, highlight=False, soft_wrap=True, width=width)
+    return _FoldingConsole(file=_PipeSafe(), highlight=False, soft_wrap=True, width=width)
+
+
+class _PipeSafe:
+    """stdout for the console that outlives its reader: when the pipe closes (`beltdyn ... | head`), the
+    rest of the output goes to /dev/null and the command finishes its work (results are written; exit
+    status as without the pipe) instead of failing with BrokenPipeError."""
+
+    def write(self, text: str) -> int:
+        try:
+            return sys.stdout.write(text)
+        except BrokenPipeError:
+            _drop_stdout()
+            return len(text)
+
+    def flush(self) -> None:
+        try:
+            sys.stdout.flush()
+        except BrokenPipeError:
+            _drop_stdout()
+
+    def isatty(self) -> bool:
+        return _is_tty(sys.stdout)
+
+    def fileno(self) -> int:
+        return sys.stdout.fileno()
+
+    @property
+    def encoding(self) -> str:
+        return getattr(sys.stdout, "encoding", "utf-8")
+
+
+def _drop_stdout() -> None:
+    """Point stdout at /dev/null (its reader has gone; Python's final flush must not fail either)."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    finally:
+        os.close(devnull)
 
 
 _STATE = {"debug": False}
@@ -396,18 +438,29 @@ def _check_output_volume(job: "_Job", force_large: bool) -> None:
 
 def _warm_kernels(con) -> None:
     """Compile (or load from the cache) the transient kernels before any output file is opened, with
-    Ctrl-C deferred until the compiler is done (an interrupt inside numba's compiler was lost)."""
+    Ctrl-C and SIGTERM deferred until the compiler is done (a signal inside numba's compiler was lost,
+    or left a half-written cache entry)."""
     import signal
 
     from .transient import warm_up
 
     got: list = []
-    old = signal.signal(signal.SIGINT, lambda *a: got.append(1))
+    olds = {}
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            olds[sig] = signal.signal(sig, lambda signum, frame: got.append(signum))
+        except ValueError:  # not the main thread
+            pass
     try:
         with con.status("preparing the transient kernels (compiled once, about 10 s the first time)"):
             warm_up()
     finally:
-        signal.signal(signal.SIGINT, old)
+        for sig, handler in olds.items():
+            signal.signal(sig, handler)
+    if signal.SIGTERM in got:
+        from .errors import Terminated
+
+        raise Terminated()
     if got:
         raise KeyboardInterrupt
 
@@ -867,11 +920,10 @@ def _print_static(layout, model, res) -> None:
     else:
         moved = f"adjustable pulley offset {res.adjust_offset * 1e3:.4f} mm"
     con.print(f"mean span tension {res.mean_tension:.6f} N; driver torque {res.driver_torque:.4g} N m; {moved}")
-    if slip:
-        for j, name in enumerate(layout.names):
-            if res.slip_margin[j] < 1.0:
-                con.print(f"[bold red]warning:[/] pulley {name} slips: slip margin {res.slip_margin[j]:.3g} < 1 "
-                          f"(needs friction {res.required_friction[j]:.4g})")
+    from .export import static_warnings
+
+    for w in static_warnings(model, res):
+        con.print(f"[bold yellow]warning:[/] {w}")
 
 
 def _print_modal(mres) -> None:

@@ -98,7 +98,7 @@ def geometry_group(layout: Layout) -> GroupData:
                      description="tangent point where the span reaches its second pulley"),
             Variable(name="belt_length", data=np.array(layout.belt_length), dims=(), units="m"),
         ),
-        attrs={"orientation": "counter-clockwise" if layout.orientation > 0 else "clockwise",
+        attrs={"orientation": "counter-clockwise" if layout.orientation > 0 else "clockwise", "warnings": [],
                **({"adjust_turn_rad": float(layout.adjust_offset)} if layout.adjust_kind == "arm"
                   else {"adjust_offset_m": float(layout.adjust_offset)})},
     )
@@ -143,10 +143,34 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
                      description="residual norm divided by the allowed residual (converged <= 1) after each Newton iteration"),
             Variable(name="load_factor", data=res.load_factor_history, dims=("iteration",), units="1"),
         ),
-        attrs={"iterations": int(res.iterations), "tension_mode": res.tension_mode,
+        attrs={"iterations": int(res.iterations), "tension_mode": res.tension_mode, "warnings": static_warnings(model, res),
                "tension_target_N": float(target) if target is not None else float("nan"),
                "n_dof": int(model.n_dof)},
     )
+
+
+STRAIN_WARNING = 0.05  # belt strain above which the constant-EA axial law is flagged (real belts: ~1 % at most)
+
+
+def static_warnings(model: DriveModel, res: StaticResult) -> list[str]:
+    """What makes a static result doubtful for the engineer: a strain far beyond a belt's (the axial
+    law with a constant EA means nothing there), a pulley that slips (margin < 1)."""
+    out = []
+    from .system import stretch_for_tension
+
+    EA = float(np.max(model.belt.elements.EA))
+    T = float(np.max(res.span_tension))
+    strain = stretch_for_tension(T, EA) - 1.0 if T > 0 else 0.0  # engineering strain of the stretch
+    if strain > STRAIN_WARNING:
+        out.append(f"the belt is stretched by {strain:.1%} (tension {T:.4g} N on "
+                   f"EA = {EA:.4g} N): far beyond a belt's working strain, where the axial law (constant EA) "
+                   f"no longer describes it; check tension.target and belt.EA")
+    if res.slip_margin is not None:
+        for j, m in enumerate(res.slip_margin):
+            if m < 1.0:
+                out.append(f"pulley {model.layout.names[j]} slips: slip margin {m:.3g} < 1 "
+                           f"(needs friction {res.required_friction[j]:.4g})")
+    return out
 
 
 def _static_extras(res: StaticResult) -> tuple[Variable, ...]:
@@ -206,7 +230,7 @@ def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
             dof_unit_variable(model),
             Variable(name="rigid_frequency", data=res.rigid_frequency, dims=("rigid",), units="Hz"),
         ),
-        attrs={"n_rigid": int(res.n_rigid), "solver": res.solver, "n_dof": int(model.n_dof)},
+        attrs={"n_rigid": int(res.n_rigid), "solver": res.solver, "n_dof": int(model.n_dof), "warnings": []},
     )
 
 

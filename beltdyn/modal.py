@@ -117,25 +117,24 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     w_el, v_el = w[~rigid][:n_modes], v[:, ~rigid][:, :n_modes]
     freq = np.sqrt(np.maximum(w_el, 0.0)) / (2 * np.pi)
     shapes = v_el.T.copy()
-    kind, order, span, label, share, sshare = classify(model, shapes, freq, q)
     belt = model.belt
-    mid = belt.midspan_displacement_linear(belt.element_coordinates(model.expand(q)),
-                                           belt.element_coordinates_batch(model.expand_motion(q, shapes),
-                                                                          offset=False))
+    motion = belt.element_coordinates_batch(model.expand_motion(q, shapes), offset=False)  # (modes, n_elem, 8)
+    kind, order, span, label, share, sshare = classify(model, shapes, freq, q, motion=motion)
+    mid = belt.midspan_displacement_linear(belt.element_coordinates(model.expand(q)), motion)
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order, span=span, label=label, energy_share=share,
         span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid, rigid_frequency=np.sqrt(np.abs(w[rigid])) / (2 * np.pi),
         solver=name)
 
 
-def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None
+def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None, *, motion=None
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Kinetic-energy shares of mass-normalized shapes (n_modes, n_dof), from the system's components.
 
     Returns shares (n_modes, len(KINDS)), span_long (n_modes, n_span), span_trans (n_modes, n_span)
     (all divided by the total) and the transverse nodal motion (n_modes, n_elem, 4).
     """
-    kinds, span_long, span_trans, b = model.kinetic_energy_shares(shapes, q)
+    kinds, span_long, span_trans, b = model.kinetic_energy_shares(shapes, q, motion=motion)
     total = kinds.sum(axis=1, keepdims=True)
     total[total == 0] = 1.0
     return kinds / total, span_long / total, span_trans / total, b
@@ -159,11 +158,11 @@ def half_waves(w: np.ndarray, threshold: float = 0.05) -> int:
     return int(np.count_nonzero(s[1:] != s[:-1])) + 1
 
 
-def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray | None = None):
+def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray | None = None, *, motion=None):
     """kind, order, span, label, energy shares and span shares of each mode. A mode whose largest
     share stays below 1/2 is "mixed" and its label names its two largest parts (e.g. the tensioner
     arm coupled with the transverse motion of an adjacent span)."""
-    shares, span_long, span_trans, b = energy_shares(model, shapes, q)
+    shares, span_long, span_trans, b = energy_shares(model, shapes, q, motion=motion)
     n_modes = shapes.shape[0]
     wsamp = np.matmul(model.belt.sampling_table(8)[None], b[..., None])[..., 0]  # (k, n_elem, 8) samples
     kinds, orders, spans, labels = [], np.zeros(n_modes, dtype=int), np.zeros(n_modes, dtype=int), []

@@ -59,14 +59,20 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
         system = build_system(cfg, lay, prestrain_stretch=stretch, spring_free=spring_free)
         return system.with_belt(compiled=True) if compiled else system
 
+    from .system import check_model_size
+
+    check_model_size(cfg)  # before the L0 fit: an impossible mesh is refused at once
     layout = layout or layout_from_config(cfg)
-    out = Analysis(config=cfg, layout=layout, system=build(layout), fit_layout=layout)
     if not (static or modal):
-        return out
+        return Analysis(config=cfg, layout=layout, system=build(layout), fit_layout=layout)
+    from .system import DeferredSystem
+
+    initial = DeferredSystem(cfg, layout, build)  # built only if the static analysis solves on the L0 fit
+    out = Analysis(config=cfg, layout=layout, system=None, fit_layout=layout)
     from .static import solve_static_on_solved_geometry
 
     try:
-        solved = solve_static_on_solved_geometry(out.system, build, cfg.static)
+        solved = solve_static_on_solved_geometry(initial, build, cfg.static)
         out = replace(out, layout=solved.system.layout, system=solved.system, static=solved.static,
                       static_passes=solved.passes)
         if modal:

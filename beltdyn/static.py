@@ -93,20 +93,26 @@ def _predictor(system: System, stretch: float, adjust_dof: int, driver_dof: int)
     x = np.linalg.lstsq(A, target, rcond=None)[0]
     q = np.zeros(system.n_dof)
     q[unknowns] = x
-    # Straight chords between the moved end nodes.
+    return _straight_spans(system, q)
+
+
+def _straight_spans(system: System, q: np.ndarray) -> np.ndarray:
+    """q with every span laid straight between its end nodes (where q's pulley DOFs put them), its
+    nodes evenly spaced and its gradients the chord over the reference length (the stretch)."""
+    model = system.belt
+    q = q.copy()
     e = model.element_coordinates(system.expand(q))
     n_e = len(model.span_elements[0])
     frac = np.arange(1, n_e) / n_e
-    for s, (e_first, e_last) in enumerate(ends):
+    for s, els in enumerate(model.span_elements):
+        e_first, e_last = els[0], els[-1]
         a, b = e[e_first, 0:2], e[e_last, 4:6]
         grad = (b - a) / model.reference_length[s]
-        els = model.span_elements[s]
-        sl = system.dofs.span_slices[s]
         nodes = np.empty((n_e - 1, 4))
         nodes[:, 0:2] = a + np.outer(frac, b - a) - model.e0[els[1:], 0:2]
         nodes[:, 2:4] = grad - model.e0[els[1:], 2:4]
-        block = np.concatenate([grad - model.e0[e_first, 2:4], nodes.ravel(), grad - model.e0[e_last, 6:8]])
-        q[sl] = block
+        q[system.dofs.span_slices[s]] = np.concatenate([grad - model.e0[e_first, 2:4], nodes.ravel(),
+                                                        grad - model.e0[e_last, 6:8]])
     return q
 
 
@@ -539,8 +545,8 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -
     applied = np.zeros(n)
     if model.loads is not None:
         applied = model.loads[model.rot_dof].copy()
-    mu_req = required_friction(span_tension, lay.wrap_angle)
     friction = model.pulley_friction if model.pulley_friction is not None else np.full(n, np.nan)
+    mu_req = required_friction(span_tension, lay.wrap_angle)
     return StaticResult(
         q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
         hub_load=hub, pulley_center=model.pulley_centers(q), pulley_rotation=q[model.rot_dof].copy(),
@@ -548,7 +554,7 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -
         residual_history=np.array(hist_r), load_factor_history=np.array(hist_l), iterations=iterations,
         tension_mode=model.tension.mode, arm_angle=arm_angle, arm_torque=arm_torque, arm_free_angle=arm_free,
         pivot_reaction=pivot, applied_torque=applied, required_friction=mu_req,
-        slip_margin=slip_margin(mu_req, friction))
+        slip_margin=slip_margin(mu_req, friction) if not np.all(np.isnan(friction)) else np.full(n, np.nan))
 
 
 # ------------------------------------------------------------------------------------ solved geometry
@@ -635,9 +641,11 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float) -> np.n
 
     lay0 = system.layout
     T = float(system.tension.target)
-    k_diag = np.asarray(system.linear_matrix().diagonal()).ravel()
+    k_diag = np.asarray(system.linear_matrix().diagonal()).ravel() if anchored else None
     anchored_set = anchored
     centers = lay0.center.copy()
+    if not anchored_set and fit is not None:  # nothing deflects: the fit alone places the pulleys
+        return fit(centers).center
     for _ in range(50):
         lay = fit(centers) if fit is not None else relay(lay0, centers)
         t = lay.span_direction
@@ -656,18 +664,12 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float) -> np.n
 
 
 def warm_start(system: System, previous: System, q: np.ndarray) -> np.ndarray:
-    """A start for the static solve on a re-laid system: the previous solution's pulley rotations and
-    belt shape (the span nodes where they were, in the new system's coordinates), the moved supports
-    at their new layout position (0)."""
-    E = previous.belt.element_coordinates(previous.expand(q))
-    belt = system.belt
+    """A start for the static solve on a re-laid system: the previous solution's pulley rotations, the
+    moved supports at their new layout position (0), the spans straight between their new end nodes
+    (the belt's shape of the previous layout does not fit the moved tangent points)."""
     q0 = np.zeros(system.n_dof)
     q0[system.rot_dof] = q[previous.rot_dof]
-    for s, sl in enumerate(system.dofs.span_slices):
-        els = belt.span_elements[s]
-        d = E[els] - belt.e0[els]
-        q0[sl] = np.concatenate([d[0, 2:4], d[1:, 0:4].ravel(), d[-1, 6:8]])
-    return q0
+    return _straight_spans(system, q0)
 
 
 def solve_static_on_solved_geometry(system: System, build, options: StaticOptions, *,
@@ -768,6 +770,8 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                 system = built
         except (GeometryError, SolverError):
             lay, free = lay0, np.zeros(n_dof)  # no prediction: start from the L0 fit
+    if hasattr(system, "full"):  # a deferred build (pipeline.analyse): solved on the L0 fit after all
+        system = system.full()
     prev_step = None
     movement: list[float] = []
     solves = 0

@@ -205,6 +205,9 @@ def _check_cases(cfg: DriveConfig, spec: SweepSpec) -> None:
             for a in assignments:
                 apply_override(case_raw, a, file=cfg.source)
             c = config_from_dict(case_raw, file=cfg.source)
+            from .system import check_model_size
+
+            check_model_size(c)
         except ConfigError as exc:
             raise ConfigError(f"{exc.detail} (in the sweep case {where})", file=exc.file, key=exc.key) from None
         if spec.analysis == "transient" and c.transient is not None \

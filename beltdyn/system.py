@@ -29,6 +29,7 @@ matrix (large models).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -83,9 +84,22 @@ class DofMap:
         return len(self.labels) - self.dependent
 
 
+_DOFMAPS: dict = {}  # number_dofs memo: a DofMap depends only on the pulleys' names and supports and the mesh
+
+
 def number_dofs(cfg: DriveConfig) -> DofMap:
-    """DOF order along the loop: pulley j (translations, rotation), then span j (start gradients,
-    interior nodes, end gradients)."""
+    """DOF order along the loop: pulley j (its support's DOFs, rotation), then span j (start
+    gradients, interior nodes, end gradients); the supports' dependent DOFs after all of them."""
+    key = (cfg.mesh.elements_per_span, tuple((p.name, p.support, tuple(p.slide_direction)) for p in cfg.pulleys))
+    hit = _DOFMAPS.get(key)
+    if hit is None:
+        if len(_DOFMAPS) > 64:
+            _DOFMAPS.clear()
+        hit = _DOFMAPS[key] = _number_dofs(cfg)
+    return hit
+
+
+def _number_dofs(cfg: DriveConfig) -> DofMap:
     n_e = cfg.mesh.elements_per_span
     labels: list[str] = []
     units: list[str] = []
@@ -354,11 +368,14 @@ class BeltSpans:
         d(delta) = (dp - dr0) . n + (p - r0) . dn,  dn = J dc / |c| - J c (c . dc) / |c|^3."""
         p, r0, c = self._midspan_terms(E[None])
         dp, dr0, dc = self._midspan_terms(dE, offset=False)
-        norm = np.linalg.norm(c, axis=-1, keepdims=True)
-        Jc = np.stack([-c[..., 1], c[..., 0]], axis=-1)
-        Jdc = np.stack([-dc[..., 1], dc[..., 0]], axis=-1)
-        dn = Jdc / norm - Jc * (np.einsum("bsd,bsd->bs", c, dc)[..., None] / norm ** 3)
-        return np.einsum("bsd,bsd->bs", dp - dr0, Jc / norm) + np.einsum("bsd,bsd->bs", p - r0, dn)
+        cx, cy = c[..., 0], c[..., 1]
+        norm = np.hypot(cx, cy)
+        ux, uy = p[..., 0] - r0[..., 0], p[..., 1] - r0[..., 1]
+        dux, duy = dp[..., 0] - dr0[..., 0], dp[..., 1] - dr0[..., 1]
+        # (du . Jc + u . J dc) / |c| - (u . Jc)(c . dc) / |c|^3, J v = (-v_y, v_x)
+        uJc = -ux * cy + uy * cx
+        return ((-dux * cy + duy * cx) + (-ux * dc[..., 1] + uy * dc[..., 0])) / norm \
+            - uJc * (cx * dc[..., 0] + cy * dc[..., 1]) / norm ** 3
 
     def _midspan_terms(self, E: np.ndarray, offset: bool = True):
         """Mid-span point p, start r0 and chord c = r_end - r0, each (B, n_span, 2)."""
@@ -378,7 +395,10 @@ class BeltSpans:
         damped = self.damping_axial > 0.0 or self.damping_bending > 0.0
         n = self.n_span
         if not self.compiled and not (damped and Ed is not None):
-            sub_el = ancf.subset(el, ends)
+            sub_el = self.__dict__.get("_end_elements")
+            if sub_el is None:  # the span-end elements' tables (cached)
+                sub_el = ancf.subset(el, ends)
+                object.__setattr__(self, "_end_elements", sub_el)
             ge = ancf.gravity_forces(sub_el, gravity)
             F = np.stack([ancf.internal_forces(sub_el, E[b, ends]) for b in range(B)]) - ge
             return np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2)
@@ -844,7 +864,8 @@ class System:
         return c
 
     # -------------------------------------------------------------------- energy
-    def kinetic_energy_shares(self, shapes: np.ndarray, q: np.ndarray | None = None
+    def kinetic_energy_shares(self, shapes: np.ndarray, q: np.ndarray | None = None, *,
+                              motion: np.ndarray | None = None
                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Kinetic-energy split of shapes (n_modes, n_dof) about the state q by kind.
 
@@ -858,7 +879,8 @@ class System:
         n_modes = shapes.shape[0]
         if self.arms is not None:
             shapes = self.arms.expand_motion(np.zeros(self.n_dof) if q is None else q, shapes)
-        de = belt.element_coordinates_batch(shapes, offset=False).reshape(n_modes, el.n_elem, 4, 2)
+        de = (belt.element_coordinates_batch(shapes, offset=False) if motion is None else motion).reshape(
+            n_modes, el.n_elem, 4, 2)
         t = belt.reference_direction[belt.elem_span]
         nrm = belt.reference_normal[belt.elem_span]
         a = np.einsum("kejd,ed->kej", de, t)
@@ -1143,6 +1165,40 @@ def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
     return 1.0
 
 
+BYTES_PER_DOF = 10_000  # a generous bound on the memory of static + modal + transient per DOF (bench: ~4.4 kB)
+
+
+def memory_limit() -> int:
+    """Bytes this process may use: the smaller of the physical memory and a cgroup (container) limit."""
+    limit = 1 << 62
+    try:
+        limit = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        pass
+    for path in ("/sys/fs/cgroup/memory.max", "/sys/fs/cgroup/memory/memory.limit_in_bytes"):
+        try:
+            text = open(path).read().strip()
+        except OSError:
+            continue
+        if text.isdigit():
+            limit = min(limit, int(text))
+    return limit
+
+
+def check_model_size(cfg: DriveConfig) -> None:
+    """A mesh whose model cannot fit in memory is a configuration error before any work (exit 2),
+    not a run that is killed or fails after minutes."""
+    n_e = cfg.mesh.elements_per_span
+    n_dof = len(cfg.pulleys) * (4 * n_e + 3)
+    need = n_dof * BYTES_PER_DOF
+    have = memory_limit()
+    if need > 0.5 * have:
+        most = max(1, int((0.5 * have / BYTES_PER_DOF / len(cfg.pulleys) - 3) // 4))
+        raise ConfigError(f"{n_e} elements per span make a model of {n_dof:,} DOFs, about {need / 1e9:.3g} GB: more "
+                          f"than half of this machine's {have / 1e9:.3g} GB; use at most {most:,} elements per span",
+                          file=cfg.source, key="mesh.elements_per_span")
+
+
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
                  prestrain_stretch: float | np.ndarray | None = None, spring_free: np.ndarray | None = None,
                  dense: bool | None = None, extra: tuple[LinearComponent, ...] = ()) -> System:
@@ -1152,10 +1208,20 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
     stretch at q = 0, one number or one per span (default: what the tension mode asks for,
     `reference_stretch`); spring_free (n_dof,): where the bearing springs are relaxed (default: the
     layout's centres; see `pulley_components`)."""
+    check_model_size(cfg)
     layout = layout or layout_from_config(cfg)
     lam = reference_stretch(cfg, layout) if prestrain_stretch is None else prestrain_stretch
     dofs = number_dofs(cfg)
     belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam)
+    return _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free) + tuple(extra),
+                     pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index,
+                     tension=tension_setting(cfg, dofs), gravity=np.asarray(cfg.model.gravity, dtype=float),
+                     dense=dense, loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
+                     friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]))
+
+
+def tension_setting(cfg: DriveConfig, dofs: DofMap) -> TensionSetting:
+    """How the configuration sets the tension, on the DOF map."""
     target = cfg.tension.target
     adjust = target is not None and cfg.tension.mode == "adjust"
     a = cfg.adjustable_index
@@ -1169,13 +1235,43 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
             adjust_dof = int(dofs.arm_dof[a]) if dofs.arm_dof[a] >= 0 else int(dofs.trans_dof[a][0])
         adjust_range = sup.travel_limits()
     mode = "spring" if cfg.tension.mode == "spring" else (cfg.tension.mode if target is not None else "geometry")
-    tension = TensionSetting(target=target, mode=mode, adjust_dof=adjust_dof, adjust_range=adjust_range,
-                             adjust_name=cfg.pulleys[a].name if a is not None else "")
-    return _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free) + tuple(extra),
-                     pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index, tension=tension,
-                     gravity=np.asarray(cfg.model.gravity, dtype=float), dense=dense,
-                     loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
-                     friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]))
+    return TensionSetting(target=target, mode=mode, adjust_dof=adjust_dof, adjust_range=adjust_range,
+                          adjust_name=cfg.pulleys[a].name if a is not None else "")
+
+
+class DeferredSystem:
+    """The drive on a layout whose full build waits until something needs it: `pipeline.analyse` hands
+    this to the static analysis, which lays the belt out anew at the predicted solved positions and
+    usually never solves on the L0 fit. Cheap facts (tension, DOF map, layout, arms, the belt's
+    reference lengths, stretch and EA) come without a build; anything else builds (`full`)."""
+
+    def __init__(self, cfg: DriveConfig, layout: Layout, build) -> None:
+        from types import SimpleNamespace
+
+        dofs = number_dofs(cfg)
+        lam = reference_stretch(cfg, layout)
+        self._facts = {
+            "layout": layout, "dofs": dofs, "tension": tension_setting(cfg, dofs), "arms": arm_joints(cfg, layout, dofs),
+            "trans_dof": dofs.trans_dof, "trans_dir": dofs.trans_dir, "rot_dof": dofs.rot_dof,
+            "belt": SimpleNamespace(reference_length=layout.span_length / lam, prestrain_stretch=float(lam),
+                                    span_stretch=None, elements=SimpleNamespace(EA=np.array([cfg.belt.EA]))),
+        }
+        self._build, self._full = build, None
+
+    @property
+    def built(self) -> bool:
+        return self._full is not None
+
+    def full(self) -> System:
+        if self._full is None:
+            self._full = self._build(self._facts["layout"])
+        return self._full
+
+    def __getattr__(self, name: str):
+        facts = self.__dict__.get("_facts", {})
+        if name in facts:
+            return facts[name]
+        return getattr(self.full(), name)
 
 
 __all__ = ["System", "DofMap", "BeltSpans", "LinearComponent", "BearingSprings", "Observation", "TensionSetting",

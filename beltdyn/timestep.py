@@ -1,7 +1,7 @@
 """The time step's frequency error: generalized-alpha (Chung and Hulbert 1993) on x'' + w^2 x = 0.
 
 One step of the method (the stepper's alpha_m, alpha_f, beta, gamma for spectral radius rho_inf, see
-`integrator.alpha_parameters`) maps (x, h v, h^2 a) linearly: with Omega = w h,
+`alpha_parameters`, which the stepper imports) maps (x, h v, h^2 a) linearly: with Omega = w h,
 
     (1 - alpha_m) a1 + alpha_m a0 + w^2 ((1 - alpha_f) x1 + alpha_f x0) = 0,
     x1 = x0 + h v0 + h^2 ((1/2 - beta) a0 + beta a1),   v1 = v0 + h ((1 - gamma) a0 + gamma a1).
@@ -29,7 +29,8 @@ import numpy as np
 TWO_PI = 2.0 * math.pi
 
 
-def _alpha(rho_inf: float) -> tuple[float, float, float, float]:
+def alpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
+    """(alpha_m, alpha_f, beta, gamma) of Chung and Hulbert for spectral radius rho_inf in [0, 1]."""
     am = (2.0 * rho_inf - 1.0) / (rho_inf + 1.0)
     af = rho_inf / (rho_inf + 1.0)
     gamma = 0.5 - am + af
@@ -39,7 +40,7 @@ def _alpha(rho_inf: float) -> tuple[float, float, float, float]:
 
 def amplification(omega_h: float, rho_inf: float) -> np.ndarray:
     """A (3, 3): (x1, h v1, h^2 a1) = A (x0, h v0, h^2 a0) for Omega = omega h."""
-    am, af, beta, gamma = _alpha(rho_inf)
+    am, af, beta, gamma = alpha_parameters(rho_inf)
     W2 = omega_h * omega_h
     A = np.empty((3, 3))
     for j, (x0, v0, a0) in enumerate(np.eye(3)):  # scaled: v ~ h v, a ~ h^2 a

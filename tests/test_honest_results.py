@@ -77,12 +77,17 @@ def test_internal_error_is_one_line_and_debug_shows_the_traceback(tmp_path):
 
 
 def test_memory_error_is_one_line_suggesting_a_smaller_mesh(tmp_path):
-    # A real MemoryError: the address space limited to 900 MiB and a mesh of a million elements per
+    # A real MemoryError: the address space limited to 900 MiB and a mesh of up to 100,000 elements per
     # span. Exit 1, one line saying "out of memory" and naming mesh.elements_per_span, no traceback.
     def limit():
         resource.setrlimit(resource.RLIMIT_AS, (900 << 20, 900 << 20))
 
-    r = subprocess.run([*BELTDYN, "modal", str(SMOKE), "--set", "mesh.elements_per_span=1000000", "-o", "m.h5"],
+    # a mesh that passes the size guard (below half the machine's memory) but not the 900 MiB limit
+    from beltdyn.system import BYTES_PER_DOF, memory_limit
+
+    n_e = min(100_000, int(0.4 * memory_limit() / BYTES_PER_DOF / 2 / 4))
+    assert n_e * 8 * 4400 > 2 * (900 << 20)  # the measured ~4.4 kB per DOF: well above the limit
+    r = subprocess.run([*BELTDYN, "modal", str(SMOKE), "--set", f"mesh.elements_per_span={n_e}", "-o", "m.h5"],
                        cwd=tmp_path, capture_output=True, text=True, timeout=120, env=_env(), preexec_fn=limit)
     assert r.returncode == 1, r.stdout + r.stderr
     assert "Traceback" not in r.stdout + r.stderr
@@ -588,3 +593,65 @@ def test_output_above_the_bound_needs_force_large(tmp_path):
     assert r.returncode == 0, r.stderr
     with h5py.File(tmp_path / "big.h5") as f:
         assert f["transient"].attrs["status"] == "complete" and f["transient/time"].shape == (100001,)
+
+
+def test_a_reader_that_stops_early_does_not_fail_the_command(tmp_path):
+    # `beltdyn modal ... | head -1`: the pipe closes after the first line; the command still writes its
+    # results and exits 0, with nothing on stderr (it used to exit 1 on a BrokenPipeError).
+    proc = subprocess.Popen([*BELTDYN, "modal", str(BENCH), "-o", "m.h5"], cwd=tmp_path, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=_env())
+    first = proc.stdout.readline()
+    proc.stdout.close()  # the reader goes away
+    err = proc.stderr.read().decode()
+    proc.wait(timeout=120)
+    assert first and proc.returncode == 0 and err == "", err
+    with h5py.File(tmp_path / "m.h5") as f:
+        assert f["modal"].attrs["status"] == "complete"
+
+
+def test_sigterm_during_the_kernel_compile_is_deferred(tmp_path):
+    # A SIGTERM that arrives while numba compiles the transient kernels waits until the compiler is done
+    # (the warm-up runs to its end), then ends the run like any SIGTERM: exit 143, no /transient group
+    # (the static groups written before it stay, complete).
+    patch = f"""
+import os, signal, time
+import beltdyn.transient as t
+def slow_warm_up():
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(0.2)
+    open({str(tmp_path / 'compiled')!r}, 'w').close()
+t.warm_up = slow_warm_up
+"""
+    r = run_patched(patch, "transient", TRANSIENT, "--duration", "0.05", "--set", "transient.spectrum.enabled=false",
+                    "-o", "t.h5", cwd=tmp_path)
+    assert r.returncode == 143, r.stderr
+    assert (tmp_path / "compiled").exists() and "Traceback" not in r.stderr
+    with h5py.File(tmp_path / "t.h5") as f:
+        assert "transient" not in f and f["static"].attrs["status"] == "complete"
+
+
+@pytest.mark.parametrize("cmd", [["modal"], ["sweep", "--param", "mesh.elements_per_span=10,1000000000"]])
+def test_a_mesh_that_cannot_fit_in_memory_is_refused_at_once(tmp_path, cmd):
+    # 1e9 elements per span (8e9 DOFs) used to run until killed: now exit 2 within a second, naming the
+    # key, the model size and the largest mesh that fits (half the machine's or container's memory).
+    t0 = time.time()
+    args = [cmd[0], BENCH, *cmd[1:], "-o", "x.h5"]
+    if cmd[0] == "modal":
+        args += ["--set", "mesh.elements_per_span=1000000000"]
+    r = run(*args, cwd=tmp_path)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert "mesh.elements_per_span" in r.stderr and "DOFs" in r.stderr and "use at most" in r.stderr
+    assert time.time() - t0 < 30 and not list(tmp_path.glob("x.h5*"))
+
+
+def test_an_absurd_belt_strain_is_marked(tmp_path):
+    # tension.target = 1e7 N on the bench (EA 1.2e5 N) stretches the belt by about 450 %: the result is
+    # written but /static warnings (and the console) say so; the paper's 200 N gives no warning.
+    r = run("static", BENCH, "--set", "tension.target=1e7", "-o", "s.h5", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "s.h5") as f:
+        w = [str(x) for x in f["static"].attrs["warnings"]]
+    assert len(w) == 1 and "stretched by 4" in w[0] and "warning" in r.stdout
+    r = run("static", BENCH, "-o", "t.h5", cwd=tmp_path)
+    with h5py.File(tmp_path / "t.h5") as f:
+        assert len(f["static"].attrs["warnings"]) == 0

@@ -255,3 +255,15 @@ def test_a_new_support_is_one_class(monkeypatch):
     got = analyse(load_config(three, ["pulleys[2].bearing_stiffness=[3.0e6, 3.0e6]"]), modal=True)
     assert "pulley C tilted" in got.system.dof_labels
     assert np.allclose(got.modal.frequency, ref.modal.frequency, rtol=1e-12)
+
+
+def test_energy_shares_with_and_without_the_precomputed_motion():
+    # solve_modes hands the shapes' element motion to the classification; computed inside it is the
+    # same (to the bit).
+    from beltdyn.modal import classify
+    from beltdyn.pipeline import analyse
+
+    run = analyse(load_config(BENCH), modal=True)
+    md = run.modal
+    got = classify(run.system, md.shapes, md.frequency, run.static.q)
+    assert got[0] == md.kind and np.array_equal(got[4], md.energy_share)

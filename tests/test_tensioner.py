@@ -383,3 +383,23 @@ def test_tensioner_frequency_matches_the_one_dof_closed_form(tmp_path):
     k = [i for i, kind in enumerate(run.modal.kind) if kind == "tensioner"]
     assert k, run.modal.label
     assert abs(run.modal.frequency[k[0]] / one["f"] - 1.0) < 1e-3, (run.modal.frequency[k[0]], one["f"])
+
+
+def test_every_group_has_warnings_and_static_names_a_slipping_pulley(tmp_path):
+    # /geometry, /static, /modal carry a `warnings` attribute (empty when none); a pulley whose slip
+    # margin is below 1 under the static load case is named in /static warnings.
+    import subprocess
+    import sys
+
+    import h5py
+
+    exe = [str(Path(sys.executable).parent / "beltdyn")]
+    r = subprocess.run([*exe, "modal", str(ARM), "--set", "pulleys[0].friction=0.05", "--set",
+                        "static.torque=[{pulley='C', value=-10.0}]", "-o", str(tmp_path / "w.h5")],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "w.h5") as f:
+        assert len(f["geometry"].attrs["warnings"]) == 0 and len(f["modal"].attrs["warnings"]) == 0
+        w = [str(x) for x in f["static"].attrs["warnings"]]
+        assert len(w) == 1 and "pulley A slips" in w[0]
+        assert f["static/slip_margin"][0] < 1.0
