@@ -714,8 +714,9 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
                       f"using {available_cores()}")
         journal = Journal(job.output)
         with journal:  # exclusive: a second sweep on the same output is refused, not raced
-            _sweep_cases(con, cfg, spec, journal, resume=resume, workers=workers, scheduler=scheduler, force=force)
-            result = assemble(spec, journal)
+            assembly = _sweep_cases(con, cfg, spec, journal, resume=resume, workers=workers, scheduler=scheduler,
+                                    force=force)
+            result = assemble(spec, journal, assembly)
             from .export import sweep_group
 
             job.add(sweep_group(cfg, result))
@@ -731,8 +732,9 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
     _run(body)
 
 
-def _sweep_cases(con, cfg, spec, journal, *, resume, workers, scheduler, force) -> None:
-    """Run the missing cases with a progress bar; on Ctrl-C / SIGTERM say what is journaled."""
+def _sweep_cases(con, cfg, spec, journal, *, resume, workers, scheduler, force):
+    """Run the missing cases with a progress bar (their Assembly returned); on Ctrl-C / SIGTERM say
+    what is journaled."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
     from .errors import Terminated
@@ -743,8 +745,8 @@ def _sweep_cases(con, cfg, spec, journal, *, resume, workers, scheduler, force) 
     task = bar.add_task("sweep", total=spec.n_cases)
     try:
         with bar:
-            run_sweep(cfg, spec, journal=journal, resume=resume, workers=workers, scheduler=scheduler,
-                      progress=lambda k, n: bar.update(task, completed=k), restart=force)
+            return run_sweep(cfg, spec, journal=journal, resume=resume, workers=workers, scheduler=scheduler,
+                             progress=lambda k, n: bar.update(task, completed=k), restart=force)
     except KeyboardInterrupt as exc:
         n_done = len(journal.done()) if journal.exists() else 0
         what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"

@@ -13,11 +13,14 @@ near-degenerate upper/lower span pairs keep their identity. Where the DOF counts
 sweep) the match is by classification (kind, order, span), then by frequency.
 
 Journal: `<output>.sweep/` holds `spec.json` (what the sweep is) and `cases.log`, the finished cases
-appended as checksummed records and fsync'ed per batch (a record torn by a crash is cut off on the
-next lock; see `Journal`); `--resume` skips the cases found there. The final /sweep group is assembled from the
-journal, so an interrupted and resumed sweep gives the same file. A running sweep holds an exclusive
-lock (`flock` on `<output>.sweep/lock`, which records its pid): a second sweep on the same journal is
-refused at once instead of racing it.
+appended as checksummed records, fsync'ed after a batch at most every SYNC_EVERY s and at the end or
+on an interruption (a record torn by a crash is cut off on the next lock; see `Journal`); `--resume`
+skips the cases found there. The results come back from the workers in memory and are assembled in
+case order as they arrive (`Assembly`): only the small per-case quantities are kept for every case,
+mode shapes only while a later case is still to be tracked from them; the journal is read back only
+for the cases of an earlier run, one at a time, so an interrupted and resumed sweep gives the same
+file. A running sweep holds an exclusive lock (`flock` on `<output>.sweep/lock`, which records its
+pid): a second sweep on the same journal is refused at once instead of racing it.
 
 Local workers are forked processes that die with the sweep: each asks the kernel for SIGKILL when its
 parent dies (Linux `prctl(PR_SET_PDEATHSIG)`), ignores Ctrl-C (the parent handles it: the journal is
@@ -47,6 +50,7 @@ from .results_io import fsync_dir
 ANALYSES = ("static", "modal", "transient")
 MAC_LOST = 0.5  # below this MAC a tracked mode counts as lost (it left the computed modes)
 SAFETY = 1.25  # safety factor of the Richardson error estimate (Roache's grid convergence index)
+SYNC_EVERY = 0.5  # s: the journal is fsync'ed after a batch of cases at most this often (and at the end)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -88,6 +92,23 @@ class SweepSpec:
                 multi[axis] -= 1
                 return int(np.ravel_multi_index(multi, self.shape))
         return -1
+
+    def parents(self) -> np.ndarray:
+        """`parent` of every case, as an array."""
+        n = self.n_cases
+        idx = np.arange(n, dtype=np.int64)
+        if self.zip:
+            return idx - 1
+        out = np.full(n, -1, dtype=np.int64)
+        multi = np.unravel_index(idx, self.shape)
+        stride = 1
+        todo = idx > 0
+        for axis in range(len(self.shape) - 1, -1, -1):
+            hit = todo & (multi[axis] > 0)
+            out[hit] = idx[hit] - stride
+            todo &= ~hit
+            stride *= self.shape[axis]
+        return out
 
     def to_json(self) -> dict:
         return {"params": [{"key": p.key, "values": list(p.values)} for p in self.params],
@@ -318,26 +339,36 @@ class Journal:
     """`<output>.sweep/`: spec.json (written atomically) and `cases.log`, one append-only file of the
     finished cases; `lock` (flock) while a sweep runs on it.
 
-    A record of cases.log: MAGIC (4 bytes), case index (uint32), payload length (uint64), CRC-32 of the
-    payload (uint32), payload (the case's arrays as an .npz, no pickles). Records are appended and the
-    file fsync'ed once per batch of cases; a record cut short by a crash (or failing its CRC) ends the
-    valid log and is cut off when the journal is next locked. The cases of this run stay in memory, so
-    assembling the results reads back only the cases of an earlier run (one file instead of one per
-    case: no temporary file, rename and folder fsync per case)."""
+    A record of cases.log is a 20-byte header, MAGIC (4 bytes), case index (uint32), payload length
+    (uint64), CRC-32 of the header's first 16 bytes and the payload (uint32), then the payload: the
+    case's arrays as raw buffers (see `_encode`; no pickles). Records are appended with plain writes
+    (no temporary file, rename or folder fsync per case) and the log is fsync'ed per batch (`sync`;
+    `run_sweep` at most every SYNC_EVERY seconds, and when it ends or is interrupted: a write reaches
+    the kernel at once and survives the process, the fsync bounds what an operating-system crash can
+    take). A record cut short by a crash, or failing its CRC, ends the valid log: it is cut off when
+    the journal is next locked (or written to), and that case counts as not done. A write that fails
+    midway (a full disk, an interrupt) is cut off at once. Logs of the previous format (MAGIC `BDC1`,
+    .npz payloads) are still read, so an interrupted sweep of that version resumes.
+
+    Nothing is cached here: the running sweep hands each case to its `Assembly` in memory, and the
+    journal is read back (`read`, one case at a time) only for the cases of an earlier run."""
 
     LOCK = "lock"
     LOG = "cases.log"
-    MAGIC = b"BDC1"
+    MAGIC = b"BDC2"
+    MAGIC_NPZ = b"BDC1"  # the previous format: an .npz payload, CRC of the payload only
     _HEAD = struct.Struct("<4sIQI")
+    ALIGN = 64  # every array's bytes start at a multiple of this in the payload (and in memory when read)
 
     def __init__(self, output: Path) -> None:
         self.dir = Path(str(output) + ".sweep")
         self._lock_fd: int | None = None
         self._made_dir = False
         self._discard = False  # remove the folder on unlock (removed while locked)
-        self._cache: dict[int, dict] = {}  # cases written by this process
-        self._index: dict[int, tuple[int, int]] | None = None  # case -> (payload offset, length) in the log
-        self._log = None
+        self._index: dict[int, tuple[int, int, bytes]] | None = None  # case -> payload offset, length, magic
+        self._end = 0  # end of the valid log (valid once _index is)
+        self._fd: int | None = None  # the log, open for appending
+        self._reader: int | None = None  # the log, open for reading
 
     def exists(self) -> bool:
         return (self.dir / "spec.json").exists()
@@ -346,7 +377,8 @@ class Journal:
     def lock(self) -> None:
         """Take the exclusive lock of the journal without waiting; OutputError (exit 2) naming the pid
         of the holder if another sweep has it. The folder is created if needed (and removed again by
-        `unlock` if nothing was journaled). Left-over temporary files of a killed run are removed."""
+        `unlock` if nothing was journaled). Left-over temporary files of a killed run are removed, and
+        a record torn by a crash is cut off the log."""
         import fcntl
 
         if self._lock_fd is not None:
@@ -388,6 +420,7 @@ class Journal:
             _HELD_LOCKS.add(fd)
             for stale in self.dir.glob("*.tmp*"):  # partial writes of a run that was killed
                 stale.unlink(missing_ok=True)
+            self._close()
             self._index = None
             self._scan(truncate=True)  # a record torn by a crash is cut off
             return
@@ -397,9 +430,7 @@ class Journal:
         fd, self._lock_fd = self._lock_fd, None
         if fd is None:
             return
-        if self._log is not None:
-            self._log.close()
-            self._log = None
+        self._close()
         _HELD_LOCKS.discard(fd)
         if self._discard or (self._made_dir and self.dir.is_dir() and not self.exists()):
             # removed while locked, or this run created the folder and journaled nothing (e.g. a usage
@@ -417,6 +448,19 @@ class Journal:
     def __exit__(self, *exc) -> None:
         self.unlock()
 
+    def _close(self) -> None:
+        for name in ("_fd", "_reader"):
+            fd = getattr(self, name)
+            setattr(self, name, None)
+            if fd is not None:
+                os.close(fd)
+
+    def __del__(self) -> None:  # a journal used without the lock (library callers): no descriptor leaks
+        try:
+            self._close()
+        except (OSError, AttributeError, TypeError):
+            pass
+
     # -- content ----------------------------------------------------------------------------------
     def start(self, spec_json: dict, digest: str) -> None:
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -428,65 +472,100 @@ class Journal:
     def digest(self) -> str:
         return json.loads((self.dir / "spec.json").read_text())["sha256"]
 
-    def _scan(self, truncate: bool = False) -> dict[int, tuple[int, int]]:
-        """The valid records of the log (case -> payload offset, length); with truncate, a torn or
-        corrupt tail is cut off (only under the lock)."""
+    def _scan(self, truncate: bool = False) -> dict[int, tuple[int, int, bytes]]:
+        """The valid records of the log (case -> payload offset, length, magic), read one record at a
+        time; with truncate, a torn or corrupt tail is cut off (only under the lock, or by the writer)."""
         if self._index is not None:
             return self._index
         import zlib
 
-        index: dict[int, tuple[int, int]] = {}
+        index: dict[int, tuple[int, int, bytes]] = {}
         path = self.dir / self.LOG
-        end = 0
-        try:
-            with open(path, "rb") as fh:
-                data = fh.read()
-        except FileNotFoundError:
-            data = b""
         H = self._HEAD.size
-        while end + H <= len(data):
-            magic, case, length, crc = self._HEAD.unpack_from(data, end)
-            start = end + H
-            if magic != self.MAGIC or start + length > len(data) or zlib.crc32(data[start:start + length]) != crc:
-                break
-            index[case] = (start, length)
-            end = start + length
-        if truncate and end < len(data):
+        end = size = 0
+        try:
+            fh = open(path, "rb")
+        except FileNotFoundError:
+            fh = None
+        if fh is not None:
+            with fh:
+                size = os.fstat(fh.fileno()).st_size
+                while True:
+                    head = fh.read(H)
+                    if len(head) < H:
+                        break
+                    magic, case, length, crc = self._HEAD.unpack(head)
+                    if magic not in (self.MAGIC, self.MAGIC_NPZ) or end + H + length > size:
+                        break
+                    payload = fh.read(length)
+                    seed = zlib.crc32(head[:16]) if magic == self.MAGIC else 0
+                    if len(payload) < length or zlib.crc32(payload, seed) != crc:
+                        break
+                    index[case] = (end + H, length, magic)
+                    end += H + length
+        if truncate and end < size:
             with open(path, "r+b") as fh:
                 fh.truncate(end)
                 fh.flush()
                 os.fsync(fh.fileno())
-        self._index = index
+        self._index, self._end = index, end
         return index
 
     def done(self) -> set[int]:
         """Finished cases (a record cut short by a crash does not count)."""
-        return set(self._scan()) | set(self._cache)
+        return set(self._scan())
+
+    def has(self, index: int) -> bool:
+        return index in self._scan()
 
     def write(self, index: int, result: dict, *, sync_dir: bool = True) -> None:
-        """Append one case to the log (and keep it in memory); durable after `sync` (called here unless
-        sync_dir=False: callers writing several cases at once call `sync` after the last)."""
-        import io
+        """Append one case to the log; durable after `sync` (called here unless sync_dir=False: callers
+        writing several cases at once call `sync` after the last)."""
         import zlib
 
-        buf = io.BytesIO()
-        np.savez(buf, **{k: np.asarray(v) for k, v in result.items()})
-        payload = buf.getvalue()
-        if self._log is None:
-            new = not (self.dir / self.LOG).exists()
-            self._log = open(self.dir / self.LOG, "ab")
-            if new:
-                fsync_dir(self.dir)
-        self._log.write(self._HEAD.pack(self.MAGIC, index, len(payload), zlib.crc32(payload)) + payload)
-        self._cache[index] = {k: np.asarray(v) for k, v in result.items()}
+        parts = _encode(result, self.ALIGN)
+        length = sum(len(p) for p in parts)
+        head = self._HEAD.pack(self.MAGIC, index, length, 0)[:16]
+        crc = zlib.crc32(head)
+        for p in parts:
+            crc = zlib.crc32(p, crc)
+        record = [head + struct.pack("<I", crc), *parts]
+        size = self._HEAD.size + length
+        index_map = self._scan()
+        if self._fd is None:
+            path = self.dir / self.LOG
+            new = not path.exists()
+            fd = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC, 0o666)
+            try:
+                if os.fstat(fd).st_size != self._end:  # a torn tail not yet cut off (no lock held): cut it
+                    os.ftruncate(fd, self._end)
+                if new:
+                    fsync_dir(self.dir)
+            except BaseException:
+                os.close(fd)
+                raise
+            self._fd = fd
+        try:
+            done = os.writev(self._fd, record)
+            if done < size:  # a short write (rare): the rest in plain writes
+                rest = memoryview(b"".join(record))[done:]
+                while rest:
+                    rest = rest[os.write(self._fd, rest):]
+        except BaseException:  # a full disk, an interrupt: no half record left behind
+            try:
+                os.ftruncate(self._fd, self._end)
+            except OSError:
+                pass
+            raise
+        index_map[index] = (self._end + self._HEAD.size, length, self.MAGIC)
+        self._end += size
         if sync_dir:
             self.sync()
 
     def sync(self) -> None:
         """Make the appended cases durable (fsync of the log)."""
-        if self._log is not None:
-            self._log.flush()
-            os.fsync(self._log.fileno())
+        if self._fd is not None:
+            os.fsync(self._fd)
 
     def _put(self, name: str, fill) -> None:
         stem, _, ext = name.partition(".")
@@ -503,29 +582,38 @@ class Journal:
             raise
 
     def read(self, index: int) -> dict:
-        hit = self._cache.get(index)
-        if hit is not None:
-            return hit
-        import io
+        """One journaled case (its CRC checked again), as arrays; KeyError if it is not journaled."""
+        import zlib
 
-        start, length = self._scan()[index]
-        with open(self.dir / self.LOG, "rb") as fh:
-            fh.seek(start)
-            payload = fh.read(length)
-        with np.load(io.BytesIO(payload), allow_pickle=False) as z:
-            return {k: z[k] for k in z.files}
+        start, length, magic = self._scan()[index]
+        if self._reader is None:
+            self._reader = os.open(self.dir / self.LOG, os.O_RDONLY | os.O_CLOEXEC)
+        H = self._HEAD.size
+        raw = np.empty(H + length + self.ALIGN, dtype=np.uint8)  # the payload at an aligned address
+        skip = (-(raw.ctypes.data + H)) % self.ALIGN
+        buf = raw[skip:skip + H + length]
+        if os.preadv(self._reader, [buf], start - H) != H + length:
+            raise OutputError(f"the sweep journal {self.dir} lost case {index} (cases.log was cut short)")
+        head, payload = buf[:H].tobytes(), buf[H:]
+        crc = self._HEAD.unpack(head)[3]
+        if zlib.crc32(payload, zlib.crc32(head[:16]) if magic == self.MAGIC else 0) != crc:
+            raise OutputError(f"the sweep journal {self.dir} is corrupt (case {index} fails its checksum); "
+                              "remove it to start over")
+        if magic == self.MAGIC_NPZ:
+            import io
+
+            with np.load(io.BytesIO(payload.tobytes()), allow_pickle=False) as z:
+                return {k: z[k] for k in z.files}
+        return _decode(payload)
 
     def remove(self) -> None:
         """Delete the journal. While locked, the lock file stays until `unlock` (which then removes
         the folder), so that no other sweep can start on it meanwhile."""
         import shutil
 
-        if self._log is not None:
-            self._log.close()
-            self._log = None
-        self._cache.clear()
+        self._close()
         self._index = None
-
+        self._end = 0
         if self._lock_fd is None:
             shutil.rmtree(self.dir, ignore_errors=True)
             return
@@ -537,6 +625,52 @@ class Journal:
             else:
                 entry.unlink(missing_ok=True)
         self._discard = True
+
+
+def _encode(result: dict, align: int) -> list:
+    """A case's arrays as the buffers of one payload (not joined: written with one writev): uint32
+    length of a JSON header [[name, dtype, shape, order], ...], the header, then each array's raw bytes
+    (C or Fortran order, as it is in memory, so that a case read back computes bit for bit as the one
+    in memory) starting at a multiple of `align`."""
+    arrays = {k: np.asarray(v) for k, v in result.items()}
+    head, parts = [], []
+    for k, a in arrays.items():
+        if a.dtype.hasobject:
+            raise TypeError(f"sweep case result {k!r} is an object array (not journaled)")
+        order = "F" if a.ndim > 1 and a.flags.f_contiguous and not a.flags.c_contiguous else "C"
+        head.append([k, a.dtype.str, list(a.shape), order])
+        flat = np.ascontiguousarray(a.T if order == "F" else a)  # no copy if it already is
+        parts.append(memoryview(flat.reshape(-1).view(np.uint8)) if flat.size else b"")
+    text = json.dumps(head).encode()
+    out = [struct.pack("<I", len(text)) + text]
+    pos = len(out[0])
+    for p in parts:
+        pad = (-pos) % align
+        if pad:
+            out.append(bytes(pad))
+        out.append(p)
+        pos += pad + len(p)
+    return out
+
+
+def _decode(payload: np.ndarray) -> dict:
+    """The arrays of a payload (`_encode`), as read-only views of it."""
+    n = int(payload[:4].view("<u4")[0])
+    head = json.loads(payload[4:4 + n].tobytes())
+    out, pos = {}, 4 + n
+    align = Journal.ALIGN
+    for name, dt, shape, order in head:
+        dtype = np.dtype(dt)
+        if dtype.hasobject:
+            raise OutputError(f"sweep journal: case array {name!r} has an object type")
+        pos += (-pos) % align
+        size = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+        flat = payload[pos:pos + size].view(dtype)
+        arr = flat.reshape(shape[::-1]).T if order == "F" else flat.reshape(shape)
+        arr.flags.writeable = False
+        out[name] = arr
+        pos += size
+    return out
 
 
 def _lock_holder(fd: int) -> int | None:
@@ -558,9 +692,10 @@ Progress = Callable[[int, int], None]
 
 def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bool = False,
               workers: int | None = None, scheduler: str | None = None,
-              progress: Progress | None = None, restart: bool = False) -> None:
-    """Run the missing cases of the sweep, journaling each as it finishes (any order).
-    restart discards an existing journal (--force without --resume)."""
+              progress: Progress | None = None, restart: bool = False) -> "Assembly":
+    """Run the missing cases of the sweep, journaling each as it finishes (any order), and assemble
+    the results as they come (the returned Assembly, for `assemble`). restart discards an existing
+    journal (--force without --resume)."""
     digest = spec_hash(cfg, spec)
     client = _connect(scheduler, cfg) if scheduler else None
     if journal.exists() and restart and not resume:
@@ -580,34 +715,59 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
     items = [(i, [_assign(p.key, v) for p, v in zip(spec.params, spec.case_values(i))]) for i in todo]
     if progress:
         progress(len(done), spec.n_cases)
+    assembly = Assembly(spec)
+    assembly.advance(journal)  # the cases of an earlier run, as far as they reach
     if not items:
-        return
+        return assembly
     n_workers = min(workers or available_cores(), available_cores())
     chunk = max(1, min(16, math.ceil(len(items) / (4 * n_workers))))
     chunks = [items[k:k + chunk] for k in range(0, len(items), chunk)]
     n_workers = min(n_workers, len(chunks))  # no idle processes
     finished = len(done)
+    synced = time.monotonic()
 
     def record(results: list[tuple[int, dict]]) -> None:
-        nonlocal finished
+        nonlocal finished, synced
         for i, res in results:
             journal.write(i, res, sync_dir=False)
+            assembly.offer(i, res)
             finished += 1
-        journal.sync()
+        if time.monotonic() - synced >= SYNC_EVERY:  # an fsync per batch of cases, at most every SYNC_EVERY
+            journal.sync()
+            synced = time.monotonic()
         if progress:
             progress(finished, spec.n_cases)
+        assembly.advance(journal)
 
-    args = (base, cfg.source)
+    try:
+        _execute(base, cfg.source, spec, chunks, n_workers, client, record)
+    except BaseException:  # Ctrl-C, SIGTERM, a failure: what is journaled is made durable, then it goes on
+        try:
+            journal.sync()
+        except OSError:
+            pass
+        raise
+    journal.sync()
+    return assembly
+
+
+def _execute(base: str, source: str, spec: SweepSpec, chunks: list, n_workers: int, client,
+             record: Callable[[list], None]) -> None:
+    """Run the chunks on Dask, serially in this process, or in a local process pool; `record` each
+    chunk's results as it finishes."""
+    args = (base, source)
     if client is not None:
         from distributed import as_completed
 
         with client:
-            futures = [client.submit(_run_chunk, *args, c, spec.analysis, spec.n_modes, pure=False) for c in chunks]
+            # a finished chunk's future is dropped once recorded, so that its results do not stay in memory
+            pending = {client.submit(_run_chunk, *args, c, spec.analysis, spec.n_modes, pure=False) for c in chunks}
             try:
-                for fut in as_completed(futures):
+                for fut in as_completed(list(pending)):
+                    pending.discard(fut)
                     record(fut.result())
             finally:
-                client.cancel(futures)
+                client.cancel(list(pending))
         return
     if n_workers == 1:
         for c in chunks:
@@ -618,11 +778,12 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
 
     pool = ProcessPoolExecutor(max_workers=n_workers, mp_context=mp.get_context("fork"),
                                initializer=_worker_init, initargs=(os.getpid(),))
-    futures = []
     try:
-        futures = [pool.submit(_run_chunk, *args, c, spec.analysis, spec.n_modes) for c in chunks]
-        for fut in cf_completed(futures):
+        # only as_completed holds the futures, and drops each as it yields it: a chunk's results are
+        # not kept in memory once recorded
+        for fut in cf_completed([pool.submit(_run_chunk, *args, c, spec.analysis, spec.n_modes) for c in chunks]):
             record(fut.result())
+            del fut
     except BaseException:  # Ctrl-C, SIGTERM, a journal write error: stop the workers, keep the journal
         _stop_pool(pool)
         raise
@@ -707,51 +868,107 @@ class SweepResult:
     extras: dict[str, np.ndarray]  # per-case static / transient quantities (n_cases, ...)
 
 
-def assemble(spec: SweepSpec, journal: Journal) -> SweepResult:
-    from scipy.optimize import linear_sum_assignment
+_MODAL_KEYS = ("frequency", "shapes", "mshapes", "kind", "order", "span", "label")
+_NOT_EXTRA = ("failed", "error", "wall_time", *_MODAL_KEYS)
 
-    n = spec.n_cases
-    cases = [journal.read(i) for i in range(n)]
-    failed = np.array([int(c["failed"]) for c in cases], dtype=np.int8)
-    errors = [str(c["error"]) for c in cases]
-    wall = np.array([float(c["wall_time"]) for c in cases])
-    extras: dict[str, np.ndarray] = {}
-    ok = [c for c in cases if not int(c["failed"])]
-    if ok:
-        for key in ok[0]:
-            if key in ("failed", "error", "wall_time", "frequency", "shapes", "mshapes", "kind", "order", "span", "label"):
-                continue
-            shape = np.asarray(ok[0][key]).shape
-            arr = np.full((n, *shape), np.nan)
-            for i, c in enumerate(cases):
-                if not int(c["failed"]) and key in c:
+
+class Assembly:
+    """The /sweep results, built case by case in index order while the sweep runs.
+
+    `offer` takes each finished case as it arrives (any order); `advance` assembles the cases from the
+    next one on as far as they are there, from memory or else from the journal (the cases of an earlier
+    run, or those arrived too far ahead of the next, of which only the index is kept: at most BUFFER
+    cases wait whole in memory). Only the small per-case quantities are kept for every case; mode
+    shapes are kept only while a later case may still be tracked from them: a case is tracked from its
+    nearest tracked ancestor in the spanning tree of the grid (SweepSpec.parent, past failed cases), so
+    a case's shapes are dropped once every case that can reach it that way is assembled (`_refs`
+    counts those still to come). Between cases, at most one case per swept parameter is held (the
+    last case, and the first of each line still to be continued), whatever the number of cases."""
+
+    BUFFER = 64
+
+    def __init__(self, spec: SweepSpec) -> None:
+        n = spec.n_cases
+        self.spec = spec
+        self.next = 0
+        self.failed = np.zeros(n, dtype=np.int8)
+        self.errors = [""] * n
+        self.wall = np.zeros(n)
+        self.extras: dict[str, np.ndarray] | None = None  # from the first case that did not fail
+        self.label: np.ndarray | None = None
+        self._waiting: dict[int, dict] = {}
+        self.modal = spec.analysis == "modal"
+        if self.modal:
+            k = spec.n_modes
+            self.frequency = np.full((n, k), np.nan)
+            self.kind = np.full((n, k), "", dtype=object)
+            self.order = np.zeros((n, k), dtype=np.int64)
+            self.span = np.zeros((n, k), dtype=np.int64)
+            self.mac = np.full((n, k), np.nan)
+            self._parent = spec.parents()
+            self._children = np.bincount(self._parent[1:], minlength=n).astype(np.int64) if n > 1 \
+                else np.zeros(n, dtype=np.int64)
+            self._rep = np.full(n, -1, dtype=np.int64)  # nearest tracked ancestor-or-self of an assembled case
+            self._refs = np.zeros(n, dtype=np.int64)  # cases still to come that will be tracked from this one
+            self._kept: dict[int, dict] = {}  # tracked cases whose shapes may still be needed (and their pick)
+            self._last = -1  # the last tracked case (a case without a tracked ancestor is tracked from it)
+
+    @property
+    def held(self) -> int:
+        """Cases whose mode shapes are in memory (waiting or kept for tracking)."""
+        return len(self._waiting) + (len(self._kept) if self.modal else 0)
+
+    def offer(self, index: int, case: dict) -> None:
+        if index >= self.next and len(self._waiting) < self.BUFFER:
+            self._waiting[index] = case
+
+    def advance(self, journal: "Journal") -> None:
+        n = self.spec.n_cases
+        while self.next < n:
+            i = self.next
+            case = self._waiting.pop(i, None)
+            if case is None:
+                if not journal.has(i):
+                    return
+                case = journal.read(i)
+            self._add(i, case)
+            self.next += 1
+
+    def _add(self, i: int, c: dict) -> None:
+        failed = int(c["failed"])
+        self.failed[i] = failed
+        self.errors[i] = str(c["error"])
+        self.wall[i] = float(c["wall_time"])
+        if not failed:
+            if self.extras is None:
+                n = self.spec.n_cases
+                self.extras = {key: np.full((n, *np.shape(c[key])), np.nan) for key in c if key not in _NOT_EXTRA}
+            for key, arr in self.extras.items():
+                if key in c:
                     arr[i] = c[key]
-            extras[key] = arr
-    freq = kind = order = span = label = mac = None
-    if spec.analysis == "modal":
-        k = spec.n_modes
-        freq = np.full((n, k), np.nan)
-        kind = np.full((n, k), "", dtype=object)
-        order = np.zeros((n, k), dtype=np.int64)
-        span = np.zeros((n, k), dtype=np.int64)
-        mac = np.full((n, k), np.nan)
-        pick: dict[int, np.ndarray] = {}
-        for i in range(n):
-            c = cases[i]
-            if int(c["failed"]):
-                continue
-            p = spec.parent(i)
-            while p >= 0 and p not in pick:  # a failed neighbour: go further back along the tree
-                p = spec.parent(p)
-            if p < 0 and pick:  # the root failed: the nearest earlier tracked case
-                p = max(pick)
+        if self.modal:
+            self._track(i, c, failed)
+
+    def _track(self, i: int, c: dict, failed: int) -> None:
+        """MAC tracking of case i from its nearest tracked ancestor (else the last tracked case)."""
+        from scipy.optimize import linear_sum_assignment
+
+        parent = self._parent[i]
+        anc = int(self._rep[parent]) if parent >= 0 else -1
+        if failed:
+            self._rep[i] = anc
+            if anc >= 0:  # this case's children will be tracked from its ancestor
+                self._refs[anc] += self._children[i]
+        else:
+            k = self.spec.n_modes
+            p = anc if anc >= 0 else self._last
             m = len(c["frequency"])
             if p < 0:
                 sel = np.arange(k) if m >= k else np.r_[np.arange(m), np.full(k - m, -1)]
                 macs = np.where(sel >= 0, 1.0, np.nan)
             else:
-                cp = cases[p]
-                prev = pick[p]
+                cp = self._kept[p]
+                prev = cp["sel"]
                 alive = np.flatnonzero(prev >= 0)
                 if cp["shapes"].shape[1] == c["shapes"].shape[1]:
                     # MAC_ij = (phi_p^T M_c phi_c)(phi_c^T M_p phi_p): the usual MAC when the mass
@@ -771,19 +988,53 @@ def assemble(spec: SweepSpec, journal: Journal) -> SweepResult:
                     if M[r, col] >= MAC_LOST:  # else the mode left the computed window: lost from here on
                         sel[alive[r]] = col
                         macs[alive[r]] = M[r, col]
-            pick[i] = sel
             ok = sel >= 0
-            freq[i, ok] = c["frequency"][sel[ok]]
-            kind[i, ok] = c["kind"][sel[ok]]
-            kind[i, ~ok] = "lost"
-            order[i, ok] = c["order"][sel[ok]]
-            span[i, ok] = c["span"][sel[ok]]
-            mac[i, ok] = np.minimum(macs[ok], 1.0)
-        first = next((c for c in cases if not int(c["failed"])), None)
-        label = np.array(first["label"][: k]) if first is not None else np.array([])
-    return SweepResult(spec=spec, values=[spec.case_values(i) for i in range(n)], failed=failed, errors=errors,
-                       wall_time=wall, frequency=freq, kind=kind, order=order, span=span, label=label, mac=mac,
-                       extras=extras)
+            self.frequency[i, ok] = c["frequency"][sel[ok]]
+            self.kind[i, ok] = c["kind"][sel[ok]]
+            self.kind[i, ~ok] = "lost"
+            self.order[i, ok] = c["order"][sel[ok]]
+            self.span[i, ok] = c["span"][sel[ok]]
+            self.mac[i, ok] = np.minimum(macs[ok], 1.0)
+            if self.label is None:
+                self.label = np.array(c["label"][:k])
+            self._rep[i] = i
+            self._refs[i] += self._children[i]
+            self._kept[i] = {key: c[key] for key in ("shapes", "mshapes", "kind", "order", "span", "frequency")}
+            self._kept[i]["sel"] = sel
+            last, self._last = self._last, i
+            if last >= 0:
+                self._release(last)
+        if anc >= 0:  # this case no longer needs its ancestor
+            self._refs[anc] -= 1
+            self._release(anc)
+        if not failed:
+            self._release(i)
+
+    def _release(self, j: int) -> None:
+        if self._refs[j] <= 0 and j != self._last:
+            self._kept.pop(j, None)
+
+    def result(self) -> "SweepResult":
+        spec, n = self.spec, self.spec.n_cases
+        if self.next < n:
+            raise OutputError(f"the sweep is not complete: case {self.next + 1} of {n} is not journaled")
+        modal = self.modal
+        label = self.label if self.label is not None else np.array([])
+        return SweepResult(spec=spec, values=[spec.case_values(i) for i in range(n)], failed=self.failed,
+                           errors=self.errors, wall_time=self.wall,
+                           frequency=self.frequency if modal else None, kind=self.kind if modal else None,
+                           order=self.order if modal else None, span=self.span if modal else None,
+                           label=label if modal else None, mac=self.mac if modal else None,
+                           extras=self.extras or {})
+
+
+def assemble(spec: SweepSpec, journal: Journal, assembly: Assembly | None = None) -> SweepResult:
+    """The sweep's results: those assembled while it ran (`run_sweep` returns its Assembly) completed
+    from the journal, or all of them streamed from the journal, one case at a time."""
+    if assembly is None or assembly.spec != spec:
+        assembly = Assembly(spec)
+    assembly.advance(journal)
+    return assembly.result()
 
 
 def var_name(key: str) -> str:
