@@ -404,19 +404,21 @@ class BeltSpans:
             return np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2)
         from . import belt_kernel as bk
 
-        tab = self.kernel_tables
-        F = np.empty((B, len(ends), 8))
-        sub = _sub_tables(tab, ends)
-        fe = np.empty((len(ends), 8))
-        fd = np.empty((len(ends), 8))
-        ge = ancf.gravity_forces(el, gravity)[ends]
-        for b in range(B):
-            bk.element_forces(np.ascontiguousarray(E[b, ends]), *sub, fe)
-            F[b] = fe - ge
-            if damped and Ed is not None:
-                bk.element_damping(np.ascontiguousarray(E[b, ends]), np.ascontiguousarray(Ed[b, ends]), sub[0], sub[1],
-                                   sub[2], sub[3], sub[4], sub[5], self.damping_axial, self.damping_bending, fd)
-                F[b] += fd
+        # the whole batch in one kernel call: the end elements' tables tiled over the batch (cached per size)
+        cached = self.__dict__.get("_end_tables")
+        if cached is None or cached[0] != B:
+            cached = (B, _sub_tables(self.kernel_tables, np.tile(ends, B)))
+            object.__setattr__(self, "_end_tables", cached)
+        sub = cached[1]
+        Eb = np.ascontiguousarray(E[:, ends].reshape(B * len(ends), 8))
+        fe = np.empty((B * len(ends), 8))
+        bk.element_forces(Eb, *sub, fe)
+        F = fe.reshape(B, len(ends), 8) - ancf.gravity_forces(el, gravity)[ends]
+        if damped and Ed is not None:
+            fd = np.empty_like(fe)
+            bk.element_damping(Eb, np.ascontiguousarray(Ed[:, ends].reshape(B * len(ends), 8)), sub[0], sub[1],
+                               sub[2], sub[3], sub[4], sub[5], self.damping_axial, self.damping_bending, fd)
+            F = F + fd.reshape(B, len(ends), 8)
         return np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2)
 
     def end_inertia(self, Ea: np.ndarray) -> np.ndarray:
