@@ -476,7 +476,9 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
 
     cfg = job.cfg
     opts = cfg.transient
-    model, res, mres = run.system, run.static, run.modal
+    from .pipeline import transient_start
+
+    (model, res), mres = transient_start(run), run.modal
     setup = prepare(model, res, opts)
     _warm_kernels(_console())
     shapes = {name: len(v) for name, v in setup.coords.items()}

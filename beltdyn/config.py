@@ -338,7 +338,9 @@ class Pulley:
     arm_stiffness: float = key(NONNEGFLOAT, 0.0, omit_default=True, doc="torsion spring of the arm",
                                units="N m/rad")
     arm_free_angle: float | None = key(FLOAT, None, doc="arm angle (counter-clockwise from +x) at which the "
-                                                        "spring torque is zero", units="rad")
+                                                        "spring torque is zero (on the branch of arm_range when "
+                                                        "given: a spring wound more than half a turn needs stops; "
+                                                        "not set: relaxed at the L0-fit angle)", units="rad")
     arm_damping: float = key(NONNEGFLOAT, 0.0, omit_default=True, doc="viscous damping of the arm",
                              units="N m s/rad")
     arm_friction: float = key(NONNEGFLOAT, 0.0, omit_default=True,
@@ -590,7 +592,7 @@ class TransientOptions:
                      doc="start from the static equilibrium or the stress-free reference state")
     tolerance: float = key(POSFLOAT, 1e-8, doc="Newton tolerance per step, relative")
     max_iterations: int = key(POSINT, 12, doc="Newton iterations per step")
-    accuracy: float | None = key(_Number(0.0, 0.5, open_lo=True, open_hi=True), None,
+    accuracy: float | None = key(_Number(0.0, 0.1, open_lo=True), None,
                                  doc="relative frequency error the time step must meet up to fmax (with fmax)")
     fmax: float | None = key(POSFLOAT, None, doc="highest frequency the run must resolve (with accuracy)",
                              units="Hz")

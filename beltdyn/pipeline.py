@@ -86,9 +86,26 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
     return out
 
 
+def transient_start(run: Analysis):
+    """(system, static result) the transient starts from. transient.start = "static": the solved
+    drive (laid out at the solved positions). "rest": the stress-free reference, so the drive on the
+    L0 fit (q = 0 there is stress-free; the re-laid system's q = 0 carries the tension) with its own
+    static solution for the spring preloads."""
+    cfg = run.config
+    if cfg.transient is not None and cfg.transient.start == "rest" and run.fit_layout is not None \
+            and run.fit_layout is not run.layout:
+        from .static import solve_static
+        from .system import build_system
+
+        system = build_system(cfg, run.fit_layout)
+        return system, solve_static(system, cfg.static)
+    return run.system, run.static
+
+
 def transient(run: Analysis, *, sink, progress=None, status=None):
     """The transient analysis from a static result (see `transient.run_transient`)."""
     from .transient import run_transient
 
     assert run.system is not None and run.static is not None and run.config.transient is not None
-    return run_transient(run.system, run.static, run.config.transient, sink=sink, progress=progress, status=status)
+    system, static = transient_start(run)
+    return run_transient(system, static, run.config.transient, sink=sink, progress=progress, status=status)

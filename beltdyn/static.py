@@ -533,8 +533,8 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -
                 free = float(spring.free[0]) if spring.free is not None else 0.0
                 arm_torque[j] = -(k_s * (q[d] - free) - preload[d])  # the spring's torque on the arm
                 arm_free[j] = arm_angle[j] + arm_torque[j] / k_s
-            else:
-                arm_torque[j] = 0.0
+            else:  # no spring: a constant preload torque (adjust mode), if any
+                arm_torque[j] = float(preload[d])
             weight = np.zeros(2)
             for c in model.components:
                 if c.weight is not None:
@@ -737,6 +737,14 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             for k, v in zip(dofs, dirs):
                 if k in anchored:
                     free[k] = -float((centers[j] - lay0.center[j]) @ v)
+        if system.arms is not None:  # an arm spring without a free angle: relaxed at its L0-fit angle
+            for k, dof in enumerate(system.arms.dof):
+                if int(dof) == ts.adjust_dof:
+                    continue  # the tension step sets its preload
+                j = next(i for i, dd in enumerate(d.trans_dof) if dd and dd[0] == system.arms.slot[k])
+                pv = system.arms.pivot[k]
+                turn = np.arctan2(*(lay0.center[j] - pv)[::-1]) - np.arctan2(*(centers[j] - pv)[::-1])
+                free[int(dof)] = float((turn + np.pi) % (2 * np.pi) - np.pi)
         if conserve:
             return new, free, build(new, new.span_length / carried_reference(old, new, ref_old), free)
         if prestrain:
@@ -794,6 +802,12 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             cos = float(np.vdot(step, prev_step) / (np.linalg.norm(step) * np.linalg.norm(prev_step)))
             if abs(rho) < 0.5 and abs(cos) > 0.9:  # steps along one line, shrinking (or alternating)
                 centers = centers + rho / (1.0 - rho) * step
+                if system.arms is not None:  # an arm pulley stays on its circle about the pivot
+                    for k in range(len(system.arms.dof)):
+                        j = next(i for i, dd in enumerate(d.trans_dof) if dd and dd[0] == system.arms.slot[k])
+                        pv = system.arms.pivot[k]
+                        r = centers[j] - pv
+                        centers[j] = pv + r * (np.hypot(*(lay0.center[j] - pv)) / np.hypot(*r))
         prev_step = step
         ref_old = system.belt.reference_length
         prev_system, prev_q = system, st.q

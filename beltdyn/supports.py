@@ -55,8 +55,10 @@ class Support:
         """The kinetic-energy kind of the pulley's translation (mode classification)."""
         return "translational"
 
-    def own_components(self, dof: int, layout, index: int) -> tuple:
-        """Components on the support's own independent DOFs (an arm's inertia, spring, damper)."""
+    def own_components(self, dof: int, layout, index: int, spring_free: np.ndarray | None = None) -> tuple:
+        """Components on the support's own independent DOFs (an arm's inertia, spring, damper);
+        spring_free (n_p,): where a spring without a given free position is relaxed (see
+        `system.pulley_components`)."""
         return ()
 
     def fit_motion(self) -> dict:
@@ -132,15 +134,29 @@ class ArmSupport(Support):
     def mass_kind(self) -> str:
         return "tensioner"
 
-    def own_components(self, dof: int, layout, index: int) -> tuple:
+    def working_angle(self, layout, index: int) -> float:
+        """The arm angle on a layout, on the branch of its stops (arm_range) when given: angles are taken
+        literally then, so a spring wound by more than half a turn is expressed (free angle and stops
+        on one branch); without stops, the angle of atan2."""
         from .geometry import arm_angle, unwrap_near
+
+        p = self.pulley
+        phi = arm_angle(layout, index, np.array(p.arm_pivot))
+        return unwrap_near(phi, 0.5 * (p.arm_range[0] + p.arm_range[1])) if p.arm_range is not None else phi
+
+    def own_components(self, dof: int, layout, index: int, spring_free: np.ndarray | None = None) -> tuple:
+        from .geometry import unwrap_near
         from .system import LinearComponent
 
         p = self.pulley
         free = None
-        if p.arm_free_angle is not None and p.arm_stiffness > 0 and layout is not None:
-            ref = arm_angle(layout, index, np.array(p.arm_pivot))
-            free = np.array([unwrap_near(p.arm_free_angle, ref) - ref])
+        if p.arm_stiffness > 0 and layout is not None:
+            ref = self.working_angle(layout, index)
+            if p.arm_free_angle is not None:  # literal on the stops' branch; else the nearest turn
+                fa = p.arm_free_angle if p.arm_range is not None else unwrap_near(p.arm_free_angle, ref)
+                free = np.array([fa - ref])
+            elif spring_free is not None and spring_free[dof] != 0.0:  # relaxed where it was on the L0 fit
+                free = np.array([float(spring_free[dof])])
         return (LinearComponent(
             name=f"tensioner arm {p.name}", dofs=np.array([dof], dtype=np.int64),
             mass=np.array([[p.arm_inertia]]) if p.arm_inertia > 0 else None,

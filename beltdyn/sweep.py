@@ -289,8 +289,11 @@ def _transient_case(run) -> dict:
     from .spectrum import amplitude_spectrum, harmonic_content
     from .transient import prepare, run_transient
 
+    from .pipeline import transient_start
+
     cfg = run.config
-    setup = prepare(run.system, run.static, cfg.transient)
+    system, static = transient_start(run)
+    setup = prepare(system, static, cfg.transient)
     keep = ("span_tension", "hub_load", "bearing_force")
     got: dict[str, list] = {k: [] for k in keep if any(s.name == k for s in setup.series)}
     times: list = []
@@ -301,7 +304,7 @@ def _transient_case(run) -> dict:
         for k in got:
             got[k].append(batch[k][sel])
 
-    summary = run_transient(run.system, run.static, cfg.transient, sink=sink, setup=setup)
+    summary = run_transient(system, static, cfg.transient, sink=sink, setup=setup)
     t = np.concatenate(times)
     out: dict[str, Any] = {"n_slack_events": len(summary.slack_events)}
     for k, parts in got.items():

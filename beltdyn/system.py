@@ -1097,7 +1097,7 @@ def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = No
         if sup.independent():
             first = dofs.trans_dof[j][0] if dofs.trans_dof[j] and not sup.translation_is_dependent() \
                 else int(dofs.arm_dof[j])
-            own += list(sup.own_components(first, layout, j))
+            own += list(sup.own_components(first, layout, j, spring_free))
     names = {"translational": "pulley mass", "tensioner": "arm pulley mass"}
     for kind, (d_m, m_m, w_m) in masses.items():
         if d_m:
@@ -1116,13 +1116,13 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap) -> ArmJoints | No
     arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
     if not arms:
         return None
-    from .geometry import arm_angle
+    from .supports import support_of
 
     pivot = np.array([cfg.pulleys[j].arm_pivot for j in arms], dtype=float)
     return ArmJoints(dof=np.array([dofs.arm_dof[j] for j in arms], dtype=np.int64),
                      slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64), pivot=pivot,
                      length=np.hypot(*(layout.center[arms] - pivot).T),
-                     angle=np.array([arm_angle(layout, j, pivot[k]) for k, j in enumerate(arms)]),
+                     angle=np.array([support_of(cfg.pulleys[j]).working_angle(layout, j) for j in arms]),
                      n_q=dofs.n_q, n_p=dofs.n, friction=np.array([cfg.pulleys[j].arm_friction for j in arms]),
                      stops=np.array([cfg.pulleys[j].arm_range or (np.nan, np.nan) for j in arms], dtype=float),
                      names=tuple(cfg.pulleys[j].name for j in arms))

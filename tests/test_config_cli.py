@@ -402,7 +402,7 @@ def test_every_key_is_declared_once_with_a_doc():
     assert docs["pulleys[i].radius"].default == "required" and docs["pulleys[i].radius"].units == "m"
     assert docs["pulleys[i].radius"].kind == "number > 0"
     assert docs["pulleys[i].slide_direction"].default == "[1.0, 0.0]"
-    assert docs["transient.accuracy"].kind == "number in (0, 0.5)" and docs["transient.accuracy"].default == "not set"
+    assert docs["transient.accuracy"].kind == "number in (0, 0.1]" and docs["transient.accuracy"].default == "not set"
     assert docs["transient.fmax"].units == "Hz"
     assert docs["transient.max_output_mb"].default == "1000.0"
 
@@ -468,9 +468,9 @@ def test_transient_accuracy_fmax_and_max_output_defaults_and_hash():
 @pytest.mark.parametrize(("sets", "key", "fragment"), [
     (["transient.accuracy=0.01"], "transient.fmax", "missing key: transient.accuracy is given"),
     (["transient.fmax=300"], "transient.accuracy", "missing key: transient.fmax is given"),
-    (["transient.accuracy=0", "transient.fmax=300"], "transient.accuracy", "must be in (0, 0.5), got 0"),
-    (["transient.accuracy=0.5", "transient.fmax=300"], "transient.accuracy", "must be in (0, 0.5), got 0.5"),
-    (["transient.accuracy=-0.1", "transient.fmax=300"], "transient.accuracy", "must be in (0, 0.5), got -0.1"),
+    (["transient.accuracy=0", "transient.fmax=300"], "transient.accuracy", "must be in (0, 0.1], got 0"),
+    (["transient.accuracy=0.5", "transient.fmax=300"], "transient.accuracy", "must be in (0, 0.1], got 0.5"),
+    (["transient.accuracy=-0.1", "transient.fmax=300"], "transient.accuracy", "must be in (0, 0.1], got -0.1"),
     (["transient.accuracy=0.01", "transient.fmax=0"], "transient.fmax", "must be > 0, got 0"),
     (["transient.accuracy=0.01", "transient.fmax='high'"], "transient.fmax", "must be a number, got 'high'"),
     (["transient.max_output_mb=-1"], "transient.max_output_mb", "must be > 0, got -1"),

@@ -403,3 +403,62 @@ def test_every_group_has_warnings_and_static_names_a_slipping_pulley(tmp_path):
         w = [str(x) for x in f["static"].attrs["warnings"]]
         assert len(w) == 1 and "pulley A slips" in w[0]
         assert f["static/slip_margin"][0] < 1.0
+
+
+# ------------------------------------------------------------------------------ review findings
+def test_an_arm_spring_without_free_angle_stays_anchored_across_re_lays():
+    # No arm_free_angle: the spring is relaxed at the arm's L0-fit angle on every re-laid system (it
+    # used to be re-anchored at each pass and crept until the stops). Same result as giving that angle.
+    from beltdyn.geometry import layout_from_config
+
+    sets = ["pulleys[2].adjustable=false", "tension={target=200.0, mode='prestrain'}", "pulleys[2].arm_range=[2.0, 4.0]"]
+    fit = layout_from_config(load_config(ARM, sets))
+    p = load_config(ARM).pulleys[2]
+    phi_fit = float(np.arctan2(*(fit.center[2] - np.array(p.arm_pivot))[::-1]))
+    a = _analyse(sets).static
+    b = _analyse(sets + [f"pulleys[2].arm_free_angle={phi_fit!r}"]).static
+    assert abs(a.arm_angle[2] - b.arm_angle[2]) < 1e-9 and abs(a.arm_torque[2] - b.arm_torque[2]) < 1e-6
+    assert abs(a.mean_tension - 200.0) < 1e-6
+
+
+def test_a_transient_at_rest_starts_stress_free():
+    # transient.start = "rest": the stress-free reference (the L0 fit), not the re-laid solved drive.
+    from beltdyn.pipeline import analyse, transient
+
+    cfg = load_config(ROOT / "configs" / "examples" / "bench_transient_small.toml",
+                      ['transient.start="rest"', "transient.duration=0.002", "transient.spectrum.enabled=false"])
+    got = []
+    transient(analyse(cfg), sink=lambda t, b: got.append(b["span_tension"][0]))
+    assert np.abs(got[0]).max() < 1e-6
+
+
+def test_a_constant_torque_arm_reports_its_torque():
+    # arm_stiffness = 0 in adjust mode: the tension step's preload is the arm's torque (moment balance
+    # about the pivot), not 0.
+    st = _analyse(["pulleys[2].arm_stiffness=0.0"]).static
+    r = st.pulley_center[2] - np.array(load_config(ARM).pulleys[2].arm_pivot)
+    assert abs(st.arm_torque[2] + _cross(r, st.hub_load[2])) < 1e-9 * abs(st.arm_torque[2])
+    assert np.isnan(st.arm_free_angle[2])
+
+
+def test_arm_length_is_kept_through_extrapolated_re_lays():
+    # A stiff, far-wound spring on the FEAD tensioner: the re-lay's extrapolation keeps the pulley on its
+    # circle about the pivot (the arm length stays 0.08 m to 1e-12).
+    from beltdyn.pipeline import analyse
+
+    cfg = load_config(ROOT / "configs" / "examples" / "fead_4cyl.toml",
+                      ["pulleys[3].arm_stiffness=300.0", "pulleys[3].arm_free_angle=5.0", "pulleys[3].arm_range=[3.0, 5.5]"])
+    run = analyse(cfg)
+    l = float(np.hypot(*(run.static.pulley_center[3] - np.array(cfg.pulleys[3].arm_pivot))))
+    assert abs(l - 0.08) < 1e-12
+    assert abs(float(run.system.arms.length[0]) - 0.08) < 1e-12
+
+
+def test_a_spring_wound_more_than_half_a_turn_with_stops():
+    # With arm_range the angles are literal: a free angle 2 pi beyond the working one winds the spring a
+    # full extra turn (more torque, the arm pressed harder), instead of being wrapped to the nearest turn.
+    base = ["pulleys[2].arm_range=[2.0, 4.0]", "tension={mode='spring'}", "pulleys[2].arm_stiffness=0.5"]
+    near = _analyse(base + ["pulleys[2].arm_free_angle=4.5"]).static
+    wound = _analyse(base + [f"pulleys[2].arm_free_angle={4.5 + 2 * np.pi!r}"]).static
+    assert wound.arm_torque[2] > near.arm_torque[2] + 2.0
+    assert abs(wound.arm_free_angle[2] - (4.5 + 2 * np.pi)) < 1e-9
