@@ -638,8 +638,16 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
                             slack_events=events, n_outputs=run.delivered, energy_error=error, energy_moved=moved,
                             warnings=accuracy_warnings(opts, energy_error=error, min_step=float(min_h),
                                                        excitation_frequency=setup.excitation_frequency)
-                            + _slip_warning(observer.worst_slip),
+                            + _slip_warning(observer.worst_slip) + _stop_warning(observer.stop_hit),
                             worst_slip_margin=observer.worst_slip)
+
+
+def _stop_warning(hit) -> tuple[str, ...]:
+    if hit is None:
+        return ()
+    t, name, phi = hit
+    return (f"the arm of pulley {name} is beyond its stops (arm_range) at t = {t:.6g} s ({phi:.6g} rad): the transient "
+            f"does not model the stops, so the results from there on assume a free arm",)
 
 
 def _slip_warning(worst: tuple[float, float, str]) -> tuple[str, ...]:
@@ -660,6 +668,7 @@ class Observers:
     def __post_init__(self) -> None:
         self.names = {s.name for s in self.setup.series}
         self.worst_slip = (np.inf, np.nan, "")  # smallest slip margin, its time and pulley
+        self.stop_hit: tuple[float, str, float] | None = None  # first time an arm is beyond a stop, its pulley, angle
 
     def compute(self, t, q, v, a, energy, reaction) -> dict[str, np.ndarray]:
         sysm, setup, names = self.system, self.setup, self.names
@@ -709,6 +718,17 @@ class Observers:
             arms = sysm.arms
             out["arm_angle"] = arms.angle + q[:, arms.dof]
             out["arm_speed"] = v[:, arms.dof].copy()
+            if self.stop_hit is None and arms.stops is not None:
+                from .geometry import TWO_PI
+
+                for k, (lo, hi) in enumerate(arms.stops):
+                    if np.isnan(lo):
+                        continue
+                    phi = out["arm_angle"][:, k]
+                    phi = phi + TWO_PI * np.round((0.5 * (lo + hi) - phi) / TWO_PI)
+                    bad = np.nonzero((phi < lo) | (phi > hi))[0]
+                    if bad.size and self.stop_hit is None:
+                        self.stop_hit = (float(t[bad[0]]), arms.names[k], float(phi[bad[0]]))
         if "energy" in names:
             out["energy"] = energy
         if "driver_torque" in names:

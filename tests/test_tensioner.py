@@ -462,3 +462,21 @@ def test_a_spring_wound_more_than_half_a_turn_with_stops():
     wound = _analyse(base + [f"pulleys[2].arm_free_angle={4.5 + 2 * np.pi!r}"]).static
     assert wound.arm_torque[2] > near.arm_torque[2] + 2.0
     assert abs(wound.arm_free_angle[2] - (4.5 + 2 * np.pi)) < 1e-9
+
+
+def test_a_transient_that_passes_the_arm_stops_is_marked(tmp_path):
+    # The transient does not model the stops: an arm that swings beyond arm_range is named in /transient
+    # warnings with the time (the static equilibrium at 3.0885 rad is within [2.99, 3.0886]).
+    import subprocess
+    import sys
+
+    import h5py
+
+    exe = [str(Path(sys.executable).parent / "beltdyn")]
+    r = subprocess.run([*exe, "transient", str(ARM), "--set", "pulleys[2].arm_range=[2.99, 3.0886]", "--set",
+                        "transient.duration=0.2", "--set", "transient.spectrum.start=0.1", "-o", str(tmp_path / "s.h5")],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "s.h5") as f:
+        w = [str(x) for x in f["transient"].attrs["warnings"]]
+    assert any("beyond its stops" in x and "pulley T" in x for x in w), w
