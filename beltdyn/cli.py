@@ -384,7 +384,8 @@ def modal(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
     _run(body)
 
 
-SPECTRUM_SERIES = ("span_tension", "hub_load", "bearing_force", "midspan_displacement", "pulley_speed", "driver_torque")
+SPECTRUM_SERIES = ("span_tension", "hub_load", "bearing_force", "midspan_displacement", "pulley_speed", "driver_torque",
+                   "arm_angle")
 
 
 @app.command()

@@ -403,7 +403,7 @@ def test_transient_peak_table_is_stored(tmp_path):
         relation = g["relation"].asstr()[()]
         freq, amp, harm = g["frequency"][()], g["amplitude"][()], g["harmonic"][()]
         assert set(g["series"].asstr()[()]) <= {"span_tension", "hub_load", "bearing_force", "midspan_displacement",
-                                                "pulley_speed", "driver_torque"}
+                                                "pulley_speed", "driver_torque", "arm_angle"}
     rows = [line for line in table.splitlines() if line.startswith("│")]
     assert len(rows) == len(channels) > 0
     for row, ch, u, fr, a, h, rel in zip(rows, channels, units, freq, amp, harm, relation):
