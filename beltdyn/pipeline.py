@@ -87,8 +87,11 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
 
 
 def transient(run: Analysis, *, sink, progress=None, status=None):
-    """The transient analysis from a static result (see `transient.run_transient`)."""
+    """The transient analysis from a static result (see `transient.run_transient`), with the step
+    resolved from the configuration (`timestep.resolve_step`: transient.accuracy and fmax, or step)."""
+    from .timestep import resolve_step
     from .transient import run_transient
 
     assert run.system is not None and run.static is not None and run.config.transient is not None
-    return run_transient(run.system, run.static, run.config.transient, sink=sink, progress=progress, status=status)
+    opts, _ = resolve_step(run.config.transient)
+    return run_transient(run.system, run.static, opts, sink=sink, progress=progress, status=status)
