@@ -391,7 +391,7 @@ SPECTRUM_SERIES = ("span_tension", "hub_load", "bearing_force", "midspan_displac
 def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
               force: bool = ForceOpt, force_large: bool = ForceLargeOpt,
               duration: Optional[float] = typer.Option(None, "--duration", min=0.0, help="Simulated time, s [default: transient.duration]."),
-              step: Optional[float] = typer.Option(None, "--step", min=0.0, help="Time step, s [default: transient.step].")) -> None:
+              step: Optional[float] = typer.Option(None, "--step", min=0.0, help="Time step, s, used as given [default: transient.step, or from transient.accuracy and fmax].")) -> None:
     """Nonlinear time response (generalized-alpha) with streamed histories and their spectra."""
 
     def body() -> None:

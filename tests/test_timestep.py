@@ -207,6 +207,26 @@ def test_resolve_step_rules():
         resolve_step(_options(accuracy=1e-6, fmax=2000.0, min_step=1e-6))
 
 
+def test_pipeline_transient_resolves_the_step():
+    # pipeline.transient runs with the step resolve_step gives (accuracy 1e-3 up to 300 Hz without a step:
+    # 5.78e-5 s, so 0.01 s takes ceil(0.01 / h) = 173 steps, exactly); run_transient itself refuses
+    # options whose step was never resolved (ValueError naming resolve_step).
+    from beltdyn.config import config_from_dict, config_to_dict, load_config
+    from beltdyn.pipeline import analyse, transient
+    from beltdyn.transient import run_transient
+
+    raw = config_to_dict(load_config(ROOT / "configs" / "examples" / "bench_transient_small.toml"))
+    del raw["transient"]["step"]
+    raw["transient"].update(accuracy=1e-3, fmax=300.0, duration=0.01, spectrum={"enabled": False})
+    cfg = config_from_dict(raw)
+    run = analyse(cfg)
+    summary = transient(run, sink=lambda t, b: None)
+    assert summary.steps == math.ceil(0.01 / step_for_accuracy(300.0, 1e-3, 0.9)) == 173
+    assert summary.step_halvings == 0 and summary.warnings == ()
+    with pytest.raises(ValueError, match="resolve_step"):
+        run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)
+
+
 def _run(*args, tmp_path):
     import subprocess
     import sys
