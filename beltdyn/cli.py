@@ -392,7 +392,7 @@ SPECTRUM_SERIES = ("span_tension", "hub_load", "bearing_force", "midspan_displac
 def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
               force: bool = ForceOpt, force_large: bool = ForceLargeOpt,
               duration: Optional[float] = typer.Option(None, "--duration", min=0.0, help="Simulated time, s [default: transient.duration]."),
-              step: Optional[float] = typer.Option(None, "--step", min=0.0, help="Time step, s [default: transient.step].")) -> None:
+              step: Optional[float] = typer.Option(None, "--step", min=0.0, help="Time step, s, used as given [default: transient.step, or from transient.accuracy and fmax].")) -> None:
     """Nonlinear time response (generalized-alpha) with streamed histories and their spectra."""
 
     def body() -> None:
@@ -408,12 +408,11 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
 
             raise ConfigError("no [transient] table: add one (duration, step, excitations)", file=cfg.source,
                               key="transient")
-        from .timestep import choose_step
+        from .timestep import resolve_step
 
-        t = cfg.transient
-        h, origin = choose_step(t.step, accuracy=t.accuracy, fmax=t.fmax, rho_inf=t.rho_inf, manual=step is not None)
-        if origin == "accuracy":  # the chosen step goes into the resolved configuration (provenance)
-            job = _Job(config, output, sets + [f"transient.step={h!r}"], force)
+        resolved, origin = resolve_step(cfg.transient, manual=step)
+        if resolved.step != cfg.transient.step:  # the chosen step goes into the resolved configuration
+            job = _Job(config, output, sets + [f"transient.step={resolved.step!r}"], force)  # (provenance)
         job.step_origin = origin
         _check_output_volume(job, force_large)
         spec_opts = cfg.transient.spectrum
@@ -486,13 +485,15 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
     series = {s.name: (tuple(shapes[d] for d in s.dims), s.units, s.dims) for s in setup.series}
     keep = {s.name for s in setup.series if s.name in SPECTRUM_SERIES} if opts.spectrum.enabled else set()
     con = _console()
-    from .timestep import describe
+    from .timestep import describe, frequency_error
 
     step_text, band, band_acc = describe(opts.step, accuracy=opts.accuracy, fmax=opts.fmax, rho_inf=opts.rho_inf)
     attrs = {"rho_inf": opts.rho_inf, "step_s": opts.step, "duration_s": opts.duration,
              "output_interval_s": opts.output_interval, "start": opts.start,
              "step_origin": getattr(job, "step_origin", "config"), "resolved_fmax_Hz": band,
              "resolved_accuracy": band_acc}
+    if opts.fmax is not None:
+        attrs["fmax_frequency_error"] = frequency_error(opts.fmax, opts.step, opts.rho_inf)
     with StreamWriter(job.output, "transient", series=series, coords=setup.coords, attrs=attrs,
                       config_toml=job.toml, config_sha256=job.sha, force=True) as writer:
         if "dof" in setup.coords:  # full state recorded: the unit of each DOF beside q and v

@@ -30,6 +30,8 @@ from typing import Any, NamedTuple
 
 from .errors import ConfigError
 
+DEFAULT_STEP = 1e-4  # s: transient.step when neither it nor transient.accuracy and fmax are given
+
 SIDES = ("inside", "backside")
 SUPPORTS = ("fixed", "slide", "bearing", "arm")
 TENSION_MODES = ("adjust", "prestrain", "spring")
@@ -579,12 +581,23 @@ class TransientOptions:
     duration, step, output_interval in s; rho_inf the spectral radius at infinite frequency (1: no
     numerical damping); start "static" (equilibrium) or "rest" (the stress-free reference state).
     accuracy and fmax (given together or not at all): the time step must resolve frequencies up to
-    fmax with a relative frequency error below accuracy. max_output_mb: a run writing more needs
-    --force-large.
+    fmax with a relative frequency error |e| <= accuracy, e the exact generalized-alpha error of a
+    free oscillation (beltdyn.timestep; about -c(rho_inf) (2 pi f step)^2, c = 0.084 at rho_inf = 0.9).
+    The step a run uses (`timestep.resolve_step`, called by the CLI, the sweeps and
+    `pipeline.transient`):
+      - `--step` on the command line: that step (a warning in /transient `warnings` if it misses the
+        accuracy);
+      - accuracy and fmax without step: the longest step that meets them;
+      - accuracy and fmax with step: step is an upper bound, the shorter of the two is used;
+      - neither: step (default 1e-4 s).
+    `step` is None here only when accuracy and fmax are given without it (filled in by resolve_step).
+    max_output_mb: a run writing more needs --force-large.
     """
 
     duration: float = key(POSFLOAT, 1.0, doc="simulated time", units="s")
-    step: float = key(POSFLOAT, 1e-4, doc="time step (halved when Newton fails, grown back after)", units="s")
+    step: float | None = key(POSFLOAT, None, units="s",
+                             doc="time step (halved when Newton fails, grown back after); default 1e-4 s, or "
+                                 "with accuracy and fmax the step they ask for (then given: an upper bound)")
     min_step: float = key(POSFLOAT, 1e-9, doc="smallest step before the run fails", units="s")
     output_interval: float = key(POSFLOAT, 1e-3, doc="time between recorded samples", units="s")
     rho_inf: float = key(UNIT, 0.9, doc="spectral radius at infinite frequency (1: no numerical damping)")
@@ -606,6 +619,10 @@ class TransientOptions:
                                                                    "prescribed pulley rotation")
     loads: tuple[Load, ...] = key(_Loads(), (), doc="[[transient.torque]] and [[transient.hub_force]]: "
                                                     "applied torques and hub forces")
+
+    def __post_init__(self) -> None:
+        if self.step is None and (self.accuracy is None or self.fmax is None):  # no accuracy to choose it
+            object.__setattr__(self, "step", DEFAULT_STEP)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -1020,7 +1037,7 @@ def _check_transient(chk: _Checker, t: TransientOptions, pulleys: tuple[Pulley, 
     if t.spectrum.enabled and t.spectrum.start >= t.duration:
         raise chk.fail("transient.spectrum.start", f"must be < transient.duration ({t.duration:g} s), got "
                                                    f"{t.spectrum.start:g}; or set transient.spectrum.enabled = false")
-    if t.min_step > t.step:
+    if t.step is not None and t.min_step > t.step:
         raise chk.fail("transient.min_step", f"must be <= transient.step ({t.step:g} s)")
     if (t.accuracy is None) != (t.fmax is None):
         given, missing = ("accuracy", "fmax") if t.fmax is None else ("fmax", "accuracy")

@@ -103,9 +103,12 @@ def transient_start(run: Analysis):
 
 
 def transient(run: Analysis, *, sink, progress=None, status=None):
-    """The transient analysis from a static result (see `transient.run_transient`)."""
+    """The transient analysis from a static result (see `transient.run_transient`), with the step
+    resolved from the configuration (`timestep.resolve_step`: transient.accuracy and fmax, or step)."""
+    from .timestep import resolve_step
     from .transient import run_transient
 
     assert run.system is not None and run.static is not None and run.config.transient is not None
+    opts, _ = resolve_step(run.config.transient)
     system, static = transient_start(run)
-    return run_transient(system, static, run.config.transient, sink=sink, progress=progress, status=status)
+    return run_transient(system, static, opts, sink=sink, progress=progress, status=status)

@@ -244,13 +244,12 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
         for a in assignments:
             apply_override(raw, a, file=source)
         cfg = config_from_dict(raw, file=source)
-        t = cfg.transient
-        if analysis == "transient" and t is not None and t.accuracy is not None and t.fmax is not None:
+        if analysis == "transient" and cfg.transient is not None:
             from dataclasses import replace
 
-            from .timestep import step_for_accuracy  # the step each case's accuracy asks for
+            from .timestep import resolve_step  # the step each case's accuracy (or step) asks for
 
-            cfg = replace(cfg, transient=replace(t, step=step_for_accuracy(t.fmax, t.accuracy, t.rho_inf)))
+            cfg = replace(cfg, transient=resolve_step(cfg.transient)[0])
         from .pipeline import analyse
 
         run = analyse(cfg, modal=analysis == "modal", n_modes=n_modes + 4)

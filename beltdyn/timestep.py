@@ -4,29 +4,55 @@ One step of the method (the stepper's alpha_m, alpha_f, beta, gamma for spectral
 `alpha_parameters`, which the stepper imports) maps (x, h v, h^2 a) linearly: with Omega = w h,
 
     (1 - alpha_m) a1 + alpha_m a0 + w^2 ((1 - alpha_f) x1 + alpha_f x0) = 0,
-    x1 = x0 + h v0 + h^2 ((1/2 - beta) a0 + beta a1),   v1 = v0 + h ((1 - gamma) a0 + gamma a1).
+    x1 = x0 + h v0 + h^2 ((1/2 - beta) a0 + beta a1),   v1 = v0 + h ((1 - gamma) a0 + gamma a1),
 
-Its amplification matrix A(Omega) has a principal complex pair rho e^(+-i Omega_h) (the spurious root
-is real): the discrete oscillation runs at the frequency Omega_h / h instead of w. The relative
-frequency error
+    alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1), gamma = 1/2 - alpha_m + alpha_f,
+    beta = (1 - alpha_m + alpha_f)^2 / 4.
 
-    e(Omega) = Omega_h / Omega - 1      (negative: the transient's peaks sit low, periods grow)
+Its amplification matrix A(Omega) (`amplification`) has a principal complex pair
+lambda = r e^(+-i Omega_h), r <= 1 the numerical decay per step (the third, spurious root is real):
+the discrete free vibration runs at the frequency Omega_h / h instead of w. The relative frequency
+error
 
-is computed exactly from the eigenvalues. For small Omega, e = -c Omega^2 + O(Omega^4) with
-c = 1/12 for rho_inf = 1 (the trapezoidal rule's period elongation); `series_coefficient` gives c for
-any rho_inf from the exact form at small Omega. At dt = 1e-4 s (rho_inf 0.9) e is -0.12 % at 190 Hz
-and -0.29 % at 300 Hz. `step_for_accuracy` inverts it: the longest step whose |e| stays below an
-accuracy for every frequency up to fmax (|e| grows monotonically with Omega over the band where the
-pair stays complex, checked by the tests).
+    e(Omega) = Omega_h / Omega - 1      (negative: the method's frequencies are low, its periods long;
+                                         the period error is 1/(1 + e) - 1 = -e + O(e^2))
+
+is computed exactly from the eigenvalues (`frequency_error`). Its series (the principal root's
+logarithm expanded in Omega, order by order in the characteristic polynomial det(A - lambda I) = 0):
+
+    e = -c Omega^2 + d Omega^4 + O(Omega^6),
+    c(rho) = (11 rho^2 - 14 rho + 11) / (24 (1 + rho)^2) = 1/12 + (3/8) ((1 - rho)/(1 + rho))^2,
+    d(rho) = (683 rho^4 - 2428 rho^3 + 3618 rho^2 - 2428 rho + 683) / (640 (1 + rho)^4),
+
+with c = 1/12, d = 1/80 at rho = 1, the trapezoidal rule's e = 2 atan(Omega/2)/Omega - 1
+(`series_coefficients`; the decay per step is ln r = -(1 - rho)^3 / (2 (1 + rho)^3) Omega^4 + ...).
+At dt = 1e-4 s and rho_inf = 0.9, e is -0.120 % at 190 Hz and -0.298 % at 300 Hz.
+
+|e| grows monotonically with Omega for every rho_inf in [0, 1] (the pair stays complex and its
+phase Omega_h stays below pi; checked on a grid by the tests), so `step_for_accuracy` inverts it by
+bracketing: the longest step whose |e| stays below an accuracy for every frequency up to fmax is
+Omega*(accuracy, rho_inf) / (2 pi fmax), and a step h resolves frequencies up to
+`resolved_band` = Omega* / (2 pi h).
+
+`resolve_step` decides the step a transient runs with (see `TransientOptions` in config.py): a step
+given on the command line (--step) is used as given; otherwise, with transient.accuracy and
+transient.fmax, the step they ask for, or transient.step if that is given and shorter (an upper
+bound); otherwise transient.step (default 1e-4 s).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
+if TYPE_CHECKING:
+    from .config import TransientOptions
+
 TWO_PI = 2.0 * math.pi
+DEFAULT_ACCURACY = 1e-3  # the frequency error the console reports the resolved band at, when none is asked
 
 
 def alpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
@@ -38,84 +64,126 @@ def alpha_parameters(rho_inf: float) -> tuple[float, float, float, float]:
     return am, af, beta, gamma
 
 
-def amplification(omega_h: float, rho_inf: float) -> np.ndarray:
-    """A (3, 3): (x1, h v1, h^2 a1) = A (x0, h v0, h^2 a0) for Omega = omega h."""
+def amplification(omega_h, rho_inf: float) -> np.ndarray:
+    """A (..., 3, 3): (x1, h v1, h^2 a1) = A (x0, h v0, h^2 a0) for Omega = omega h (scalar or array)."""
     am, af, beta, gamma = alpha_parameters(rho_inf)
-    W2 = omega_h * omega_h
-    A = np.empty((3, 3))
+    W2 = np.asarray(omega_h, dtype=float) ** 2
+    A = np.empty(W2.shape + (3, 3))
+    den = (1.0 - am) + W2 * (1.0 - af) * beta
     for j, (x0, v0, a0) in enumerate(np.eye(3)):  # scaled: v ~ h v, a ~ h^2 a
         # (1 - am) a1 + am a0 + W2 ((1 - af)(x0 + v0 + (1/2 - beta) a0 + beta a1) + af x0) = 0
-        a1 = -(am * a0 + W2 * ((1.0 - af) * (x0 + v0 + (0.5 - beta) * a0) + af * x0)) / \
-            ((1.0 - am) + W2 * (1.0 - af) * beta)
-        A[0, j] = x0 + v0 + (0.5 - beta) * a0 + beta * a1
-        A[1, j] = v0 + (1.0 - gamma) * a0 + gamma * a1
-        A[2, j] = a1
+        a1 = -(am * a0 + W2 * ((1.0 - af) * (x0 + v0 + (0.5 - beta) * a0) + af * x0)) / den
+        A[..., 0, j] = x0 + v0 + (0.5 - beta) * a0 + beta * a1
+        A[..., 1, j] = v0 + (1.0 - gamma) * a0 + gamma * a1
+        A[..., 2, j] = a1
     return A
 
 
+def _error_of_omega(Om: np.ndarray, rho_inf: float) -> np.ndarray:
+    """e(Omega) for an array of Omega = 2 pi f h (NaN where no complex pair is left)."""
+    Om = np.asarray(Om, dtype=float)
+    out = np.zeros(Om.shape)
+    pos = Om > 0.0
+    if not np.any(pos):
+        return out
+    lam = np.linalg.eigvals(amplification(Om[pos], rho_inf))  # (k, 3)
+    im = np.abs(lam.imag)
+    cplx = im > 1e-14 * np.abs(lam).max(axis=-1, keepdims=True)
+    phase = np.where(cplx, np.abs(np.angle(lam)), -1.0).max(axis=-1)
+    out[pos] = np.where(phase >= 0.0, phase / np.where(phase >= 0.0, Om[pos], 1.0) - 1.0, np.nan)
+    return out
+
+
 def frequency_error(frequency, step: float, rho_inf: float):
-    """Relative frequency error (discrete / exact - 1) of an oscillation at `frequency` (Hz, scalar or
-    array) integrated with `step` (s); NaN where the method no longer oscillates (Omega too large)."""
+    """Relative frequency error (discrete / exact - 1, negative: low) of a free oscillation at
+    `frequency` (Hz, scalar or array) integrated with `step` (s); exact, from the eigenvalues of the
+    amplification matrix. NaN where the method no longer oscillates (not met for rho_inf in [0, 1])."""
     f = np.asarray(frequency, dtype=float)
-    out = np.empty(f.shape)
-    for i, fi in np.ndenumerate(f):
-        Om = TWO_PI * fi * step
-        if Om == 0.0:
-            out[i] = 0.0
-            continue
-        lam = np.linalg.eigvals(amplification(Om, rho_inf))
-        cplx = lam[np.abs(lam.imag) > 1e-14 * np.abs(lam).max()]
-        out[i] = float(np.abs(np.angle(cplx)).max()) / Om - 1.0 if cplx.size else np.nan
+    out = _error_of_omega(TWO_PI * f * step, rho_inf)
     return out if f.ndim else float(out)
 
 
+def series_coefficients(rho_inf: float) -> tuple[float, float]:
+    """(c, d) in e = -c Omega^2 + d Omega^4 + O(Omega^6) (see the module docstring)."""
+    r = rho_inf
+    c = (11.0 * r * r - 14.0 * r + 11.0) / (24.0 * (1.0 + r) ** 2)
+    d = (683.0 * r ** 4 - 2428.0 * r ** 3 + 3618.0 * r ** 2 - 2428.0 * r + 683.0) / (640.0 * (1.0 + r) ** 4)
+    return c, d
+
+
 def series_coefficient(rho_inf: float) -> float:
-    """c in e = -c Omega^2 + O(Omega^4) (from the exact error at Omega = 1e-2)."""
-    Om = 1e-2
-    return -frequency_error(Om / (TWO_PI * 1.0), 1.0, rho_inf) / (Om * Om)
+    """c in e = -c Omega^2 + O(Omega^4): the leading-order frequency error per (2 pi f dt)^2."""
+    return series_coefficients(rho_inf)[0]
+
+
+def critical_omega(accuracy: float, rho_inf: float) -> float:
+    """Omega* = 2 pi f h at which |e| reaches `accuracy` (0 < accuracy < 1)."""
+    from scipy.optimize import brentq
+
+    if not 0.0 < accuracy < 1.0:
+        raise ValueError(f"accuracy must be in (0, 1), got {accuracy!r}")
+
+    def excess(Om: float) -> float:
+        e = float(_error_of_omega(np.array(Om), rho_inf))
+        return (abs(e) if np.isfinite(e) else 1.0) - accuracy
+
+    # start from the series' estimate and bracket: |e| grows with Omega (and tends to 1)
+    hi = min(math.sqrt(accuracy / series_coefficient(rho_inf)), 1.0)
+    lo = 0.0
+    while excess(hi) < 0.0:
+        lo, hi = hi, 2.0 * hi
+        if hi > 1e6:
+            raise ValueError(f"no step reaches the frequency error {accuracy!r}")
+    return brentq(excess, lo, hi, xtol=1e-15, rtol=4 * np.finfo(float).eps)
 
 
 def step_for_accuracy(fmax: float, accuracy: float, rho_inf: float) -> float:
     """The longest step (s) with |frequency error| <= accuracy for every frequency up to fmax (Hz)."""
-    from scipy.optimize import brentq
-
-    def excess(Om: float) -> float:
-        e = frequency_error(Om / TWO_PI, 1.0, rho_inf)
-        return (abs(e) if np.isfinite(e) else 1.0) - accuracy
-
-    lo, hi = 1e-6, 0.5
-    while excess(hi) < 0.0 and hi < 3.0:
-        lo, hi = hi, 2.0 * hi
-    Om = brentq(excess, lo, hi, xtol=1e-14, rtol=1e-12)
-    return Om / (TWO_PI * fmax)
+    return critical_omega(accuracy, rho_inf) / (TWO_PI * fmax)
 
 
 def resolved_band(step: float, accuracy: float, rho_inf: float) -> float:
     """The highest frequency (Hz) a step resolves with |frequency error| <= accuracy."""
-    return step_for_accuracy(1.0, accuracy, rho_inf) / step
+    return critical_omega(accuracy, rho_inf) / (TWO_PI * step)
 
 
-DEFAULT_ACCURACY = 1e-3  # the frequency error the console reports the resolved band at, when none is asked
+STEP_ORIGINS = ("config", "accuracy", "--step")
 
 
-def choose_step(step: float, *, accuracy: float | None, fmax: float | None, rho_inf: float,
-                manual: bool) -> tuple[float, str]:
-    """(step, origin): a step given on the command line (manual) wins ("--step"); otherwise, with
-    transient.accuracy and transient.fmax, the longest step that meets them ("accuracy"); otherwise
-    transient.step ("config")."""
-    if manual:
-        return step, "--step"
-    if accuracy is not None and fmax is not None:
-        return step_for_accuracy(fmax, accuracy, rho_inf), "accuracy"
-    return step, "config"
+def resolve_step(t: "TransientOptions", manual: float | None = None) -> tuple["TransientOptions", str]:
+    """(options with `step` set, origin): the step a transient runs with.
+
+    - manual (the command line's --step): that step, origin "--step" (a step that misses
+      transient.accuracy is marked in the run's warnings, `transient.accuracy_warnings`);
+    - transient.accuracy and transient.fmax given: the longest step that meets them, origin
+      "accuracy"; if transient.step is given too it is an upper bound: when it is shorter it is kept,
+      origin "config" (it meets the accuracy with room to spare);
+    - otherwise transient.step (default 1e-4 s), origin "config".
+    A step below transient.min_step is refused (ConfigError)."""
+    if manual is not None:
+        h, origin = float(manual), "--step"
+    elif t.accuracy is not None and t.fmax is not None:
+        h, origin = step_for_accuracy(t.fmax, t.accuracy, t.rho_inf), "accuracy"
+        if t.step is not None and t.step < h:
+            h, origin = t.step, "config"
+    else:
+        h, origin = t.step, "config"  # TransientOptions fills in the default
+    if h < t.min_step:
+        from .errors import ConfigError
+
+        key = "transient.accuracy" if origin == "accuracy" else "transient.step"
+        raise ConfigError(f"the step {h:.4g} s ({origin}) is below transient.min_step = {t.min_step:g} s", key=key)
+    return replace(t, step=h), origin
 
 
-def describe(step: float, *, accuracy: float | None, fmax: float | None, rho_inf: float) -> tuple[str, float, float]:
-    """A sentence on what the step resolves, the band (Hz) and the accuracy it is quoted at."""
+def describe(step: float, *, accuracy: float | None, fmax: float | None,
+             rho_inf: float) -> tuple[str, float, float]:
+    """A sentence on the band a step resolves, the band (Hz) and the accuracy it is quoted at
+    (transient.accuracy, or DEFAULT_ACCURACY when none is given)."""
     acc = accuracy if accuracy is not None else DEFAULT_ACCURACY
     band = resolved_band(step, acc, rho_inf)
-    text = (f"step {step:.4g} s resolves frequencies up to {band:.4g} Hz within {acc:.3g} (generalized-alpha, "
-            f"rho_inf = {rho_inf:g}; the error grows as {series_coefficient(rho_inf):.4f} (2 pi f dt)^2)")
+    text = (f"step {step:.4g} s: frequency error <= {acc:.3g} up to {band:.4g} Hz (generalized-alpha, "
+            f"rho_inf = {rho_inf:g}; error ~ -{series_coefficient(rho_inf):.4f} (2 pi f dt)^2)")
     if fmax is not None:
-        text += f"; at fmax = {fmax:g} Hz the frequency error is {frequency_error(fmax, step, rho_inf):+.3g}"
+        text += f"; {frequency_error(fmax, step, rho_inf):+.3%} at fmax = {fmax:g} Hz"
     return text, band, acc

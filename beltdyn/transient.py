@@ -613,6 +613,9 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
     """
     from . import integrator as itg
 
+    if opts.step is None:
+        raise ValueError("TransientOptions.step is not set: resolve it from transient.accuracy and fmax first "
+                         "(timestep.resolve_step)")
     setup = setup or prepare(system, static, opts)
     # the time stepper evaluates the belt thousands of times: the compiled kernel (system.BeltSpans)
     system = system.with_belt(damping_axial=float(opts.damping.belt_axial),
