@@ -147,7 +147,7 @@ def lock_output(path: Path) -> None:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
-            pid = _lock_pid(fd)
+            pid = lock_pid(fd)
             os.close(fd)
             who = f"pid {pid}" if pid else "another process"
             raise OutputError(f"results file {path} is being written by {who} (another beltdyn command on the same "
@@ -179,7 +179,8 @@ def lock_output(path: Path) -> None:
     raise OutputError(f"cannot lock the results file {path}: its lock keeps disappearing")
 
 
-def _lock_pid(fd: int) -> int | None:
+def lock_pid(fd: int) -> int | None:
+    """The pid a lock holder wrote into its lock file (it writes it right after locking)."""
     import time
 
     for _ in range(20):

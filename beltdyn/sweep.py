@@ -335,6 +335,7 @@ def _run_chunk(base_toml: str, source: str, items: list[tuple[int, list[str]]], 
 
 # ------------------------------------------------------------------------------------ the journal
 from .results_io import HELD_LOCKS as _HELD_LOCKS  # noqa: E402  lock descriptors (closed in forked workers)
+from .results_io import lock_pid  # noqa: E402
 
 
 class Journal:
@@ -404,7 +405,7 @@ class Journal:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                pid = _lock_holder(fd)
+                pid = lock_pid(fd)
                 os.close(fd)
                 who = f"pid {pid}" if pid else "another process"
                 raise OutputError(f"sweep journal {self.dir} is in use by {who} (a sweep writing the same output "
@@ -673,19 +674,6 @@ def _decode(payload: np.ndarray) -> dict:
         out[name] = arr
         pos += size
     return out
-
-
-def _lock_holder(fd: int) -> int | None:
-    """The pid recorded in a lock file held by another process (it writes it right after locking)."""
-    for _ in range(20):
-        try:
-            text = os.pread(fd, 32, 0).decode().strip()
-        except OSError:
-            return None
-        if text.isdigit():
-            return int(text)
-        time.sleep(0.01)
-    return None
 
 
 # ------------------------------------------------------------------------------------ running
