@@ -126,13 +126,50 @@ HELD_LOCKS: set[int] = set()  # lock descriptors of this process (closed in fork
 _OUTPUT_LOCKS: dict[str, int] = {}  # results-file lock path -> its descriptor
 
 
+class LockBusy(Exception):
+    """`take_lock`: another process holds the lock (its pid, if it wrote one)."""
+
+    def __init__(self, pid: int | None) -> None:
+        super().__init__(pid)
+        self.pid = pid
+
+    @property
+    def who(self) -> str:
+        return f"pid {self.pid}" if self.pid else "another process"
+
+
+def take_lock(lock: Path) -> int | None:
+    """flock the file `lock` (exclusive, no waiting) and write this process's pid into it; the descriptor
+    (in HELD_LOCKS), or None when the holder removed the lock file between our open and flock (take it
+    again). LockBusy(pid) when another process holds it; an OSError of the open propagates."""
+    import fcntl
+
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        pid = lock_pid(fd)
+        os.close(fd)
+        raise LockBusy(pid) from None
+    try:
+        same = os.stat(lock).st_ino == os.fstat(fd).st_ino
+    except FileNotFoundError:
+        same = False
+    if not same:
+        os.close(fd)
+        return None
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    HELD_LOCKS.add(fd)
+    return fd
+
+
 def lock_output(path: Path) -> None:
     """Hold `<path>.lock` (flock, exclusive, no waiting) for the rest of this process: a second beltdyn
     command writing the same results file is refused (OutputError, exit 2, naming the holder's pid)
     instead of replacing it when it ends (its results would be lost). Released when the process exits
     (the lock file is removed then)."""
     import atexit
-    import fcntl
 
     lock = Path(str(path) + ".lock")
     key = os.path.abspath(lock)
@@ -141,27 +178,14 @@ def lock_output(path: Path) -> None:
     for _ in range(20):
         try:
             lock.parent.mkdir(parents=True, exist_ok=True)  # as the writer would (results/ by default)
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+            fd = take_lock(lock)
         except OSError:
             return  # no lock possible here (a read-only folder): the write itself will say why
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            pid = lock_pid(fd)
-            os.close(fd)
-            who = f"pid {pid}" if pid else "another process"
-            raise OutputError(f"results file {path} is being written by {who} (another beltdyn command on the same "
-                              f"output); wait for it to finish or write to another file with -o") from None
-        try:
-            same = os.stat(lock).st_ino == os.fstat(fd).st_ino
-        except FileNotFoundError:
-            same = False
-        if not same:  # the holder finished and removed the lock file between our open and flock
-            os.close(fd)
+        except LockBusy as busy:
+            raise OutputError(f"results file {path} is being written by {busy.who} (another beltdyn command on the "
+                              f"same output); wait for it to finish or write to another file with -o") from None
+        if fd is None:  # the holder finished and removed the lock file between our open and flock
             continue
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-        HELD_LOCKS.add(fd)
         _OUTPUT_LOCKS[key] = fd
         pid = os.getpid()
 

@@ -335,7 +335,7 @@ def _run_chunk(base_toml: str, source: str, items: list[tuple[int, list[str]]], 
 
 # ------------------------------------------------------------------------------------ the journal
 from .results_io import HELD_LOCKS as _HELD_LOCKS  # noqa: E402  lock descriptors (closed in forked workers)
-from .results_io import lock_pid  # noqa: E402
+from .results_io import LockBusy, take_lock  # noqa: E402
 
 
 class Journal:
@@ -382,8 +382,6 @@ class Journal:
         of the holder if another sweep has it. The folder is created if needed (and removed again by
         `unlock` if nothing was journaled). Left-over temporary files of a killed run are removed, and
         a record torn by a crash is cut off the log."""
-        import fcntl
-
         if self._lock_fd is not None:
             return
         for _ in range(20):
@@ -395,32 +393,18 @@ class Journal:
                     pass
                 except OSError as exc:
                     raise OutputError(f"cannot create the sweep journal {self.dir}: {exc}") from exc
-            path = self.dir / self.LOCK
             try:
-                fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+                fd = take_lock(self.dir / self.LOCK)
             except FileNotFoundError:  # the folder was removed meanwhile (a sweep finished): again
                 continue
+            except LockBusy as busy:
+                raise OutputError(f"sweep journal {self.dir} is in use by {busy.who} (a sweep writing the same output "
+                                  "is running); wait for it to finish or stop it, then use --resume") from None
             except OSError as exc:
                 raise OutputError(f"cannot lock the sweep journal {self.dir}: {exc}") from exc
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                pid = lock_pid(fd)
-                os.close(fd)
-                who = f"pid {pid}" if pid else "another process"
-                raise OutputError(f"sweep journal {self.dir} is in use by {who} (a sweep writing the same output "
-                                  "is running); wait for it to finish or stop it, then use --resume") from None
-            try:  # the holder may have finished and removed the folder between our open and flock
-                same = os.stat(path).st_ino == os.fstat(fd).st_ino
-            except FileNotFoundError:
-                same = False
-            if not same:
-                os.close(fd)
+            if fd is None:  # the holder may have finished and removed the folder between our open and flock
                 continue
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
             self._lock_fd = fd
-            _HELD_LOCKS.add(fd)
             for stale in self.dir.glob("*.tmp*"):  # partial writes of a run that was killed
                 stale.unlink(missing_ok=True)
             self._close()
