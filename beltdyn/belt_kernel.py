@@ -163,55 +163,6 @@ def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f):
                 f[k, i] += acc
 
 
-@njit(cache=True, inline="always")
-def _kron_blocks(dS, k, nq, cf, r, out):
-    """out[k] = sum_q [[cf[r], cf[r+1]], [cf[r+1], cf[r+2]]]_q (x) D_q D_q^T (written, symmetric): the
-    axial tangent's and damping's Kronecker structure, one sum over the Gauss points per entry."""
-    for a in range(4):
-        for b in range(a, 4):
-            kxx = 0.0
-            kxy = 0.0
-            kyy = 0.0
-            for g in range(nq):
-                DD = dS[k, g, a] * dS[k, g, b]
-                kxx += cf[r, g] * DD
-                kxy += cf[r + 1, g] * DD
-                kyy += cf[r + 2, g] * DD
-            out[k, 2 * a, 2 * b] = kxx
-            out[k, 2 * a, 2 * b + 1] = kxy
-            out[k, 2 * a + 1, 2 * b] = kxy
-            out[k, 2 * a + 1, 2 * b + 1] = kyy
-            if b > a:
-                out[k, 2 * b, 2 * a] = kxx
-                out[k, 2 * b + 1, 2 * a] = kxy
-                out[k, 2 * b, 2 * a + 1] = kxy
-                out[k, 2 * b + 1, 2 * a + 1] = kyy
-
-
-@njit(cache=True, inline="always")
-def _add_scaled_sym(out, k, M, scale):
-    """out[k] += scale M[k] for a symmetric M, the result exactly symmetric."""
-    for i in range(8):
-        for j in range(i, 8):
-            v = scale * M[k, i, j]
-            out[k, i, j] += v
-            if j > i:
-                out[k, j, i] += v
-
-
-@njit(cache=True, inline="always")
-def _add_rank_sum(out, k, nq, w, vec):
-    """out[k] += sum_q w[q] vec[q] vec[q]^T (vec (nq, 8)), exactly symmetric."""
-    for i in range(8):
-        for j in range(i, 8):
-            v = 0.0
-            for g in range(nq):
-                v += w[g] * vec[g, i] * vec[g, j]
-            out[k, i, j] += v
-            if j > i:
-                out[k, j, i] += v
-
-
 @njit(cache=True)
 def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K):
     """f (n, 8) = dU/de and K (n, 8, 8) = df/de (exactly symmetric) at E (n, 8), as
@@ -265,14 +216,35 @@ def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K):
                 fy += dS[k, g, a] * cf[1, g]
             f[k, 2 * a] = fx
             f[k, 2 * a + 1] = fy
-        _kron_blocks(dS, k, nq, cf, 2, K)
+            for b in range(a, 4):
+                kxx = 0.0
+                kxy = 0.0
+                kyy = 0.0
+                for g in range(nq):
+                    DD = dS[k, g, a] * dS[k, g, b]
+                    kxx += cf[2, g] * DD
+                    kxy += cf[3, g] * DD
+                    kyy += cf[4, g] * DD
+                K[k, 2 * a, 2 * b] = kxx
+                K[k, 2 * a, 2 * b + 1] = kxy
+                K[k, 2 * a + 1, 2 * b] = kxy
+                K[k, 2 * a + 1, 2 * b + 1] = kyy
+                if b > a:
+                    K[k, 2 * b, 2 * a] = kxx
+                    K[k, 2 * b + 1, 2 * a] = kxy
+                    K[k, 2 * b, 2 * a + 1] = kxy
+                    K[k, 2 * b + 1, 2 * a + 1] = kyy
         if curvature == _LINEAR:
             for i in range(8):
                 fi = 0.0
                 for j in range(8):
                     fi += Kb[k, i, j] * E[k, j]
                 f[k, i] += fi
-            _add_scaled_sym(K, k, Kb, 1.0)
+                for j in range(i, 8):
+                    kb = Kb[k, i, j]
+                    K[k, i, j] += kb
+                    if j > i:
+                        K[k, j, i] += kb
         elif exact:
             for a in range(4):  # f += u_c gc
                 fx = 0.0
@@ -284,7 +256,14 @@ def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K):
                     fy += D2 * ce[4, g] - D * ce[5, g]
                 f[k, 2 * a] += fx
                 f[k, 2 * a + 1] += fy
-            _add_rank_sum(K, k, nq, ce[1], h)  # a h h^T
+            for i in range(8):  # a h h^T
+                for j in range(i, 8):
+                    v = 0.0
+                    for g in range(nq):
+                        v += ce[1, g] * h[g, i] * h[g, j]
+                    K[k, i, j] += v
+                    if j > i:
+                        K[k, j, i] += v
             # u_c (Q + Q^T): (2a, 2b+1) and (2b+1, 2a) += q_ab, (2a+1, 2b) and (2b, 2a+1) -= q_ab,
             # q_ab = sum_q u_c (D_a D2_b - D2_a D_b) (zero for a == b)
             for a in range(4):
@@ -366,11 +345,41 @@ def element_damping_matrix(E, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C)
                     D2 = d2S[k, g, a]
                     gc[g, 2 * a] = D * py - D2 * ry
                     gc[g, 2 * a + 1] = D2 * rx - D * px
-        _kron_blocks(dS, k, nq, cf, 0, C)
+        for a in range(4):
+            for b in range(a, 4):
+                kxx = 0.0
+                kxy = 0.0
+                kyy = 0.0
+                for g in range(nq):
+                    DD = dS[k, g, a] * dS[k, g, b]
+                    kxx += cf[0, g] * DD
+                    kxy += cf[1, g] * DD
+                    kyy += cf[2, g] * DD
+                C[k, 2 * a, 2 * b] = kxx
+                C[k, 2 * a, 2 * b + 1] = kxy
+                C[k, 2 * a + 1, 2 * b] = kxy
+                C[k, 2 * a + 1, 2 * b + 1] = kyy
+                if b > a:
+                    C[k, 2 * b, 2 * a] = kxx
+                    C[k, 2 * b + 1, 2 * a] = kxy
+                    C[k, 2 * b, 2 * a + 1] = kxy
+                    C[k, 2 * b + 1, 2 * a + 1] = kyy
         if curvature == _LINEAR and eta_b != 0.0:
-            _add_scaled_sym(C, k, Kb, eta_b)
+            for i in range(8):
+                for j in range(i, 8):
+                    kb = eta_b * Kb[k, i, j]
+                    C[k, i, j] += kb
+                    if j > i:
+                        C[k, j, i] += kb
         elif bend:
-            _add_rank_sum(C, k, nq, cf[3], gc)
+            for i in range(8):
+                for j in range(i, 8):
+                    v = 0.0
+                    for g in range(nq):
+                        v += cf[3, g] * gc[g, i] * gc[g, j]
+                    C[k, i, j] += v
+                    if j > i:
+                        C[k, j, i] += v
 
 
 @njit(cache=True)
