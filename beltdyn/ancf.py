@@ -243,6 +243,18 @@ def _make_elements_all(
     )
 
 
+@functools.lru_cache(maxsize=32)
+def _unit_shape_tables(xi_bytes: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The unit-element tables of Eq. 3 in xi (n_pts, 4) and their xi-derivatives (cached per point set)."""
+    xi = np.frombuffer(xi_bytes, dtype=float)
+    x2 = xi * xi
+    x3 = x2 * xi
+    s_u = np.column_stack([1.0 - 3.0 * x2 + 2.0 * x3, xi - 2.0 * x2 + x3, 3.0 * x2 - 2.0 * x3, x3 - x2])
+    ds_u = np.column_stack([6.0 * x2 - 6.0 * xi, 1.0 - 4.0 * xi + 3.0 * x2, 6.0 * xi - 6.0 * x2, 3.0 * x2 - 2.0 * xi])
+    d2s_u = np.column_stack([12.0 * xi - 6.0, 6.0 * xi - 4.0, 6.0 - 12.0 * xi, 6.0 * xi - 2.0])
+    return _readonly(s_u), _readonly(ds_u), _readonly(d2s_u)
+
+
 def shape_functions(
     xi: np.ndarray, length: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -263,17 +275,18 @@ def shape_functions(
         raise ValueError(f"xi must be 1-D (n_pts,), got shape {xi.shape}")
     if L.ndim != 1:
         raise ValueError(f"length must be 1-D (n_elem,), got shape {L.shape}")
-    x2 = xi * xi
-    x3 = x2 * xi
-    # Unit-element tables in xi, then the powers of L that Eq. 3 and d/dx = (1/L) d/dxi bring.
-    s_u = np.column_stack([1.0 - 3.0 * x2 + 2.0 * x3, xi - 2.0 * x2 + x3, 3.0 * x2 - 2.0 * x3, x3 - x2])
-    ds_u = np.column_stack([6.0 * x2 - 6.0 * xi, 1.0 - 4.0 * xi + 3.0 * x2, 6.0 * xi - 6.0 * x2, 3.0 * x2 - 2.0 * xi])
-    d2s_u = np.column_stack([12.0 * xi - 6.0, 6.0 * xi - 4.0, 6.0 - 12.0 * xi, 6.0 * xi - 2.0])
-    one = np.ones_like(L)
+    s_u, ds_u, d2s_u = _unit_shape_tables(xi.tobytes())
     inv = 1.0 / L
-    s = s_u[None, :, :] * np.column_stack([one, L, one, L])[:, None, :]
-    ds = ds_u[None, :, :] * np.column_stack([inv, one, inv, one])[:, None, :]
-    d2s = d2s_u[None, :, :] * np.column_stack([inv * inv, inv, inv * inv, inv])[:, None, :]
+    s = np.empty((L.shape[0], xi.shape[0], 4))
+    ds = np.empty_like(s)
+    d2s = np.empty_like(s)
+    # the powers of L that Eq. 3 and d/dx = (1/L) d/dxi bring, column by column
+    s[:, :, 0::2] = s_u[None, :, 0::2]
+    np.multiply(s_u[None, :, 1::2], L[:, None, None], out=s[:, :, 1::2])
+    np.multiply(ds_u[None, :, 0::2], inv[:, None, None], out=ds[:, :, 0::2])
+    ds[:, :, 1::2] = ds_u[None, :, 1::2]
+    np.multiply(d2s_u[None, :, 0::2], (inv * inv)[:, None, None], out=d2s[:, :, 0::2])
+    np.multiply(d2s_u[None, :, 1::2], inv[:, None, None], out=d2s[:, :, 1::2])
     return s, ds, d2s
 
 

@@ -145,27 +145,26 @@ def compute_layout(
             raise GeometryError(
                 f"the belt path winds {total / TWO_PI:.3g} times instead of once: "
                 "check the pulley order and sides", "pulleys")
-        for i in range(n):
-            for k in range(n):
-                if k in (i, (i + 1) % n):
-                    continue
-                gap = _segment_distance(center[k], start[i], end[i]) - radius[k]
-                if gap < -1e-12:
-                    raise GeometryError(
-                        f"span {names[i]}-{names[(i + 1) % n]} cuts through pulley '{names[k]}'",
-                        f"pulleys[{k}].center")
+        if n > 2:  # distance of every other pulley's centre (k) from every span's segment (i), (n, n)
+            ab = end - start
+            rel = center[None, :, :] - start[:, None, :]
+            s_ = np.clip(np.einsum("ikd,id->ik", rel, ab) / np.maximum(np.einsum("id,id->i", ab, ab), 1e-300)[:, None],
+                         0.0, 1.0)
+            foot = start[:, None, :] + s_[..., None] * ab[:, None, :]
+            gap = np.hypot(foot[..., 0] - center[None, :, 0], foot[..., 1] - center[None, :, 1]) - radius[None, :]
+            gap[np.arange(n), np.arange(n)] = np.inf  # a span touches its own two pulleys
+            gap[np.arange(n), nxt] = np.inf
+            if np.any(gap < -1e-12):
+                i, k = (int(x) for x in np.argwhere(gap < -1e-12)[0])
+                raise GeometryError(
+                    f"span {names[i]}-{names[(i + 1) % n]} cuts through pulley '{names[k]}'",
+                    f"pulleys[{k}].center")
     return Layout(
         names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
         span_start=start, span_end=end, span_length=length, span_angle=alpha,
         start_normal=np.sign(rho)[:, None] * m, end_normal=np.sign(rho[nxt])[:, None] * m,
         wrap_angle=wrap, arc_length=radius * wrap, belt_length=float(length.sum() + (radius * wrap).sum()),
     )
-
-
-def _segment_distance(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> float:
-    ab = b - a
-    s = float(np.clip(np.dot(p - a, ab) / max(np.dot(ab, ab), 1e-300), 0.0, 1.0))
-    return float(np.hypot(*(a + s * ab - p)))
 
 
 def belt_length_gradient(layout: Layout, j: int) -> np.ndarray:

@@ -416,6 +416,15 @@ def solve_static(system: System, options: StaticOptions, *, q0: np.ndarray | Non
     moves far meets its spans off tangent; `solve_static_on_solved_geometry` (what
     `pipeline.analyse` calls) lays the belt out again at the solved positions.
     """
+    q, preload, hist = solve_equilibrium(system, options, q0=q0)
+    return _result(system, q, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof)
+
+
+def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray | None = None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The equilibrium of `solve_static` without its outputs: (q (n_dof,), spring preloads (n_dof,),
+    Newton history (n_iter, 2) of (scaled residual, load factor)). For the re-lay passes, whose
+    outputs only the last one needs."""
     model = system
     prob = _Problem(system, options)
     n = model.n_dof
@@ -447,8 +456,7 @@ def solve_static(system: System, options: StaticOptions, *, q0: np.ndarray | Non
         _check_travel(model, q)
         r, _ = model.equilibrium(q, tangent=False)
         prob.preload[prob.a] = r[prob.a]
-    hist = np.array(prob.history).reshape(-1, 2)
-    return _result(model, q, prob.preload, hist[:, 0], hist[:, 1], len(hist), prob.driver)
+    return q, prob.preload, np.array(prob.history).reshape(-1, 2)
 
 
 def _check_travel(system: System, q: np.ndarray) -> None:
@@ -631,31 +639,103 @@ def _meet_prestrain(build, layout, lam: float, free: np.ndarray, options: Static
                       analysis="static", step="prestrain iteration", residual=abs(g) / tol_T, item="tension.target")
 
 
-def _predicted_centers(system: System, anchored: set, fit, tol_x: float) -> np.ndarray:
-    """Pulley centres (n, 2) of the drive under a uniform belt tension T = target: the adjustable pulley
-    where `fit(centers)` places it (mode "adjust"), every spring-supported pulley deflected by its
-    bearing springs under the belt's pull T (t_out - t_in) of that layout and the weight on its DOFs
-    (`gravity_force`, the pulley's and its share of the belt's). A fixed point over layouts (cheap
-    geometry); the static passes correct what it leaves out (sag, bending)."""
+def torque_split(layout, loads: np.ndarray | None, rot_dof: np.ndarray, driver: int) -> np.ndarray:
+    """(n,) span tensions relative to the span leaving the driver that the static accessory torques ask
+    for on a rigid belt: the belt's torque on pulley j is rho_j (T_j - T_(j-1)), rho = orientation x
+    side x radius, so every other pulley has T_j = T_(j-1) - tau_j / rho_j (the driver reacts the rest)."""
+    n = layout.n
+    split = np.zeros(n)
+    if loads is None:
+        return split
+    rho = layout.orientation * layout.side_sign * layout.radius
+    for i in range(1, n):
+        j = (driver + i) % n
+        split[j] = split[j - 1] - float(loads[int(rot_dof[j])]) / rho[j]
+    return split
+
+
+def _conserved_tension(layout, split: np.ndarray, material: float, EA: float) -> np.ndarray:
+    """(n,) span tensions T_ref + split on `layout` of a belt of `material` length whose wraps are
+    unstretched: sum_s L_s / lambda(T_s) + sum(arcs) = material (Newton on T_ref)."""
+    from .system import stretch_for_tension as _stretch
+
+    free = material - float(layout.arc_length.sum())
+    L = layout.span_length
+    T_ref = EA * (float(L.sum()) / free - 1.0) - float(L @ split) / float(L.sum())
+    for _ in range(30):
+        lam = np.array([_stretch(T, EA) for T in T_ref + split])
+        g = float((L / lam).sum()) - free
+        dg = -float((L / lam**2 / (0.5 * EA * (3.0 * lam**2 - 1.0))).sum())
+        step = g / dg
+        T_ref -= step
+        if abs(step) <= 1e-12 * EA:
+            break
+    return T_ref + split
+
+
+def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_tension) -> np.ndarray:
+    """Pulley centres (n, 2) of the drive on a rigid belt whose span tensions `span_tension(layout)` (n,)
+    gives (the target or the belt's length, split by the accessory torques): the adjustable pulley where
+    `fit(centers)` places it (mode "adjust"), every spring-supported pulley deflected by its bearing
+    springs under the belt's pull T_j t_j - T_(j-1) t_(j-1) of that layout and the weight on its DOFs
+    (`gravity_force`, the pulley's and its share of the belt's), every sprung tensioner arm (but the
+    adjusting one) turned until its spring balances the moment of that pull about its pivot (secant).
+    A fixed point over layouts (cheap geometry); the static passes correct what it leaves out (sag,
+    bending, the arms' weight)."""
     from .geometry import relay
 
     lay0 = system.layout
-    T = float(system.tension.target)
+    place = fit if fit is not None else (lambda c: relay(lay0, c))
     k_diag = np.asarray(system.linear_matrix().diagonal()).ravel() if anchored else None
-    anchored_set = anchored
+    arms = []  # (pulley, pivot, length, stiffness, layout angle, free angle) of each sprung arm it turns
+    if system.arms is not None:
+        a = system.arms
+        for k, dof in enumerate(a.dof):
+            spring = next((c for c in system.components if c.dofs.tolist() == [int(dof)] and c.stiffness is not None),
+                          None)
+            if int(dof) == system.tension.adjust_dof or spring is None:
+                continue
+            j = next(i for i, dd in enumerate(system.trans_dof) if dd and dd[0] == a.slot[k])
+            free = float(spring.free[0]) if spring.free is not None else 0.0
+            arms.append((j, a.pivot[k], float(a.length[k]), float(spring.stiffness[0, 0]), float(a.angle[k]),
+                         float(a.angle[k]) + free))
     centers = lay0.center.copy()
-    if not anchored_set and fit is not None:  # nothing deflects: the fit alone places the pulleys
+    if not anchored and not arms and fit is not None:  # nothing deflects: the fit alone places the pulleys
         return fit(centers).center
+
+    def pull(lay) -> np.ndarray:
+        t, T = lay.span_direction, span_tension(lay)
+        return T[:, None] * t - np.roll(T[:, None] * t, 1, axis=0)
+
     for _ in range(50):
-        lay = fit(centers) if fit is not None else relay(lay0, centers)
-        t = lay.span_direction
-        pull = T * (t - np.roll(t, 1, axis=0))  # span j leaves pulley j along t_j, span j-1 arrives along t_j-1
+        for j, pv, length, k_s, phi_ref, phi_f in arms:  # each arm's balance, the other pulleys where they are
+            def moment(phi: float) -> float:
+                c = centers.copy()
+                c[j] = pv + length * np.array([np.cos(phi), np.sin(phi)])
+                r, f = c[j] - pv, pull(place(c))[j]
+                return float(r[0] * f[1] - r[1] * f[0]) - k_s * (phi - phi_f)
+
+            phi0 = float(np.arctan2(*(centers[j] - pv)[::-1]))
+            phi0 += 2.0 * np.pi * round((phi_ref - phi0) / (2.0 * np.pi))  # the layout's branch of the angle
+            phi1 = phi0 + 1e-4
+            m0, m1 = moment(phi0), moment(phi1)
+            for _ in range(30):
+                if m1 == m0:
+                    break
+                phi0, phi1, m0 = phi1, phi1 - m1 * (phi1 - phi0) / (m1 - m0), m1
+                if abs(phi1 - phi0) * length <= tol_x:
+                    break
+                m1 = moment(phi1)
+            centers[j] = pv + length * np.array([np.cos(phi1), np.sin(phi1)])
+        lay = place(centers)
+        force = pull(lay)
         new = lay.center.copy()
         for j, (dofs, dirs) in enumerate(zip(system.trans_dof, system.trans_dir)):
-            new[j] = lay0.center[j] if any(k in anchored_set for k in dofs) else lay.center[j]
+            if any(k in anchored for k in dofs):
+                new[j] = lay0.center[j]
             for k, v in zip(dofs, dirs):
-                if k in anchored_set and k_diag[k] > 0.0:
-                    new[j] = new[j] + v * (float(pull[j] @ v) + float(system.gravity_force[k])) / k_diag[k]
+                if k in anchored and k_diag[k] > 0.0:
+                    new[j] = new[j] + v * (float(force[j] @ v) + float(system.gravity_force[k])) / k_diag[k]
         done = float(np.abs(new - centers).max()) <= tol_x
         centers = new
         if done:
@@ -753,11 +833,21 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
 
     free = np.zeros(n_dof)
     lam_p, slope = float(system.belt.prestrain_stretch), None
-    if ts.target is not None and (moving or ts.mode == "adjust"):  # predicted first layout
+    material = float(system.belt.reference_length.sum() + lay0.arc_length.sum())  # L0, wraps unstretched
+    split = torque_split(lay0, system.loads, d.rot_dof, system.driver_dof)
+    if ts.target is not None:
+        def span_tension(lay):  # the target as the length-weighted mean, split by the torques
+            return float(ts.target) - float(lay.span_length @ split) / float(lay.span_length.sum()) + split
+    elif conserve and ts.mode != "adjust":
+        def span_tension(lay):  # what the belt's length gives on that path
+            return _conserved_tension(lay, split, material, EA)
+    else:
+        span_tension = None
+    predict = span_tension is not None and (moving or ts.mode == "adjust")
+    if predict:  # predicted first layout
         fit = None
         if ts.mode == "adjust":
             lam_T = _stretch(float(ts.target), EA)
-            material = float(system.belt.reference_length.sum() + lay0.arc_length.sum())  # L0
             j = lay0.adjust_index
 
             pivot = None if lay0.adjust_kind != "arm" else system.arms.pivot[arm_of[d.trans_dof[j][0]]]
@@ -770,13 +860,13 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                     lay_f = Layout(**{**lay_f.__dict__, "adjust_offset": lay0.adjust_offset + lay_f.adjust_offset})
                 return lay_f
         try:
-            centers = _predicted_centers(system, anchored, fit, tol_x)
+            centers = _predicted_centers(system, anchored, fit, tol_x, span_tension)
             lay, free, built = lay_out(lay0, centers, system.belt.reference_length, "prediction")
             if prestrain:
                 lam_p = _stretch(float(ts.target), EA)
             else:
                 system = built
-        except (GeometryError, SolverError):
+        except (GeometryError, SolverError, FloatingPointError, ValueError):
             lay, free = lay0, np.zeros(n_dof)  # no prediction: start from the L0 fit
     if hasattr(system, "full"):  # a deferred build (pipeline.analyse): solved on the L0 fit after all
         system = system.full()
@@ -787,16 +877,20 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         if prestrain:
             system, st, lam_p, slope, k = _meet_prestrain(build, lay, lam_p, free, options, slope)
             solves += k
+            q_p = st.q
         else:
-            st = solve_static(system, options, q0=warm if p > 1 else None)
+            q_p, preload, hist = solve_equilibrium(system, options, q0=warm if p > 1 else None)
             solves += 1
-        step = st.pulley_center - lay.center
+        solved_centers = system.pulley_centers(q_p)
+        step = solved_centers - lay.center
         movement.append(float(np.linalg.norm(step, axis=1).max(initial=0.0)))
         if not moving or movement[-1] <= tol_x:
+            if not prestrain:
+                st = _result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof)
             _check_slack(system, st)
             return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement))
         # the next layout: at the solved centres, extrapolated (Aitken) where the passes contract steadily
-        centers = st.pulley_center
+        centers = solved_centers
         if prev_step is not None:
             rho = float(np.vdot(step, prev_step) / np.vdot(prev_step, prev_step))
             cos = float(np.vdot(step, prev_step) / (np.linalg.norm(step) * np.linalg.norm(prev_step)))
@@ -810,7 +904,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                         centers[j] = pv + r * (np.hypot(*(lay0.center[j] - pv)) / np.hypot(*r))
         prev_step = step
         ref_old = system.belt.reference_length
-        prev_system, prev_q = system, st.q
+        prev_system, prev_q = system, q_p
         lay, free, built = lay_out(lay, centers, ref_old, f"re-lay pass {p}")
         if prestrain:
             lam_p = float(lay.span_length.sum() / ref_old.sum())

@@ -29,6 +29,7 @@ matrix (large models).
 
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import dataclass, field
 
@@ -466,14 +467,11 @@ class Pattern:
 
     def slots_of(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
         """CSR data slots of entries (rows, cols) that the pattern holds (sparse path)."""
-        keys = rows.astype(np.int64) * (self.n + 1) + cols
-        r, c = np.divmod(keys, self.n + 1)
-        lo = self.indptr[r]
-        out = np.empty(len(keys), dtype=np.int64)
-        for k in range(len(keys)):  # small: component entries only
-            seg = self.indices[lo[k]: self.indptr[r[k] + 1]]
-            out[k] = lo[k] + int(np.searchsorted(seg, c[k]))
-        return out
+        keys = self.__dict__.get("_keys")
+        if keys is None:  # row * (n + 1) + col of every slot: ascending (rows in order, columns sorted)
+            keys = np.repeat(np.arange(self.n, dtype=np.int64), np.diff(self.indptr)) * (self.n + 1) + self.indices
+            object.__setattr__(self, "_keys", keys)
+        return np.searchsorted(keys, np.asarray(rows, dtype=np.int64) * (self.n + 1) + cols)
 
 
 def element_pairs(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -922,7 +920,8 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
     pattern = make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
 
     def summed(attr: str):
-        """The components' matrices `attr` summed: dense (n, n) for dense systems, CSR otherwise."""
+        """The components' matrices `attr` summed: dense (n, n) for dense systems, else the data (nnz,)
+        of a CSR matrix on the system's pattern."""
         mats = [(c.dofs, getattr(c, attr)) for c in components if getattr(c, attr) is not None]
         if not mats:
             return None
@@ -931,12 +930,12 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
             for d, mat in mats:
                 A[np.ix_(d, d)] += mat
             return A
-        from scipy.sparse import coo_matrix
-
         r = np.concatenate([np.repeat(d, len(d)) for d, _ in mats])
         c = np.concatenate([np.tile(d, len(d)) for d, _ in mats])
         v = np.concatenate([np.asarray(mat, dtype=float).ravel() for _, mat in mats])
-        return coo_matrix((v, (r, c)), shape=(n, n)).tocsr()
+        data = np.zeros(pattern.nnz)  # on the system's pattern, which holds every component entry
+        np.add.at(data, pattern.slots_of(r, c), v)
+        return data
 
     K_lin, C_lin, M_comp = summed("stiffness"), summed("damping"), summed("mass")
     offset = None
@@ -958,27 +957,15 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
         lin = K_lin
         C = C_lin
     else:
+        from scipy.sparse import csr_matrix
+
         M = Mb
-        if M_comp is not None:  # Mb is already on the pattern: add the components' few entries
-            coo = M_comp.tocoo()
-            np.add.at(M.data, pattern.slots_of(coo.row, coo.col), coo.data)
-        lin = _in_pattern(K_lin, pattern).data if K_lin is not None else None
-        C = _in_pattern(C_lin, pattern) if C_lin is not None else None
+        if M_comp is not None:  # Mb is already on the pattern: add the components' entries
+            M.data += M_comp
+        lin = K_lin
+        C = csr_matrix((C_lin, pattern.indices, pattern.indptr), shape=(n, n)) if C_lin is not None else None
     return System(**{**stub.__dict__, "mass": M, "linear_stiffness": lin, "linear_damping": C,
                      "linear_offset": offset})
-
-
-def _in_pattern(A, pattern: Pattern):
-    """A CSR matrix re-expressed on the system's pattern (every entry of A must be in it)."""
-    from scipy.sparse import csr_matrix
-
-    A = csr_matrix(A)
-    A.sum_duplicates()
-    data = np.zeros(pattern.nnz)
-    coo = A.tocoo()
-    if coo.nnz:
-        data[pattern.slots_of(coo.row, coo.col)] += coo.data
-    return csr_matrix((data, pattern.indices, pattern.indptr), shape=A.shape)
 
 
 # ------------------------------------------------------------------------------------ building
@@ -1170,6 +1157,7 @@ def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
 BYTES_PER_DOF = 10_000  # a generous bound on the memory of static + modal + transient per DOF (bench: ~4.4 kB)
 
 
+@functools.lru_cache(maxsize=1)
 def memory_limit() -> int:
     """Bytes this process may use: the smaller of the physical memory and a cgroup (container) limit."""
     limit = 1 << 62
@@ -1255,6 +1243,8 @@ class DeferredSystem:
         self._facts = {
             "layout": layout, "dofs": dofs, "tension": tension_setting(cfg, dofs), "arms": arm_joints(cfg, layout, dofs),
             "trans_dof": dofs.trans_dof, "trans_dir": dofs.trans_dir, "rot_dof": dofs.rot_dof,
+            "loads": static_loads(cfg, dofs), "driver_dof": int(dofs.rot_dof[cfg.driver_index]),
+            "components": pulley_components(cfg, dofs, layout),
             "belt": SimpleNamespace(reference_length=layout.span_length / lam, prestrain_stretch=float(lam),
                                     span_stretch=None, elements=SimpleNamespace(EA=np.array([cfg.belt.EA]))),
         }
