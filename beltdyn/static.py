@@ -67,15 +67,17 @@ class StaticResult:
     slip_margin: np.ndarray | None = None  # (n,) friction / required_friction (NaN: no friction given)
 
 
-def _predictor(system: System, stretch: float, adjust_dof: int, driver_dof: int) -> np.ndarray:
-    """Linear axial estimate: rotations and the adjustable slide that stretch every span by `stretch`.
+def _predictor(system: System, stretch: float | np.ndarray, adjust_dof: int, driver_dof: int) -> np.ndarray:
+    """Linear axial estimate: rotations and the adjustable slide (adjust_dof >= 0) that stretch the spans
+    by `stretch` (one number, or one per span).
 
     Span elongation d_s = (dr_end - dr_start) . t_s is linear in the pulley DOFs; solve A x = (stretch-1) L_s
-    for the non-driver rotations and the slide, then lay the nodes on the straight chords.
+    (least squares) for the non-driver rotations and the slide, then lay the nodes on the straight chords.
     """
     model = system.belt
     n = system.layout.n
-    unknowns = [int(system.rot_dof[j]) for j in range(n) if int(system.rot_dof[j]) != driver_dof] + [adjust_dof]
+    unknowns = [int(system.rot_dof[j]) for j in range(n) if int(system.rot_dof[j]) != driver_dof]
+    unknowns += [adjust_dof] if adjust_dof >= 0 else []
     A_p = np.zeros((n, system.n_p + 1))  # on the joint coordinates (an arm's centre offsets), padding last
     t = model.reference_direction
     ends = []
@@ -663,7 +665,7 @@ def _conserved_tension(layout, split: np.ndarray, material: float, EA: float) ->
     L = layout.span_length
     T_ref = EA * (float(L.sum()) / free - 1.0) - float(L @ split) / float(L.sum())
     for _ in range(30):
-        lam = np.array([_stretch(T, EA) for T in T_ref + split])
+        lam = _stretch(T_ref + split, EA)
         g = float((L / lam).sum()) - free
         dg = -float((L / lam**2 / (0.5 * EA * (3.0 * lam**2 - 1.0))).sum())
         step = g / dg
@@ -832,6 +834,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         return new, free, build(new, None, free)
 
     free = np.zeros(n_dof)
+    warm = None
     lam_p, slope = float(system.belt.prestrain_stretch), None
     material = float(system.belt.reference_length.sum() + lay0.arc_length.sum())  # L0, wraps unstretched
     split = torque_split(lay0, system.loads, d.rot_dof, system.driver_dof)
@@ -865,9 +868,11 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             if prestrain:
                 lam_p = _stretch(float(ts.target), EA)
             else:
+                # started with the pulleys turned to the predicted span tensions
+                warm = _predictor(built, _stretch(span_tension(lay), EA), ts.adjust_dof, built.driver_dof)
                 system = built
-        except (GeometryError, SolverError, FloatingPointError, ValueError):
-            lay, free = lay0, np.zeros(n_dof)  # no prediction: start from the L0 fit
+        except (GeometryError, SolverError, FloatingPointError, ValueError, np.linalg.LinAlgError):
+            lay, free, warm = lay0, np.zeros(n_dof), None  # no prediction: start from the L0 fit
     if hasattr(system, "full"):  # a deferred build (pipeline.analyse): solved on the L0 fit after all
         system = system.full()
     prev_step = None
@@ -879,7 +884,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             solves += k
             q_p = st.q
         else:
-            q_p, preload, hist = solve_equilibrium(system, options, q0=warm if p > 1 else None)
+            q_p, preload, hist = solve_equilibrium(system, options, q0=warm)
             solves += 1
         solved_centers = system.pulley_centers(q_p)
         step = solved_centers - lay.center

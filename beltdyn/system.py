@@ -1126,16 +1126,17 @@ def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
     return F
 
 
-def stretch_for_tension(tension: float, EA: float) -> float:
-    """lambda with EA * eps * lambda = N, eps = (lambda^2 - 1)/2 (St. Venant-Kirchhoff bar)."""
-    lam = 1.0 + tension / EA
+def stretch_for_tension(tension, EA: float):
+    """lambda with EA * eps * lambda = N, eps = (lambda^2 - 1)/2 (St. Venant-Kirchhoff bar); elementwise
+    for an array of tensions (a float for a float)."""
+    T = np.asarray(tension, dtype=float)
+    lam = 1.0 + T / EA
     for _ in range(50):
-        f = 0.5 * EA * (lam**3 - lam) - tension
-        step = f / (0.5 * EA * (3 * lam**2 - 1))
-        lam -= step
-        if abs(step) < 1e-16:
+        step = (0.5 * EA * (lam**3 - lam) - T) / (0.5 * EA * (3 * lam**2 - 1))
+        lam = lam - step
+        if np.all(np.abs(step) <= 1e-15):  # lambda ~ 1: a few ulp; Newton is quadratic well before
             break
-    return lam
+    return float(lam) if lam.ndim == 0 else lam
 
 
 def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
