@@ -509,6 +509,7 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
             summary = run_transient(model, res, opts, sink=sink, progress=update, setup=setup)
         ev = summary.slack_events
         writer.set_attrs(steps=summary.steps, refactorizations=summary.refactorizations,
+                         newton_iterations=summary.newton_iterations,
                          energy_balance_error=summary.energy_error, energy_moved_J=summary.energy_moved,
                          step_halvings=summary.step_halvings, smallest_step_s=summary.min_step,
                          n_slack_events=int(len(ev)), warnings=list(summary.warnings))
@@ -643,7 +644,8 @@ def _channel_labels(series, coords) -> list[str]:
 def _print_transient(con, summary, spans, peaks, f_exc) -> None:
     from rich.table import Table
 
-    con.print(f"transient {summary.status}: {summary.steps} steps to t = {summary.final_time:.6g} s, "
+    con.print(f"transient {summary.status}: {summary.steps} steps to t = {summary.final_time:.6g} s "
+              f"({summary.newton_iterations / max(summary.steps, 1):.2f} Newton iterations per step), "
               f"{summary.refactorizations} refactorizations, {summary.step_halvings} step halvings "
               f"(smallest step {summary.min_step:.3g} s); energy balance error {summary.energy_error:.2e} "
               f"of the energy moved")

@@ -93,8 +93,8 @@ def no_arms(n: int) -> Arms:
     return Arms(dof=np.zeros(0, dtype=np.int64), slot=np.zeros(0, dtype=np.int64), length=np.zeros(0),
                 angle=np.zeros(0), friction=np.zeros(0), bristle=np.zeros(0), anchor=np.zeros(0), n_q=n)
 # scal slots
-T_NOW, H, T_OUT, WORK, DISS, STEPS, E0, WORST, MOVED, KIN0, POT0 = range(11)
-N_SCAL = 11
+T_NOW, H, T_OUT, WORK, DISS, STEPS, E0, WORST, MOVED, KIN0, POT0, ITERS = range(12)
+N_SCAL = 12
 ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
 
 
@@ -108,7 +108,8 @@ def empty_csr(n: int) -> Csr:
 def to_csr(A) -> Csr:
     from scipy.sparse import csr_matrix
 
-    A = csr_matrix(A)
+    A = csr_matrix(A, copy=True)
+    A.eliminate_zeros()  # a system's constant matrices live on the whole pattern: the springs are few
     A.sort_indices()
     return Csr(A.indptr.astype(np.int64), A.indices.astype(np.int64), A.data.astype(np.float64))
 
@@ -247,33 +248,32 @@ def factor_solve(fac, b, x, work):
 
 
 @njit(cache=True)
-def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, min_elem):
-    """Reduced belt elastic (f_el) and damping (f_dmp) forces (n + 1,) at (q, v); gross (n + 1,) the
-    sum of |T^T f_e| over elements (the round-off scale); min_elem (n_elem,) smallest EA eps."""
+def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross):
+    """Reduced belt elastic (f_el) and damping (f_dmp) forces (n + 1,) at (q, v); with_gross: also
+    gross (n + 1,), the sum of |T^T f_e| over elements (the round-off scale)."""
     bk.gather(q_ext, belt.e0, belt.T, belt.idx, belt.tsel, E)
     bk.element_forces(E, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, fe)
     f_el[:] = 0.0
     bk.scatter_vector(fe, belt.T, belt.idx, belt.tsel, f_el)
-    # gross scale: |T^T f_e| per element entry
-    gross[:] = 0.0
-    n_elem, _, m = belt.T.shape
-    for e in range(n_elem):
-        if belt.tsel[e] < 0:
-            for i in range(8):
-                gross[belt.idx[e, i]] += abs(fe[e, i])
-        else:
-            for j in range(m):
-                s = 0.0
+    if with_gross:  # gross scale: |T^T f_e| per element entry
+        gross[:] = 0.0
+        n_elem, _, m = belt.T.shape
+        for e in range(n_elem):
+            if belt.tsel[e] < 0:
                 for i in range(8):
-                    s += belt.T[e, i, j] * fe[e, i]
-                gross[belt.idx[e, j]] += abs(s)
+                    gross[belt.idx[e, i]] += abs(fe[e, i])
+            else:
+                for j in range(m):
+                    s = 0.0
+                    for i in range(8):
+                        s += belt.T[e, i, j] * fe[e, i]
+                    gross[belt.idx[e, j]] += abs(s)
     f_dmp[:] = 0.0
     if belt.eta_a != 0.0 or belt.eta_b != 0.0:
         bk.gather_velocity(v_ext, belt.T, belt.idx, belt.tsel, Ed)
         bk.element_damping(E, Ed, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, belt.eta_a,
                            belt.eta_b, fd)
         bk.scatter_vector(fd, belt.T, belt.idx, belt.tsel, f_dmp)
-    bk.element_min_axial_force(E, belt.dS, belt.EA, min_elem)
 
 
 @njit(cache=True)
@@ -484,7 +484,8 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             for i in range(n):
                 q_ext[i] = q1[i]
                 v_ext[i] = v1[i]
-            belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, min_elem)
+            # the round-off scale at the step's first evaluation: a floor, not a force
+            belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, it == 0)
             bristle1 = arm_friction(arms, q1, f_dmp)
             for i in range(n):
                 dq[i] = q1[i] - lin.q_ref[i]
@@ -624,7 +625,9 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
                 out.reaction[k, c] = (1.0 - s) * state.R0[c] + s * R1[c]
             out.n[0] += 1
             th[T_OUT] += opts.dt_out
-        # slack events: smallest 2nd Piola-Kirchhoff force per span
+        # slack events: smallest 2nd Piola-Kirchhoff force per span (E: the accepted state, the last
+        # one evaluated unless an energy evaluation gathered it again at q1)
+        bk.element_min_axial_force(E, belt.dS, belt.EA, min_elem)
         for sp in range(belt.n_span):
             min_span[sp] = np.inf
         for e in range(n_elem):
@@ -660,4 +663,5 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
         bristle0 = arm_friction(arms, q, tmp)  # after the return mapping (tmp: scratch)
         th[T_NOW] = t1
         th[STEPS] += 1.0
+        th[ITERS] += it
         steps += 1

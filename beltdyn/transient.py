@@ -75,6 +75,7 @@ class TransientSummary:
     energy_moved: float = 0.0  # J, max of |d kinetic| + |d strain|, |work|, |dissipated|
     warnings: tuple[str, ...] = ()  # accuracy warnings (see `accuracy_warnings`) and slip
     worst_slip_margin: tuple[float, float, str] = (np.inf, np.nan, "")  # smallest slip margin, time, pulley
+    newton_iterations: int = 0  # corrections (iteration-matrix solves) of the accepted steps
 
 
 ENERGY_WARNING = 0.01  # energy-balance error, as a share of the energy moved, above which a run is flagged
@@ -449,7 +450,7 @@ def initial_state(problem: StepProblem, rho_inf: float, step: float):
     n_elem = belt.T.shape[0]
     E, Ed, fe, fd = (np.empty((n_elem, 8)) for _ in range(4))
     f_el, f_dmp, gross = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1)
-    itg.belt_forces(belt, np.append(q, 0.0), np.append(v, 0.0), E, Ed, fe, fd, f_el, f_dmp, gross, np.empty(n_elem))
+    itg.belt_forces(belt, np.append(q, 0.0), np.append(v, 0.0), E, Ed, fe, fd, f_el, f_dmp, gross, False)
     arms.anchor[:] = q[arms.dof]  # the friction's bristles relaxed at the start
     itg.arm_friction(arms, q, f_dmp)
     Kd, Cv, F0 = np.empty(n), np.empty(n), np.empty(n)
@@ -642,7 +643,7 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
                             warnings=accuracy_warnings(opts, energy_error=error, min_step=float(min_h),
                                                        excitation_frequency=setup.excitation_frequency)
                             + _slip_warning(observer.worst_slip) + _stop_warning(observer.stop_hit),
-                            worst_slip_margin=observer.worst_slip)
+                            worst_slip_margin=observer.worst_slip, newton_iterations=int(th[itg.ITERS]))
 
 
 def _stop_warning(hit) -> tuple[str, ...]:
