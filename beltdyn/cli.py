@@ -422,6 +422,61 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
     _run(body)
 
 
+@app.command()
+def response(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
+             force: bool = ForceOpt) -> None:
+    """Steady forced response over driver speed and engine orders: amplitudes and phases of tensions,
+    hub loads, pulley and arm angles, mid-span displacements (the drive linearized about its static
+    equilibrium; one complex solve per frequency)."""
+
+    def body() -> None:
+        job = _Job(config, output, set_, force)
+        cfg = job.cfg
+        if cfg.response is None:
+            from .errors import ConfigError
+
+            raise ConfigError("no [response] table: add one (speed range, orders, [[response.excitation]])",
+                              file=cfg.source, key="response")
+        run = _static_pipeline(job, modal=False)
+        from .errors import SolverError
+        from .export import response_group
+        from .response import response_of
+
+        try:
+            res = response_of(cfg, run)
+        except SolverError as exc:
+            job.add(_failed_group("response", exc))
+            job.write()
+            raise
+        job.add(response_group(run.system, res))
+        job.write()
+        _print_response(_console(), res)
+        _console().print(f"wrote [bold]/geometry /static /response[/] to {job.output}")
+
+    _run(body)
+
+
+def _print_response(con, res) -> None:
+    """Per order: the largest span-tension and hub-load amplitudes over the speeds, and where."""
+    import numpy as np
+    from rich.table import Table
+
+    for w in res.warnings:
+        con.print(f"[bold yellow]warning[/]: {w}")
+    table = Table(title=f"steady response, {len(res.speed)} speeds {res.speed[0]:.6g}-{res.speed[-1]:.6g} rad/s "
+                        f"(prescribed: {', '.join(res.prescribed)})")
+    for col in ("order", "largest tension amplitude", "at speed", "frequency", "largest hub-load amplitude",
+                "at speed"):
+        table.add_column(col, justify="right")
+    T = np.abs(res.outputs["span_tension"]).max(axis=(2, 3))
+    H = np.linalg.norm(np.abs(res.outputs["hub_load"]), axis=-1).max(axis=2)
+    for o, k in enumerate(res.orders):
+        i, j = int(np.argmax(T[:, o])), int(np.argmax(H[:, o]))
+        table.add_row(f"{k:g}", f"{T[i, o]:.4g} N", f"{res.speed[i]:.5g} rad/s", f"{res.frequency[i, o]:.5g} Hz",
+                      f"{H[j, o]:.4g} N", f"{res.speed[j]:.5g} rad/s")
+    con.print(table)
+
+
 def _check_output_volume(job: "_Job", force_large: bool) -> None:
     """Before any work: histories above transient.max_output_mb need --force-large (exit 2)."""
     from .system import build_system

@@ -167,6 +167,27 @@ class _Pair(_Kind):
         return list(value)
 
 
+class _Numbers(_Kind):
+    """A non-empty list of distinct numbers > 0, in increasing order as given."""
+
+    label = "list of numbers > 0, increasing"
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> tuple[float, ...]:
+        if not isinstance(value, list) or not value:
+            raise chk.fail(key, f"must be a non-empty list of numbers, got {_show(value)}")
+        xs = tuple(chk.number(f"{key}[{i}]", v) for i, v in enumerate(value))
+        for i, x in enumerate(xs):
+            if not x > 0:
+                raise chk.fail(f"{key}[{i}]", f"must be > 0, got {_num(x)}")
+            if i and not x > xs[i - 1]:
+                raise chk.fail(f"{key}[{i}]", f"must be larger than {key}[{i - 1}] = {_num(xs[i - 1])} "
+                                              f"(increasing, no repeats)")
+        return xs
+
+    def dump(self, value: tuple[float, ...]) -> list[float]:
+        return list(value)
+
+
 class _Stiffness(_Kind):
     """A number k >= 0 (taken as (k, k)) or a pair [kx, ky] of numbers >= 0."""
 
@@ -567,6 +588,40 @@ class Damping:
 
 
 @dataclass(frozen=True, kw_only=True)
+class ResponseExcitation:
+    """[[response.excitation]]: a harmonic excitation at an engine order of the driver's speed."""
+
+    pulley: str = key(STR, doc="name of the pulley it acts on")
+    kind: str = key(_Choice("speed", "torque"),
+                    doc='"speed": a fluctuation of the pulley\'s speed, its rotation prescribed (amplitude in '
+                        'rad/s); "torque": a harmonic torque on the pulley (amplitude in N m)')
+    amplitude: float = key(FLOAT, doc="amplitude: rad/s (speed) or N m (torque, counter-clockwise)",
+                           units="rad/s | N m")
+    order: float = key(NONNEGFLOAT, 0.0, omit_default=True,
+                       doc="the engine order it acts at (one of response.orders); 0: at every order")
+    phase: float = key(FLOAT, 0.0, omit_default=True, doc="phase: speed B sin(w t + phase), torque "
+                                                          "tau cos(w t + phase)", units="rad")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ResponseOptions:
+    """beltdyn response: the harmonic steady state of the drive linearized about its static equilibrium,
+    for `points` driver speeds evenly spread over `speed` and each engine order: the excitation
+    frequency is order x speed / (2 pi)."""
+
+    speed: tuple[float, float] = key(_Pair(ordered=True), doc="[min, max] of the driver's mean speed",
+                                     units="rad/s")
+    points: int = key(POSINT, 100, doc="driver speeds in the range, evenly spaced")
+    orders: tuple[float, ...] = key(_Numbers(), (1.0,), doc="engine orders", units="1")
+    damping: Damping = key(_Table(Damping), factory=Damping,
+                             doc="[response.damping]: Rayleigh and belt damping, as [transient.damping]")
+    excitation: tuple[ResponseExcitation, ...] = key(
+        _Array(ResponseExcitation, min_items=1, noun="excitations",
+               missing="missing: give at least one [[response.excitation]]"),
+        doc="[[response.excitation]]: the driver's speed fluctuation and harmonic accessory torques")
+
+
+@dataclass(frozen=True, kw_only=True)
 class SpectrumOptions:
     enabled: bool = key(BOOL, True, doc="compute the spectra of the recorded series")
     start: float = key(NONNEGFLOAT, 0.0, doc="start of the analysed window (leave out the transient)", units="s")
@@ -649,6 +704,8 @@ class DriveConfig:
     modal: ModalOptions = key(_Table(ModalOptions), factory=ModalOptions, doc="[modal]: modal analysis")
     transient: TransientOptions | None = key(_Table(TransientOptions), None, doc="[transient]: time integration")
     sweep: SweepTable | None = key(_Table(SweepTable), None, doc="[sweep]: parameter sweep (beltdyn sweep)")
+    response: ResponseOptions | None = key(_Table(ResponseOptions), None,
+                                           doc="[response]: steady forced response (beltdyn response)")
     title: str = key(TEXT, "", omit_default=True, doc="a title for the results")
     source: str = ""  # file the config came from (not part of the resolved TOML)
 
@@ -915,6 +972,8 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>") -> DriveCon
     transient = cfg.transient
     if transient is not None:
         transient = _check_transient(chk, transient, pulleys, file)
+    if cfg.response is not None:
+        _check_response(chk, cfg.response, pulleys)
     return replace(cfg, pulleys=pulleys, tension=tension, transient=transient, source=file)
 
 
@@ -990,6 +1049,24 @@ def _check_pulleys(chk: _Checker, raw: list[dict[str, Any]], pulleys: tuple[Pull
     if len(drivers) > 1:
         raise chk.fail(f"pulleys[{drivers[1]}].driver", "only one pulley may be the driver")
     return tuple(out)
+
+
+def _check_response(chk: _Checker, r: ResponseOptions, pulleys: tuple[Pulley, ...]) -> None:
+    names = [p.name for p in pulleys]
+    driver = next((i for i, p in enumerate(pulleys) if p.driver), 0)
+    if not r.speed[0] > 0:
+        raise chk.fail("response.speed", f"the driver's speeds must be > 0 (an excitation at order x speed), "
+                                         f"got [{_num(r.speed[0])}, {_num(r.speed[1])}]")
+    prescribed = {driver} | {names.index(e.pulley) for e in r.excitation if e.kind == "speed" and e.pulley in names}
+    for i, e in enumerate(r.excitation):
+        key = f"response.excitation[{i}]"
+        j = _pulley_index(chk, f"{key}.pulley", e.pulley, names)
+        if e.kind == "torque" and j in prescribed:
+            raise chk.fail(f"{key}.pulley", f"pulley '{e.pulley}' has a prescribed rotation (the driver, or a speed "
+                                            f"excitation): a torque on it goes into that prescription")
+        if e.order and e.order not in r.orders:
+            raise chk.fail(f"{key}.order", f"order {_num(e.order)} is not one of response.orders "
+                                           f"{list(r.orders)}: it would never act")
 
 
 def _pulley_index(chk: _Checker, key: str, name: str, names: list[str]) -> int:

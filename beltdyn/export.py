@@ -299,3 +299,30 @@ def sweep_group(cfg, result) -> GroupData:
     return GroupData(name="sweep", coords=coords, variables=tuple(variables),
                      attrs={"analysis": spec.analysis, "zip": int(spec.zip), "shape": json.dumps(list(spec.shape)),
                             "params": json.dumps(spec.to_json()["params"]), "n_failed": int(result.failed.sum())})
+
+
+def response_group(system, res) -> GroupData:
+    """/response: a `speed` axis (the driver's mean speed) and an `order` axis; every output as its
+    amplitude and phase (y(t) = amplitude cos(omega t + phase), omega = order x speed)."""
+    from .response import coordinates
+
+    variables = [
+        Variable(name="frequency", data=res.frequency, dims=("speed", "order"), units="Hz",
+                 description="excitation frequency order x speed / (2 pi)"),
+        Variable(name="belt_speed", data=res.belt_speed, dims=("speed",), units="m/s",
+                 description="belt speed speed x R_driver"),
+    ]
+    for name, y in res.outputs.items():
+        dims = ("speed", "order", *res.dims[name])
+        variables.append(Variable(name=f"{name}_amplitude", data=np.abs(y), dims=dims, units=res.units[name],
+                                  description=f"amplitude of the harmonic {name}"))
+        variables.append(Variable(name=f"{name}_phase", data=np.angle(y), dims=dims, units="rad",
+                                  description=f"phase of the harmonic {name} (the excitation's phases as given)"))
+    return GroupData(
+        name="response",
+        coords={"speed": res.speed, "order": res.orders, **coordinates(system)},
+        coord_units={"speed": "rad/s", "order": "1"},
+        variables=tuple(variables),
+        attrs={"prescribed": list(res.prescribed), "warnings": list(res.warnings),
+               "model": "linearized about the static equilibrium; transport terms of the running belt not included"},
+    )

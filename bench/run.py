@@ -147,6 +147,29 @@ def main() -> None:
     add("FEAD example transient 1 s at dt = 1e-4 s (crank order 2 at idle, arm friction)", f"{t:.3f} s", "<= 1 s",
         t <= 1.0)
 
+    # --- beltdyn response (issue 9): 100 speeds x 3 orders of the paper bench, 10 el/span, in-process
+    import tomllib
+
+    from beltdyn.config import config_from_dict
+    from beltdyn.pipeline import analyse
+    from beltdyn.response import response_of
+
+    raw = tomllib.loads(PAPER.read_text())
+    raw["response"] = {"speed": [20.0, 600.0], "points": 100, "orders": [1.0, 2.0, 4.0],
+                       "damping": {"rayleigh_mass": 5.0},
+                       "excitation": [{"pulley": "A", "kind": "speed", "amplitude": 1.0},
+                                      {"pulley": "C", "kind": "torque", "amplitude": 0.5}]}
+    cfg = config_from_dict(raw, file=str(PAPER))
+    run = analyse(cfg)
+    t = median_time(lambda: response_of(cfg, run), repeats=5)
+    add("response: 100 speeds x 3 orders, paper bench 10 el/span (after static)", f"{t * 1e3:.0f} ms", "<= 1 s",
+        t <= 1.0)
+    cfg = load_config(fead, ["response.points=100", "response.orders=[1.0, 2.0, 4.0]"])
+    run = analyse(cfg)
+    t = median_time(lambda: response_of(cfg, run), repeats=3)
+    add(f"response: 100 speeds x 3 orders, FEAD example ({run.system.n_dof} DOFs, sparse)", f"{t * 1e3:.0f} ms",
+        "reference", None)
+
     # --- memory against mesh size: peak traced allocation of the pipeline per DOF
     per_dof = []
     for n_el in (10, 40, 160, 400):

@@ -1,0 +1,286 @@
+"""Steady forced response of a running drive: the harmonic steady state of the drive linearized about
+its static equilibrium, over a range of driver speeds and engine orders (`beltdyn response`).
+
+Nomenclature (independent coordinates q, n = n_dof):
+    q0          the static equilibrium (`static.StaticResult.q`)
+    M           J^T M J at q0, the mass matrix on q (`System.mass_matrix`)
+    K           the loaded tangent at q0 (`System.equilibrium`: belt, springs, the arms' geometric terms)
+    C           J^T (C_c + alpha M + beta K_0 + C_belt(q0)) J: the components' dampers, Rayleigh damping
+                (K_0 the tangent on the joint coordinates, as in the transient) and the belt's Kelvin-Voigt
+                damping matrix at q0 (retardation times [response.damping] belt_axial / belt_bending)
+    Omega       the driver's mean speed (rad/s); k an engine order; omega = k Omega the excitation (rad/s)
+
+Small motions x(t) = Re(X e^{i omega t}) about q0 obey M x'' + C x' + K x = f(t), so for each
+(Omega, k) one complex solve
+
+    D(omega) X = F,     D = K + i omega C - omega^2 M,
+
+with the prescribed rotations held: the driver's (and any pulley with a "speed" excitation) move by
+Theta; the free DOFs solve D_ff X_f = F_f - D_fp Theta. A speed fluctuation B sin(omega t + phase) is
+the angle Theta = -(B / omega) e^{i phase} (the transient's engine-order fluctuation at constant speed,
+`integrator.rotation_state`); a torque tau cos(omega t + phase) is F = tau e^{i phase} on the pulley's
+rotation. The excitations of one order act together (their phases add).
+
+Outputs Y = h'(q0) X are the transient's own output functions linearized by central differences in the
+directions Re X and Im X (the velocities i omega X and accelerations -omega^2 X go with them), so a
+span tension, hub load, bearing force or mid-span displacement means here exactly what it means in
+/transient; amplitudes |Y| and phases arg Y (y(t) = |Y| cos(omega t + arg Y)).
+
+Left out, and why: the arms' dry friction (not linear: a sticking damper is a spring, a sliding one a
+constant torque; the transient models it); the running belt's transport terms (gyroscopic and
+centripetal) until the running-belt model provides them at the belt speed Omega R_driver (until then
+the response is that of the drive at rest excited at k Omega, as the transient's travelling frame).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import Damping, DriveConfig, ResponseOptions
+from .errors import SolverError
+from .static import StaticResult
+from .system import System
+
+OUTPUTS = ("span_tension", "hub_load", "pulley_angle", "pulley_speed", "arm_angle", "midspan_displacement",
+           "driver_torque")
+
+
+@dataclass(frozen=True, kw_only=True)
+class ResponseResult:
+    """Complex amplitudes over (speed, order): y(t) = Re(Y e^{i omega t})."""
+
+    speed: np.ndarray  # (n_speed,) rad/s, the driver's mean speed
+    orders: np.ndarray  # (n_order,)
+    frequency: np.ndarray  # (n_speed, n_order) Hz, the excitation frequency k Omega / (2 pi)
+    belt_speed: np.ndarray  # (n_speed,) m/s, Omega R_driver
+    outputs: dict  # name -> complex array (n_speed, n_order, ...) (see OUTPUTS and the components' series)
+    dims: dict  # name -> the trailing dimension names of the output
+    units: dict  # name -> units
+    prescribed: tuple[str, ...]  # the pulleys whose rotation is prescribed
+    warnings: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, kw_only=True)
+class LinearDrive:
+    """The drive linearized about q0: matrices on q (dense or CSR as the system)."""
+
+    M: object
+    C: object
+    K: object
+    q0: np.ndarray
+
+
+def linearize(system: System, static: StaticResult, damping: Damping) -> LinearDrive:
+    """M, C, K of the drive about its static equilibrium (see the module docstring)."""
+    q0 = static.q
+    _, K = system.equilibrium(q0)
+    M = system.mass_matrix(q0)
+    C_p = system.linear_damping
+    if damping.rayleigh_mass or damping.rayleigh_stiffness:
+        ray = damping.rayleigh_mass * system.mass + damping.rayleigh_stiffness * system.tangent_on_joints(q0)
+        C_p = ray if C_p is None else C_p + ray
+    if damping.belt_axial or damping.belt_bending:
+        from . import belt_kernel as bk
+
+        belt = system.belt
+        tab = belt.kernel_tables
+        E = belt.element_coordinates(system.expand(q0))
+        Ce = np.empty((E.shape[0], 8, 8))
+        bk.element_damping_matrix(E, tab.dS, tab.d2S, tab.wEA, tab.wEI, tab.Kb, tab.curvature,
+                                  float(damping.belt_axial), float(damping.belt_bending), Ce)
+        Cb = system.assemble(belt.reduce_blocks(Ce), linear=False)
+        C_p = Cb if C_p is None else C_p + Cb
+    C = system.project_matrix(q0, C_p) if C_p is not None else 0.0 * M
+    return LinearDrive(M=M, C=C, K=K, q0=q0)
+
+
+def excitation_sets(system: System, opts: ResponseOptions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(prescribed DOFs (p,), speed amplitudes B e^{i phase} (n_order, p), torques (n_order, n_dof))."""
+    driver = int(system.rot_dof[system.driver])
+    presc = [driver] + sorted({int(system.rot_dof[system.pulley_index(e.pulley)]) for e in opts.excitation
+                               if e.kind == "speed"} - {driver})
+    B = np.zeros((len(opts.orders), len(presc)), dtype=complex)
+    tau = np.zeros((len(opts.orders), system.n_dof), dtype=complex)
+    for e in opts.excitation:
+        d = int(system.rot_dof[system.pulley_index(e.pulley)])
+        for o, k in enumerate(opts.orders):
+            if e.order and e.order != k:
+                continue
+            z = e.amplitude * np.exp(1j * e.phase)
+            if e.kind == "speed":
+                B[o, presc.index(d)] += z
+            else:
+                tau[o, d] += z
+    return np.array(presc, dtype=np.int64), B, tau
+
+
+def solve_harmonic(lin: LinearDrive, omega: np.ndarray, presc: np.ndarray, theta: np.ndarray,
+                   force: np.ndarray) -> np.ndarray:
+    """X (F, n) complex for excitation frequencies omega (F,) rad/s, prescribed motions theta (F, p) of the
+    DOFs presc and forces force (F, n): D_ff X_f = F_f - D_fp theta, X_p = theta. Raises SolverError at a
+    frequency where D_ff is singular (an undamped resonance hit exactly)."""
+    from scipy.sparse import issparse
+
+    n = lin.q0.shape[0]
+    free = np.setdiff1d(np.arange(n), presc)
+    X = np.zeros((len(omega), n), dtype=complex)
+    X[:, presc] = theta
+    if not issparse(lin.K):
+        K, C, M = (np.asarray(A) for A in (lin.K, lin.C, lin.M))
+        Kff, Cff, Mff = (A[np.ix_(free, free)] for A in (K, C, M))
+        Kfp, Cfp, Mfp = (A[np.ix_(free, presc)] for A in (K, C, M))
+        for lo in range(0, len(omega), 64):  # (chunk, n_f, n_f) complex systems at once
+            w = omega[lo: lo + 64, None, None]
+            D = Kff[None] + 1j * w * Cff[None] - w * w * Mff[None]
+            Dp = Kfp[None] + 1j * w * Cfp[None] - w * w * Mfp[None]
+            rhs = force[lo: lo + 64][:, free] - np.einsum("fij,fj->fi", Dp, theta[lo: lo + 64])
+            try:
+                X[lo: lo + 64, free] = np.linalg.solve(D, rhs[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                raise SolverError("singular dynamic stiffness K + i w C - w^2 M: an undamped resonance at an "
+                                  "excitation frequency (add [response.damping])", analysis="response",
+                                  step=f"{omega[lo] / (2 * np.pi):.6g}-{omega[min(lo + 63, len(omega) - 1)] / (2 * np.pi):.6g} Hz") from None
+        return X
+    from scipy.sparse import csc_matrix
+    from scipy.sparse.linalg import splu
+
+    K, C, M = (csc_matrix(A) for A in (lin.K, lin.C, lin.M))
+    Kff, Cff, Mff = (A[free][:, free] for A in (K, C, M))
+    Kfp, Cfp, Mfp = (A[free][:, presc] for A in (K, C, M))
+    for f, w in enumerate(omega):
+        D = (Kff + 1j * w * Cff - w * w * Mff).tocsc()
+        rhs = force[f, free] - (Kfp + 1j * w * Cfp - w * w * Mfp) @ theta[f]
+        try:
+            X[f, free] = splu(D).solve(rhs)
+        except RuntimeError:
+            raise SolverError("singular dynamic stiffness K + i w C - w^2 M: an undamped resonance at the "
+                              "excitation frequency (add [response.damping])", analysis="response",
+                              step=f"{w / (2 * np.pi):.6g} Hz") from None
+    return X
+
+
+def _outputs_of(system: System, q0: np.ndarray, q: np.ndarray, v: np.ndarray, a: np.ndarray,
+                preload: np.ndarray) -> dict:
+    """The transient's outputs of states (B, n_dof) near q0 (q: positions, v, a: small velocities and
+    accelerations), as /transient defines them (the pulley angles without the nominal rotation)."""
+    p = system.expand(q)
+    vp = system.expand_motion(q0, v)  # J(q0) v: the states differ from q0 by O(eps), v and a are O(eps)
+    ap = system.expand_motion(q0, a)
+    belt = system.belt
+    E = belt.element_coordinates_batch(p)
+    Ed = belt.element_coordinates_batch(vp, offset=False)
+    F = belt.end_forces(E, Ed, system.gravity)
+    out = {"span_tension": belt.end_tensions(E, F),
+           "hub_load": system.hub_loads(F + belt.end_inertia(belt.element_coordinates_batch(ap, offset=False))),
+           "pulley_angle": q[:, system.rot_dof], "pulley_speed": v[:, system.rot_dof],
+           "midspan_displacement": belt.midspan_displacement(E)}
+    if system.arms is not None:
+        out["arm_angle"] = q[:, system.arms.dof]
+    for c in system.components:
+        if c.observations(system):
+            out.update(c.observe(system, p, preload))
+    return out
+
+
+def linear_outputs(system: System, lin: LinearDrive, X: np.ndarray, omega: np.ndarray, preload: np.ndarray,
+                   presc: np.ndarray, theta: np.ndarray, force: np.ndarray) -> dict:
+    """Y = h'(q0) X per frequency (complex (F, ...)) by central differences along Re X and Im X with
+    their velocities and accelerations; the driver torque from the prescribed DOF's row of D X - F."""
+    F_ = len(omega)
+    scale = float(np.abs(X).max(initial=0.0))
+    eps = 1e-6 / scale if scale > 0 else 1.0  # motions of ~1e-6 in the DOFs' units: central differences to ~1e-12
+    w = omega[:, None]
+    V, A = 1j * w * X, -(w * w) * X
+    q0 = lin.q0[None]
+    states = []
+    for part in (np.real, np.imag):
+        for s in (1.0, -1.0):
+            states.append((q0 + s * eps * part(X), s * eps * part(V), s * eps * part(A)))
+    q = np.concatenate([st[0] for st in states])
+    v = np.concatenate([st[1] for st in states])
+    a = np.concatenate([st[2] for st in states])
+    h = _outputs_of(system, lin.q0, q, v, a, preload)
+    out = {}
+    for name, y in h.items():
+        y = y.reshape(4, F_, *y.shape[1:])
+        out[name] = (y[0] - y[1] + 1j * (y[2] - y[3])) / (2.0 * eps)
+    # the torque the driver's prescription applies: the residual of its row (as /transient driver_torque)
+    d = presc[0]
+    row = lambda A_: np.asarray(A_[[d], :].todense() if hasattr(A_, "todense") else A_[[d], :]).ravel()  # noqa: E731
+    K_d, C_d, M_d = row(lin.K), row(lin.C), row(lin.M)
+    out["driver_torque"] = (X @ K_d + 1j * omega * (X @ C_d) - omega ** 2 * (X @ M_d)) - force[:, d]
+    return out
+
+
+def solve_response(system: System, static: StaticResult, opts: ResponseOptions) -> ResponseResult:
+    """The steady forced response over opts.speed x opts.orders (see the module docstring)."""
+    lin = linearize(system, static, opts.damping)
+    presc, B, tau = excitation_sets(system, opts)
+    speed = np.linspace(opts.speed[0], opts.speed[1], opts.points)
+    orders = np.asarray(opts.orders, dtype=float)
+    omega = (speed[:, None] * orders[None, :]).ravel()  # (S * O,)
+    o_idx = np.tile(np.arange(len(orders)), len(speed))
+    theta = -B[o_idx] / omega[:, None]  # speed B sin(w t + phase): angle -(B / w) e^{i phase}
+    force = tau[o_idx]
+    X = solve_harmonic(lin, omega, presc, theta, force)
+    preload = np.zeros(system.n_p)
+    preload[: system.n_dof] = static.spring_preload
+    Y = linear_outputs(system, lin, X, omega, preload, presc, theta, force)
+    S, O = len(speed), len(orders)
+    outputs = {name: y.reshape(S, O, *y.shape[1:]) for name, y in Y.items()}
+    lay = system.layout
+    dims, units = {}, {}
+    for name in outputs:
+        dims[name], units[name] = _dims_units(system, name, outputs[name].ndim - 2)
+    warnings = []
+    if not (opts.damping.rayleigh_mass or opts.damping.rayleigh_stiffness or opts.damping.belt_axial
+            or opts.damping.belt_bending) and system.linear_damping is None:
+        warnings.append("no damping: the amplitudes at the resonances are bounded only by the speed grid "
+                        "(give [response.damping])")
+    if system.arms is not None and system.arms.friction is not None and np.any(system.arms.friction):
+        warnings.append("the tensioner arms' dry friction is not in the linear response (the transient models it)")
+    R_d = float(lay.radius[system.driver])
+    names = tuple(lay.names[j] for j in range(lay.n) if int(system.rot_dof[j]) in set(presc.tolist()))
+    return ResponseResult(speed=speed, orders=orders, frequency=(speed[:, None] * orders[None, :]) / (2 * np.pi),
+                          belt_speed=speed * R_d, outputs=outputs, dims=dims, units=units, prescribed=names,
+                          warnings=tuple(warnings))
+
+
+def _dims_units(system: System, name: str, ndim: int) -> tuple[tuple[str, ...], str]:
+    """The trailing dimensions and units of an output, named as in /transient."""
+    known = {"span_tension": (("span", "end"), "N"), "hub_load": (("pulley", "component"), "N"),
+             "pulley_angle": (("pulley",), "rad"), "pulley_speed": (("pulley",), "rad/s"),
+             "arm_angle": (("arm",), "rad"), "midspan_displacement": (("span",), "m"),
+             "driver_torque": ((), "N m")}
+    if name in known:
+        return known[name]
+    for c in system.components:
+        for obs in c.observations(system):
+            if obs.name == name:
+                return tuple(obs.dims), obs.units
+    raise KeyError(name)  # every output is named above or by a component
+
+
+def coordinates(system: System) -> dict:
+    """The trailing coordinates of the outputs (as /transient names them)."""
+    lay = system.layout
+    coords = {"pulley": list(lay.names), "span": [lay.span_name(i) for i in range(lay.n)], "end": ["start", "end"],
+              "component": ["x", "y"]}
+    if system.arms is not None:
+        coords["arm"] = list(system.arms.names)
+    for c in system.components:
+        for obs in c.observations(system):
+            if obs.name == "bearing_force":
+                coords["bearing"] = list(c.pulley_names)
+    return coords
+
+
+def response_of(cfg: DriveConfig, run) -> ResponseResult:
+    """The response of an analysed drive (`pipeline.analyse`) to cfg.response."""
+    assert cfg.response is not None
+    system = run.system
+    if cfg.response.damping.belt_axial or cfg.response.damping.belt_bending:
+        system = system.with_belt_damping(cfg.response.damping.belt_axial, cfg.response.damping.belt_bending)
+    return solve_response(system, run.static, cfg.response)
