@@ -188,6 +188,7 @@ def fit_adjustable(
     orientation: int | None = None,
     tol: float = 1e-13,
     max_iter: int = 100,
+    base: Layout | None = None,
 ) -> Layout:
     """Newton on the offset s along `direction` of pulley `index` until the belt length equals L0.
 
@@ -196,7 +197,7 @@ def fit_adjustable(
     is sum(span lengths) + w sum(arc lengths) (the path of a belt whose spans are stretched by w and
     whose wraps are not, times w: see `static`); the slope is then that of the belt length, and the
     iteration converges linearly. Backtracks when a step leaves the feasible region; raises
-    GeometryError (key belt.length) when L0 cannot be reached.
+    GeometryError (key belt.length) when L0 cannot be reached. base: the layout at `center`, if known.
     """
     center = np.array(center, dtype=float)
     direction = np.asarray(direction, dtype=float)
@@ -213,8 +214,8 @@ def fit_adjustable(
         c, sn = math.cos(s), math.sin(s)
         rot = np.array([c * r[0] - sn * r[1], sn * r[0] + c * r[1]])
         return arm + rot, np.array([-rot[1], rot[0]])
-    try:
-        base = compute_layout(center, radius, side_sign, names, orientation=orientation)
+    try:  # base: the layout at `center` if the caller has it
+        base = base if base is not None else compute_layout(center, radius, side_sign, names, orientation=orientation)
     except GeometryError as exc:
         raise GeometryError(f"at the given centre of the adjustable pulley: {exc}", exc.key) from None
     orientation = base.orientation

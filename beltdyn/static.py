@@ -274,6 +274,7 @@ class _Problem:
         self.has_load = bool(np.any(system.external_force(1.0) != 0.0))
         self.EA = float(el.EA.max())
         self.scales = ResidualScales(system)
+        self.last: tuple = (None, 0.0, 0.0, None)  # (q, load factor, driver residual, mean tension) evaluated last
 
     def tension_tolerance(self) -> float:
         """Allowed error of the mean tension: relative tolerance + round-off of EA eps (~EA * eps)."""
@@ -287,10 +288,12 @@ class _Problem:
         m = self.model
         R, K = m.equilibrium(q, lam)  # J^T (f - lam F), F the weight and the accessory torques
         R = R - self.preload
+        self.last = (q, lam, float(R[self.driver]), None)  # what the outputs reuse at the solution
         scaled = np.abs(R) / self.allowed(q, lam)
         rank1 = None
         if bordered:  # the slide equation of the adjustable pulley becomes T(q) = target
             T, dT = m.mean_tension_and_gradient(q)
+            self.last = (q, lam, self.last[2], T)
             R[self.a] = T - self.target
             scaled[self.a] = abs(R[self.a]) / self.tension_tolerance()
             if m.dense:
@@ -418,15 +421,15 @@ def solve_static(system: System, options: StaticOptions, *, q0: np.ndarray | Non
     moves far meets its spans off tangent; `solve_static_on_solved_geometry` (what
     `pipeline.analyse` calls) lays the belt out again at the solved positions.
     """
-    q, preload, hist = solve_equilibrium(system, options, q0=q0)
-    return _result(system, q, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof)
+    q, preload, hist, known = solve_equilibrium(system, options, q0=q0, known=True)
+    return _result(system, q, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof, known=known)
 
 
-def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray | None = None
-                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray | None = None, known: bool = False):
     """The equilibrium of `solve_static` without its outputs: (q (n_dof,), spring preloads (n_dof,),
     Newton history (n_iter, 2) of (scaled residual, load factor)). For the re-lay passes, whose
-    outputs only the last one needs."""
+    outputs only the last one needs. known: also what the solve evaluated at q that the outputs reuse
+    ({"driver_torque", "mean_tension"}, each present only if evaluated at q at full load)."""
     model = system
     prob = _Problem(system, options)
     n = model.n_dof
@@ -458,7 +461,16 @@ def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray 
         _check_travel(model, q)
         r, _ = model.equilibrium(q, tangent=False)
         prob.preload[prob.a] = r[prob.a]
-    return q, prob.preload, np.array(prob.history).reshape(-1, 2)
+    hist = np.array(prob.history).reshape(-1, 2)
+    if not known:
+        return q, prob.preload, hist
+    seen: dict = {}
+    q_l, lam_l, r_driver, T = prob.last
+    if q_l is q and lam_l == 1.0:
+        seen["driver_torque"] = r_driver + float(prob.preload[prob.driver])
+        if T is not None:
+            seen["mean_tension"] = T
+    return q, prob.preload, hist, seen
 
 
 def _check_travel(system: System, q: np.ndarray) -> None:
@@ -514,11 +526,18 @@ def _check_stops(system: System, q: np.ndarray) -> None:
                           item=system.dof_labels[int(a.dof[k])])
 
 
-def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -> StaticResult:
+def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *, known: dict | None = None
+            ) -> StaticResult:
+    """The outputs at the solution q; known: values the solve already evaluated at q (see
+    `solve_equilibrium`)."""
     lay = model.layout
+    known = known or {}
     hub, span_tension = model.joint_reactions(q)
-    f = model.equilibrium(q, tangent=False)[0] - preload
-    T_mean, _ = model.mean_tension_and_gradient(q)
+    if "driver_torque" in known:
+        driver_torque = known["driver_torque"] - float(preload[driver_dof])
+    else:
+        driver_torque = float((model.equilibrium(q, tangent=False)[0] - preload)[driver_dof])
+    T_mean = known["mean_tension"] if "mean_tension" in known else model.mean_tension_and_gradient(q)[0]
     a = lay.adjust_index
     if a is None:
         offset = 0.0
@@ -560,7 +579,7 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof) -
     return StaticResult(
         q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
         hub_load=hub, pulley_center=model.pulley_centers(q), pulley_rotation=q[model.rot_dof].copy(),
-        driver_torque=float(f[driver_dof]), adjust_offset=offset,
+        driver_torque=driver_torque, adjust_offset=offset,
         residual_history=np.array(hist_r), load_factor_history=np.array(hist_l), iterations=iterations,
         tension_mode=model.tension.mode, arm_angle=arm_angle, arm_torque=arm_torque, arm_free_angle=arm_free,
         pivot_reaction=pivot, applied_torque=applied, required_friction=mu_req,
@@ -858,7 +877,8 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             def fit(centers):  # the adjustable pulley where spans at the target stretch fit
                 lay_f = fit_adjustable(centers, lay0.radius, lay0.side_sign, lay0.names, index=j,
                                        direction=d.trans_dir[j][0], target_length=lam_T * material,
-                                       arc_weight=lam_T, orientation=lay0.orientation, pivot=pivot)
+                                       arc_weight=lam_T, orientation=lay0.orientation, pivot=pivot,
+                                       base=lay0 if np.array_equal(centers, lay0.center) else None)
                 if pivot is not None:  # the turn counts from the drawn arm angle, as on the L0 fit
                     lay_f = Layout(**{**lay_f.__dict__, "adjust_offset": lay0.adjust_offset + lay_f.adjust_offset})
                 return lay_f
@@ -884,14 +904,15 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             solves += k
             q_p = st.q
         else:
-            q_p, preload, hist = solve_equilibrium(system, options, q0=warm)
+            q_p, preload, hist, known = solve_equilibrium(system, options, q0=warm, known=True)
             solves += 1
         solved_centers = system.pulley_centers(q_p)
         step = solved_centers - lay.center
         movement.append(float(np.linalg.norm(step, axis=1).max(initial=0.0)))
         if not moving or movement[-1] <= tol_x:
             if not prestrain:
-                st = _result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof)
+                st = _result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
+                             known=known)
             _check_slack(system, st)
             return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement))
         # the next layout: at the solved centres, extrapolated (Aitken) where the passes contract steadily

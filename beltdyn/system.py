@@ -1245,11 +1245,10 @@ class DeferredSystem:
             "layout": layout, "dofs": dofs, "tension": tension_setting(cfg, dofs), "arms": arm_joints(cfg, layout, dofs),
             "trans_dof": dofs.trans_dof, "trans_dir": dofs.trans_dir, "rot_dof": dofs.rot_dof,
             "loads": static_loads(cfg, dofs), "driver_dof": int(dofs.rot_dof[cfg.driver_index]),
-            "components": pulley_components(cfg, dofs, layout),
             "belt": SimpleNamespace(reference_length=layout.span_length / lam, prestrain_stretch=float(lam),
                                     span_stretch=None, elements=SimpleNamespace(EA=np.array([cfg.belt.EA]))),
         }
-        self._build, self._full = build, None
+        self._build, self._full, self._cfg = build, None, cfg
 
     @property
     def built(self) -> bool:
@@ -1263,6 +1262,9 @@ class DeferredSystem:
     def __getattr__(self, name: str):
         facts = self.__dict__.get("_facts", {})
         if name in facts:
+            return facts[name]
+        if name == "components" and "_cfg" in self.__dict__:  # the pulleys' own components: cheap, no belt
+            facts[name] = pulley_components(self._cfg, facts["dofs"], facts["layout"])
             return facts[name]
         return getattr(self.full(), name)
 
