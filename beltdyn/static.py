@@ -80,13 +80,10 @@ def _predictor(system: System, stretch: float | np.ndarray, adjust_dof: int, dri
     unknowns += [adjust_dof] if adjust_dof >= 0 else []
     A_p = np.zeros((n, system.n_p + 1))  # on the joint coordinates (an arm's centre offsets), padding last
     t = model.reference_direction
-    ends = []
-    for s in range(n):
-        e_first, e_last = model.span_elements[s][0], model.span_elements[s][-1]
-        for el, rows, sign in ((e_first, slice(0, 2), -1.0), (e_last, slice(4, 6), 1.0)):
-            for k, dof in enumerate(model.idx[el]):
-                A_p[s, dof] += sign * float(model.T[el, rows, k] @ t[s])
-        ends.append((e_first, e_last))
+    span = np.repeat(np.arange(n), model.idx.shape[1])
+    for els, rows, sign in ((model.first, slice(0, 2), -1.0), (model.last, slice(4, 6), 1.0)):
+        coef = sign * np.einsum("sdk,sd->sk", model.T[els, rows, :], t)  # (n_span, m): d(elongation)/d(dof)
+        np.add.at(A_p, (span, model.idx[els].ravel()), coef.ravel())
     A_p = A_p[:, : system.n_p]
     A_q = A_p if system.arms is None else np.asarray(A_p @ system.arms.jacobian(np.zeros(system.n_dof)).toarray())
     A = A_q[:, unknowns]

@@ -781,8 +781,12 @@ class System:
         n = self.n_p
         if self.dense:
             return self.linear_stiffness if self.linear_stiffness is not None else np.zeros((n, n))
-        data = self.linear_stiffness if self.linear_stiffness is not None else np.zeros(self.pattern.nnz)
-        return csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=(n, n))
+        A = self.__dict__.get("_linear_csr")
+        if A is None:  # constant: built once (callers only read it)
+            data = self.linear_stiffness if self.linear_stiffness is not None else np.zeros(self.pattern.nnz)
+            A = csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=(n, n))
+            object.__setattr__(self, "_linear_csr", A)
+        return A
 
     # -------------------------------------------------------------------- forces
     def internal_force(self, q: np.ndarray) -> np.ndarray:
