@@ -763,11 +763,25 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
 
 def warm_start(system: System, previous: System, q: np.ndarray) -> np.ndarray:
     """A start for the static solve on a re-laid system: the previous solution's pulley rotations, the
-    moved supports at their new layout position (0), the spans straight between their new end nodes
-    (the belt's shape of the previous layout does not fit the moved tangent points)."""
+    moved supports at their new layout position (0), and each span's previous shape carried over: its
+    nodes moved by the linear interpolation of its end nodes' moves (a sagging span keeps its sag, a
+    taut one stays straight between its new end nodes), the slopes kept."""
     q0 = np.zeros(system.n_dof)
     q0[system.rot_dof] = q[previous.rot_dof]
-    return _straight_spans(system, q0)
+    old = previous.belt.element_coordinates(previous.expand(q))
+    new = system.belt.element_coordinates(system.expand(q0))  # the end nodes where q0 puts them
+    model = system.belt
+    n_e = len(model.span_elements[0])
+    frac = (np.arange(n_e + 1) / n_e)[:, None]
+    for s_, els in enumerate(model.span_elements):
+        nodes = np.vstack([old[els, 0:4], old[els[-1], 4:8][None]])  # (n_e + 1, 4): r, r' of each node
+        da, db = new[els[0], 0:2] - nodes[0, 0:2], new[els[-1], 4:6] - nodes[-1, 0:2]
+        nodes[:, 0:2] += (1.0 - frac) * da + frac * db
+        e0 = np.vstack([model.e0[els, 0:4], model.e0[els[-1], 4:8][None]])
+        d = nodes - e0
+        # span DOFs: the first node's slope, the interior nodes (r, r'), the last node's slope
+        q0[system.dofs.span_slices[s_]] = np.concatenate([d[0, 2:4], d[1:-1].ravel(), d[-1, 2:4]])
+    return q0
 
 
 def solve_static_on_solved_geometry(system: System, build, options: StaticOptions, *,
