@@ -823,8 +823,9 @@ def key_docs() -> list[KeyDoc]:
 class _Checker:
     """Raises ConfigError with the file and key path."""
 
-    def __init__(self, file: str) -> None:
+    def __init__(self, file: str, tables: dict[str, bytes] | None = None) -> None:
         self.file = file
+        self.tables = tables or {}  # table file name -> its bytes, instead of reading the file
 
     def fail(self, key: str, message: str) -> ConfigError:
         return ConfigError(message, file=self.file, key=key)
@@ -953,10 +954,12 @@ def load_config(path: Path | str, overrides: tuple[str, ...] | list[str] = ()) -
     return config_from_dict(raw, file=str(path))
 
 
-def config_from_dict(raw: dict[str, Any], *, file: str = "<config>") -> DriveConfig:
+def config_from_dict(raw: dict[str, Any], *, file: str = "<config>", tables: dict[str, bytes] | None = None
+                     ) -> DriveConfig:
     """Validate a parsed TOML drive description: the declared keys first, then the checks that
-    involve several keys."""
-    chk = _Checker(file)
+    involve several keys. tables: the CSV tables' bytes by the name the configuration gives them
+    (`table_bytes`), for a process that cannot read them next to `file` (a remote sweep worker)."""
+    chk = _Checker(file, tables)
     cfg = _parse(chk, "", raw, DriveConfig)
     pulleys = _check_pulleys(chk, raw["pulleys"], cfg.pulleys)
     adjustable = any(p.adjustable for p in pulleys)
@@ -1123,6 +1126,20 @@ def _check_transient(chk: _Checker, t: TransientOptions, pulleys: tuple[Pulley, 
     return t
 
 
+def table_bytes(cfg: DriveConfig) -> dict[str, bytes]:
+    """The bytes of every CSV table the configuration reads, by the name it gives them (read next to
+    cfg.source now; the sha256 check on parsing still holds them to the configuration's version)."""
+    out: dict[str, bytes] = {}
+    if cfg.transient is None:
+        return out
+    base = Path(cfg.source).parent if cfg.source and not cfg.source.startswith("<") else Path(".")
+    for load in cfg.transient.loads:
+        name = load.signals[0].table
+        if name and name not in out:
+            out[name] = ((base / name) if not Path(name).is_absolute() else Path(name)).read_bytes()
+    return out
+
+
 def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int,
                 expect_sha: str = "") -> tuple[str, tuple[tuple, ...]]:
     """CSV (comma or whitespace separated, '#' comments): time, value(s); path relative to the config.
@@ -1131,7 +1148,7 @@ def _read_table(chk: _Checker, key: str, name: str, file: str, n_values: int,
     base = Path(file).parent if file and not file.startswith("<") else Path(".")
     path = (base / name) if not Path(name).is_absolute() else Path(name)
     try:
-        data = path.read_bytes()
+        data = chk.tables[name] if name in chk.tables else path.read_bytes()
         lines = data.decode("utf-8-sig").splitlines()
     except (OSError, UnicodeDecodeError) as exc:
         raise chk.fail(key, f"cannot read table '{name}': {getattr(exc, 'strerror', None) or exc}") from None

@@ -230,8 +230,10 @@ def spec_hash(cfg: DriveConfig, spec: SweepSpec) -> str:
 
 
 # ------------------------------------------------------------------------------------ the worker
-def run_case(base_toml: str, source: str, assignments: list[str], analysis: str, n_modes: int) -> dict:
-    """One case, self-contained (picklable arguments, plain-dict result) for any executor."""
+def run_case(base_toml: str, source: str, assignments: list[str], analysis: str, n_modes: int,
+             tables: dict[str, bytes] | None = None) -> dict:
+    """One case, self-contained (picklable arguments, plain-dict result) for any executor: the CSV
+    tables travel with it (`config.table_bytes`), so a worker on another machine needs no files."""
     import tomllib
 
     from .config import apply_override, config_from_dict
@@ -243,7 +245,7 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
         raw = tomllib.loads(base_toml)
         for a in assignments:
             apply_override(raw, a, file=source)
-        cfg = config_from_dict(raw, file=source)
+        cfg = config_from_dict(raw, file=source, tables=tables)
         if analysis == "transient" and cfg.transient is not None:
             from dataclasses import replace
 
@@ -329,8 +331,9 @@ def _connect(address: str, cfg: DriveConfig):
                           key="--scheduler") from None
 
 
-def _run_chunk(base_toml: str, source: str, items: list[tuple[int, list[str]]], analysis: str, n_modes: int):
-    return [(i, run_case(base_toml, source, a, analysis, n_modes)) for i, a in items]
+def _run_chunk(base_toml: str, source: str, tables: dict[str, bytes], items: list[tuple[int, list[str]]],
+               analysis: str, n_modes: int):
+    return [(i, run_case(base_toml, source, a, analysis, n_modes, tables)) for i, a in items]
 
 
 # ------------------------------------------------------------------------------------ the journal
@@ -714,7 +717,9 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
         assembly.advance(journal)
 
     try:
-        _execute(base, cfg.source, spec, chunks, n_workers, client, record)
+        from .config import table_bytes
+
+        _execute(base, cfg.source, spec, chunks, n_workers, client, record, table_bytes(cfg))
     except BaseException:  # Ctrl-C, SIGTERM, a failure: what is journaled is made durable, then it goes on
         try:
             journal.sync()
@@ -726,10 +731,10 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
 
 
 def _execute(base: str, source: str, spec: SweepSpec, chunks: list, n_workers: int, client,
-             record: Callable[[list], None]) -> None:
+             record: Callable[[list], None], tables: dict[str, bytes] | None = None) -> None:
     """Run the chunks on Dask, serially in this process, or in a local process pool; `record` each
-    chunk's results as it finishes."""
-    args = (base, source)
+    chunk's results as it finishes. tables: the CSV tables' bytes, sent with every chunk."""
+    args = (base, source, tables or {})
     if client is not None:
         from distributed import as_completed
 

@@ -573,3 +573,27 @@ def test_the_journal_is_fsynced_at_the_end_and_on_an_interrupt(tmp_path, monkeyp
     assert synced[-1] == "cases.log"
     kept = Journal(tmp_path / "b.h5").done()
     assert kept and len(kept) < 12
+
+
+def test_csv_tables_travel_with_the_case(tmp_path):
+    # A remote worker has no files next to the configuration: the case carries the tables' bytes
+    # (config.table_bytes), and the worker parses the configuration from them (same static result as
+    # a local parse, to round-off); without them the case fails naming the table it could not read.
+    from beltdyn.config import resolved_toml, table_bytes
+    from beltdyn.sweep import run_case
+
+    (tmp_path / "torque.csv").write_text("# time (s), torque (N m)\n0.0, 0.0\n0.01, 2.0\n1.0, 2.0\n")
+    path = tmp_path / "drive.toml"
+    path.write_text(BENCH.read_text() + '\n[transient]\nduration = 0.02\nstep = 1e-4\n'
+                    '[transient.spectrum]\nenabled = false\n[[transient.torque]]\npulley = "C"\n'
+                    'table = "torque.csv"\n')
+    cfg = load_config(path)
+    tables = table_bytes(cfg)
+    assert set(tables) == {"torque.csv"}
+    elsewhere = str(tmp_path / "remote" / "drive.toml")  # no such folder: as on another machine
+    got = run_case(resolved_toml(cfg), elsewhere, ["tension.target=250.0"], "static", 4, tables)
+    assert got["failed"] == 0, got["error"]
+    local = analyse(load_config(path, ["tension.target=250.0"])).static
+    np.testing.assert_allclose(got["span_tension"], local.span_tension, rtol=1e-12)
+    lost = run_case(resolved_toml(cfg), elsewhere, ["tension.target=250.0"], "static", 4)
+    assert lost["failed"] == 1 and "torque.csv" in lost["error"]
