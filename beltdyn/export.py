@@ -152,9 +152,13 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
 STRAIN_WARNING = 0.05  # belt strain above which the constant-EA axial law is flagged (real belts: ~1 % at most)
 
 
+SLACK_WARNING = 0.1  # a span whose smaller end tension is below this share of the mean tension is flagged
+
+
 def static_warnings(model: DriveModel, res: StaticResult) -> list[str]:
     """What makes a static result doubtful for the engineer: a strain far beyond a belt's (the axial
-    law with a constant EA means nothing there), a pulley that slips (margin < 1)."""
+    law with a constant EA means nothing there), a span close to slack (its smaller end tension below
+    10 % of the mean), a pulley that slips (margin < 1)."""
     out = []
     from .system import stretch_for_tension
 
@@ -165,6 +169,12 @@ def static_warnings(model: DriveModel, res: StaticResult) -> list[str]:
         out.append(f"the belt is stretched by {strain:.1%} (tension {T:.4g} N on "
                    f"EA = {EA:.4g} N): far beyond a belt's working strain, where the axial law (constant EA) "
                    f"no longer describes it; check tension.target and belt.EA")
+    T_min = res.span_tension.min(axis=1)  # (span,) the smaller end tension of each span
+    for s_, t in enumerate(T_min):
+        if t < SLACK_WARNING * abs(res.mean_tension):
+            out.append(f"span {model.layout.span_name(s_)} is close to slack: {t:.4g} N at one end, "
+                       f"{t / abs(res.mean_tension):.1%} of the mean tension {res.mean_tension:.4g} N (a "
+                       f"dynamic load or a speed fluctuation can slacken it: the belt then flaps and slips)")
     if res.slip_margin is not None:
         for j, m in enumerate(res.slip_margin):
             if m < 1.0:

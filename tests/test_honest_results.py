@@ -678,3 +678,20 @@ def test_a_second_command_on_a_results_file_being_written_is_refused(tmp_path):
     assert r.returncode == 0, r.stderr
     with h5py.File(tmp_path / "x.h5") as f:
         assert f["transient"].attrs["status"] == "complete" and f["modal"].attrs["status"] == "complete"
+
+
+def test_a_span_close_to_slack_is_flagged():
+    # A large accessory torque on C unloads the slack span of the bench: at 95 % of the torque that
+    # would slacken it the static result says so (the span's smaller end tension below 10 % of the
+    # mean); the unloaded bench has no such warning.
+    from beltdyn.config import load_config
+    from beltdyn.export import static_warnings
+    from beltdyn.pipeline import analyse
+
+    base = analyse(load_config(BENCH))
+    assert not [w for w in static_warnings(base.system, base.static) if "slack" in w]
+    # slack at tau = 2 T R_C (tight 2T, slack 0 with the mean tension held at T)
+    tau = 0.95 * 2 * 200.0 * 0.1016  # slack span 10 N: 5 % of the mean
+    run = analyse(load_config(BENCH, [f'static.torque=[{{pulley = "C", value = {tau!r}}}]']))
+    flagged = [w for w in static_warnings(run.system, run.static) if "close to slack" in w]
+    assert len(flagged) == 1 and run.static.span_tension.min() < 0.1 * run.static.mean_tension
