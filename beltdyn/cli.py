@@ -290,7 +290,7 @@ def _refined_modal(job: "_Job", n_modes: int, rtol: float) -> None:
     check_target(job.output, config_sha256=job.sha, force=job.force)
     job.add(geometry_group(job.layout))  # the L0 fit (the mesh does not change it); /static: the solved layout
     job.add(static_group(model, st, cfg.tension.target))
-    group = modal_group(model, md)
+    group = modal_group(model, md, st.q)
     attrs = dict(group.attrs, rtol=rtol, chosen_elements_per_span=int(ref.elements[ref.chosen]),
                  mesh_converged=int(ref.converged), estimated_error=float(np.nanmax(ref.estimate[ref.chosen])))
     job.add(type(group)(name=group.name, coords=group.coords, variables=group.variables, attrs=attrs))
@@ -344,7 +344,7 @@ def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None, co
         raise
     job.add(static_group(run.system, run.static, job.cfg.tension.target))
     if run.modal is not None:
-        job.add(modal_group(run.system, run.modal))
+        job.add(modal_group(run.system, run.modal, run.static.q))
     job.write()
     return run
 
@@ -475,6 +475,63 @@ def _print_response(con, res) -> None:
         table.add_row(f"{k:g}", f"{T[i, o]:.4g} N", f"{res.speed[i]:.5g} rad/s", f"{res.frequency[i, o]:.5g} Hz",
                       f"{H[j, o]:.4g} N", f"{res.speed[j]:.5g} rad/s")
     con.print(table)
+
+
+@app.command()
+def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5)."),
+         what: Optional[str] = typer.Argument(None, help="layout | modes | sweep | transient | response "
+                                                         "[default: every figure the file holds]"),
+         output: Optional[Path] = typer.Option(None, "-o", "--output",
+                                               help="Figure file (.png, .svg, .pdf); without WHAT a prefix: "
+                                                    "PREFIX_<what>.png [default: next to RESULT]"),
+         modes: Optional[str] = typer.Option(None, "--modes", help="Modes to draw, e.g. 1-8 or 1,3,5 [default: 1-8]."),
+         show: bool = typer.Option(False, "--show", help="Also open the figures in a window.")) -> None:
+    """Figures of a results file: drive layout, mode shapes, frequency maps and Campbell diagrams,
+    histories and spectra, forced response (needs the plot extra: pip install 'beltdyn[plot]')."""
+
+    def body() -> None:
+        from .errors import ConfigError, OutputError
+
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise ConfigError("matplotlib is not installed: pip install 'beltdyn[plot]'", file=str(result),
+                              key="plot") from None
+        from . import plot as P
+
+        if what is not None and what not in P.KINDS:
+            raise ConfigError(f"unknown figure {what!r}; one of {', '.join(P.KINDS)}", file=str(result), key="WHAT")
+        try:
+            chosen_modes = P.parse_modes(modes)
+        except ValueError:
+            raise ConfigError(f"--modes must be like 1-8 or 1,3,5, got {modes!r}", file=str(result),
+                              key="--modes") from None
+        P.set_interactive(show)
+        res = P.read_results(result)
+        kinds = (what,) if what else P.available(res)
+        if not kinds:
+            raise OutputError(f"{result}: holds no group a figure is drawn from (/geometry, /modal, /sweep, "
+                              f"/transient or /response)")
+        written = []
+        for kind in kinds:
+            fig = P.figure(kind, res, modes=chosen_modes)
+            if what and output is not None:
+                path = output
+            else:
+                base = output if output is not None else result.with_suffix("")
+                path = base.with_name(f"{base.name}_{kind}.png")
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_name(f".{path.name}.tmp{path.suffix}")
+            fig.savefig(tmp)  # then renamed: an interrupted run leaves no half-written figure
+            tmp.replace(path)
+            written.append(str(path))
+        if show:
+            import matplotlib.pyplot as plt
+
+            plt.show()
+        _console().print("wrote " + ", ".join(written))
+
+    _run(body)
 
 
 def _check_output_volume(job: "_Job", force_large: bool) -> None:

@@ -110,7 +110,8 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
     return GroupData(
         name="static",
         coords={"pulley": list(lay.names), "component": XY, "span": spans, "end": ["start", "end"],
-                "dof": list(model.dof_labels), "iteration": np.arange(1, len(res.residual_history) + 1)},
+                "dof": list(model.dof_labels), "iteration": np.arange(1, len(res.residual_history) + 1),
+                "node": np.arange(len(node_spans(model)))},
         variables=(
             Variable(name="span_tension", data=res.span_tension, dims=("span", "end"), units="N",
                      description="true axial force at the start and end of each span"),
@@ -132,6 +133,12 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
                      units="rad" if lay.adjust_kind == "arm" else "m",
                      description="travel of the adjustable pulley from its given centre (an arm: the angle it turned)"),
             *_static_extras(res),
+            Variable(name="node_position", data=belt_nodes(model, model.belt.element_coordinates(model.expand(res.q))),
+                     dims=("node", "component"), units="m",
+                     description="the belt's nodes at equilibrium, span after span from its start to its end "
+                                 "(the figures draw the belt from them)"),
+            Variable(name="node_span", data=node_spans(model), dims=("node",), units="1",
+                     description="0-based span of each node"),
             Variable(name="q", data=res.q, dims=("dof",), units=MIXED,
                      description="independent coordinates from the reference state, each in its dof_unit"),
             dof_unit_variable(model),
@@ -210,15 +217,39 @@ def _static_extras(res: StaticResult) -> tuple[Variable, ...]:
     )
 
 
-def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
+def belt_nodes(model: DriveModel, E: np.ndarray) -> np.ndarray:
+    """(..., n_node, 2) the belt's node positions (or motions) of element states E (..., n_elem, 8): each
+    span's element start nodes and its last element's end node, span after span."""
+    parts = []
+    for els in model.belt.span_elements:
+        parts.append(E[..., els, 0:2])
+        parts.append(E[..., els[-1:], 4:6])
+    return np.concatenate(parts, axis=-2)
+
+
+def node_spans(model: DriveModel) -> np.ndarray:
+    """(n_node,) 0-based span of each node of `belt_nodes`."""
+    return np.concatenate([np.full(len(els) + 1, s) for s, els in enumerate(model.belt.span_elements)]).astype(np.int64)
+
+
+def modal_group(model: DriveModel, res: ModalResult, q: np.ndarray | None = None) -> GroupData:
+    """/modal; with the equilibrium q also the shapes' motion of the belt's nodes (`node_shape`)."""
     from .modal import KINDS
 
     lay = model.layout
+    extra = ()
+    if q is not None:
+        motion = model.belt.element_coordinates_batch(model.expand_motion(q, res.shapes), offset=False)
+        extra = (Variable(name="node_shape", data=belt_nodes(model, motion), dims=("mode", "node", "component"),
+                          units="m per sqrt(kg m^2)",
+                          description="motion of the belt's nodes (/static node_position) in each mass-normalized "
+                                      "shape"),)
     return GroupData(
         name="modal",
         coords={"mode": np.arange(1, len(res.frequency) + 1), "dof": list(model.dof_labels),
                 "energy_kind": list(KINDS), "belt_span": [lay.span_name(i) for i in range(lay.n)],
-                "rigid": np.arange(1, res.n_rigid + 1)},
+                "rigid": np.arange(1, res.n_rigid + 1),
+                **({"node": np.arange(len(node_spans(model)))} if q is not None else {})},
         variables=(
             Variable(name="frequency", data=res.frequency, dims=("mode",), units="Hz"),
             Variable(name="kind", data=list(res.kind), dims=("mode",), units="1"),
@@ -239,6 +270,7 @@ def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
                                  "per sqrt(kg m^2)"),
             dof_unit_variable(model),
             Variable(name="rigid_frequency", data=res.rigid_frequency, dims=("rigid",), units="Hz"),
+            *extra,
         ),
         attrs={"n_rigid": int(res.n_rigid), "solver": res.solver, "n_dof": int(model.n_dof), "warnings": []},
     )
