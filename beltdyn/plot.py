@@ -219,7 +219,8 @@ def plot_layout(res: Results):
 # ------------------------------------------------------------------------------------ modes
 def plot_modes(res: Results, modes: tuple[int, ...] | None = None):
     """A grid of mode shapes on the drive at equilibrium, each scaled so that its largest belt motion is
-    8 % of the drive's size, titled with its frequency and kind."""
+    8 % of the drive's size, titled with its frequency and kind; a complex mode (a running belt,
+    /modal node_shape_imag) drawn at phase 0 over its envelope (the motion at 12 phases of a cycle)."""
     plt = _mpl()
     if "node_shape" not in res.groups["modal"]["variables"]:
         raise OutputError(f"{res.path}: /modal has no node_shape (written by beltdyn 0.1 after this feature): "
@@ -227,6 +228,7 @@ def plot_modes(res: Results, modes: tuple[int, ...] | None = None):
     freq = res.var("modal", "frequency")
     label = [str(x) for x in res.var("modal", "label")]
     shape = res.var("modal", "node_shape")
+    imag = res.var("modal", "node_shape_imag") if "node_shape_imag" in res.groups["modal"]["variables"] else None
     nodes, span = res.var("static", "node_position"), res.var("static", "node_span")
     wanted = [m for m in (modes or range(1, min(len(freq), 8) + 1)) if 1 <= m <= len(freq)]
     if not wanted:
@@ -245,8 +247,20 @@ def plot_modes(res: Results, modes: tuple[int, ...] | None = None):
         m = wanted[k] - 1
         _draw_drive(ax, res, static=True, labels=False, color="0.6")
         d = shape[m]
-        top = float(np.hypot(*d.T).max(initial=0.0))
-        sc = 0.08 * size / top if top > 0 else 0.0
+        if imag is not None:  # a complex mode (running belt): its envelope, the motion at 12 phases
+            phases = np.exp(1j * np.linspace(0.0, 2 * np.pi, 12, endpoint=False))
+            z = d + 1j * imag[m]
+            top = float(np.abs(z).max(initial=0.0))
+            sc = 0.08 * size / top if top > 0 else 0.0
+            for ph in phases[1:]:
+                w = np.real(z * ph)
+                for s in np.unique(span):
+                    sel = span == s
+                    ax.plot(nodes[sel, 0] + sc * w[sel, 0], nodes[sel, 1] + sc * w[sel, 1], "-",
+                            color=OKABE_ITO[5], lw=0.6, alpha=0.7, zorder=4)
+        else:
+            top = float(np.hypot(*d.T).max(initial=0.0))
+            sc = 0.08 * size / top if top > 0 else 0.0
         for s in np.unique(span):
             sel = span == s
             ax.plot(nodes[sel, 0] + sc * d[sel, 0], nodes[sel, 1] + sc * d[sel, 1], "-", color=OKABE_ITO[1], lw=1.6,
