@@ -664,6 +664,9 @@ class TransientOptions:
                                  doc="relative frequency error the time step must meet up to fmax (with fmax)")
     fmax: float | None = key(POSFLOAT, None, doc="highest frequency the run must resolve (with accuracy)",
                              units="Hz")
+    transport: bool = key(BOOL, True, omit_default=True,
+                          doc="the running belt's transport terms (gyroscopic, centripetal); false: the former "
+                              "travelling-frame approximation (the belt's nominal inertia only)")
     max_output_mb: float = key(POSFLOAT, 1000.0, omit_default=True,
                                doc="output volume above which a run needs --force-large", units="MB (1e6 bytes)")
     record: Record = key(_Table(Record), factory=Record, doc="[transient.record]: the series written")

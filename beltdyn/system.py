@@ -438,24 +438,25 @@ class BeltSpans:
             object.__setattr__(self, "_transport_e", (A_e, B_e))
         return got
 
-    def transport_end_forces(self, E: np.ndarray, Ed: np.ndarray | None, speed: float,
-                             acceleration: float = 0.0) -> np.ndarray:
+    def transport_end_forces(self, E: np.ndarray, Ed: np.ndarray | None, speed, acceleration=0.0) -> np.ndarray:
         """(B, n_span, 2 ends, 2) the transport forces of the end elements on the span-end nodes for element
-        states E, Ed (B, n_elem, 8) at the belt speed c (m/s) and its rate c' (m/s^2):
-        c (A_e - A_e^T) e' - c^2 B_e e + c' A_e e (rows of the end nodes' positions). With the elastic
-        forces (`end_forces`) and the inertia (`end_inertia`) they make the force the pulley holds the node
-        with: the running belt's momentum flux, which lowers the hub loads by rho c^2 lambda per span end."""
+        states E, Ed (B, n_elem, 8) at the belt speed c (m/s) and its rate c' (m/s^2), each a number or one
+        per state (B,): c (A_e - A_e^T) e' - c^2 B_e e + c' A_e e (rows of the end nodes' positions). With
+        the elastic forces (`end_forces`) and the inertia (`end_inertia`) they make the force the pulley
+        holds the node with: the running belt's momentum flux, which lowers the hub loads by
+        rho c^2 lambda per span end."""
         self.transport_blocks()
         A_e, B_e = self.__dict__["_transport_e"]
+        c = np.broadcast_to(np.asarray(speed, dtype=float), (E.shape[0],))[:, None, None]
+        cd = np.broadcast_to(np.asarray(acceleration, dtype=float), (E.shape[0],))[:, None, None]
         out = []
         for els, rows in ((self.first, slice(0, 2)), (self.last, slice(4, 6))):
-            f = -speed * speed * np.einsum("eij,bej->bei", B_e[els], E[:, els])
-            if acceleration:
-                f += acceleration * np.einsum("eij,bej->bei", A_e[els], E[:, els])
-            if Ed is not None and speed:
-                G = A_e[els] - A_e[els].transpose(0, 2, 1)
-                f += speed * np.einsum("eij,bej->bei", G, Ed[:, els])
-            out.append(f[:, :, rows])
+            A, B = A_e[els][:, rows], B_e[els][:, rows]
+            f = -c * c * np.einsum("eij,bej->bei", B, E[:, els]) + cd * np.einsum("eij,bej->bei", A, E[:, els])
+            if Ed is not None:
+                G = A - A_e[els].transpose(0, 2, 1)[:, rows]
+                f += c * np.einsum("eij,bej->bei", G, Ed[:, els])
+            out.append(f)
         return np.stack(out, axis=2)
 
     def end_inertia(self, Ea: np.ndarray) -> np.ndarray:
