@@ -309,7 +309,7 @@ def _solve_running(model: System, q: np.ndarray, *, n_modes: int, solver: str) -
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order_, span=span, label=label, energy_share=share,
         span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid,
-        rigid_frequency=np.sqrt(np.abs(size[rigid]) ** 2) / (2 * np.pi), solver=name,
+        rigid_frequency=np.sort(size[rigid])[:n_rigid] / (2 * np.pi), solver=name,
         belt_speed=float(model.belt_speed), growth_rate=growth, stability=stability, critical_speed=critical)
 
 

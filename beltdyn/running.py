@@ -111,7 +111,7 @@ def linearized_matrices(system: "System", q0: np.ndarray, damping: "Damping | No
     its running equilibrium (`pipeline.analyse` with [running], `StaticResult.q`). See `RunningMatrices`."""
     _, K = system.equilibrium(q0)
     M = system.mass_matrix(q0)
-    G = system.gyroscopic_matrix(q0)
+    G = system.gyroscopic_matrix(q0) if system.belt_speed else 0.0 * M
     C_p = system.linear_damping
     if damping is not None and (damping.rayleigh_mass or damping.rayleigh_stiffness):
         ray = damping.rayleigh_mass * system.mass + damping.rayleigh_stiffness * system.tangent_on_joints(q0)
@@ -130,3 +130,92 @@ def linearized_matrices(system: "System", q0: np.ndarray, damping: "Damping | No
     C = system.project_matrix(q0, C_p) if C_p is not None else 0.0 * M
     return RunningMatrices(M=M, G=G, K=K, C=C, q0=np.asarray(q0, dtype=float), dofs=system.dofs,
                            belt_speed=float(system.belt_speed))
+
+
+# ------------------------------------------------------------------------------------ Campbell diagram
+SPEED_KEYS = ("running.driver_speed", "running.belt_speed")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Crossing:
+    """A tracked mode meeting an engine-order line f = order x |Omega| / (2 pi) (linear interpolation
+    between the two cases that bracket it): a resonance of the running drive."""
+
+    order: float
+    mode: int  # 0-based index of the tracked mode
+    label: str  # the mode's classification at the nearer case
+    driver_speed: float  # rad/s
+    belt_speed: float  # m/s
+    frequency: float  # Hz
+
+
+@dataclass(frozen=True, kw_only=True)
+class Instability:
+    """A tracked mode losing its stability between two cases: "divergence" (its frequency reaches zero, a
+    real eigenvalue s > 0 beyond) or "flutter" (Re s > 0 at a nonzero frequency). A divergence speed
+    interpolates omega^2 - sigma^2 (s = sigma + i omega), linear in the squared speed near it; a flutter
+    speed is that of the first case where the growth is seen."""
+
+    kind: str
+    mode: int
+    label: str
+    driver_speed: float  # rad/s
+    belt_speed: float  # m/s
+
+
+def mode_label(kind: str, order: int, span: int, span_names: list[str]) -> str:
+    """"2nd transverse, span 1 (A-C)" from a tracked mode's classification."""
+    from .modal import ordinal
+
+    if kind in ("", "lost"):
+        return kind or "?"
+    text = f"{ordinal(int(order))} {kind}"
+    return text + (f", span {int(span)} ({span_names[int(span) - 1]})" if int(span) > 0 else "")
+
+
+def speed_axis(result) -> bool:
+    """Whether a sweep result is a Campbell diagram: one swept (or zipped) parameter, a running speed,
+    modal, with the per-case speeds recorded."""
+    spec = result.spec
+    return (result.frequency is not None and "driver_speed" in result.extras
+            and (len(spec.params) == 1 or spec.zip) and any(p.key in SPEED_KEYS for p in spec.params))
+
+
+def campbell(result, orders, span_names: list[str]) -> tuple[tuple[Crossing, ...], tuple[Instability, ...]]:
+    """The engine-order crossings (for each order, each tracked mode) and the critical speeds of a speed
+    sweep (`speed_axis`), cases taken in the order of increasing |driver speed|; failed cases and lost
+    modes break the lines."""
+    Om = np.abs(np.asarray(result.extras["driver_speed"], dtype=float))
+    c = np.abs(np.asarray(result.extras["belt_speed"], dtype=float))
+    f = result.frequency
+    g = result.growth_rate if result.growth_rate is not None else np.zeros_like(f)
+    idx = np.argsort(Om, kind="stable")
+    idx = idx[result.failed[idx] == 0]
+    crossings, unstable = [], []
+
+    def label(i: int, j: int) -> str:
+        return mode_label(str(result.kind[i, j]), result.order[i, j], result.span[i, j], span_names)
+
+    for a, b in zip(idx[:-1], idx[1:]):
+        for j in range(f.shape[1]):
+            fa, fb, ga, gb = f[a, j], f[b, j], g[a, j], g[b, j]
+            if not (np.isfinite(fa) and np.isfinite(fb)) or Om[b] == Om[a]:
+                continue
+            if fa > 0 and fb > 0:
+                for k in orders:
+                    ya, yb = fa - k * Om[a] / (2 * np.pi), fb - k * Om[b] / (2 * np.pi)
+                    if ya > 0 >= yb or ya < 0 <= yb:
+                        t = ya / (ya - yb)
+                        W = Om[a] + t * (Om[b] - Om[a])
+                        crossings.append(Crossing(order=float(k), mode=j, label=label(a if t < 0.5 else b, j),
+                                                  driver_speed=float(W), belt_speed=float(c[a] + t * (c[b] - c[a])),
+                                                  frequency=float(k * W / (2 * np.pi))))
+            if (ga if np.isfinite(ga) else 0.0) <= 0 < (gb if np.isfinite(gb) else 0.0):
+                kind = "divergence" if fb == 0 else "flutter"
+                ya, yb = (2 * np.pi * fa) ** 2 - ga ** 2, (2 * np.pi * fb) ** 2 - gb ** 2
+                t = ya / (ya - yb) if kind == "divergence" and ya > 0 > yb else 1.0  # flutter: where first seen
+                unstable.append(Instability(kind=kind, mode=j, label=label(a, j),
+                                            driver_speed=float(np.sqrt(Om[a] ** 2 + t * (Om[b] ** 2 - Om[a] ** 2))),
+                                            belt_speed=float(np.sqrt(c[a] ** 2 + t * (c[b] ** 2 - c[a] ** 2)))))
+    crossings.sort(key=lambda x: (x.order, x.driver_speed))
+    return tuple(crossings), tuple(unstable)
