@@ -28,8 +28,9 @@ span tension, hub load, bearing force or mid-span displacement means here exactl
 
 Left out, and why: the arms' dry friction (not linear: a sticking damper is a spring, a sliding one a
 constant torque; the transient models it); the running belt's transport terms (gyroscopic and
-centripetal) until the running-belt model provides them at the belt speed Omega R_driver (until then
-the response is that of the drive at rest excited at k Omega, as the transient's travelling frame).
+centripetal) at the belt speed Omega R_driver: `running.linearized_matrices` gives them (G, and K with
+-c^2 B about the running equilibrium), not yet used here, so the response is that of the drive at rest
+excited at k Omega, as the transient with transient.transport = false (its former travelling frame).
 """
 
 from __future__ import annotations
