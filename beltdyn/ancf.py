@@ -328,6 +328,7 @@ def transport_matrices(el: ElementSet) -> tuple[np.ndarray, np.ndarray]:
     wr = w_c[None, :] * (el.length * el.rho)[:, None]
     a4 = np.einsum("nq,nqa,nqb->nab", wr, s_c, d_c)
     b4 = np.einsum("nq,nqa,nqb->nab", wr, d_c, d_c)
+    b4 = 0.5 * (b4 + np.swapaxes(b4, 1, 2))  # symmetric to the last bit
     eye2 = np.eye(2)
     return _kron_i2(a4, eye2), _kron_i2(b4, eye2)
 

@@ -203,7 +203,7 @@ def _gyroscopic_dense(K, G, M, tol: float, n_want: int):
         S[:r, r:] = R @ Gt
         S[r:, :r] = S[:r, r:].T
         S[r:, r:] = R.T @ R - Gt @ Gt
-        m = min(r, n_want)
+        m = min(r, n_want + 2)  # two more: a cut through a near-degenerate pair spoils only the discarded ones
         try:
             _, Q = eigh(S, subset_by_index=[n - r, n - r + 2 * m - 1], check_finite=False)
             HQ = np.empty((N, 2 * m))

@@ -802,7 +802,9 @@ class System:
         return got
 
     def centripetal_force(self, p: np.ndarray) -> np.ndarray:
-        """-c^2 (B p + b0) (n_p,) at the joint coordinates p: the running belt's centripetal force."""
+        """-c^2 (B p + b0) (n_p,) at the joint coordinates p: the running belt's centripetal term of the
+        internal force, the gradient of the centripetal potential V = -c^2/2 sum_e e^T B_e e (the force on
+        the belt is its negative, outward along the spans' ends: the momentum flux)."""
         _, B, _, b0 = self.transport_matrices()
         c2 = self.belt_speed * self.belt_speed
         return -c2 * (np.asarray(B @ p).ravel() + b0)
