@@ -534,6 +534,10 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
     from .pipeline import transient_start
 
     (model, res), mres = transient_start(run), run.modal
+    if mres is not None and model.belt_speed != run.system.belt_speed:  # the peaks against the modes at the start speed
+        from .modal import solve_modes
+
+        mres = solve_modes(model, res.q, n_modes=len(mres.frequency), solver=cfg.modal.solver)
     setup = prepare(model, res, opts)
     _warm_kernels(_console())
     shapes = {name: len(v) for name, v in setup.coords.items()}

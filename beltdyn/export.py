@@ -396,5 +396,6 @@ def response_group(system, res) -> GroupData:
         coord_units={"speed": "rad/s", "order": "1"},
         variables=tuple(variables),
         attrs={"prescribed": list(res.prescribed), "warnings": list(res.warnings),
-               "model": "linearized about the static equilibrium; transport terms of the running belt not included"},
+               "model": "linearized about the static equilibrium; the running belt's transport terms only at the "
+                        "speed of [running] (its running equilibrium), none without it"},
     )

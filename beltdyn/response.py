@@ -28,9 +28,11 @@ span tension, hub load, bearing force or mid-span displacement means here exactl
 
 Left out, and why: the arms' dry friction (not linear: a sticking damper is a spring, a sliding one a
 constant torque; the transient models it); the running belt's transport terms (gyroscopic and
-centripetal) at the belt speed Omega R_driver: `running.linearized_matrices` gives them (G, and K with
--c^2 B about the running equilibrium), not yet used here, so the response is that of the drive at rest
-excited at k Omega, as the transient with transient.transport = false (its former travelling frame).
+centripetal) at the belt speed Omega R_driver of each speed: `running.linearized_matrices` gives them
+(G, and K with -c^2 B about the running equilibrium); here they enter only at the one speed of
+[running] (C + G, K about that running equilibrium), so without [running] the response is that of the
+drive at rest excited at k Omega, as the transient with transient.transport = false (its former
+travelling frame).
 """
 
 from __future__ import annotations
@@ -79,7 +81,7 @@ def linearize(system: System, static: StaticResult, damping: Damping) -> LinearD
     from .running import linearized_matrices
 
     lin = linearized_matrices(system, static.q, damping)
-    return LinearDrive(M=lin.M, C=lin.C, K=lin.K, q0=lin.q0)
+    return LinearDrive(M=lin.M, C=lin.C + lin.G if system.belt_speed else lin.C, K=lin.K, q0=lin.q0)
 
 
 def excitation_sets(system: System, opts: ResponseOptions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
