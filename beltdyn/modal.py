@@ -13,13 +13,13 @@ The kind is the largest share ("mixed" when no share reaches 1/2); the order of 
 its half-wave count along the dominant span, of any other kind its rank within that kind.
 
 The running belt (`System.belt_speed` c != 0, see `running`): the gyroscopic eigenproblem
-(s^2 M + s G + K) phi = 0 with G = -G^T. Dense: with M = L L^T and L^-1 K L^-T = V diag(lam) V^T
-(lam >= 0 below the first critical speed, one zero for the belt turning with the pulleys), the
-real skew-symmetric matrix H = [[0, R], [-R^T, -V^T L^-1 G L^-T V]], R = diag(sqrt(lam))
-restricted to the nonzero lam, has the eigenvalues s = +-i omega of the elastic modes exactly
-(s y = H y for y = (R xi, s xi), phi = L^-T V xi): one Hermitian eigenproblem (i H) for the lowest
-modes, so the frequencies stay real and paired (the gyroscopic structure is kept). Above a
-critical speed (lam < 0) the companion linearization is solved in full (LAPACK geev). Sparse:
+(s^2 M + s G + K) phi = 0 with G = -G^T. Dense: with M = L L^T and L^-1 K L^-T = R^T R (pivoted
+Cholesky; positive semi-definite below the first critical speed, one zero for the belt turning with
+the pulleys), the real skew-symmetric matrix H = [[0, R], [-R^T, -L^-1 G L^-T]] has the eigenvalues
+s = +-i omega of the elastic modes exactly (s y = H y for y = (R xi, s xi), phi = L^-T xi); its
+lowest eigenpairs come from the symmetric H^T H (LAPACK syevd) and a small Hermitian Rayleigh-Ritz
+(`_gyroscopic_dense`), so the frequencies stay real and paired (the gyroscopic structure is kept).
+Above a critical speed the companion linearization is solved in full (LAPACK geev). Sparse:
 ARPACK in shift-invert mode on the companion linearization about a small negative real shift
 (one sparse LU of K + sigma G + sigma^2 M). Frequencies are Im s / 2 pi, shapes complex,
 normalized phi^H M phi = 1 with their largest entry real and positive. A real s > 0 is a divergent
