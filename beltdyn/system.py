@@ -805,9 +805,15 @@ class System:
         """-c^2 (B p + b0) (n_p,) at the joint coordinates p: the running belt's centripetal term of the
         internal force, the gradient of the centripetal potential V = -c^2/2 sum_e e^T B_e e (the force on
         the belt is its negative, outward along the spans' ends: the momentum flux)."""
-        _, B, _, b0 = self.transport_matrices()
-        c2 = self.belt_speed * self.belt_speed
-        return -c2 * (np.asarray(B @ p).ravel() + b0)
+        belt = self.belt
+        belt.transport_blocks()
+        B_e = belt.__dict__["_transport_e"][1]
+        e = belt.element_coordinates(p)
+        return -(self.belt_speed * self.belt_speed) * belt.reduce_vector(np.matmul(B_e, e[:, :, None])[:, :, 0])
+
+    def _running_blocks(self, blocks: np.ndarray) -> np.ndarray:
+        """The element tangent blocks (n_elem, m, m) with the centripetal stiffness -c^2 T^T B_e T added."""
+        return blocks - (self.belt_speed * self.belt_speed) * self.belt.transport_blocks()[1]
 
     def gyroscopic_matrix(self, q: np.ndarray | None = None):
         """The gyroscopic matrix G = J^T c (A - A^T) J on q at the state q (skew-symmetric; zeros at rest)."""
@@ -869,10 +875,9 @@ class System:
         geometric term is that of the internal force alone (see `equilibrium` for the loaded one)."""
         if self.arms is None:
             f, blocks = self.belt.force_and_blocks(q)
-            f, K = f + self.linear_force(q), self.assemble(blocks)
             if self.belt_speed:
-                f, K = f + self.centripetal_force(q), K - self.belt_speed ** 2 * self.transport_matrices()[1]
-            return f, K
+                f, blocks = f + self.centripetal_force(q), self._running_blocks(blocks)
+            return f + self.linear_force(q), self.assemble(blocks)
         return self.equilibrium(q, 0.0)
 
     def external_force(self, load_factor: float = 1.0) -> np.ndarray:
@@ -892,9 +897,9 @@ class System:
             return (f if self.arms is None else self.arms.project(q, f)), None
         f, blocks = self.belt.force_and_blocks(p)
         f = f + self.linear_force(p) - self.external_force(load_factor)
-        K = self.assemble(blocks)
         if self.belt_speed:
-            f, K = f + self.centripetal_force(p), K - self.belt_speed ** 2 * self.transport_matrices()[1]
+            f, blocks = f + self.centripetal_force(p), self._running_blocks(blocks)
+        K = self.assemble(blocks)
         if self.arms is None:
             return f, K
         return self.arms.project(q, f), self.arms.project_matrix(q, K, f, dense=self.dense)
