@@ -212,7 +212,7 @@ def _gyroscopic_dense(K, G, M, tol: float, n_want: int):
             HQ = np.empty((N, 2 * m))
             HQ[:r] = R @ Q[r:]
             HQ[r:] = -R.T @ Q[:r] - Gt @ Q[r:]
-            mu, W = eigh(1j * (Q.T @ HQ), check_finite=False)
+            mu, W = eigh(1j * (Q.T @ HQ), driver="evd", check_finite=False)
         except np.linalg.LinAlgError as exc:
             raise SolverError(f"dense gyroscopic eigen-solver failed: {exc}", analysis="modal") from None
         # i H z = mu z: H z = -i mu z; the conjugate is the eigenvector of s = +i mu, with y = (R xi, s xi)
