@@ -228,7 +228,8 @@ def transverse(md, span: int, n: int) -> float:
 def test_moving_string_frequencies(fraction):
     # The bench's spans with EI -> 0 (curvature "none", 10 el/span) at v = fraction x the wave speed:
     # f_n = n c_w / (2 L) (1 - v^2 / c_w^2), c_w^2 = P / rho, for n = 1..3 on both spans, within 0.3 %
-    # (measured: 1.8e-4 at worst, n = 3 at 0.7 c_w). In the reference coordinate: c_w^2 = S / rho, v = c (see reference_tension).
+    # (measured: 1.8e-4 at worst, n = 3 at 0.7 c_w). In the reference coordinate: c_w^2 = S / rho,
+    # v = c (see reference_tension).
     rest = analyse(bench('model.curvature="none"'))
     S0 = reference_tension(rest.static.span_tension.mean())[0]
     c = fraction * math.sqrt(S0 / RHO)
