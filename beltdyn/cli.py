@@ -591,6 +591,10 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
     from .pipeline import transient_start
 
     (model, res), mres = transient_start(run), run.modal
+    if mres is not None and model.belt_speed != run.system.belt_speed:  # the peaks against the modes at the start speed
+        from .modal import solve_modes
+
+        mres = solve_modes(model, res.q, n_modes=len(mres.frequency), solver=cfg.modal.solver)
     setup = prepare(model, res, opts)
     _warm_kernels(_console())
     shapes = {name: len(v) for name, v in setup.coords.items()}
@@ -841,6 +845,7 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
             job.write()
             journal.remove()
         _print_sweep(con, result)
+        _print_campbell(con, cfg, result)
         if result.failed.all():
             from .errors import SolverError
 
@@ -928,6 +933,34 @@ def _print_sweep(con, result) -> None:
         con.print(conv)
 
 
+def _print_campbell(con, cfg, result) -> None:
+    """A speed sweep's resonance table: the engine-order crossings of [running] orders and the critical
+    speeds (`running.campbell`)."""
+    from rich.table import Table
+
+    from .running import campbell, speed_axis
+
+    if not speed_axis(result):
+        return
+    names = [p.name for p in cfg.pulleys]
+    spans = [f"{names[i]}-{names[(i + 1) % len(names)]}" for i in range(len(names))]
+    orders = cfg.running.orders if cfg.running is not None else ()
+    crossings, unstable = campbell(result, orders, spans)
+    if orders:
+        t = Table(title=f"Campbell diagram: crossings of the modes with the engine orders {', '.join(f'{k:g}' for k in orders)}")
+        for col in ("order", "driver speed (rad/s)", "(rpm)", "belt speed (m/s)", "frequency (Hz)", "mode"):
+            t.add_column(col, justify="left" if col == "mode" else "right")
+        for x in crossings:
+            t.add_row(f"{x.order:g}", f"{x.driver_speed:.2f}", f"{x.driver_speed * 30 / 3.141592653589793:.0f}",
+                      f"{x.belt_speed:.3f}", f"{x.frequency:.3f}", f"{x.mode + 1}: {x.label}")
+        if not crossings:
+            t.add_row("", "", "", "", "", "no crossing in the swept range")
+        con.print(t)
+    for x in unstable:
+        con.print(f"[bold yellow]{x.kind}:[/] mode {x.mode + 1} ({x.label}) at the critical driver speed "
+                  f"{x.driver_speed:.4g} rad/s (belt speed {x.belt_speed:.4g} m/s)")
+
+
 @app.command()
 def paper(outdir: Path = typer.Option(Path("results/paper"), "--outdir", help="Folder for the HDF5 files and tables.md."),
           configs: Path = typer.Option(Path("configs/paper"), "--configs", help="Folder of the paper configs."),
@@ -997,7 +1030,8 @@ def _print_static(layout, model, res) -> None:
     from rich.table import Table
 
     con = _console()
-    t = Table(title=f"Static equilibrium ({res.iterations} Newton iterations, {model.n_dof} DOFs)")
+    speed = f" of the belt running at {model.belt_speed:.4g} m/s" if model.belt_speed else ""
+    t = Table(title=f"Static equilibrium{speed} ({res.iterations} Newton iterations, {model.n_dof} DOFs)")
     for col in ("span", "tension start (N)", "tension end (N)"):
         t.add_column(col, justify="right" if col != "span" else "left")
     for i in range(layout.n):
@@ -1048,17 +1082,26 @@ def _print_static(layout, model, res) -> None:
 
 
 def _print_modal(mres) -> None:
+    import numpy as np
     from rich.table import Table
 
     con = _console()
-    t = Table(title=f"Modes ({mres.solver} solver; {mres.n_rigid} rigid-body mode(s) excluded)")
+    speed = f" at belt speed {mres.belt_speed:.4g} m/s (gyroscopic)" if mres.belt_speed else ""
+    t = Table(title=f"Modes{speed} ({mres.solver} solver; {mres.n_rigid} rigid-body mode(s) excluded)")
     tens = bool(mres.energy_share[:, 4].any()) if mres.energy_share.shape[1] > 4 else False
-    for col in ("mode", "frequency (Hz)", "modal shape", "rot", "trans", "long", "transv") + (("tens",) if tens else ()):
+    unstable = mres.growth_rate is not None and bool(np.any(mres.growth_rate > 0))
+    for col in ("mode", "frequency (Hz)") + (("growth (1/s)",) if unstable else ()) + \
+            ("modal shape", "rot", "trans", "long", "transv") + (("tens",) if tens else ()):
         t.add_column(col, justify="left" if col == "modal shape" else "right")
     for k in range(len(mres.frequency)):
         sh = mres.energy_share[k][: 5 if tens else 4]
-        t.add_row(str(k + 1), f"{mres.frequency[k]:.3f}", mres.label[k], *(f"{x:.2f}" for x in sh))
+        growth = (f"{mres.growth_rate[k]:.4g}",) if unstable else ()
+        t.add_row(str(k + 1), f"{mres.frequency[k]:.3f}", *growth, mres.label[k], *(f"{x:.2f}" for x in sh))
     con.print(t)
+    if unstable:
+        con.print(f"[bold yellow]warning:[/] the running belt is unstable at {mres.belt_speed:.4g} m/s: above its first "
+                  f"critical speed {mres.critical_speed:.4g} m/s (about this equilibrium) a span diverges "
+                  f"(frequency 0, growth rate > 0)")
 
 
 def _print_paper(rows) -> None:

@@ -28,8 +28,11 @@ span tension, hub load, bearing force or mid-span displacement means here exactl
 
 Left out, and why: the arms' dry friction (not linear: a sticking damper is a spring, a sliding one a
 constant torque; the transient models it); the running belt's transport terms (gyroscopic and
-centripetal) until the running-belt model provides them at the belt speed Omega R_driver (until then
-the response is that of the drive at rest excited at k Omega, as the transient's travelling frame).
+centripetal) at the belt speed Omega R_driver of each speed: `running.linearized_matrices` gives them
+(G, and K with -c^2 B about the running equilibrium); here they enter only at the one speed of
+[running] (C + G, K about that running equilibrium), so without [running] the response is that of the
+drive at rest excited at k Omega, as the transient with transient.transport = false (its former
+travelling frame).
 """
 
 from __future__ import annotations
@@ -73,27 +76,12 @@ class LinearDrive:
 
 
 def linearize(system: System, static: StaticResult, damping: Damping) -> LinearDrive:
-    """M, C, K of the drive about its static equilibrium (see the module docstring)."""
-    q0 = static.q
-    _, K = system.equilibrium(q0)
-    M = system.mass_matrix(q0)
-    C_p = system.linear_damping
-    if damping.rayleigh_mass or damping.rayleigh_stiffness:
-        ray = damping.rayleigh_mass * system.mass + damping.rayleigh_stiffness * system.tangent_on_joints(q0)
-        C_p = ray if C_p is None else C_p + ray
-    if damping.belt_axial or damping.belt_bending:
-        from . import belt_kernel as bk
+    """M, C, K of the drive about its static equilibrium (see the module docstring;
+    `running.linearized_matrices`, whose gyroscopic G is zero at rest)."""
+    from .running import linearized_matrices
 
-        belt = system.belt
-        tab = belt.kernel_tables
-        E = belt.element_coordinates(system.expand(q0))
-        Ce = np.empty((E.shape[0], 8, 8))
-        bk.element_damping_matrix(E, tab.dS, tab.d2S, tab.wEA, tab.wEI, tab.Kb, tab.curvature,
-                                  float(damping.belt_axial), float(damping.belt_bending), Ce)
-        Cb = system.assemble(belt.reduce_blocks(Ce), linear=False)
-        C_p = Cb if C_p is None else C_p + Cb
-    C = system.project_matrix(q0, C_p) if C_p is not None else 0.0 * M
-    return LinearDrive(M=M, C=C, K=K, q0=q0)
+    lin = linearized_matrices(system, static.q, damping)
+    return LinearDrive(M=lin.M, C=lin.C + lin.G if system.belt_speed else lin.C, K=lin.K, q0=lin.q0)
 
 
 def excitation_sets(system: System, opts: ResponseOptions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -36,7 +36,9 @@ def _bench_with_response(tmp_path: Path, *, omega: float, order: float, B: float
     raw["response"] = {"speed": [omega, omega * 1.0001], "points": 2, "orders": [order],
                        "damping": {"rayleigh_mass": alpha},
                        "excitation": [{"pulley": "A", "kind": "speed", "amplitude": B}]}
-    raw["transient"] = {"duration": 1.5, "step": 1e-4, "output_interval": 2e-4, "rho_inf": 1.0,
+    # transport = false: the response does not have the running belt's transport terms yet (its module
+    # docstring), so the transient is compared in the same model, the travelling frame
+    raw["transient"] = {"duration": 1.5, "step": 1e-4, "output_interval": 2e-4, "rho_inf": 1.0, "transport": False,
                         "spectrum": {"enabled": False}, "damping": {"rayleigh_mass": alpha},
                         "rotation": [{"pulley": "A", "speed": omega, "speed_amplitude": B, "order": order,
                                       "fluctuation_ramp": 0.3}]}
