@@ -613,6 +613,9 @@ class ResponseOptions:
                                      units="rad/s")
     points: int = key(POSINT, 100, doc="driver speeds in the range, evenly spaced")
     orders: tuple[float, ...] = key(_Numbers(), (1.0,), doc="engine orders", units="1")
+    transport: bool = key(BOOL, True, doc="linearize about the running equilibrium at each speed (the belt at "
+                                          "speed x R_driver, with its transport terms); false: once, about the "
+                                          "equilibrium of [running] (or at rest): the travelling frame")
     damping: Damping = key(_Table(Damping), factory=Damping,
                              doc="[response.damping]: Rayleigh and belt damping, as [transient.damping]")
     excitation: tuple[ResponseExcitation, ...] = key(
