@@ -162,7 +162,7 @@ def static_warnings(model: DriveModel, res: StaticResult) -> list[str]:
     out = []
     from .system import stretch_for_tension
 
-    EA = float(np.max(model.belt.elements.EA))
+    EA = float(model.EA)
     T = float(np.max(res.span_tension))
     strain = stretch_for_tension(T, EA) - 1.0 if T > 0 else 0.0  # engineering strain of the stretch
     if strain > STRAIN_WARNING:

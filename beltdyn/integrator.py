@@ -60,6 +60,7 @@ import numpy as np
 from numba import njit
 
 from . import belt_kernel as bk
+from . import spring_kernel as sk
 
 # return codes of run_steps
 DONE = 0  # reached t_stop
@@ -70,7 +71,7 @@ MAX_STEPS = 4  # step budget of this call used up (keeps Ctrl-C responsive)
 
 # Named structures handed to the compiled stepper (numba reads namedtuples by attribute).
 BeltData = namedtuple("BeltData", ["e0", "T", "idx", "tsel", "dS", "d2S", "wEA", "wEI", "EA", "Kb", "curvature",
-                                   "eta_a", "eta_b", "elem_span", "n_span"])
+                                   "eta_a", "eta_b", "elem_span", "n_span", "springs"])  # springs: spring_kernel.SpringData
 Csr = namedtuple("Csr", ["indptr", "indices", "data"])
 Linear = namedtuple("Linear", ["K", "q_ref", "C", "M"])  # constant stiffness, its reference state, damping, mass
 Forcing = namedtuple("Forcing", ["constant", "load_dof", "load_coef", "load_sig", "sig_params", "tab_ptr", "tab_t",
@@ -274,6 +275,7 @@ def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gros
         bk.element_damping(E, Ed, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, belt.eta_a,
                            belt.eta_b, fd)
         bk.scatter_vector(fd, belt.T, belt.idx, belt.tsel, f_dmp)
+    sk.spring_forces(belt.springs, q_ext, v_ext, f_el, f_dmp, gross, with_gross)
 
 
 @njit(cache=True)
@@ -294,10 +296,10 @@ def external_forces(F, cons, t, out, sig_val):
 
 @njit(cache=True)
 def potential_energy(belt, lin, q, q_ext, E, U, dq, Kdq):
-    """Belt strain energy + 1/2 (q - q_ref)^T K_lin (q - q_ref)."""
+    """Belt strain energy (elements and spring spans) + 1/2 (q - q_ref)^T K_lin (q - q_ref)."""
     bk.gather(q_ext, belt.e0, belt.T, belt.idx, belt.tsel, E)
     bk.element_strain_energy(E, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, U)
-    total = 0.0
+    total = sk.spring_energy(belt.springs, q_ext)
     for e in range(U.shape[0]):
         total += U[e]
     n = q.shape[0]
@@ -634,6 +636,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             sp = belt.elem_span[e]
             if min_elem[e] < min_span[sp]:
                 min_span[sp] = min_elem[e]
+        sk.spring_min_force(belt.springs, q_ext, min_span)
         for sp in range(belt.n_span):
             now = 1.0 if min_span[sp] < 0.0 else 0.0
             if now != ev.slack[sp] and ev.n[0] < ev.data.shape[0]:

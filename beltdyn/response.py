@@ -90,7 +90,7 @@ def linearize(system: System, static: StaticResult, damping: Damping) -> LinearD
         Ce = np.empty((E.shape[0], 8, 8))
         bk.element_damping_matrix(E, tab.dS, tab.d2S, tab.wEA, tab.wEI, tab.Kb, tab.curvature,
                                   float(damping.belt_axial), float(damping.belt_bending), Ce)
-        Cb = system.assemble(belt.reduce_blocks(Ce), linear=False)
+        Cb = system.with_belt(damping_axial=float(damping.belt_axial)).belt_damping_matrix(q0, Ce)
         C_p = Cb if C_p is None else C_p + Cb
     C = system.project_matrix(q0, C_p) if C_p is not None else 0.0 * M
     return LinearDrive(M=M, C=C, K=K, q0=q0)
@@ -170,10 +170,9 @@ def _outputs_of(system: System, q0: np.ndarray, q: np.ndarray, v: np.ndarray, a:
     ap = system.expand_motion(q0, a)
     belt = system.belt
     E = belt.element_coordinates_batch(p)
-    Ed = belt.element_coordinates_batch(vp, offset=False)
-    F = belt.end_forces(E, Ed, system.gravity)
-    out = {"span_tension": belt.end_tensions(E, F),
-           "hub_load": system.hub_loads(F + belt.end_inertia(belt.element_coordinates_batch(ap, offset=False))),
+    F = system.span_end_forces(p, vp, E)
+    out = {"span_tension": system.span_end_tensions(p, F, E),
+           "hub_load": system.hub_loads(F + system.span_end_inertia(ap)),
            "pulley_angle": q[:, system.rot_dof], "pulley_speed": v[:, system.rot_dof],
            "midspan_displacement": belt.midspan_displacement(E)}
     if system.arms is not None:
