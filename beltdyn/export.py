@@ -142,11 +142,53 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
             Variable(name="residual", data=res.residual_history, dims=("iteration",), units="1",
                      description="residual norm divided by the allowed residual (converged <= 1) after each Newton iteration"),
             Variable(name="load_factor", data=res.load_factor_history, dims=("iteration",), units="1"),
+            *span_model_variables(model),
         ),
         attrs={"iterations": int(res.iterations), "tension_mode": res.tension_mode, "warnings": static_warnings(model, res),
                "tension_target_N": float(target) if target is not None else float("nan"),
                "n_dof": int(model.n_dof)},
     )
+
+
+def span_model_variables(model: DriveModel) -> tuple[Variable, ...]:
+    """The model and elements of each span ([spans], the fidelity ladder), dims (span,)."""
+    models, counts = model.span_models()
+    return (Variable(name="span_model", data=list(models), dims=("span",), units="1",
+                     description='model of each span: "ancf", "string" (no bending) or "spring" (axial spring)'),
+            Variable(name="span_elements", data=counts, dims=("span",), units="1",
+                     description="ANCF elements of each span (0 for a spring span)"))
+
+
+def ladder_variables(choice) -> tuple[Variable, ...]:
+    """The automatic choice of the span models (`ladder.choose_models`), dims (span,)."""
+    return (Variable(name="span_dofs", data=np.array([c.dofs for c in choice.spans], dtype=np.int64), dims=("span",),
+                     units="1", description="the span's own DOFs (4 per element; a spring span none)"),
+            Variable(name="span_estimated_error", data=np.array([c.estimate for c in choice.spans]), dims=("span",),
+                     units="1", description="estimated relative frequency error of the modes below ladder_fmax_Hz "
+                                            "that the span's model causes"))
+
+
+def ladder_attrs(choice) -> dict:
+    return {"ladder_fmax_Hz": float(choice.fmax), "ladder_rtol": float(choice.rtol),
+            "ladder_estimated_error": float(choice.estimate), "ladder_met": int(choice.met),
+            "ladder_solves": int(choice.solves)}
+
+
+def unrepresented_variables(model: DriveModel, modes) -> tuple[dict, tuple[Variable, ...]]:
+    """(coords, variables) of the modes below the band that spring spans leave out
+    (`ladder.unrepresented_modes`); none when there are none."""
+    if not modes:
+        return {}, ()
+    lay = model.layout
+    return ({"unrepresented": np.arange(1, len(modes) + 1)}, (
+        Variable(name="unrepresented_frequency", data=np.array([m[3] for m in modes]), dims=("unrepresented",),
+                 units="Hz", description="a mode a spring span cannot represent (its own transverse or "
+                                         "longitudinal mode, the span pinned at its ends): NOT among the modes"),
+        Variable(name="unrepresented_span", data=[lay.span_name(m[0]) for m in modes], dims=("unrepresented",),
+                 units="1"),
+        Variable(name="unrepresented_kind", data=[m[1] for m in modes], dims=("unrepresented",), units="1"),
+        Variable(name="unrepresented_order", data=np.array([m[2] for m in modes], dtype=np.int64),
+                 dims=("unrepresented",), units="1")))
 
 
 STRAIN_WARNING = 0.05  # belt strain above which the constant-EA axial law is flagged (real belts: ~1 % at most)
@@ -210,15 +252,17 @@ def _static_extras(res: StaticResult) -> tuple[Variable, ...]:
     )
 
 
-def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
+def modal_group(model: DriveModel, res: ModalResult, unrepresented=()) -> GroupData:
+    """/modal; unrepresented: the modes spring spans leave out (`ladder.unrepresented_modes`)."""
     from .modal import KINDS
 
     lay = model.layout
+    u_coords, u_vars = unrepresented_variables(model, unrepresented)
     return GroupData(
         name="modal",
         coords={"mode": np.arange(1, len(res.frequency) + 1), "dof": list(model.dof_labels),
                 "energy_kind": list(KINDS), "belt_span": [lay.span_name(i) for i in range(lay.n)],
-                "rigid": np.arange(1, res.n_rigid + 1)},
+                "rigid": np.arange(1, res.n_rigid + 1), **u_coords},
         variables=(
             Variable(name="frequency", data=res.frequency, dims=("mode",), units="Hz"),
             Variable(name="kind", data=list(res.kind), dims=("mode",), units="1"),
@@ -239,6 +283,7 @@ def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
                                  "per sqrt(kg m^2)"),
             dof_unit_variable(model),
             Variable(name="rigid_frequency", data=res.rigid_frequency, dims=("rigid",), units="Hz"),
+            *u_vars,
         ),
         attrs={"n_rigid": int(res.n_rigid), "solver": res.solver, "n_dof": int(model.n_dof), "warnings": []},
     )

@@ -496,6 +496,8 @@ class SpringSpans:
     n_dof: int  # joint coordinates p
     n_span: int  # spans of the drive (spring and flexible)
     damping_axial: float = 0.0  # Kelvin-Voigt retardation time (s), set by the transient options
+    EI: float = 0.0  # the belt's bending stiffness (N m^2) and model.curvature: not used by the springs, only
+    curvature: str = "linear"  # to name the modes of the span they leave out (`ladder.unrepresented_modes`)
 
     @property
     def end_mass(self) -> np.ndarray:
@@ -653,7 +655,8 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     x0 = np.column_stack([layout.span_start[sp], layout.span_end[sp]])
     return SpringSpans(span=sp, T=T, idx=idx, x0=x0, reference_length=layout.span_length[sp] / lam[sp],
                        reference_direction=layout.span_direction[sp].copy(), EA=float(cfg.belt.EA),
-                       rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=layout.n)
+                       rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=layout.n, EI=float(cfg.belt.EI),
+                       curvature=cfg.model.curvature)
 
 
 def _sub_tables(tab, els: np.ndarray) -> tuple:
@@ -1118,6 +1121,18 @@ class System:
             total = L_b + float(self.springs.reference_length.sum())
             T, g = NL / total, g / total
         return T, (g if self.arms is None else self.arms.project(q, g))
+
+    def span_models(self) -> tuple[tuple[str, ...], np.ndarray]:
+        """(model of each span: "ancf", "string" or "spring"; elements of each span (n_span,), 0 for a
+        spring span), as the system was built."""
+        el = self.belt.elements
+        models, counts = [], np.array([len(e) for e in self.belt.span_elements], dtype=np.int64)
+        for els in self.belt.span_elements:
+            if not len(els):
+                models.append("spring")
+            else:
+                models.append("string" if el.curvature == "none" or not np.any(el.EI[els] > 0) else "ancf")
+        return tuple(models), counts
 
     @property
     def EA(self) -> float:
