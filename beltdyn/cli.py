@@ -369,19 +369,22 @@ def _add_results(job: "_Job", run) -> None:
 
 def _unrepresented(job: "_Job", run) -> tuple:
     """The modes the spring spans cannot represent, below --fmax (else below the highest mode computed);
-    printed as a note."""
+    kept on the job for `_print_unrepresented`."""
     if run.system.springs is None:
         return ()
     from .ladder import unrepresented_modes
 
     band = job.ladder.fmax if job.ladder is not None else float(run.modal.frequency.max(initial=0.0))
-    modes = unrepresented_modes(run.system, run.static, band)
+    job.unrepresented = (band, run.system.layout, unrepresented_modes(run.system, run.static, band))
+    return job.unrepresented[2]
+
+
+def _print_unrepresented(job: "_Job") -> None:
+    band, lay, modes = getattr(job, "unrepresented", (0.0, None, ()))
     if modes:
-        lay = run.system.layout
         text = ", ".join(f"{f:.4g} Hz ({kind} {order}, span {lay.span_name(s)})" for s, kind, order, f in modes)
         _console().print(f"[bold yellow]note:[/] the spring spans leave out {len(modes)} mode(s) below {band:.4g} Hz "
-                         f"(their own modes; not in the table): {text}")
-    return modes
+                         f"(their own modes, not in the table above): {text}")
 
 
 def _choose_spans(job: "_Job", fmax: Optional[float], rtol: Optional[float], *, command: str):
@@ -490,6 +493,7 @@ def modal(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
             run = _static_pipeline(job, modal=True, n_modes=modes)
         _print_static(run.layout, run.system, run.static)
         _print_modal(run.modal)
+        _print_unrepresented(job)
         _console().print(f"wrote [bold]/geometry /static /modal[/] to {job.output}")
         _ladder_not_met(job)
 
