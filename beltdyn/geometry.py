@@ -105,14 +105,14 @@ def compute_layout(
     side_sign = np.asarray(side_sign, dtype=float)
     n = len(radius)
     o = loop_orientation(center) if orientation is None else orientation
-    if check:
-        for i in range(n):
-            for j in range(i + 1, n):
-                gap = math.dist(center[i], center[j]) - radius[i] - radius[j]
-                if gap < 0:
-                    raise GeometryError(
-                        f"pulleys '{names[i]}' and '{names[j]}' overlap by {-gap:.6g} m",
-                        f"pulleys[{j}].center")
+    if check:  # every pair (i < j) of pulleys apart
+        i_, j_ = np.triu_indices(n, 1)
+        gaps = np.hypot(*(center[i_] - center[j_]).T) - radius[i_] - radius[j_]
+        if np.any(gaps < 0):
+            k = int(np.argmax(gaps < 0))  # the first pair in (i, j) order
+            i, j = int(i_[k]), int(j_[k])
+            raise GeometryError(f"pulleys '{names[i]}' and '{names[j]}' overlap by {-gaps[k]:.6g} m",
+                                f"pulleys[{j}].center")
     rho = o * side_sign * radius
     nxt = np.arange(1, n + 1) % n
     prv = np.arange(-1, n - 1) % n

@@ -834,7 +834,9 @@ class ArmJoints:
             fu = f[self.n_q:].reshape(len(self.dof), 2)
             geo = np.einsum("kd,kd->k", self.second(self.phi(q)), fu)
         if dense and not hasattr(K, "tocsr"):
-            J = self.jacobian(q).toarray()
+            J = np.zeros((self.n_p, self.n_q))  # the jacobian, dense: identity on q, dc/dphi in the arm columns
+            J[np.arange(self.n_q), np.arange(self.n_q)] = 1.0
+            J[self.slot, self.dof], J[self.slot + 1, self.dof] = dc[:, 0], dc[:, 1]
             out = J.T @ np.asarray(K) @ J
             if geo is not None:
                 out[self.dof, self.dof] += geo
@@ -1393,6 +1395,13 @@ def joint_pairs(layout: Layout, dofs: DofMap, s: int, side: int) -> list[tuple[i
     return pairs + list(zip(dofs.trans_dof[j], dofs.trans_dir[j]))
 
 
+@functools.lru_cache(maxsize=8)
+def _no_elements(EA: float, rho: float, curvature: str, n_gauss: int) -> ancf.ElementSet:
+    """An empty element set (every span a spring), its tables of the right shapes (read-only, shared)."""
+    one = ancf.make_elements(np.ones(1), EA, 0.0, rho, curvature=curvature, n_gauss=n_gauss)
+    return ancf.subset(one, np.zeros(0, dtype=np.int64))
+
+
 def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> ancf.ElementSet:
     """The ANCF elements of the flexible spans: lengths and bending stiffnesses (n_elem,); the tables
     computed once per distinct (length, EI) and gathered. The bending law is model.curvature
@@ -1405,9 +1414,7 @@ def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> an
         curvature = "none"
     b = cfg.belt
     if len(length) == 0:
-        one = ancf.make_elements(np.ones(1), b.EA, 0.0, b.mass_per_length, curvature=curvature,
-                                 n_gauss=cfg.model.gauss_points)
-        return ancf.subset(one, np.zeros(0, dtype=np.int64))
+        return _no_elements(float(b.EA), float(b.mass_per_length), curvature, cfg.model.gauss_points)
     uniq, inverse = np.unique(np.column_stack([length, EI]), axis=0, return_inverse=True)
     if len(uniq) == len(length):  # every element distinct: no gathering
         uniq, inverse = np.column_stack([length, EI]), None
