@@ -18,6 +18,7 @@ direction), which drives the Newton fit of the adjustable pulley (paper Eqs. 18-
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -86,6 +87,15 @@ def loop_orientation(center: np.ndarray) -> int:
     return -1 if area2 < -1e-12 * max(scale, 1e-300) else 1
 
 
+@functools.lru_cache(maxsize=16)
+def _pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The index pairs (i < j) of n pulleys, row by row (read-only, cached)."""
+    i_, j_ = np.triu_indices(n, 1)
+    i_.setflags(write=False)
+    j_.setflags(write=False)
+    return i_, j_
+
+
 def compute_layout(
     center: np.ndarray,
     radius: np.ndarray,
@@ -106,7 +116,7 @@ def compute_layout(
     n = len(radius)
     o = loop_orientation(center) if orientation is None else orientation
     if check:  # every pair (i < j) of pulleys apart
-        i_, j_ = np.triu_indices(n, 1)
+        i_, j_ = _pairs(n)
         gaps = np.hypot(*(center[i_] - center[j_]).T) - radius[i_] - radius[j_]
         if np.any(gaps < 0):
             k = int(np.argmax(gaps < 0))  # the first pair in (i, j) order

@@ -1041,16 +1041,21 @@ class System:
     # -------------------------------------------------------------------- forces
     def belt_force(self, p: np.ndarray) -> np.ndarray:
         """The belt's elastic force on the joint coordinates (n_p,): ANCF spans + spring spans."""
-        f = self.belt.force(p)
-        return f if self.springs is None else f + self.springs.force(p)
+        if self.springs is None:
+            return self.belt.force(p)
+        fs = self.springs.force(p)
+        return fs if self.belt.elements.n_elem == 0 else fs + self.belt.force(p)
 
     def belt_force_and_tangent(self, p: np.ndarray, *, linear: bool = True):
         """The belt's elastic force (n_p,) and its tangent (+ the components' constant stiffness with
         linear=True) on the joint coordinates, assembled (dense or CSR)."""
-        f, blocks = self.belt.force_and_blocks(p)
         if self.springs is None:
+            f, blocks = self.belt.force_and_blocks(p)
             return f, self.assemble(blocks, linear=linear)
         fs, bs = self.springs.force_and_blocks(p)
+        if self.belt.elements.n_elem == 0:  # every span a spring
+            return fs, self.assemble(np.zeros((0,) + self.belt.T.shape[2:] * 2), linear=linear, springs=bs)
+        f, blocks = self.belt.force_and_blocks(p)
         return f + fs, self.assemble(blocks, linear=linear, springs=bs)
 
     def internal_force(self, q: np.ndarray) -> np.ndarray:
@@ -1149,10 +1154,13 @@ class System:
         """(B, n_span, 2, 2) force of each span on its end points for states p, vp (B, n_p) (as
         `BeltSpans.end_forces`; E, Ed the belt's element states if at hand)."""
         b = self.belt
-        E = b.element_coordinates_batch(p) if E is None else E
-        if vp is not None and Ed is None:
-            Ed = b.element_coordinates_batch(vp, offset=False)
-        F = b.end_forces(E, Ed, self.gravity)
+        if b.elements.n_elem == 0:  # every span a spring
+            F = np.zeros((p.shape[0], b.n_span, 2, 2))
+        else:
+            E = b.element_coordinates_batch(p) if E is None else E
+            if vp is not None and Ed is None:
+                Ed = b.element_coordinates_batch(vp, offset=False)
+            F = b.end_forces(E, Ed, self.gravity)
         if self.springs is not None:
             sp = self.springs
             F = F + sp.end_forces(sp.positions_batch(p), None if vp is None else sp.positions_batch(vp, offset=False),
@@ -1161,14 +1169,20 @@ class System:
 
     def span_end_tensions(self, p: np.ndarray, F: np.ndarray, E: np.ndarray | None = None) -> np.ndarray:
         """(B, n_span, 2) tensions at the span ends from their end forces F (`span_end_forces`)."""
-        T = self.belt.end_tensions(self.belt.element_coordinates_batch(p) if E is None else E, F)
+        if self.belt.elements.n_elem == 0:
+            T = np.zeros(F.shape[:2] + (2,))
+        else:
+            T = self.belt.end_tensions(self.belt.element_coordinates_batch(p) if E is None else E, F)
         if self.springs is not None:
             T = T + self.springs.end_tensions(self.springs.positions_batch(p), F)
         return T
 
     def span_end_inertia(self, ap: np.ndarray) -> np.ndarray:
         """(B, n_span, 2, 2) inertia forces of the span-end masses for accelerations ap (B, n_p)."""
-        F = self.belt.end_inertia(self.belt.element_coordinates_batch(ap, offset=False))
+        if self.belt.elements.n_elem == 0:
+            F = np.zeros((ap.shape[0], self.belt.n_span, 2, 2))
+        else:
+            F = self.belt.end_inertia(self.belt.element_coordinates_batch(ap, offset=False))
         if self.springs is not None:
             F = F + self.springs.end_inertia(self.springs.positions_batch(ap, offset=False))
         return F

@@ -498,7 +498,7 @@ def residual_noise(belt) -> float:
     Gauss point, so the axial force loses ~eps EA whatever its size; the linear bending force loses
     ~eps of sum_j |K_b,ij| |e_j|."""
     eps = np.finfo(float).eps
-    n_elem = belt.T.shape[0] + belt.springs.T.shape[0]  # elements and spring spans
+    n_elem = belt.T.shape[0] + belt.springs.D.shape[0]  # elements and spring spans
     if n_elem == 0:
         return 0.0
     bend = float((np.abs(belt.Kb) @ np.abs(belt.e0)[:, :, None]).max(initial=0.0))
@@ -689,11 +689,12 @@ class Observers:
         if "pulley_angle" in names or "pulley_speed" in names:
             s_nom = np.zeros(len(t))
             sd_nom = np.zeros(len(t))
-            if setup.nom_scale:
-                from .integrator import rotation_state
-
-                st = np.array([rotation_state(setup.forcing.nominal_rotation, float(x))[:2] for x in t])
-                s_nom, sd_nom = st[:, 0] * setup.nom_scale, st[:, 1] * setup.nom_scale
+            if setup.nom_scale:  # the nominal angle and speed of `integrator.rotation_state`, vectorized
+                om, tr = setup.forcing.nominal_rotation[0], setup.forcing.nominal_rotation[1]
+                ramp = (t < tr) if tr > 0.0 else np.zeros(len(t), dtype=bool)
+                th = np.where(ramp, 0.5 * om * t * t / (tr if tr > 0.0 else 1.0), om * (t - 0.5 * tr))
+                thd = np.where(ramp, om * t / (tr if tr > 0.0 else 1.0), om)
+                s_nom, sd_nom = th * setup.nom_scale, thd * setup.nom_scale
             ur = setup.u_nom[sysm.rot_dof]
             if "pulley_angle" in names:
                 out["pulley_angle"] = q[:, sysm.rot_dof] + s_nom[:, None] * ur
