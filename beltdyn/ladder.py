@@ -46,7 +46,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .config import DriveConfig, SpanSetting, span_name_key
+from .config import DriveConfig, SpanSetting
 
 SPRING_MARGIN = 1.05  # a spring span's own first mode must lie this far above fmax
 MESHES = (1, 2, 4, 8, 16, 32, 64)
@@ -232,7 +232,7 @@ def with_spans(cfg: DriveConfig, models: dict[int, tuple[str, int]]) -> DriveCon
     return replace(cfg, spans=spans)
 
 
-def _mesh_choice(cfg: DriveConfig, s: int, *, fmax: float, budget: float, tension, L_ref, lam,
+def _mesh_choice(cfg: DriveConfig, s: int, *, fmax: float, budget: float, L_ref, lam,
                  max_elements: int) -> tuple[str, int, float]:
     """(model, elements, estimate) of flexible span s: the fewest elements, a string where it is good
     enough; the finest ANCF mesh tried when none meets the budget."""
@@ -256,10 +256,16 @@ def choose_models(cfg: DriveConfig, *, fmax: float, rtol: float, max_elements: i
     pipeline.Analysis with static and modal results, its modes covering the band)."""
     from .pipeline import analyse
 
+    from .errors import SolverError
+
     n = len(cfg.pulleys)
     spring_all = with_spans(cfg, {s: ("spring", 0) for s in range(n)})
-    base = analyse(spring_all, modal=True, n_modes=max(1, n + 8))
-    tension, L_ref, lam = span_state(base.system, base.static)
+    try:
+        base = analyse(spring_all, modal=True, n_modes=max(1, n + 8))
+    except SolverError as exc:  # say which model failed: the user asked for none of them
+        raise SolverError(f"the choice starts from the drive with every span a spring, which failed ({exc})",
+                          analysis="span model choice") from None
+    _, L_ref, lam = span_state(base.system, base.static)
     b = cfg.belt
     curvature = cfg.model.curvature if cfg.model.curvature != "none" else "linear"
     first = [continuum_frequencies(length=L_ref[s], stretch=lam[s], EA=b.EA, EI=b.EI, rho=b.mass_per_length,
@@ -290,13 +296,14 @@ def choose_models(cfg: DriveConfig, *, fmax: float, rtol: float, max_elements: i
         models: dict[int, tuple[str, int]] = {s: ("spring", 0) for s in springs}
         est: dict[int, float] = {}
         for s in flexible:
-            m, n_e, err = _mesh_choice(cfg, s, fmax=fmax, budget=budget, tension=tension, L_ref=L_ref, lam=lam,
+            m, n_e, err = _mesh_choice(cfg, s, fmax=fmax, budget=budget, L_ref=L_ref, lam=lam,
                                        max_elements=max_elements)
             models[s], est[s] = (m, n_e), err
         chosen_cfg = with_spans(cfg, models)
-        n_local = sum(int(np.searchsorted(f[0], fmax, side="right")) for f in (
-            continuum_frequencies(length=L_ref[s], stretch=lam[s], EA=b.EA, EI=b.EI, rho=b.mass_per_length,
-                                  curvature=curvature, n=64) for s in flexible))
+        n_local = sum(int(np.searchsorted(f_t, fmax, side="right")) + int(np.searchsorted(f_a, fmax, side="right"))
+                      for f_t, f_a in (continuum_frequencies(length=L_ref[s], stretch=lam[s], EA=b.EA, EI=b.EI,
+                                                             rho=b.mass_per_length, curvature=curvature, n=64)
+                                       for s in flexible))
         n_modes = max(cfg.modal.modes, int(below.sum()) + n_local + 4)
         run = analyse(chosen_cfg, modal=True, n_modes=n_modes)
         solves += 1
@@ -332,16 +339,5 @@ def choose_models(cfg: DriveConfig, *, fmax: float, rtol: float, max_elements: i
                          unrepresented=unrepresented_modes(run.system, run.static, fmax)), run)
 
 
-def spans_toml(choice: LadderChoice) -> str:
-    """The chosen [spans] table as TOML (what the resolved configuration of the run holds)."""
-    lines = []
-    for c in choice.spans:
-        lines.append(f"[spans.{span_name_key(c.name)}]")
-        lines.append(f'model = "{c.model}"')
-        if c.model != "spring":
-            lines.append(f"elements = {c.elements}")
-    return "\n".join(lines) + "\n"
-
-
 __all__ = ["SpanChoice", "LadderChoice", "choose_models", "continuum_frequencies", "span_frequencies", "local_error",
-           "spring_errors", "unrepresented_modes", "with_spans", "SPRING_MARGIN", "MESHES"]
+           "spring_errors", "unrepresented_modes", "with_spans", "span_state", "SPRING_MARGIN", "MESHES"]

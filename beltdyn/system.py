@@ -481,8 +481,9 @@ class SpringSpans:
     along the chord and N / l (the string's geometric stiffness) across it. Kelvin-Voigt damping as the
     belt's: N_d = EA eta lam d(eps)/dt = EA eta lam^2 (u . d') / L along u. Mass: the span's rho L lumped
     at its ends, rho L / 2 on each tangent point, which moves with its pulley (no DOFs of its own, no
-    transverse modes). Evaluated in numpy here (static, modal) and by `spring_kernel` in the time
-    stepper, held equal by the tests.
+    transverse modes). A spring also carries compression, where a belt would go slack: the static
+    analysis refuses a compressed span, the transient records it as a slack event. Evaluated in numpy
+    here (static, modal) and by `spring_kernel` in the time stepper, held equal by the tests.
     """
 
     span: np.ndarray  # (k,) span index of each spring span
@@ -979,29 +980,12 @@ class System:
         """Element blocks (n_elem, m, m) (+ the spring spans' blocks (k, m_s, m_s), + the components'
         constant stiffness, + a diagonal) -> dense (n_p, n_p) or CSR, on the joint coordinates."""
         n, pat = self.n_p, self.pattern
-        if springs is not None and self.springs is not None:
-            if self.dense:
-                blocks = np.concatenate([blocks.ravel(), springs.ravel()])
-                flat = np.concatenate([pat.flat, self.spring_scatter])
-                K = np.bincount(flat, weights=blocks, minlength=(n + 1) ** 2).reshape(n + 1, n + 1)[:n, :n]
-                if linear and self.linear_stiffness is not None:
-                    K += self.linear_stiffness
-                if diagonal is not None:
-                    K[np.diag_indices(n)] += diagonal
-                return K
-            from scipy.sparse import csr_matrix
-
-            keep = pat.slot >= 0
-            data = np.bincount(pat.slot[keep], weights=blocks.ravel()[keep], minlength=pat.nnz)
-            sk = self.spring_scatter >= 0
-            data += np.bincount(self.spring_scatter[sk], weights=springs.ravel()[sk], minlength=pat.nnz)
-            if linear and self.linear_stiffness is not None:
-                data += self.linear_stiffness
-            if diagonal is not None:
-                data[pat.diag_slot] += diagonal
-            return csr_matrix((data, pat.indices, pat.indptr), shape=(n, n))
+        with_springs = springs is not None and self.springs is not None
         if self.dense:
-            K = np.bincount(pat.flat, weights=blocks.ravel(), minlength=(n + 1) ** 2).reshape(n + 1, n + 1)[:n, :n]
+            flat, weights = pat.flat, blocks.ravel()
+            if with_springs:
+                flat, weights = np.concatenate([flat, self.spring_scatter]), np.concatenate([weights, springs.ravel()])
+            K = np.bincount(flat, weights=weights, minlength=(n + 1) ** 2).reshape(n + 1, n + 1)[:n, :n]
             if linear and self.linear_stiffness is not None:
                 K += self.linear_stiffness
             if diagonal is not None:
@@ -1011,6 +995,9 @@ class System:
 
         keep = pat.slot >= 0
         data = np.bincount(pat.slot[keep], weights=blocks.ravel()[keep], minlength=pat.nnz)
+        if with_springs:
+            live = self.spring_scatter >= 0
+            data += np.bincount(self.spring_scatter[live], weights=springs.ravel()[live], minlength=pat.nnz)
         if linear and self.linear_stiffness is not None:
             data += self.linear_stiffness
         if diagonal is not None:
