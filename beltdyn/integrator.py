@@ -3,7 +3,7 @@
 Equations of motion on the independent coordinates q (n,):
     M a + C v + f(q, v) = F(t),
 f = f_belt(q) + f_damp(q, v) + K_lin (q - q_ref)  (belt elastic force of paper Eqs. 14/17 through
-the joints, Kelvin-Voigt belt damping, the linear components' constant stiffness measured from the
+the joints and of the spring spans (`spring_kernel`, `BeltData.springs`), Kelvin-Voigt belt damping, the linear components' constant stiffness measured from the
 reference state q_ref, usually the static equilibrium), F(t) = F_const + loads(t) - M u_nom s''(t)
 with F_const = preload + weight - K_lin q_ref (the constant part; it balances f at the static
 equilibrium, so no force of the size of a bearing preload ever enters a tolerance), C the constant

@@ -13,8 +13,10 @@ Nomenclature (paper section 2.2):
   with T (n_elem, 8, m) and idx (n_elem, m) (padding points at the dummy index n_dof). Interior
   elements have T = [I8 | 0]: the kernel skips their transform.
 
-The seam. A `System` is the DOF map, the belt (`BeltSpans`, the only nonlinear component today,
-evaluated by the compiled kernel of `belt_kernel`) and any number of `LinearComponent`s: pulley
+The seam. A `System` is the DOF map, the belt (`BeltSpans`, the ANCF spans, evaluated by the
+compiled kernel of `belt_kernel` in the time stepper; and `SpringSpans`, the spans modelled as axial
+springs between their tangent points, [spans] model = "spring", `spring_kernel` in the stepper: the
+nonlinear components) and any number of `LinearComponent`s: pulley
 inertia, pulley mass, bearing springs, or anything a user writes (a rotational spring between two
 pulleys is one in the tests). Every component owns its DOF indices and gives its contribution to
 the internal force and tangent (K q, K), to the damping (C v), to the mass (M) and to the weight,
@@ -360,8 +362,8 @@ class BeltSpans:
     # -------------------------------------------------------------------- mid-span motion
     @property
     def midspan_point(self) -> tuple[np.ndarray, np.ndarray]:
-        """(elements (n_span,), shape functions (n_span, 4)) of each span's mid-span point: the middle
-        node (even mesh) or the middle of the middle element (odd mesh). Cached."""
+        """(elements (n_flex,), shape functions (n_flex, 4)) of each flexible span's mid-span point: the
+        middle node (an even count of elements) or the middle of the middle element (odd). Cached."""
         mid = self.__dict__.get("_mid")
         if mid is None:  # per flexible span: its middle node, or the middle of its middle element
             els, xis = [], []
