@@ -36,6 +36,10 @@ SetOpt = typer.Option(None, "--set", help="Override a dotted config key: KEY=VAL
 ForceOpt = typer.Option(False, "--force", help="Replace a results file written for a different configuration.")
 ForceLargeOpt = typer.Option(False, "--force-large",
                              help="Write histories larger than transient.max_output_mb (default 1000 MB).")
+FmaxOpt = typer.Option(None, "--fmax", min=0.0,
+                       help="With --rtol: choose each span's model and mesh (spring, string or ANCF) for the modes "
+                            "below FMAX Hz: the cheapest whose estimated error is within RTOL of the converged ANCF "
+                            "drive; the choice goes into the resolved configuration ([spans]).")
 
 
 PIPE_WIDTH = 1000  # console width when the output is not a terminal: tables at their natural width
@@ -185,6 +189,7 @@ class _Job:
         # its file records both, so that the same command is accepted on its own output again
         self.base_sha = self.sha
         self.force = force
+        self.ladder = None  # the automatic choice of the span models (--fmax/--rtol), if made
         self.output = output if output is not None else Path("results") / f"{config.stem}.h5"
         from .results_io import check_target
 
@@ -342,23 +347,122 @@ def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None, co
         job.add(_failed_group(exc.analysis if exc.analysis in ("static", "modal") else "static", exc))
         job.write()
         raise
-    job.add(static_group(run.system, run.static, job.cfg.tension.target))
-    if run.modal is not None:
-        job.add(modal_group(run.system, run.modal, run.static.q))
+    _add_results(job, run)
     job.write()
     return run
 
 
+def _add_results(job: "_Job", run) -> None:
+    """/static (with the automatic span choice, if made) and /modal (with the modes that spring spans
+    leave out) of a finished run."""
+    from .export import ladder_attrs, ladder_variables, modal_group, static_group
+
+    group = static_group(run.system, run.static, job.cfg.tension.target)
+    if job.ladder is not None:
+        group = type(group)(name=group.name, coords=group.coords,
+                            variables=group.variables + ladder_variables(job.ladder),
+                            attrs={**group.attrs, **ladder_attrs(job.ladder)})
+    job.add(group)
+    if run.modal is not None:
+        job.add(modal_group(run.system, run.modal, run.static.q, _unrepresented(job, run)))
+
+
+def _unrepresented(job: "_Job", run) -> tuple:
+    """The modes the spring spans cannot represent, below --fmax (else below the highest mode computed);
+    kept on the job for `_print_unrepresented`."""
+    if run.system.springs is None:
+        return ()
+    from .ladder import unrepresented_modes
+
+    band = job.ladder.fmax if job.ladder is not None else float(run.modal.frequency.max(initial=0.0))
+    job.unrepresented = (band, run.system.layout, unrepresented_modes(run.system, run.static, band))
+    return job.unrepresented[2]
+
+
+def _print_unrepresented(job: "_Job") -> None:
+    band, lay, modes = getattr(job, "unrepresented", (0.0, None, ()))
+    if modes:
+        text = ", ".join(f"{f:.4g} Hz ({kind} {order}, span {lay.span_name(s)})" for s, kind, order, f in modes)
+        _console().print(f"[bold yellow]note:[/] the spring spans leave out {len(modes)} mode(s) below {band:.4g} Hz "
+                         f"(their own modes, not in the table above): {text}")
+
+
+def _choose_spans(job: "_Job", fmax: Optional[float], rtol: Optional[float], *, command: str):
+    """--fmax/--rtol: the cheapest model of each span for the band (`ladder.choose_models`); the job's
+    configuration becomes the chosen one (its resolved TOML holds the [spans] table). Returns the
+    chosen drive's Analysis (static and modal), or None without --fmax."""
+    if fmax is None:
+        if rtol is not None and command != "modal":
+            from .errors import ConfigError
+
+            raise ConfigError("--rtol needs --fmax here (the band whose modes the span models must get within "
+                              "RTOL)", file=job.cfg.source, key="--fmax")
+        return None
+    if rtol is None:
+        from .errors import ConfigError
+
+        raise ConfigError("--fmax needs --rtol (the relative tolerance of the modes below FMAX)", file=job.cfg.source,
+                          key="--rtol")
+    if not fmax > 0 or not rtol > 0:
+        from .errors import ConfigError
+
+        raise ConfigError(f"--fmax and --rtol must be > 0, got {fmax:g} and {rtol:g}", file=job.cfg.source,
+                          key="--fmax" if not fmax > 0 else "--rtol")
+    from .config import config_hash, resolved_toml
+    from .ladder import choose_models
+    from .results_io import check_target
+
+    choice, run = choose_models(job.cfg, fmax=fmax, rtol=rtol)
+    job.ladder = choice
+    job.cfg, job.toml, job.sha = choice.config, resolved_toml(choice.config), config_hash(choice.config)
+    check_target(job.output, config_sha256=job.sha, force=job.force)
+    _print_ladder(choice)
+    return run
+
+
+def _print_ladder(choice) -> None:
+    from rich.table import Table
+
+    con = _console()
+    tbl = Table(title=f"Span models for the modes below {choice.fmax:g} Hz within rtol = {choice.rtol:g} "
+                      f"(cheapest first: spring, string, ANCF)")
+    for col in ("span", "model", "elements", "DOFs", "estimated error", "note"):
+        tbl.add_column(col, justify="left" if col in ("span", "model", "note") else "right")
+    for c in choice.spans:
+        tbl.add_row(c.name, c.model, "-" if c.model == "spring" else str(c.elements), str(c.dofs), f"{c.estimate:.1e}",
+                    c.note)
+    con.print(tbl)
+    state = "meets" if choice.met else "does NOT meet"
+    con.print(f"the choice {state} rtol = {choice.rtol:g} below {choice.fmax:g} Hz (largest estimate "
+              f"{choice.estimate:.2e}, {choice.solves} drive solves); it is the \\[spans] table of the resolved "
+              f"configuration in the results file")
+
+
+def _ladder_not_met(job: "_Job") -> None:
+    """The span choice could not meet rtol even with the richest rung: exit 1 after the results are written."""
+    if job.ladder is None or job.ladder.met:
+        return
+    from .errors import SolverError
+
+    raise SolverError(f"the span models do NOT meet rtol = {job.ladder.rtol:g} below {job.ladder.fmax:g} Hz: largest "
+                      f"estimated relative error {job.ladder.estimate:.2e} with the finest meshes tried; the results "
+                      f"are in {job.output} (/static ladder_met = 0)", analysis="modal", step="span model choice")
+
+
 @app.command()
 def static(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
-           force: bool = ForceOpt) -> None:
+           force: bool = ForceOpt, fmax: Optional[float] = FmaxOpt,
+           rtol: Optional[float] = typer.Option(None, "--rtol", min=0.0,
+                                                help="With --fmax: the relative tolerance of the span choice.")) -> None:
     """Nonlinear static equilibrium: span tensions, hub loads, solved pulley positions."""
 
     def body() -> None:
         job = _Job(config, output, set_, force)
+        _choose_spans(job, fmax, rtol, command="static")
         run = _static_pipeline(job, modal=False)
         _print_static(run.layout, run.system, run.static)
         _console().print(f"wrote [bold]/geometry /static[/] to {job.output}")
+        _ladder_not_met(job)
 
     _run(body)
 
@@ -368,18 +472,30 @@ def modal(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
           force: bool = ForceOpt,
           modes: Optional[int] = typer.Option(None, "--modes", min=1, help="Number of elastic modes [default: modal.modes]."),
           rtol: Optional[float] = typer.Option(None, "--rtol", min=0.0,
-                                               help="Refine mesh.elements_per_span (doubling) until the modes' estimated relative error is below RTOL; the cheapest such mesh is used.")) -> None:
+                                               help="Refine mesh.elements_per_span (doubling) until the modes' estimated relative error is below RTOL; the cheapest such mesh is used. With --fmax: the tolerance of the span choice."),
+          fmax: Optional[float] = FmaxOpt) -> None:
     """Natural frequencies and classified mode shapes about the static equilibrium."""
 
     def body() -> None:
         job = _Job(config, output, set_, force)
-        if rtol is not None:
+        if rtol is not None and fmax is None:
             _refined_modal(job, modes or job.cfg.modal.modes, rtol)
             return
-        run = _static_pipeline(job, modal=True, n_modes=modes)
+        chosen = _choose_spans(job, fmax, rtol, command="modal")
+        if chosen is not None:  # the choice solved the chosen drive already
+            from .export import geometry_group
+
+            job.add(geometry_group(job.layout))
+            _add_results(job, chosen)
+            job.write()
+            run = chosen
+        else:
+            run = _static_pipeline(job, modal=True, n_modes=modes)
         _print_static(run.layout, run.system, run.static)
         _print_modal(run.modal)
+        _print_unrepresented(job)
         _console().print(f"wrote [bold]/geometry /static /modal[/] to {job.output}")
+        _ladder_not_met(job)
 
     _run(body)
 
@@ -392,7 +508,10 @@ SPECTRUM_SERIES = ("span_tension", "hub_load", "bearing_force", "midspan_displac
 def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
               force: bool = ForceOpt, force_large: bool = ForceLargeOpt,
               duration: Optional[float] = typer.Option(None, "--duration", min=0.0, help="Simulated time, s [default: transient.duration]."),
-              step: Optional[float] = typer.Option(None, "--step", min=0.0, help="Time step, s, used as given [default: transient.step, or from transient.accuracy and fmax].")) -> None:
+              step: Optional[float] = typer.Option(None, "--step", min=0.0, help="Time step, s, used as given [default: transient.step, or from transient.accuracy and fmax]."),
+              fmax: Optional[float] = FmaxOpt,
+              rtol: Optional[float] = typer.Option(None, "--rtol", min=0.0,
+                                                   help="With --fmax: the relative tolerance of the span choice.")) -> None:
     """Nonlinear time response (generalized-alpha) with streamed histories and their spectra."""
 
     def body() -> None:
@@ -414,10 +533,12 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
         if resolved.step != cfg.transient.step:  # the chosen step goes into the resolved configuration
             job = _Job(config, output, sets + [f"transient.step={resolved.step!r}"], force)  # (provenance)
         job.step_origin = origin
+        _choose_spans(job, fmax, rtol, command="transient")
         _check_output_volume(job, force_large)
         spec_opts = cfg.transient.spectrum
         run = _static_pipeline(job, modal=spec_opts.enabled)
         _run_transient(job, run, force_large=force_large)
+        _ladder_not_met(job)
 
     _run(body)
 

@@ -36,6 +36,7 @@ SIDES = ("inside", "backside")
 SUPPORTS = ("fixed", "slide", "bearing", "arm")
 TENSION_MODES = ("adjust", "prestrain", "spring")
 CURVATURES = ("linear", "exact", "none")
+SPAN_MODELS = ("ancf", "string", "spring")  # the fidelity ladder of one span, richest first
 MAX_GAUSS_POINTS = 64  # beltdyn.ancf's quadrature table (not imported: it would load numba at start-up)
 
 
@@ -135,7 +136,9 @@ class _Choice(_Kind):
 
     def parse(self, chk: _Checker, key: str, value: Any) -> str:
         if value not in self.choices:
-            raise chk.fail(key, f"must be {self.label}, got {_show(value)}")
+            close = difflib.get_close_matches(value, self.choices, n=1, cutoff=0.6) if isinstance(value, str) else []
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise chk.fail(key, f"must be {self.label}, got {_show(value)}{hint}")
         return value
 
 
@@ -415,6 +418,54 @@ class Tension:
 @dataclass(frozen=True, kw_only=True)
 class Mesh:
     elements_per_span: int = key(POSINT, 10, doc="ANCF beam elements per free span")
+
+
+@dataclass(frozen=True, kw_only=True)
+class SpanSetting:
+    """[spans."A-C"]: the model and mesh of one span (the span from pulley A to pulley C, named as the
+    console names it), overriding mesh.elements_per_span and model.curvature for that span.
+
+    model "ancf": ANCF beam elements with the bending of model.curvature ("linear" when that is "none");
+    "string": ANCF elements without bending (EI = 0); "spring": an axial spring between the span's
+    tangent points (EA / L, Green-Lagrange law, the span's mass lumped at its ends), no transverse
+    DOFs. Not set: the span follows [mesh] and [model] ("string" where model.curvature = "none")."""
+
+    model: str | None = key(_Choice(*SPAN_MODELS), None,
+                            doc='"ancf", "string" (no bending) or "spring" (axial spring, no transverse DOFs); not '
+                                'set: ancf with model.curvature')
+    elements: int | None = key(POSINT, None, doc="elements of this span (ancf, string); not set: "
+                                                 "mesh.elements_per_span")
+
+
+def span_name_key(name: str) -> str:
+    """A span name as a TOML key: bare when TOML allows it (A-C), else quoted ("crank pulley-A")."""
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else '"' + name.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+class _Spans(_Kind):
+    """[spans]: a table of span name -> SpanSetting (names checked against the pulleys afterwards)."""
+
+    is_table = True
+    label = 'table of span name -> {model, elements}'
+
+    def parse(self, chk: _Checker, key: str, value: Any) -> tuple[tuple[str, SpanSetting], ...]:
+        if not isinstance(value, dict):
+            raise chk.fail(key, 'must be a table of span tables, e.g. [spans."A-C"] with model and elements')
+        out = []
+        for name, entry in value.items():
+            path = f"{key}.{span_name_key(str(name))}"
+            if not isinstance(entry, dict):
+                raise chk.fail(path, f'must be a table (model = "ancf" | "string" | "spring", elements), '
+                                     f"got {_show(entry)}")
+            setting = _parse(chk, path, entry, SpanSetting)
+            if setting.model == "spring" and setting.elements is not None:
+                raise chk.fail(f"{path}.elements", "a spring span has no elements (an axial spring between the "
+                                                   'tangent points); remove elements or use model = "string"')
+            out.append((str(name), setting))
+        return tuple(out)
+
+    def dump(self, value: tuple[tuple[str, SpanSetting], ...]) -> dict[str, dict[str, Any]]:
+        return {name: _dump(setting) for name, setting in value}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -722,6 +773,10 @@ class DriveConfig:
                                       doc="[[pulleys]]: at least 2, in the order the belt meets them")
     tension: Tension = key(_Table(Tension), factory=Tension, doc="[tension]: how the static tension is set")
     mesh: Mesh = key(_Table(Mesh), factory=Mesh, doc="[mesh]: discretization of the spans")
+    spans: tuple[tuple[str, SpanSetting], ...] = key(
+        _Spans(), (), omit_default=True,
+        doc='[spans."A-C"]: per span model ("ancf", "string", "spring") and elements, overriding [mesh] and '
+            "model.curvature")
     model: ModelOptions = key(_Table(ModelOptions), factory=ModelOptions, doc="[model]: model options")
     static: StaticOptions = key(_Table(StaticOptions), factory=StaticOptions, doc="[static]: Newton settings")
     modal: ModalOptions = key(_Table(ModalOptions), factory=ModalOptions, doc="[modal]: modal analysis")
@@ -747,6 +802,33 @@ class DriveConfig:
             if p.driver:
                 return i
         return 0
+
+    @property
+    def span_names(self) -> tuple[str, ...]:
+        """Span i runs from pulley i to pulley i + 1: "A-C" (as the console names it)."""
+        return span_names(self.pulleys)
+
+    @property
+    def span_models(self) -> tuple[str, ...]:
+        """The resolved model of each span: "ancf", "string" or "spring" ([spans], else "ancf", or
+        "string" where model.curvature = "none")."""
+        given = dict(self.spans)
+        default = "string" if self.model.curvature == "none" else "ancf"
+        return tuple((given[n].model if n in given and given[n].model else default) for n in self.span_names)
+
+    @property
+    def span_elements(self) -> tuple[int, ...]:
+        """The resolved elements of each span (0 for a spring span)."""
+        given = dict(self.spans)
+        return tuple(0 if m == "spring" else (given[n].elements if n in given and given[n].elements
+                                              else self.mesh.elements_per_span)
+                     for n, m in zip(self.span_names, self.span_models))
+
+
+def span_names(pulleys) -> tuple[str, ...]:
+    """"A-C" for the span from pulley A to the next pulley C, in belt order."""
+    names = [p.name for p in pulleys]
+    return tuple(f"{names[i]}-{names[(i + 1) % len(names)]}" for i in range(len(names)))
 
 
 # ------------------------------------------------------------------- parsing and serialization
@@ -820,6 +902,8 @@ def _walk(cls: type, path: str) -> Iterator[tuple[str, Field, _Key]]:
         elif isinstance(kind, _Loads):
             for name, array in kind.entries.items():
                 yield from _walk(array.cls, f"{_join(path, name)}[i]")
+        elif isinstance(kind, _Spans):
+            yield from _walk(SpanSetting, f"{_join(path, f.name)}.<span>")
         else:
             yield _join(path, f.name), f, k
 
@@ -997,6 +1081,7 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>", tables: dic
     if tension.mode == "spring":
         _check_spring_tension(chk, tension, pulleys)
     _check_static_torques(chk, cfg.static, pulleys)
+    _check_spans(chk, cfg.spans, pulleys)
     transient = cfg.transient
     if transient is not None:
         transient = _check_transient(chk, transient, pulleys, file)
@@ -1022,6 +1107,21 @@ def _check_spring_tension(chk: _Checker, tension: Tension, pulleys: tuple[Pulley
                                                           "at which the arm's spring torque is zero (rad)")
         if not p.arm_stiffness > 0:
             raise chk.fail(f"pulleys[{i}].arm_stiffness", "tension mode \"spring\" needs arm_stiffness > 0")
+
+
+def _check_spans(chk: _Checker, spans: tuple[tuple[str, SpanSetting], ...], pulleys: tuple[Pulley, ...]) -> None:
+    """Every [spans] entry names a span of the drive (the closest name suggested)."""
+    valid = span_names(pulleys)
+    for name, _ in spans:
+        if valid.count(name) == 1:
+            continue
+        key = f"spans.{span_name_key(name)}"
+        if valid.count(name) > 1:
+            raise chk.fail(key, f"span name '{name}' is ambiguous (pulley names with '-'); rename the pulleys")
+        close = difflib.get_close_matches(name, valid, n=1, cutoff=0.4)
+        hint = f"did you mean '{close[0]}'? " if close else ""
+        raise chk.fail(key, f"no span named '{name}'; {hint}the spans are {', '.join(valid)} (from each pulley "
+                            f"to the next in belt order)")
 
 
 def _check_static_torques(chk: _Checker, opts: StaticOptions, pulleys: tuple[Pulley, ...]) -> None:

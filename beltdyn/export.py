@@ -149,6 +149,7 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
             Variable(name="residual", data=res.residual_history, dims=("iteration",), units="1",
                      description="residual norm divided by the allowed residual (converged <= 1) after each Newton iteration"),
             Variable(name="load_factor", data=res.load_factor_history, dims=("iteration",), units="1"),
+            *span_model_variables(model),
         ),
         attrs={"iterations": int(res.iterations), "tension_mode": res.tension_mode, "warnings": static_warnings(model, res),
                "tension_target_N": float(target) if target is not None else float("nan"),
@@ -166,6 +167,47 @@ def _running_attrs(model: DriveModel) -> dict:
             "driver_speed_rad_per_s": driver_speed_of(model.belt_speed, model.layout, model.driver)}
 
 
+def span_model_variables(model: DriveModel) -> tuple[Variable, ...]:
+    """The model and elements of each span ([spans], the fidelity ladder), dims (span,)."""
+    models, counts = model.span_models()
+    return (Variable(name="span_model", data=list(models), dims=("span",), units="1",
+                     description='model of each span: "ancf", "string" (no bending) or "spring" (axial spring)'),
+            Variable(name="span_elements", data=counts, dims=("span",), units="1",
+                     description="ANCF elements of each span (0 for a spring span)"))
+
+
+def ladder_variables(choice) -> tuple[Variable, ...]:
+    """The automatic choice of the span models (`ladder.choose_models`), dims (span,)."""
+    return (Variable(name="span_dofs", data=np.array([c.dofs for c in choice.spans], dtype=np.int64), dims=("span",),
+                     units="1", description="the span's own DOFs (4 per element; a spring span none)"),
+            Variable(name="span_estimated_error", data=np.array([c.estimate for c in choice.spans]), dims=("span",),
+                     units="1", description="estimated relative frequency error of the modes below ladder_fmax_Hz "
+                                            "that the span's model causes"))
+
+
+def ladder_attrs(choice) -> dict:
+    return {"ladder_fmax_Hz": float(choice.fmax), "ladder_rtol": float(choice.rtol),
+            "ladder_estimated_error": float(choice.estimate), "ladder_met": int(choice.met),
+            "ladder_solves": int(choice.solves)}
+
+
+def unrepresented_variables(model: DriveModel, modes) -> tuple[dict, tuple[Variable, ...]]:
+    """(coords, variables) of the modes below the band that spring spans leave out
+    (`ladder.unrepresented_modes`); none when there are none."""
+    if not modes:
+        return {}, ()
+    lay = model.layout
+    return ({"unrepresented": np.arange(1, len(modes) + 1)}, (
+        Variable(name="unrepresented_frequency", data=np.array([m[3] for m in modes]), dims=("unrepresented",),
+                 units="Hz", description="a mode a spring span cannot represent (its own transverse or "
+                                         "longitudinal mode, the span pinned at its ends): NOT among the modes"),
+        Variable(name="unrepresented_span", data=[lay.span_name(m[0]) for m in modes], dims=("unrepresented",),
+                 units="1"),
+        Variable(name="unrepresented_kind", data=[m[1] for m in modes], dims=("unrepresented",), units="1"),
+        Variable(name="unrepresented_order", data=np.array([m[2] for m in modes], dtype=np.int64),
+                 dims=("unrepresented",), units="1")))
+
+
 STRAIN_WARNING = 0.05  # belt strain above which the constant-EA axial law is flagged (real belts: ~1 % at most)
 
 
@@ -179,7 +221,7 @@ def static_warnings(model: DriveModel, res: StaticResult) -> list[str]:
     out = []
     from .system import stretch_for_tension
 
-    EA = float(np.max(model.belt.elements.EA))
+    EA = float(model.EA)
     T = float(np.max(res.span_tension))
     strain = stretch_for_tension(T, EA) - 1.0 if T > 0 else 0.0  # engineering strain of the stretch
     if strain > STRAIN_WARNING:
@@ -230,8 +272,8 @@ def _static_extras(res: StaticResult) -> tuple[Variable, ...]:
 def belt_nodes(model: DriveModel, E: np.ndarray) -> np.ndarray:
     """(..., n_node, 2) the belt's node positions (or motions) of element states E (..., n_elem, 8): each
     span's element start nodes and its last element's end node, span after span."""
-    parts = []
-    for els in model.belt.span_elements:
+    parts = [E[..., :0, 0:2]]
+    for els in model.belt.span_elements:  # a spring span has no nodes (no elements)
         parts.append(E[..., els, 0:2])
         parts.append(E[..., els[-1:], 4:6])
     return np.concatenate(parts, axis=-2)
@@ -239,11 +281,13 @@ def belt_nodes(model: DriveModel, E: np.ndarray) -> np.ndarray:
 
 def node_spans(model: DriveModel) -> np.ndarray:
     """(n_node,) 0-based span of each node of `belt_nodes`."""
-    return np.concatenate([np.full(len(els) + 1, s) for s, els in enumerate(model.belt.span_elements)]).astype(np.int64)
+    return np.concatenate([np.zeros(0)] + [np.full(len(els) + 1 if len(els) else 0, s)
+                                           for s, els in enumerate(model.belt.span_elements)]).astype(np.int64)
 
 
-def modal_group(model: DriveModel, res: ModalResult, q: np.ndarray | None = None) -> GroupData:
-    """/modal; with the equilibrium q also the shapes' motion of the belt's nodes (`node_shape`)."""
+def modal_group(model: DriveModel, res: ModalResult, q: np.ndarray | None = None, unrepresented=()) -> GroupData:
+    """/modal; with the equilibrium q also the shapes' motion of the belt's nodes (`node_shape`);
+    unrepresented: the modes spring spans leave out (`ladder.unrepresented_modes`)."""
     from .modal import KINDS
 
     lay = model.layout
@@ -258,12 +302,13 @@ def modal_group(model: DriveModel, res: ModalResult, q: np.ndarray | None = None
         if np.iscomplexobj(nodes):
             extra += (Variable(name="node_shape_imag", data=np.imag(nodes), dims=("mode", "node", "component"),
                                units="m per sqrt(kg m^2)", description="imaginary part of node_shape"),)
+    u_coords, u_vars = unrepresented_variables(model, unrepresented)
     return GroupData(
         name="modal",
         coords={"mode": np.arange(1, len(res.frequency) + 1), "dof": list(model.dof_labels),
                 "energy_kind": list(KINDS), "belt_span": [lay.span_name(i) for i in range(lay.n)],
                 "rigid": np.arange(1, res.n_rigid + 1),
-                **({"node": np.arange(len(node_spans(model)))} if q is not None else {})},
+                **({"node": np.arange(len(node_spans(model)))} if q is not None else {}), **u_coords},
         variables=(
             Variable(name="frequency", data=res.frequency, dims=("mode",), units="Hz"),
             Variable(name="kind", data=list(res.kind), dims=("mode",), units="1"),
@@ -286,6 +331,7 @@ def modal_group(model: DriveModel, res: ModalResult, q: np.ndarray | None = None
             Variable(name="rigid_frequency", data=res.rigid_frequency, dims=("rigid",), units="Hz"),
             *extra,
             *_running_modal(res),
+            *u_vars,
         ),
         attrs={"n_rigid": int(res.n_rigid), "solver": res.solver, "n_dof": int(model.n_dof), "warnings": [],
                **_running_attrs(model), **({"critical_belt_speed_m_per_s": float(res.critical_speed)}

@@ -18,6 +18,7 @@ direction), which drives the Newton fit of the adjustable pulley (paper Eqs. 18-
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -86,6 +87,15 @@ def loop_orientation(center: np.ndarray) -> int:
     return -1 if area2 < -1e-12 * max(scale, 1e-300) else 1
 
 
+@functools.lru_cache(maxsize=16)
+def _pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The index pairs (i < j) of n pulleys, row by row (read-only, cached)."""
+    i_, j_ = np.triu_indices(n, 1)
+    i_.setflags(write=False)
+    j_.setflags(write=False)
+    return i_, j_
+
+
 def compute_layout(
     center: np.ndarray,
     radius: np.ndarray,
@@ -105,14 +115,14 @@ def compute_layout(
     side_sign = np.asarray(side_sign, dtype=float)
     n = len(radius)
     o = loop_orientation(center) if orientation is None else orientation
-    if check:
-        for i in range(n):
-            for j in range(i + 1, n):
-                gap = math.dist(center[i], center[j]) - radius[i] - radius[j]
-                if gap < 0:
-                    raise GeometryError(
-                        f"pulleys '{names[i]}' and '{names[j]}' overlap by {-gap:.6g} m",
-                        f"pulleys[{j}].center")
+    if check:  # every pair (i < j) of pulleys apart
+        i_, j_ = _pairs(n)
+        gaps = np.hypot(*(center[i_] - center[j_]).T) - radius[i_] - radius[j_]
+        if np.any(gaps < 0):
+            k = int(np.argmax(gaps < 0))  # the first pair in (i, j) order
+            i, j = int(i_[k]), int(j_[k])
+            raise GeometryError(f"pulleys '{names[i]}' and '{names[j]}' overlap by {-gaps[k]:.6g} m",
+                                f"pulleys[{j}].center")
     rho = o * side_sign * radius
     nxt = np.arange(1, n + 1) % n
     prv = np.arange(-1, n - 1) % n

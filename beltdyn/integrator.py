@@ -3,7 +3,7 @@
 Equations of motion on the independent coordinates q (n,):
     M a + C v + f(q, v) = F(t),
 f = f_belt(q) + f_damp(q, v) + K_lin (q - q_ref)  (belt elastic force of paper Eqs. 14/17 through
-the joints, Kelvin-Voigt belt damping, the linear components' constant stiffness measured from the
+the joints and of the spring spans (`spring_kernel`, `BeltData.springs`), Kelvin-Voigt belt damping, the linear components' constant stiffness measured from the
 reference state q_ref, usually the static equilibrium), F(t) = F_const + loads(t) - M u_nom s''(t)
 with F_const = preload + weight - K_lin q_ref (the constant part; it balances f at the static
 equilibrium, so no force of the size of a bearing preload ever enters a tolerance), C the constant
@@ -69,6 +69,7 @@ import numpy as np
 from numba import njit
 
 from . import belt_kernel as bk
+from . import spring_kernel as sk
 
 # return codes of run_steps
 DONE = 0  # reached t_stop
@@ -79,7 +80,7 @@ MAX_STEPS = 4  # step budget of this call used up (keeps Ctrl-C responsive)
 
 # Named structures handed to the compiled stepper (numba reads namedtuples by attribute).
 BeltData = namedtuple("BeltData", ["e0", "T", "idx", "tsel", "dS", "d2S", "wEA", "wEI", "EA", "Kb", "curvature",
-                                   "eta_a", "eta_b", "elem_span", "n_span"])
+                                   "eta_a", "eta_b", "elem_span", "n_span", "springs"])  # springs: spring_kernel.SpringData
 Csr = namedtuple("Csr", ["indptr", "indices", "data"])
 Linear = namedtuple("Linear", ["K", "q_ref", "C", "M"])  # constant stiffness, its reference state, damping, mass
 Forcing = namedtuple("Forcing", ["constant", "load_dof", "load_coef", "load_sig", "sig_params", "tab_ptr", "tab_t",
@@ -293,6 +294,7 @@ def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gros
         bk.element_damping(E, Ed, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, belt.eta_a,
                            belt.eta_b, fd)
         bk.scatter_vector(fd, belt.T, belt.idx, belt.tsel, f_dmp)
+    sk.spring_forces(belt.springs, q_ext, v_ext, f_el, f_dmp, gross, with_gross)
 
 
 @njit(cache=True)
@@ -341,10 +343,10 @@ def transport_forces(tr, c, cd, q, v, out, Bq, Aq):
 
 @njit(cache=True)
 def potential_energy(belt, lin, q, q_ext, E, U, dq, Kdq):
-    """Belt strain energy + 1/2 (q - q_ref)^T K_lin (q - q_ref)."""
+    """Belt strain energy (elements and spring spans) + 1/2 (q - q_ref)^T K_lin (q - q_ref)."""
     bk.gather(q_ext, belt.e0, belt.T, belt.idx, belt.tsel, E)
     bk.element_strain_energy(E, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, U)
-    total = 0.0
+    total = sk.spring_energy(belt.springs, q_ext)
     for e in range(U.shape[0]):
         total += U[e]
     n = q.shape[0]
@@ -692,6 +694,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             sp = belt.elem_span[e]
             if min_elem[e] < min_span[sp]:
                 min_span[sp] = min_elem[e]
+        sk.spring_min_force(belt.springs, q_ext, min_span)
         for sp in range(belt.n_span):
             now = 1.0 if min_span[sp] < 0.0 else 0.0
             if now != ev.slack[sp] and ev.n[0] < ev.data.shape[0]:

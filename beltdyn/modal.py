@@ -449,7 +449,8 @@ def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray 
             s = int(np.argmax(span_trans[k]))
             span = s + 1
             els = model.belt.span_elements[s]
-            order = half_waves(wsamp[k, els].ravel())
+            # a spring span has no transverse shape of its own: its lumped end masses swing with the pulleys
+            order = half_waves(wsamp[k, els].ravel()) if len(els) else 1
         else:
             rank[kind] = rank.get(kind, 0) + 1
             order = rank[kind]

@@ -159,12 +159,11 @@ def _outputs_of(system: System, q0: np.ndarray, q: np.ndarray, v: np.ndarray, a:
     ap = system.expand_motion(q0, a)
     belt = system.belt
     E = belt.element_coordinates_batch(p)
-    Ed = belt.element_coordinates_batch(vp, offset=False)
-    F = belt.end_forces(E, Ed, system.gravity)
-    H = F + belt.end_inertia(belt.element_coordinates_batch(ap, offset=False))
+    F = system.span_end_forces(p, vp, E)
+    H = F + system.span_end_inertia(ap)
     if system.belt_speed:  # the running belt's momentum flux at the span ends (as /transient's hub loads)
-        H = H + belt.transport_end_forces(E, Ed, system.belt_speed)
-    out = {"span_tension": belt.end_tensions(E, F),
+        H = H + system.span_transport_forces(E, belt.element_coordinates_batch(vp, offset=False), system.belt_speed)
+    out = {"span_tension": system.span_end_tensions(p, F, E),
            "hub_load": system.hub_loads(H),
            "pulley_angle": q[:, system.rot_dof], "pulley_speed": v[:, system.rot_dof],
            "midspan_displacement": belt.midspan_displacement(E)}

@@ -125,7 +125,7 @@ def linearized_matrices(system: "System", q0: np.ndarray, damping: "Damping | No
         Ce = np.empty((E.shape[0], 8, 8))
         bk.element_damping_matrix(E, tab.dS, tab.d2S, tab.wEA, tab.wEI, tab.Kb, tab.curvature,
                                   float(damping.belt_axial), float(damping.belt_bending), Ce)
-        Cb = system.assemble(belt.reduce_blocks(Ce), linear=False)
+        Cb = system.with_belt(damping_axial=float(damping.belt_axial)).belt_damping_matrix(q0, Ce)  # + spring spans
         C_p = Cb if C_p is None else C_p + Cb
     C = system.project_matrix(q0, C_p) if C_p is not None else 0.0 * M
     return RunningMatrices(M=M, G=G, K=K, C=C, q0=np.asarray(q0, dtype=float), dofs=system.dofs,

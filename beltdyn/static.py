@@ -80,10 +80,17 @@ def _predictor(system: System, stretch: float | np.ndarray, adjust_dof: int, dri
     unknowns += [adjust_dof] if adjust_dof >= 0 else []
     A_p = np.zeros((n, system.n_p + 1))  # on the joint coordinates (an arm's centre offsets), padding last
     t = model.reference_direction
-    span = np.repeat(np.arange(n), model.idx.shape[1])
+    flex = model.flexible
+    span = np.repeat(flex, model.idx.shape[1])
     for els, rows, sign in ((model.first, slice(0, 2), -1.0), (model.last, slice(4, 6), 1.0)):
-        coef = sign * np.einsum("sdk,sd->sk", model.T[els, rows, :], t)  # (n_span, m): d(elongation)/d(dof)
+        coef = sign * np.einsum("sdk,sd->sk", model.T[els, rows, :], t[flex])  # (n_flex, m): d(elongation)/d(dof)
         np.add.at(A_p, (span, model.idx[els].ravel()), coef.ravel())
+    sp = system.springs
+    if sp is not None:  # a spring span's ends: the same joints
+        span = np.repeat(sp.span, sp.idx.shape[1])
+        for rows, sign in ((slice(0, 2), -1.0), (slice(2, 4), 1.0)):
+            coef = sign * np.einsum("sdk,sd->sk", sp.T[:, rows, :], t[sp.span])
+            np.add.at(A_p, (span, sp.idx.ravel()), coef.ravel())
     A_p = A_p[:, : system.n_p]
     A_q = A_p if system.arms is None else np.asarray(A_p @ system.arms.jacobian(np.zeros(system.n_dof)).toarray())
     A = A_q[:, unknowns]
@@ -101,9 +108,11 @@ def _straight_spans(system: System, q: np.ndarray) -> np.ndarray:
     model = system.belt
     q = q.copy()
     e = model.element_coordinates(system.expand(q))
-    n_e = len(model.span_elements[0])
-    frac = np.arange(1, n_e) / n_e
     for s, els in enumerate(model.span_elements):
+        n_e = len(els)
+        if not n_e:  # a spring span: no nodes of its own
+            continue
+        frac = np.arange(1, n_e) / n_e
         e_first, e_last = els[0], els[-1]
         a, b = e[e_first, 0:2], e[e_last, 4:6]
         grad = (b - a) / model.reference_length[s]
@@ -199,8 +208,7 @@ class ResidualScales:
         if system.arms is not None:  # an arm's row is a torque about its pivot: the arm length
             self.lever[system.arms.dof] = system.arms.length
         target = system.tension.target
-        el = system.belt.elements
-        EA = float(el.EA.max())
+        EA = system.EA
         if target is not None:
             S = abs(float(target))
         else:
@@ -266,10 +274,11 @@ class _Problem:
         # bending force ~eps of sum_j |K_b,ij| |e_j| (positions of order 1 m through stiff short elements).
         el = system.belt.elements
         bend = float((np.abs(el.K_bend) @ np.abs(system.belt.e0)[:, :, None]).max(initial=0.0))
-        self.noise = 1e3 * np.finfo(float).eps * (float(el.EA.max()) * np.sqrt(el.n_elem) + bend)
+        n_sp = 0 if system.springs is None else len(system.springs.span)
+        self.noise = 1e3 * np.finfo(float).eps * (system.EA * np.sqrt(el.n_elem + n_sp) + bend)
         self.history: list[tuple[float, float]] = []
         self.has_load = bool(np.any(system.external_force(1.0) != 0.0))
-        self.EA = float(el.EA.max())
+        self.EA = system.EA
         self.scales = ResidualScales(system)
         self.last: tuple = (None, 0.0, 0.0, None)  # (q, load factor, driver residual, mean tension) evaluated last
 
@@ -628,7 +637,7 @@ def _meet_prestrain(build, layout, lam: float, free: np.ndarray, options: Static
     target (the pulleys free on their bearings). Returns (system, static, lam, slope, solves)."""
     system = build(layout, lam, free)
     target = float(system.tension.target)
-    EA = float(system.belt.elements.EA.max())
+    EA = system.EA
     tol_T = options.tolerance * abs(target) + 100 * np.finfo(float).eps * EA
     if slope is None:
         slope = 0.5 * EA * (3.0 * lam**2 - 1.0)  # rigid supports
@@ -771,9 +780,11 @@ def warm_start(system: System, previous: System, q: np.ndarray) -> np.ndarray:
     old = previous.belt.element_coordinates(previous.expand(q))
     new = system.belt.element_coordinates(system.expand(q0))  # the end nodes where q0 puts them
     model = system.belt
-    n_e = len(model.span_elements[0])
-    frac = (np.arange(n_e + 1) / n_e)[:, None]
     for s_, els in enumerate(model.span_elements):
+        n_e = len(els)
+        if not n_e:  # a spring span: no nodes of its own
+            continue
+        frac = (np.arange(n_e + 1) / n_e)[:, None]
         nodes = np.vstack([old[els, 0:4], old[els[-1], 4:8][None]])  # (n_e + 1, 4): r, r' of each node
         da, db = new[els[0], 0:2] - nodes[0, 0:2], new[els[-1], 4:6] - nodes[-1, 0:2]
         nodes[:, 0:2] += (1.0 - frac) * da + frac * db
@@ -824,7 +835,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     conserve = ts.mode in ("adjust", "spring") or (ts.mode == "geometry" and lay.adjust_index is not None)
     moving = bool(trans.size) or system.arms is not None
     prestrain = ts.mode == "prestrain" and ts.target is not None
-    EA = float(system.belt.elements.EA.max())
+    EA = float(system.EA)
     tol_x = options.tolerance * float(lay0.span_length.min())
 
     def lay_out(old: Layout, centers: np.ndarray, ref_old: np.ndarray, step: str):

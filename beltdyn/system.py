@@ -13,8 +13,10 @@ Nomenclature (paper section 2.2):
   with T (n_elem, 8, m) and idx (n_elem, m) (padding points at the dummy index n_dof). Interior
   elements have T = [I8 | 0]: the kernel skips their transform.
 
-The seam. A `System` is the DOF map, the belt (`BeltSpans`, the only nonlinear component today,
-evaluated by the compiled kernel of `belt_kernel`) and any number of `LinearComponent`s: pulley
+The seam. A `System` is the DOF map, the belt (`BeltSpans`, the ANCF spans, evaluated by the
+compiled kernel of `belt_kernel` in the time stepper; and `SpringSpans`, the spans modelled as axial
+springs between their tangent points, [spans] model = "spring", `spring_kernel` in the stepper: the
+nonlinear components) and any number of `LinearComponent`s: pulley
 inertia, pulley mass, bearing springs, or anything a user writes (a rotational spring between two
 pulleys is one in the tests). Every component owns its DOF indices and gives its contribution to
 the internal force and tangent (K q, K), to the damping (C v), to the mass (M) and to the weight,
@@ -90,8 +92,9 @@ _DOFMAPS: dict = {}  # number_dofs memo: a DofMap depends only on the pulleys' n
 
 def number_dofs(cfg: DriveConfig) -> DofMap:
     """DOF order along the loop: pulley j (its support's DOFs, rotation), then span j (start
-    gradients, interior nodes, end gradients); the supports' dependent DOFs after all of them."""
-    key = (cfg.mesh.elements_per_span, tuple((p.name, p.support, tuple(p.slide_direction)) for p in cfg.pulleys))
+    gradients, interior nodes, end gradients; none for a spring span); the supports' dependent DOFs
+    after all of them."""
+    key = (cfg.span_elements, tuple((p.name, p.support, tuple(p.slide_direction)) for p in cfg.pulleys))
     hit = _DOFMAPS.get(key)
     if hit is None:
         if len(_DOFMAPS) > 64:
@@ -101,7 +104,7 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
 
 
 def _number_dofs(cfg: DriveConfig) -> DofMap:
-    n_e = cfg.mesh.elements_per_span
+    counts = cfg.span_elements  # elements of each span (0: a spring span, no DOFs of its own)
     labels: list[str] = []
     units: list[str] = []
     group: list[int] = []
@@ -129,7 +132,8 @@ def _number_dofs(cfg: DriveConfig) -> DofMap:
         rot_dof[j] = add(f"pulley {p.name} rotation", "rad", "rotation")
         start = len(labels)
         s = j + 1
-        for node in range(1, n_e + 2):
+        n_e = counts[j]
+        for node in range(1, n_e + 2 if n_e else 1):
             for c, unit in (comp[2:] if node in (1, n_e + 1) else comp):
                 add(f"span {s} node {node} {c}", unit, "span")
         span_slices.append(slice(start, len(labels)))
@@ -237,12 +241,27 @@ class BeltSpans:
         return len(self.span_elements)
 
     @property
+    def flexible(self) -> np.ndarray:
+        """(n_flex,) the spans that have elements (a spring span has none), ascending."""
+        return np.array([s for s, els in enumerate(self.span_elements) if len(els)], dtype=np.int64)
+
+    @property
     def first(self) -> np.ndarray:
-        return np.array([s[0] for s in self.span_elements])
+        """(n_flex,) the first element of each flexible span."""
+        return np.array([s[0] for s in self.span_elements if len(s)], dtype=np.int64)
 
     @property
     def last(self) -> np.ndarray:
-        return np.array([s[-1] for s in self.span_elements])
+        """(n_flex,) the last element of each flexible span."""
+        return np.array([s[-1] for s in self.span_elements if len(s)], dtype=np.int64)
+
+    def on_spans(self, x: np.ndarray) -> np.ndarray:
+        """(B, n_flex, ...) per flexible span -> (B, n_span, ...), zeros for the spans without elements."""
+        if x.shape[1] == self.n_span:
+            return x
+        out = np.zeros((x.shape[0], self.n_span) + x.shape[2:])
+        out[:, self.flexible] = x
+        return out
 
     @property
     def Tt(self) -> np.ndarray:
@@ -343,25 +362,31 @@ class BeltSpans:
     # -------------------------------------------------------------------- mid-span motion
     @property
     def midspan_point(self) -> tuple[np.ndarray, np.ndarray]:
-        """(elements (n_span,), shape functions (n_span, 4)) of each span's mid-span point: the middle
-        node (even mesh) or the middle of the middle element (odd mesh). Cached."""
+        """(elements (n_flex,), shape functions (n_flex, 4)) of each flexible span's mid-span point: the
+        middle node (an even count of elements) or the middle of the middle element (odd). Cached."""
         mid = self.__dict__.get("_mid")
-        if mid is None:
-            n_e = len(self.span_elements[0])
-            k, xi = (n_e // 2, 0.0) if n_e % 2 == 0 else ((n_e - 1) // 2, 0.5)
-            els = np.array([self.span_elements[s][k] for s in range(self.n_span)])
-            s_fun, _, _ = ancf.shape_functions(np.array([xi]), self.elements.length[els])
-            mid = (els, s_fun[:, 0, :])
+        if mid is None:  # per flexible span: its middle node, or the middle of its middle element
+            els, xis = [], []
+            for span in self.span_elements:
+                n_e = len(span)
+                if n_e:
+                    k, xi = (n_e // 2, 0.0) if n_e % 2 == 0 else ((n_e - 1) // 2, 0.5)
+                    els.append(span[k])
+                    xis.append(xi)
+            els = np.array(els, dtype=np.int64)
+            s_fun, _, _ = ancf.shape_functions(np.array([0.0, 0.5]), self.elements.length[els])
+            mid = (els, s_fun[np.arange(len(els)), (np.array(xis) > 0).astype(int), :])
             object.__setattr__(self, "_mid", mid)
         return mid
 
     def midspan_displacement(self, E: np.ndarray) -> np.ndarray:
         """(B, n_span) transverse displacement of the mid-span point from the chord between the span's
         current end points, along the chord's normal z x t (m), for element states E (B, n_elem, 8).
-        Rigid motion of the span (its ends moving with the pulleys) and axial motion give none."""
+        Rigid motion of the span (its ends moving with the pulleys) and axial motion give none; a span
+        without elements (a spring span) none either."""
         p, r0, c = self._midspan_terms(E)
         n = np.stack([-c[..., 1], c[..., 0]], axis=-1) / np.linalg.norm(c, axis=-1, keepdims=True)
-        return np.einsum("bsd,bsd->bs", p - r0, n)
+        return self.on_spans(np.einsum("bsd,bsd->bs", p - r0, n))
 
     def midspan_displacement_linear(self, E: np.ndarray, dE: np.ndarray) -> np.ndarray:
         """(B, n_span) the first-order change of `midspan_displacement` at the state E (n_elem, 8) for
@@ -375,11 +400,11 @@ class BeltSpans:
         dux, duy = dp[..., 0] - dr0[..., 0], dp[..., 1] - dr0[..., 1]
         # (du . Jc + u . J dc) / |c| - (u . Jc)(c . dc) / |c|^3, J v = (-v_y, v_x)
         uJc = -ux * cy + uy * cx
-        return ((-dux * cy + duy * cx) + (-ux * dc[..., 1] + uy * dc[..., 0])) / norm \
-            - uJc * (cx * dc[..., 0] + cy * dc[..., 1]) / norm ** 3
+        return self.on_spans(((-dux * cy + duy * cx) + (-ux * dc[..., 1] + uy * dc[..., 0])) / norm
+                             - uJc * (cx * dc[..., 0] + cy * dc[..., 1]) / norm ** 3)
 
     def _midspan_terms(self, E: np.ndarray, offset: bool = True):
-        """Mid-span point p, start r0 and chord c = r_end - r0, each (B, n_span, 2)."""
+        """Mid-span point p, start r0 and chord c = r_end - r0, each (B, n_flex, 2)."""
         els, sfun = self.midspan_point
         B = E.shape[0]
         p = np.einsum("sk,bskd->bsd", sfun, E[:, els].reshape(B, len(els), 4, 2))
@@ -389,12 +414,13 @@ class BeltSpans:
     def end_forces(self, E: np.ndarray, Ed: np.ndarray | None, gravity: np.ndarray) -> np.ndarray:
         """Force of each span on its end nodes, (B, n_span, 2 ends, 2), from element states
         E, Ed (B, n_elem, 8): internal (elastic + belt damping) - weight of the end elements, position
-        rows. The pulley holds the node with this force (plus `end_inertia`); the belt pushes back."""
+        rows. The pulley holds the node with this force (plus `end_inertia`); the belt pushes back.
+        Zeros for a span without elements (a spring span: `SpringSpans.end_forces`)."""
         el = self.elements
         ends = np.concatenate([self.first, self.last])
         B = E.shape[0]
         damped = self.damping_axial > 0.0 or self.damping_bending > 0.0
-        n = self.n_span
+        n = len(self.first)
         if not self.compiled and not (damped and Ed is not None):
             sub_el = self.__dict__.get("_end_elements")
             if sub_el is None:  # the span-end elements' tables (cached)
@@ -402,7 +428,7 @@ class BeltSpans:
                 object.__setattr__(self, "_end_elements", sub_el)
             ge = ancf.gravity_forces(sub_el, gravity)
             F = np.stack([ancf.internal_forces(sub_el, E[b, ends]) for b in range(B)]) - ge
-            return np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2)
+            return self.on_spans(np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2))
         from . import belt_kernel as bk
 
         # the whole batch in one kernel call: the end elements' tables tiled over the batch (cached per size)
@@ -420,7 +446,7 @@ class BeltSpans:
             bk.element_damping(Eb, np.ascontiguousarray(Ed[:, ends].reshape(B * len(ends), 8)), sub[0], sub[1],
                                sub[2], sub[3], sub[4], sub[5], self.damping_axial, self.damping_bending, fd)
             F = F + fd.reshape(B, len(ends), 8)
-        return np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2)
+        return self.on_spans(np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2))
 
     # -------------------------------------------------------------------- the running belt (transport)
     def transport_blocks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -464,7 +490,7 @@ class BeltSpans:
         m = self.elements.mass
         f0 = np.einsum("eij,bej->bei", m[self.first], Ea[:, self.first])[:, :, 0:2]
         f1 = np.einsum("eij,bej->bei", m[self.last], Ea[:, self.last])[:, :, 4:6]
-        return np.stack([f0, f1], axis=2)
+        return self.on_spans(np.stack([f0, f1], axis=2))
 
     def end_tensions(self, E: np.ndarray, F_end: np.ndarray) -> np.ndarray:
         """Span tensions (B, n_span, 2) at the start/end of each span from the end-node forces F_end
@@ -474,8 +500,203 @@ class BeltSpans:
         t1 = E[:, self.last, 6:8]
         t0 = t0 / np.linalg.norm(t0, axis=-1, keepdims=True)
         t1 = t1 / np.linalg.norm(t1, axis=-1, keepdims=True)
-        return np.stack([-np.einsum("bsd,bsd->bs", F_end[:, :, 0], t0), np.einsum("bsd,bsd->bs", F_end[:, :, 1], t1)],
-                        axis=-1)
+        F_end = F_end[:, self.flexible]
+        return self.on_spans(np.stack([-np.einsum("bsd,bsd->bs", F_end[:, :, 0], t0),
+                                       np.einsum("bsd,bsd->bs", F_end[:, :, 1], t1)], axis=-1))
+
+
+# ------------------------------------------------------------------------------------ spring spans
+@dataclass(frozen=True, kw_only=True)
+class SpringSpans:
+    """The spans modelled as axial springs (model = "spring"): the rotational (discrete) model of a span.
+
+    Nomenclature, per spring span (k of them): end positions x = [r_a, r_b] (4,) = x0 + T p[idx], the
+    span's tangent points on its two pulleys through the same constant-Jacobian joints as an ANCF
+    span's end nodes (`joint_pairs`; T (k, 4, m), idx (k, m), padding index n_dof); chord d = r_b - r_a,
+    l = |d|, u = d / l; reference length L; stretch lam = l / L; Green-Lagrange strain
+    eps = (lam^2 - 1) / 2 (the ANCF law of a uniformly stretched span); strain energy U = EA L eps^2 / 2;
+    true axial force N = dU/dl = EA eps lam, on the ends f = dU/dx = N [-u, u]. Tangent
+    K = [[K2, -K2], [-K2, K2]], K2 = k_a u u^T + (N / l) (I - u u^T), k_a = dN/dl = EA (3 lam^2 - 1) / (2 L)
+    along the chord and N / l (the string's geometric stiffness) across it. Kelvin-Voigt damping as the
+    belt's: N_d = EA eta lam d(eps)/dt = EA eta lam^2 (u . d') / L along u. Mass: the span's rho L lumped
+    at its ends, rho L / 2 on each tangent point, which moves with its pulley (no DOFs of its own, no
+    transverse modes). A spring also carries compression, where a belt would go slack: the static
+    analysis refuses a compressed span, the transient records it as a slack event. Evaluated in numpy
+    here (static, modal) and by `spring_kernel` in the time stepper, held equal by the tests.
+    """
+
+    span: np.ndarray  # (k,) span index of each spring span
+    T: np.ndarray  # (k, 4, m) end positions per joint coordinate
+    idx: np.ndarray  # (k, m) joint coordinate indices (n_dof = padding)
+    x0: np.ndarray  # (k, 4) end positions at p = 0
+    reference_length: np.ndarray  # (k,) L, m
+    reference_direction: np.ndarray  # (k, 2) chord direction at p = 0
+    EA: float  # N
+    rho: float  # kg/m
+    n_dof: int  # joint coordinates p
+    n_span: int  # spans of the drive (spring and flexible)
+    damping_axial: float = 0.0  # Kelvin-Voigt retardation time (s), set by the transient options
+    EI: float = 0.0  # the belt's bending stiffness (N m^2) and model.curvature: not used by the springs, only
+    curvature: str = "linear"  # to name the modes of the span they leave out (`ladder.unrepresented_modes`)
+
+    @property
+    def end_mass(self) -> np.ndarray:
+        """(k,) the mass lumped on each end, rho L / 2 (kg)."""
+        return 0.5 * self.rho * self.reference_length
+
+    @property
+    def Tt(self) -> np.ndarray:
+        tt = self.__dict__.get("_Tt")
+        if tt is None:
+            tt = np.ascontiguousarray(self.T.transpose(0, 2, 1))
+            object.__setattr__(self, "_Tt", tt)
+        return tt
+
+    def positions(self, p: np.ndarray) -> np.ndarray:
+        """x (k, 4) at the joint coordinates p (n_dof,)."""
+        return self.x0 + np.matmul(self.T, np.append(p, 0.0)[self.idx][:, :, None])[:, :, 0]
+
+    def positions_batch(self, P: np.ndarray, *, offset: bool = True) -> np.ndarray:
+        """(B, k, 4) end positions (velocities, accelerations with offset=False) of states P (B, n_dof)."""
+        Pe = np.concatenate([P, np.zeros((P.shape[0], 1))], axis=1)[:, self.idx]
+        X = np.einsum("kim,bkm->bki", self.T, Pe)
+        return X + self.x0 if offset else X
+
+    def axial(self, X: np.ndarray):
+        """u (..., k, 2), l, lam, eps, N (..., k) at end positions X (..., k, 4)."""
+        d = X[..., 2:4] - X[..., 0:2]
+        l = np.sqrt(np.einsum("...d,...d->...", d, d))
+        u = d / l[..., None]
+        lam = l / self.reference_length
+        eps = 0.5 * (lam * lam - 1.0)
+        return u, l, lam, eps, self.EA * eps * lam
+
+    def damping_force(self, X: np.ndarray, Xd: np.ndarray) -> np.ndarray:
+        """N_d (..., k) of end velocities Xd."""
+        u, l, lam, _, _ = self.axial(X)
+        rate = np.einsum("...d,...d->...", u, Xd[..., 2:4] - Xd[..., 0:2])
+        return self.EA * self.damping_axial * lam * lam * rate / self.reference_length
+
+    def reduce_vector(self, fe: np.ndarray) -> np.ndarray:
+        """sum_k T^T fe (k, 4) -> (n_dof,)."""
+        fr = np.matmul(self.Tt, fe[:, :, None])[:, :, 0]
+        return np.bincount(self.idx.ravel(), weights=fr.ravel(), minlength=self.n_dof + 1)[: self.n_dof]
+
+    def reduce_blocks(self, Ke: np.ndarray) -> np.ndarray:
+        """(k, m, m) blocks T^T Ke T of (k, 4, 4) end-position blocks."""
+        return np.matmul(np.matmul(self.Tt, Ke), self.T)
+
+    @staticmethod
+    def _pair(A: np.ndarray) -> np.ndarray:
+        """[[A, -A], [-A, A]] (k, 4, 4) of (k, 2, 2)."""
+        return np.concatenate([np.concatenate([A, -A], axis=2), np.concatenate([-A, A], axis=2)], axis=1)
+
+    def force(self, p: np.ndarray) -> np.ndarray:
+        """Reduced elastic force (n_dof,)."""
+        u, _, _, _, N = self.axial(self.positions(p))
+        return self.reduce_vector(np.concatenate([-N[:, None] * u, N[:, None] * u], axis=1))
+
+    def force_and_blocks(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Reduced elastic force (n_dof,) and the tangent blocks T^T K_e T (k, m, m)."""
+        u, l, lam, _, N = self.axial(self.positions(p))
+        f = self.reduce_vector(np.concatenate([-N[:, None] * u, N[:, None] * u], axis=1))
+        k_a = self.EA * (3.0 * lam * lam - 1.0) / (2.0 * self.reference_length)
+        uu = u[:, :, None] * u[:, None, :]
+        K2 = k_a[:, None, None] * uu + (N / l)[:, None, None] * (np.eye(2) - uu)
+        return f, self.reduce_blocks(self._pair(K2))
+
+    def damping_blocks(self, p: np.ndarray) -> np.ndarray:
+        """(k, m, m) the damping matrix dN_d/d(x') through the joints at p (Kelvin-Voigt)."""
+        u, _, lam, _, _ = self.axial(self.positions(p))
+        c = self.EA * self.damping_axial * lam * lam / self.reference_length
+        return self.reduce_blocks(self._pair(c[:, None, None] * u[:, :, None] * u[:, None, :]))
+
+    def mass_blocks(self) -> np.ndarray:
+        """(k, m, m) T^T (rho L / 2 I4) T, constant."""
+        return self.end_mass[:, None, None] * np.matmul(self.Tt, self.T)
+
+    def gravity_force(self, g: np.ndarray) -> np.ndarray:
+        """(n_dof,) the generalized weight of the lumped masses for the gravity vector g (2,)."""
+        w = self.end_mass[:, None] * np.asarray(g, dtype=float)[None, :]
+        return self.reduce_vector(np.concatenate([w, w], axis=1))
+
+    def strain_energy(self, p: np.ndarray) -> float:
+        _, _, _, eps, _ = self.axial(self.positions(p))
+        return float((0.5 * self.EA * self.reference_length * eps * eps).sum())
+
+    def tension_integral(self, p: np.ndarray) -> tuple[float, np.ndarray]:
+        """sum_k N_k L_k (N m) and its gradient (n_dof,): the springs' share of the length-weighted mean."""
+        u, _, lam, _, N = self.axial(self.positions(p))
+        k_a = self.EA * (3.0 * lam * lam - 1.0) / (2.0 * self.reference_length)
+        g = (k_a * self.reference_length)[:, None] * u
+        return float((N * self.reference_length).sum()), self.reduce_vector(np.concatenate([-g, g], axis=1))
+
+    def _scatter(self, x: np.ndarray) -> np.ndarray:
+        """(B, k, ...) -> (B, n_span, ...), zeros for the other spans."""
+        out = np.zeros((x.shape[0], self.n_span) + x.shape[2:])
+        out[:, self.span] = x
+        return out
+
+    def end_forces(self, X: np.ndarray, Xd: np.ndarray | None, gravity: np.ndarray) -> np.ndarray:
+        """(B, n_span, 2, 2) force of each spring span on its end points (as `BeltSpans.end_forces`:
+        internal + damping - weight of the lumped masses; zeros for the other spans), from end states
+        X, Xd (B, k, 4)."""
+        u, _, _, _, N = self.axial(X)
+        if Xd is not None and self.damping_axial > 0.0:
+            N = N + self.damping_force(X, Xd)
+        w = self.end_mass[None, :, None] * np.asarray(gravity, dtype=float)
+        F = np.stack([-N[..., None] * u - w, N[..., None] * u - w], axis=2)
+        return self._scatter(F)
+
+    def end_inertia(self, Xa: np.ndarray) -> np.ndarray:
+        """(B, n_span, 2, 2) inertia forces of the lumped masses, end accelerations Xa (B, k, 4)."""
+        m = self.end_mass[None, :, None]
+        return self._scatter(np.stack([m * Xa[..., 0:2], m * Xa[..., 2:4]], axis=2))
+
+    def end_tensions(self, X: np.ndarray, F_end: np.ndarray) -> np.ndarray:
+        """(B, n_span, 2) span tensions at the ends of the spring spans (zeros elsewhere) from the end
+        forces F_end (B, n_span, 2, 2): N_start = -F_start . u, N_end = F_end . u."""
+        u = self.axial(X)[0]
+        F = F_end[:, self.span]
+        return self._scatter(np.stack([-np.einsum("bkd,bkd->bk", F[:, :, 0], u),
+                                       np.einsum("bkd,bkd->bk", F[:, :, 1], u)], axis=-1))
+
+    def kinetic_energy_split(self, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(B, k) each: the lumped masses' quadratic energy form dX^T M dX along and across the chord
+        at p = 0 for end motions dX (B, k, 4) (as the belt's share splits, `System.kinetic_energy_shares`)."""
+        t = self.reference_direction
+        nrm = np.column_stack([-t[:, 1], t[:, 0]])
+        m = self.end_mass[None, :]
+        a = np.einsum("bkjd,kd->bkj", dX.reshape(dX.shape[0], -1, 2, 2), t)
+        b = np.einsum("bkjd,kd->bkj", dX.reshape(dX.shape[0], -1, 2, 2), nrm)
+        return m * (a * a).sum(axis=2), m * (b * b).sum(axis=2)
+
+
+def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
+                  prestrain_stretch: float | np.ndarray = 1.0) -> SpringSpans | None:
+    """The spring spans of the configuration (None without any), on the layout's tangent points."""
+    spans = [s for s, m in enumerate(cfg.span_models) if m == "spring"]
+    if not spans:
+        return None
+    lam = np.broadcast_to(np.asarray(prestrain_stretch, dtype=float), (layout.n,))
+    k = len(spans)
+    pad = dofs.n
+    cols = [joint_pairs(layout, dofs, s, 0) + [None] + joint_pairs(layout, dofs, s, 1) for s in spans]
+    m = max(len(c) - 1 for c in cols)
+    T = np.zeros((k, 4, m))
+    idx = np.full((k, m), pad, dtype=np.int64)
+    for i, c in enumerate(cols):
+        cut = c.index(None)
+        for col, (dof, v) in enumerate(c[:cut] + c[cut + 1:]):
+            side = 0 if col < cut else 1
+            idx[i, col] = dof
+            T[i, 2 * side: 2 * side + 2, col] = v
+    sp = np.array(spans, dtype=np.int64)
+    x0 = np.column_stack([layout.span_start[sp], layout.span_end[sp]])
+    return SpringSpans(span=sp, T=T, idx=idx, x0=x0, reference_length=layout.span_length[sp] / lam[sp],
+                       reference_direction=layout.span_direction[sp].copy(), EA=float(cfg.belt.EA),
+                       rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=layout.n, EI=float(cfg.belt.EI),
+                       curvature=cfg.model.curvature)
 
 
 def _sub_tables(tab, els: np.ndarray) -> tuple:
@@ -653,7 +874,9 @@ class ArmJoints:
             fu = f[self.n_q:].reshape(len(self.dof), 2)
             geo = np.einsum("kd,kd->k", self.second(self.phi(q)), fu)
         if dense and not hasattr(K, "tocsr"):
-            J = self.jacobian(q).toarray()
+            J = np.zeros((self.n_p, self.n_q))  # the jacobian, dense: identity on q, dc/dphi in the arm columns
+            J[np.arange(self.n_q), np.arange(self.n_q)] = 1.0
+            J[self.slot, self.dof], J[self.slot + 1, self.dof] = dc[:, 0], dc[:, 1]
             out = J.T @ np.asarray(K) @ J
             if geo is not None:
                 out[self.dof, self.dof] += geo
@@ -717,6 +940,8 @@ class System:
     arms: ArmJoints | None = None  # tensioner arms: p = P(q); None: p = q
     pulley_friction: np.ndarray | None = None  # (n_pulley,) belt-pulley friction coefficient, NaN if not given
     belt_speed: float = 0.0  # m/s, the running belt's transport speed c (`running`); 0: the drive at rest
+    springs: SpringSpans | None = None  # the spans modelled as axial springs (None: every span flexible)
+    spring_scatter: np.ndarray | None = None  # (k m m,) where the springs' blocks go: flat (dense) or CSR slot
 
     # The belt, the components, mass, pattern, gravity_force, loads and the linear matrices live on the
     # joint coordinates p (n_p); the analyses see the independent q (n_dof). Without arms p = q.
@@ -773,13 +998,19 @@ class System:
         """A system with more components (matrices and pattern rebuilt)."""
         out = _assemble(self.layout, self.dofs, self.belt, self.components + tuple(extra), pulley_names=self.pulley_names,
                         driver=self.driver, tension=self.tension, gravity=self.gravity, dense=self.dense,
-                        loads=self.loads, arms=self.arms, friction=self.pulley_friction)
+                        loads=self.loads, arms=self.arms, friction=self.pulley_friction, springs=self.springs)
         return out.with_speed(self.belt_speed) if self.belt_speed else out
 
     def with_belt(self, **changes) -> "System":
-        """The same system with belt fields changed (e.g. damping_axial, compiled)."""
+        """The same system with belt fields changed (e.g. damping_axial, compiled); the spring spans
+        take the axial damping too."""
         belt = BeltSpans(**{**{k: v for k, v in self.belt.__dict__.items() if not k.startswith("_")}, **changes})
-        return System(**{**{k: v for k, v in self.__dict__.items() if not k.startswith("_")}, "belt": belt})
+        springs = self.springs
+        if springs is not None and "damping_axial" in changes:
+            springs = SpringSpans(**{**{k: v for k, v in springs.__dict__.items() if not k.startswith("_")},
+                                     "damping_axial": float(changes["damping_axial"])})
+        return System(**{**{k: v for k, v in self.__dict__.items() if not k.startswith("_")}, "belt": belt,
+                         "springs": springs})
 
     def with_belt_damping(self, axial: float, bending: float) -> "System":
         return self.with_belt(damping_axial=float(axial), damping_bending=float(bending))
@@ -822,12 +1053,17 @@ class System:
         return self.project_matrix(np.zeros(self.n_dof) if q is None else q, G)
 
     # -------------------------------------------------------------------- assembly
-    def assemble(self, blocks: np.ndarray, *, linear: bool = True, diagonal: np.ndarray | None = None):
-        """Element blocks (n_elem, m, m) (+ the components' constant stiffness, + a diagonal)
-        -> dense (n_p, n_p) or CSR, on the joint coordinates."""
+    def assemble(self, blocks: np.ndarray, *, linear: bool = True, diagonal: np.ndarray | None = None,
+                 springs: np.ndarray | None = None):
+        """Element blocks (n_elem, m, m) (+ the spring spans' blocks (k, m_s, m_s), + the components'
+        constant stiffness, + a diagonal) -> dense (n_p, n_p) or CSR, on the joint coordinates."""
         n, pat = self.n_p, self.pattern
+        with_springs = springs is not None and self.springs is not None
         if self.dense:
-            K = np.bincount(pat.flat, weights=blocks.ravel(), minlength=(n + 1) ** 2).reshape(n + 1, n + 1)[:n, :n]
+            flat, weights = pat.flat, blocks.ravel()
+            if with_springs:
+                flat, weights = np.concatenate([flat, self.spring_scatter]), np.concatenate([weights, springs.ravel()])
+            K = np.bincount(flat, weights=weights, minlength=(n + 1) ** 2).reshape(n + 1, n + 1)[:n, :n]
             if linear and self.linear_stiffness is not None:
                 K += self.linear_stiffness
             if diagonal is not None:
@@ -837,6 +1073,9 @@ class System:
 
         keep = pat.slot >= 0
         data = np.bincount(pat.slot[keep], weights=blocks.ravel()[keep], minlength=pat.nnz)
+        if with_springs:
+            live = self.spring_scatter >= 0
+            data += np.bincount(self.spring_scatter[live], weights=springs.ravel()[live], minlength=pat.nnz)
         if linear and self.linear_stiffness is not None:
             data += self.linear_stiffness
         if diagonal is not None:
@@ -865,23 +1104,54 @@ class System:
         return A
 
     # -------------------------------------------------------------------- forces
+    def belt_force(self, p: np.ndarray) -> np.ndarray:
+        """The belt's elastic force on the joint coordinates (n_p,): ANCF spans (with the running belt's
+        centripetal force at speed) + spring spans (no transport terms)."""
+        running = self.belt_speed and self.belt.elements.n_elem
+        if self.springs is None:
+            f = self.belt.force(p)
+            return f + self.centripetal_force(p) if running else f
+        fs = self.springs.force(p)
+        if self.belt.elements.n_elem == 0:
+            return fs
+        f = fs + self.belt.force(p)
+        return f + self.centripetal_force(p) if running else f
+
+    def belt_force_and_tangent(self, p: np.ndarray, *, linear: bool = True):
+        """The belt's elastic force (n_p,) and its tangent (+ the components' constant stiffness with
+        linear=True) on the joint coordinates, assembled (dense or CSR); at speed with the ANCF spans'
+        centripetal force and stiffness."""
+        if self.springs is not None and self.belt.elements.n_elem == 0:  # every span a spring
+            fs, bs = self.springs.force_and_blocks(p)
+            return fs, self.assemble(np.zeros((0,) + self.belt.T.shape[2:] * 2), linear=linear, springs=bs)
+        f, blocks = self.belt.force_and_blocks(p)
+        if self.belt_speed:
+            f, blocks = f + self.centripetal_force(p), self._running_blocks(blocks)
+        if self.springs is None:
+            return f, self.assemble(blocks, linear=linear)
+        fs, bs = self.springs.force_and_blocks(p)
+        return f + fs, self.assemble(blocks, linear=linear, springs=bs)
+
+    def span_transport_forces(self, E: np.ndarray, Ed: np.ndarray | None, speed, acceleration=0.0) -> np.ndarray:
+        """(B, n_span, 2, 2) the running belt's transport forces on the span ends (`BeltSpans.
+        transport_end_forces`), zeros for spring spans (they carry no transport terms)."""
+        if self.belt.elements.n_elem == 0:
+            return np.zeros((E.shape[0], self.belt.n_span, 2, 2))
+        return self.belt.on_spans(self.belt.transport_end_forces(E, Ed, speed, acceleration))
+
     def internal_force(self, q: np.ndarray) -> np.ndarray:
         """f(q) (n_dof,): belt elastic force + components' K q (preloads excluded), and the running belt's
         centripetal force at speed."""
         p = self.expand(q)
-        f = self.belt.force(p) + self.linear_force(p)
-        if self.belt_speed:
-            f = f + self.centripetal_force(p)
+        f = self.belt_force(p) + self.linear_force(p)
         return f if self.arms is None else self.arms.project(q, f)
 
     def force_and_tangent(self, q: np.ndarray):
         """Internal force (n_dof,) and tangent stiffness K_t = df/dq (dense or CSR). With arms the
         geometric term is that of the internal force alone (see `equilibrium` for the loaded one)."""
         if self.arms is None:
-            f, blocks = self.belt.force_and_blocks(q)
-            if self.belt_speed:
-                f, blocks = f + self.centripetal_force(q), self._running_blocks(blocks)
-            return f + self.linear_force(q), self.assemble(blocks)
+            f, K = self.belt_force_and_tangent(q)
+            return f + self.linear_force(q), K
         return self.equilibrium(q, 0.0)
 
     def external_force(self, load_factor: float = 1.0) -> np.ndarray:
@@ -895,23 +1165,24 @@ class System:
         tangent=False: (r, None)."""
         p = self.expand(q)
         if not tangent:
-            f = self.belt.force(p) + self.linear_force(p) - self.external_force(load_factor)
-            if self.belt_speed:
-                f = f + self.centripetal_force(p)
+            f = self.belt_force(p) + self.linear_force(p) - self.external_force(load_factor)
             return (f if self.arms is None else self.arms.project(q, f)), None
-        f, blocks = self.belt.force_and_blocks(p)
+        f, K = self.belt_force_and_tangent(p)
         f = f + self.linear_force(p) - self.external_force(load_factor)
-        if self.belt_speed:
-            f, blocks = f + self.centripetal_force(p), self._running_blocks(blocks)
-        K = self.assemble(blocks)
         if self.arms is None:
             return f, K
         return self.arms.project(q, f), self.arms.project_matrix(q, K, f, dense=self.dense)
 
     def tangent_on_joints(self, q: np.ndarray):
         """The internal force's tangent on the joint coordinates p at P(q) (n_p, n_p)."""
-        _, blocks = self.belt.force_and_blocks(self.expand(q))
-        return self.assemble(blocks)
+        return self.belt_force_and_tangent(self.expand(q))[1]
+
+    def belt_damping_matrix(self, q: np.ndarray, Ce: np.ndarray):
+        """The belt's Kelvin-Voigt damping on the joint coordinates at P(q), from the ANCF elements'
+        damping blocks Ce (n_elem, 8, 8) and the spring spans' own (dense or CSR, no components)."""
+        blocks = self.belt.reduce_blocks(Ce)
+        springs = None if self.springs is None else self.springs.damping_blocks(self.expand(q))
+        return self.assemble(blocks, linear=False, springs=springs)
 
     def project_matrix(self, q: np.ndarray, A):
         """J(q)^T A J(q) for a matrix A on the joint coordinates (A itself without arms)."""
@@ -926,17 +1197,87 @@ class System:
         return self.project_matrix(np.zeros(self.n_dof) if q is None else q, self.mass)
 
     def mean_tension_and_gradient(self, q: np.ndarray) -> tuple[float, np.ndarray]:
-        T, g = self.belt.mean_tension_and_gradient(self.expand(q))
+        """Length-weighted mean true axial force over all spans (N), ANCF and spring, and its gradient."""
+        p = self.expand(q)
+        if self.springs is None:
+            T, g = self.belt.mean_tension_and_gradient(p)
+        else:
+            L_b = float(self.belt.elements.length.sum())
+            NL, g = self.springs.tension_integral(p)
+            if L_b > 0.0:
+                T_b, g_b = self.belt.mean_tension_and_gradient(p)
+                NL, g = NL + T_b * L_b, g + g_b * L_b
+            total = L_b + float(self.springs.reference_length.sum())
+            T, g = NL / total, g / total
         return T, (g if self.arms is None else self.arms.project(q, g))
+
+    def span_models(self) -> tuple[tuple[str, ...], np.ndarray]:
+        """(model of each span: "ancf", "string" or "spring"; elements of each span (n_span,), 0 for a
+        spring span), as the system was built."""
+        el = self.belt.elements
+        models, counts = [], np.array([len(e) for e in self.belt.span_elements], dtype=np.int64)
+        for els in self.belt.span_elements:
+            if not len(els):
+                models.append("spring")
+            else:
+                models.append("string" if el.curvature == "none" or not np.any(el.EI[els] > 0) else "ancf")
+        return tuple(models), counts
+
+    @property
+    def EA(self) -> float:
+        """The belt's axial stiffness (N): the largest of its elements and springs."""
+        ea = [float(self.belt.elements.EA.max(initial=0.0))]
+        if self.springs is not None:
+            ea.append(self.springs.EA)
+        return max(ea)
+
+    def span_end_forces(self, p: np.ndarray, vp: np.ndarray | None, E: np.ndarray | None = None,
+                        Ed: np.ndarray | None = None) -> np.ndarray:
+        """(B, n_span, 2, 2) force of each span on its end points for states p, vp (B, n_p) (as
+        `BeltSpans.end_forces`; E, Ed the belt's element states if at hand)."""
+        b = self.belt
+        if b.elements.n_elem == 0:  # every span a spring
+            F = np.zeros((p.shape[0], b.n_span, 2, 2))
+        else:
+            E = b.element_coordinates_batch(p) if E is None else E
+            if vp is not None and Ed is None:
+                Ed = b.element_coordinates_batch(vp, offset=False)
+            F = b.end_forces(E, Ed, self.gravity)
+        if self.springs is not None:
+            sp = self.springs
+            F = F + sp.end_forces(sp.positions_batch(p), None if vp is None else sp.positions_batch(vp, offset=False),
+                                  self.gravity)
+        return F
+
+    def span_end_tensions(self, p: np.ndarray, F: np.ndarray, E: np.ndarray | None = None) -> np.ndarray:
+        """(B, n_span, 2) tensions at the span ends from their end forces F (`span_end_forces`)."""
+        if self.belt.elements.n_elem == 0:
+            T = np.zeros(F.shape[:2] + (2,))
+        else:
+            T = self.belt.end_tensions(self.belt.element_coordinates_batch(p) if E is None else E, F)
+        if self.springs is not None:
+            T = T + self.springs.end_tensions(self.springs.positions_batch(p), F)
+        return T
+
+    def span_end_inertia(self, ap: np.ndarray) -> np.ndarray:
+        """(B, n_span, 2, 2) inertia forces of the span-end masses for accelerations ap (B, n_p)."""
+        if self.belt.elements.n_elem == 0:
+            F = np.zeros((ap.shape[0], self.belt.n_span, 2, 2))
+        else:
+            F = self.belt.end_inertia(self.belt.element_coordinates_batch(ap, offset=False))
+        if self.springs is not None:
+            F = F + self.springs.end_inertia(self.springs.positions_batch(ap, offset=False))
+        return F
 
     def joint_reactions(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Static hub loads (n_pulley, 2), N, the force of the belt on each pulley, and span tensions
         (n_span, 2), N, at the start and end of each span, from the joint reactions (exact for the
         discrete equilibrium even where the strain is tiny)."""
-        E = self.belt.element_coordinates(self.expand(q))[None]
-        F = self.belt.end_forces(E, None, self.gravity)
-        hub = F if not self.belt_speed else F + self.belt.transport_end_forces(E, None, self.belt_speed)
-        return self.hub_loads(hub)[0], self.belt.end_tensions(E, F)[0]
+        p = self.expand(q)[None]
+        E = self.belt.element_coordinates(p[0])[None]
+        F = self.span_end_forces(p, None, E)
+        hub = F if not self.belt_speed else F + self.span_transport_forces(E, None, self.belt_speed)
+        return self.hub_loads(hub)[0], self.span_end_tensions(p, F, E)[0]
 
     def hub_loads(self, F_end: np.ndarray) -> np.ndarray:
         """(B, n_pulley, 2) force of the belt on each pulley from the span end-node forces."""
@@ -982,6 +1323,10 @@ class System:
         span_trans = np.zeros((n_modes, belt.n_span))
         np.add.at(span_long.T, belt.elem_span, ka.T)
         np.add.at(span_trans.T, belt.elem_span, kb.T)
+        if self.springs is not None:  # the lumped masses of the spring spans, along and across the chord
+            sa, sb = self.springs.kinetic_energy_split(self.springs.positions_batch(shapes, offset=False))
+            span_long[:, self.springs.span] += sa
+            span_trans[:, self.springs.span] += sb
         kinds = np.zeros((n_modes, len(ENERGY_KINDS)))
         kinds[:, 2] = span_long.sum(axis=1)
         kinds[:, 3] = span_trans.sum(axis=1)
@@ -995,11 +1340,16 @@ class System:
 def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[LinearComponent, ...], *,
               pulley_names: tuple[str, ...], driver: int, tension: TensionSetting, gravity: np.ndarray,
               dense: bool | None, loads: np.ndarray | None = None, arms: ArmJoints | None = None,
-              friction: np.ndarray | None = None) -> System:
+              friction: np.ndarray | None = None, springs: SpringSpans | None = None) -> System:
     """Pattern, mass, weight and the components' constant matrices of a system."""
     n = dofs.n
     use_dense = n <= DENSE_LIMIT if dense is None else dense
     rows, cols = [], []
+    if springs is not None:  # the spring spans' blocks: entries of the pattern like the components'
+        s_rows, s_cols = element_pairs(springs.idx)
+        live = (s_rows < n) & (s_cols < n)
+        rows.append(s_rows[live])
+        cols.append(s_cols[live])
     for c in components:
         for mat in (c.stiffness, c.damping, c.mass):
             if mat is not None:
@@ -1035,13 +1385,23 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
             offset[c.dofs] += c.stiffness @ np.asarray(c.free, dtype=float)
     g = np.asarray(gravity, dtype=float)
     fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g))
+    scatter = None
+    if springs is not None:
+        fg = fg + springs.gravity_force(g)
+        if use_dense:
+            scatter = s_rows * (n + 1) + s_cols
+        else:
+            scatter = np.full(s_rows.shape, -1, dtype=np.int64)
+            scatter[live] = pattern.slots_of(s_rows[live], s_cols[live])
     for c in components:
         if c.weight is not None:
             fg[c.dofs] += c.weight @ g
     stub = System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names, driver=driver,
                   tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=None, gravity_force=fg,
-                  linear_stiffness=None, linear_damping=None, loads=loads, arms=arms, pulley_friction=friction)
-    Mb = stub.assemble(belt.reduce_blocks(belt.elements.mass), linear=False)
+                  linear_stiffness=None, linear_damping=None, loads=loads, arms=arms, pulley_friction=friction,
+                  springs=springs, spring_scatter=scatter)
+    Mb = stub.assemble(belt.reduce_blocks(belt.elements.mass), linear=False,
+                       springs=None if springs is None else springs.mass_blocks())
     if use_dense:
         M = Mb + (M_comp if M_comp is not None else 0.0)
         lin = K_lin
@@ -1063,28 +1423,33 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
                prestrain_stretch: float | np.ndarray = 1.0) -> BeltSpans:
     """Mesh each span and join its end nodes to the pulleys (constant-Jacobian joints).
 
+    Span s gets cfg.span_elements[s] elements (none for a spring span: `build_springs`); a "string"
+    span's elements have no bending stiffness (EI = 0).
     prestrain_stretch: the stretch of the spans at q = 0 (chord length / reference length), one
     number for all spans or one per span (n_span,)."""
     n_p = layout.n
-    n_e = cfg.mesh.elements_per_span
+    counts = np.array(cfg.span_elements, dtype=np.int64)  # (n_span,) elements of each span
     n_dof = dofs.n
     pad = n_dof
     lam_s = np.broadcast_to(np.asarray(prestrain_stretch, dtype=float), (n_p,)).copy()
     L_ref = layout.span_length / lam_s
     t_dir = layout.span_direction
     normals = np.column_stack([-t_dir[:, 1], t_dir[:, 0]])
-    n_elem = n_p * n_e
+    n_elem = int(counts.sum())
     # Per element, columns 0-3 / 4-7 carry the coordinates of its first / second node, 8-10 / 11-13
     # the joint DOFs of a span end; padding columns are squeezed out afterwards.
     T = np.zeros((n_elem, 8, 14))
     idx = np.full((n_elem, 14), pad, dtype=int)
-    elem_span = np.repeat(np.arange(n_p), n_e)
-    span_elements = tuple(np.arange(s * n_e, (s + 1) * n_e) for s in range(n_p))
-    frac = np.arange(n_e + 1) / n_e
+    elem_span = np.repeat(np.arange(n_p), counts)
+    offsets = np.concatenate([[0], np.cumsum(counts)])
+    span_elements = tuple(np.arange(offsets[s], offsets[s + 1]) for s in range(n_p))
     e0 = np.zeros((n_elem, 8))
     eye4 = np.eye(4)
     for s in range(n_p):
-        els = span_elements[s]
+        els, n_e = span_elements[s], int(counts[s])
+        if n_e == 0:
+            continue
+        frac = np.arange(n_e + 1) / n_e
         a, b = layout.span_start[s], layout.span_end[s]
         nodes = a + np.outer(frac, b - a)
         e0[els, 0:2], e0[els, 4:6] = nodes[:-1], nodes[1:]
@@ -1097,30 +1462,62 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
             T[els, 4 * side: 4 * side + 4, cols] = eye4
             idx[els, cols] = node_dof[nodes_of, None] + np.arange(4)
         # End nodes: positions are dependent (joints), gradients stay independent.
-        for el, side, j, normal in ((els[0], 0, s, layout.start_normal[s]),
-                                    (els[-1], 1, (s + 1) % n_p, layout.end_normal[s])):
+        for el, side in ((els[0], 0), (els[-1], 1)):
             T[el, 4 * side: 4 * side + 2, 4 * side: 4 * side + 2] = 0.0
             idx[el, 4 * side: 4 * side + 2] = pad
-            R = layout.radius[j]
-            pairs = [(int(dofs.rot_dof[j]), R * _z_cross(normal))]
-            pairs += list(zip(dofs.trans_dof[j], dofs.trans_dir[j]))
-            for k, (dof, v) in enumerate(pairs):
+            for k, (dof, v) in enumerate(joint_pairs(layout, dofs, s, side)):
                 c = 8 + 3 * side + k
                 idx[el, c] = dof
                 T[el, 4 * side: 4 * side + 2, c] = v
     order = np.argsort(idx == pad, axis=1, kind="stable")
     idx = np.take_along_axis(idx, order, axis=1)
     T = np.take_along_axis(T, order[:, None, :], axis=2)
-    used = max(int((idx != pad).sum(axis=1).max()), 8)
+    used = max(int((idx != pad).sum(axis=1).max(initial=0)), 8)
     T, idx = np.ascontiguousarray(T[:, :, :used]), np.ascontiguousarray(idx[:, :used]).astype(np.int64)
-    el = ancf.make_elements(np.repeat(L_ref / n_e, n_e), cfg.belt.EA, cfg.belt.EI, cfg.belt.mass_per_length,
-                            curvature=cfg.model.curvature, n_gauss=cfg.model.gauss_points)
+    el = span_element_set(cfg, np.repeat(L_ref / np.maximum(counts, 1), counts),
+                          np.repeat([cfg.belt.EI if m == "ancf" else 0.0 for m in cfg.span_models], counts))
     uniform = bool(np.all(lam_s == lam_s[0]))
     lam = float(lam_s[0]) if uniform else float(layout.span_length.sum() / L_ref.sum())
     return BeltSpans(elements=el, elem_span=elem_span, span_elements=span_elements, T=T, idx=idx,
                      tsel=joint_selection(T, idx, n_dof), e0=e0, n_dof=n_dof, reference_length=L_ref,
                      reference_direction=t_dir, reference_normal=normals, prestrain_stretch=lam, span_stretch=lam_s)
 
+
+def joint_pairs(layout: Layout, dofs: DofMap, s: int, side: int) -> list[tuple[int, np.ndarray]]:
+    """The joint of span s's start (side 0, on pulley s) or end (side 1, on pulley s + 1): the
+    (joint coordinate, d r_end / d coordinate (2,)) pairs, r_end = c + R n + R theta (z x n) + u."""
+    j = s if side == 0 else (s + 1) % layout.n
+    normal = layout.start_normal[s] if side == 0 else layout.end_normal[s]
+    pairs = [(int(dofs.rot_dof[j]), layout.radius[j] * _z_cross(normal))]
+    return pairs + list(zip(dofs.trans_dof[j], dofs.trans_dir[j]))
+
+
+@functools.lru_cache(maxsize=8)
+def _no_elements(EA: float, rho: float, curvature: str, n_gauss: int) -> ancf.ElementSet:
+    """An empty element set (every span a spring), its tables of the right shapes (read-only, shared)."""
+    one = ancf.make_elements(np.ones(1), EA, 0.0, rho, curvature=curvature, n_gauss=n_gauss)
+    return ancf.subset(one, np.zeros(0, dtype=np.int64))
+
+
+def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> ancf.ElementSet:
+    """The ANCF elements of the flexible spans: lengths and bending stiffnesses (n_elem,); the tables
+    computed once per distinct (length, EI) and gathered. The bending law is model.curvature
+    ("linear" when that is "none" but a span asks for "ancf"); without an "ancf" span, none. No
+    elements (every span a spring): an empty set."""
+    curvature = cfg.model.curvature
+    if "ancf" in cfg.span_models:
+        curvature = curvature if curvature != "none" else "linear"
+    else:
+        curvature = "none"
+    b = cfg.belt
+    if len(length) == 0:
+        return _no_elements(float(b.EA), float(b.mass_per_length), curvature, cfg.model.gauss_points)
+    uniq, inverse = np.unique(np.column_stack([length, EI]), axis=0, return_inverse=True)
+    if len(uniq) == len(length):  # every element distinct: no gathering
+        uniq, inverse = np.column_stack([length, EI]), None
+    base = ancf.make_elements(uniq[:, 0], b.EA, uniq[:, 1], b.mass_per_length, curvature=curvature,
+                              n_gauss=cfg.model.gauss_points)
+    return base if inverse is None else ancf.subset(base, inverse.ravel())
 
 
 def joint_selection(T: np.ndarray, idx: np.ndarray, n_dof: int) -> np.ndarray:
@@ -1269,8 +1666,8 @@ def memory_limit() -> int:
 def check_model_size(cfg: DriveConfig) -> None:
     """A mesh whose model cannot fit in memory is a configuration error before any work (exit 2),
     not a run that is killed or fails after minutes."""
-    n_e = cfg.mesh.elements_per_span
-    n_dof = len(cfg.pulleys) * (4 * n_e + 3)
+    n_e = max(cfg.span_elements)
+    n_dof = 3 * len(cfg.pulleys) + 4 * sum(cfg.span_elements)
     need = n_dof * BYTES_PER_DOF
     have = memory_limit()
     if need > 0.5 * have:
@@ -1300,7 +1697,8 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
                        pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index,
                        tension=tension_setting(cfg, dofs), gravity=np.asarray(cfg.model.gravity, dtype=float),
                        dense=dense, loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
-                       friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]))
+                       friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]),
+                       springs=build_springs(cfg, layout, dofs, prestrain_stretch=lam))
     if belt_speed is None:
         from .running import belt_speed_of
 
@@ -1344,6 +1742,7 @@ class DeferredSystem:
             "loads": static_loads(cfg, dofs), "driver_dof": int(dofs.rot_dof[cfg.driver_index]),
             "belt": SimpleNamespace(reference_length=layout.span_length / lam, prestrain_stretch=float(lam),
                                     span_stretch=None, elements=SimpleNamespace(EA=np.array([cfg.belt.EA]))),
+            "EA": float(cfg.belt.EA),
         }
         self._build, self._full, self._cfg = build, None, cfg
 
@@ -1366,5 +1765,5 @@ class DeferredSystem:
         return getattr(self.full(), name)
 
 
-__all__ = ["System", "DofMap", "BeltSpans", "LinearComponent", "BearingSprings", "Observation", "TensionSetting",
+__all__ = ["System", "DofMap", "BeltSpans", "SpringSpans", "build_springs", "LinearComponent", "BearingSprings", "Observation", "TensionSetting",
            "build_system", "number_dofs", "stretch_for_tension", "element_pairs", "DENSE_LIMIT", "ENERGY_KINDS"]

@@ -180,6 +180,11 @@ def band_order(system: System) -> tuple[np.ndarray, int]:
     rows, cols = element_pairs(system.belt.idx)
     keep = (rows < system.n_p) & (cols < system.n_p)
     rows, cols = [rows[keep]], [cols[keep]]
+    if system.springs is not None:
+        r, cc = element_pairs(system.springs.idx)
+        live = (r < system.n_p) & (cc < system.n_p)
+        rows.append(r[live])
+        cols.append(cc[live])
     for c in system.components:
         for mat in (c.stiffness, c.damping, c.mass):
             if mat is not None:
@@ -198,6 +203,7 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
     """The stepper's structures for the run: only the loads, damping and outputs the options ask for."""
     from . import integrator as itg
     from .belt_kernel import CURVATURE_CODE
+    from .spring_kernel import spring_data
 
     n = system.n_p
     u_nom = belt_travel(system)
@@ -256,7 +262,8 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
     belt_data = itg.BeltData(
         e0=belt.e0, T=belt.T, idx=belt.idx, tsel=belt.tsel, dS=tab.dS, d2S=tab.d2S, wEA=tab.wEA, wEI=tab.wEI,
         EA=tab.EA, Kb=tab.Kb, curvature=int(tab.curvature), eta_a=float(d.belt_axial), eta_b=float(d.belt_bending),
-        elem_span=belt.elem_span.astype(np.int64), n_span=int(belt.n_span))
+        elem_span=belt.elem_span.astype(np.int64), n_span=int(belt.n_span),
+        springs=spring_data(system.springs, d.belt_axial))
     assert CURVATURE_CODE[belt.elements.curvature] == tab.curvature
     linear = itg.Linear(K=itg.to_csr(K_lin), q_ref=q_ref, C=itg.to_csr(C) if C is not None else itg.empty_csr(n),
                         M=itg.to_csr(M))
@@ -414,7 +421,7 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
         E = system.belt.element_coordinates(system.expand(q))
         Ce = np.empty((E.shape[0], 8, 8))
         bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce)
-        S = S + c_c * system.project_matrix(q, system.assemble(system.belt.reduce_blocks(Ce), linear=False))
+        S = S + c_c * system.project_matrix(q, system.belt_damping_matrix(q, Ce))
     if setup.C is not None:
         S = S + c_c * system.project_matrix(q, setup.C)
     if arms is not None and np.any(arms.friction):  # a sticking bristle is a spring k_b on the arm angle
@@ -530,11 +537,12 @@ def residual_noise(belt) -> float:
     Gauss point, so the axial force loses ~eps EA whatever its size; the linear bending force loses
     ~eps of sum_j |K_b,ij| |e_j|."""
     eps = np.finfo(float).eps
-    n_elem = belt.T.shape[0]
+    n_elem = belt.T.shape[0] + belt.springs.D.shape[0]  # elements and spring spans
     if n_elem == 0:
         return 0.0
     bend = float((np.abs(belt.Kb) @ np.abs(belt.e0)[:, :, None]).max(initial=0.0))
-    return 100.0 * eps * (float(belt.EA.max()) * math.sqrt(n_elem) + bend)
+    EA = max(float(belt.EA.max(initial=0.0)), float(belt.springs.EA))
+    return 100.0 * eps * (EA * math.sqrt(n_elem) + bend)
 
 
 @dataclass
@@ -722,11 +730,12 @@ class Observers:
         if "pulley_angle" in names or "pulley_speed" in names:
             s_nom = np.zeros(len(t))
             sd_nom = np.zeros(len(t))
-            if setup.nom_scale:
-                from .integrator import rotation_state
-
-                st = np.array([rotation_state(setup.forcing.nominal_rotation, float(x))[:2] for x in t])
-                s_nom, sd_nom = st[:, 0] * setup.nom_scale, st[:, 1] * setup.nom_scale
+            if setup.nom_scale:  # the nominal angle and speed of `integrator.rotation_state`, vectorized
+                om, tr = setup.forcing.nominal_rotation[0], setup.forcing.nominal_rotation[1]
+                ramp = (t < tr) if tr > 0.0 else np.zeros(len(t), dtype=bool)
+                th = np.where(ramp, 0.5 * om * t * t / (tr if tr > 0.0 else 1.0), om * (t - 0.5 * tr))
+                thd = np.where(ramp, om * t / (tr if tr > 0.0 else 1.0), om)
+                s_nom, sd_nom = th * setup.nom_scale, thd * setup.nom_scale
             ur = setup.u_nom[sysm.rot_dof]
             if "pulley_angle" in names:
                 out["pulley_angle"] = q[:, sysm.rot_dof] + s_nom[:, None] * ur
@@ -736,10 +745,9 @@ class Observers:
         if names & {"span_tension", "hub_load", "midspan_displacement"}:
             E = belt.element_coordinates_batch(q)
         if "span_tension" in names or "hub_load" in names:
-            Ed = belt.element_coordinates_batch(v, offset=False)
-            F = belt.end_forces(E, Ed, sysm.gravity)  # internal (elastic + damping) - weight
+            F = sysm.span_end_forces(q, v, E)  # internal (elastic + damping) - weight, spring spans included
             if "span_tension" in names:
-                out["span_tension"] = belt.end_tensions(E, F)
+                out["span_tension"] = sysm.span_end_tensions(q, F, E)
                 if "slip_margin" in names:
                     from .slip import required_friction, slip_margin
 
@@ -751,11 +759,11 @@ class Observers:
                     if finite[b, j] < self.worst_slip[0]:
                         self.worst_slip = (float(finite[b, j]), float(t[b]), sysm.layout.names[j])
             if "hub_load" in names:  # the pulley also carries the inertia of the end elements' nodes
-                Ea = belt.element_coordinates_batch(a, offset=False)
-                H = F + belt.end_inertia(Ea)
+                H = F + sysm.span_end_inertia(a)
                 tr = setup.transport
                 if tr is not None and (tr.follow or tr.speed):  # and the running belt's momentum flux
-                    H = H + belt.transport_end_forces(E, Ed, *transport_speed(setup, t))
+                    Ed = belt.element_coordinates_batch(v, offset=False)
+                    H = H + sysm.span_transport_forces(E, Ed, *transport_speed(setup, t))
                 out["hub_load"] = sysm.hub_loads(H)
         for c in sysm.components:
             for obs in c.observations(sysm):
@@ -797,12 +805,14 @@ def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.
     and band factorization as the drive, with no belt elements). For tests on analytic oscillators.
     Returns t (n_steps+1,), q, v, a (n_steps+1, n)."""
     from . import integrator as itg
+    from .spring_kernel import no_springs
 
     n = M.shape[0]
     belt = itg.BeltData(e0=np.zeros((0, 8)), T=np.zeros((0, 8, 8)), idx=np.zeros((0, 8), dtype=np.int64),
                         tsel=np.zeros(0, dtype=np.int64), dS=np.zeros((0, 1, 4)), d2S=np.zeros((0, 1, 4)),
                         wEA=np.zeros((0, 1)), wEI=np.zeros((0, 1)), EA=np.zeros(0), Kb=np.zeros((0, 8, 8)),
-                        curvature=1, eta_a=0.0, eta_b=0.0, elem_span=np.zeros(0, dtype=np.int64), n_span=0)
+                        curvature=1, eta_a=0.0, eta_b=0.0, elem_span=np.zeros(0, dtype=np.int64), n_span=0,
+                        springs=no_springs())
     Cm = np.zeros((n, n)) if C is None else np.asarray(C, dtype=float)
     lin = itg.Linear(K=itg.to_csr(K), q_ref=np.zeros(n), C=itg.to_csr(Cm) if C is not None else itg.empty_csr(n),
                      M=itg.to_csr(M))

@@ -1,7 +1,8 @@
 """`make trade`: the speed/accuracy trade, measured, written into the README between markers.
 
-Three knobs a user turns: the mesh (elements per span), the model fidelity (bending on or off:
-curvature "linear" or "none"), and the transient time step. For each: the error against a converged
+Knobs a user turns: the mesh (elements per span), the model fidelity (bending on or off:
+curvature "linear" or "none"; the fidelity ladder of the spans: spring, string, ANCF, chosen span by
+span), and the transient time step. For each: the error against a converged
 reference and the wall time; for the step also its frequency error against f dt, measured on the bench's
 modes beside the formula of beltdyn.timestep. Usage: python bench/trade.py README.md
 """
@@ -141,9 +142,80 @@ def frequency_table(rho_inf: float = 0.9) -> list[str]:
     return lines
 
 
+LADDER_CASES = (("FEAD example", ROOT / "configs" / "examples" / "fead_4cyl.toml", 300.0),
+                ("paper bench (T = 200 N, with the transient of bench_transient_small)",
+                 ROOT / "configs" / "examples" / "bench_transient_small.toml", 300.0))
+
+
+def match_modes(md, ref, fmax: float) -> tuple[int, float]:
+    """(reference modes below fmax that `md` lacks, worst relative error of the others): matched by
+    kind, order and span, else by the nearest unmatched frequency within 5 %."""
+    f_ref = {k: f for k, f in keyed(ref).items() if f <= fmax}
+    got = keyed(md)
+    free = dict(got)
+    errs, missing = [], 0
+    for k, f in f_ref.items():
+        if k in free:
+            errs.append(abs(free.pop(k) / f - 1.0))
+            continue
+        near = min(free.items(), key=lambda kv: abs(kv[1] - f), default=None)
+        if near is not None and abs(near[1] / f - 1.0) < 0.05:
+            errs.append(abs(near[1] / f - 1.0))
+            free.pop(near[0])
+        else:
+            missing += 1
+    return missing, max(errs, default=0.0)
+
+
+def ladder_table(rtol: float = 5e-3, duration: float = 0.2) -> list[str]:
+    """Per rung (all spring, the automatic mix, all string, all ANCF at 4/8/16/32 el/span): DOFs, the
+    worst error of the modes below fmax against 64 el/span ANCF, static + modal wall, transient wall per
+    simulated second (dt = 1e-4 s, `duration` s simulated)."""
+    from beltdyn.config import load_config
+    from beltdyn.ladder import choose_models
+    from beltdyn.pipeline import analyse
+    from beltdyn.transient import run_transient
+
+    lines = []
+    for title, path, fmax in LADDER_CASES:
+        base = load_config(path)
+        names = base.span_names
+        ref = modal_run(load_config(path, ["mesh.elements_per_span=64"]), 60)
+        n_modes = int((ref.frequency <= fmax).sum()) + 8
+        choice, _ = choose_models(base, fmax=fmax, rtol=rtol)
+        mix = ", ".join(f"{c.name} {c.model}{'' if c.model == 'spring' else f' {c.elements}'}" for c in choice.spans)
+        rungs = [("all spring", load_config(path, [f'spans.{n}.model="spring"' for n in names])),
+                 (f"mixed (--fmax {fmax:g} --rtol {rtol:g}: {mix})", choice.config)]
+        for model in ("string", "ancf"):
+            for n_el in (4, 8, 16, 32):
+                curv = ['model.curvature="none"'] if model == "string" else []
+                rungs.append((f"all {'string' if model == 'string' else 'ANCF'}, {n_el} el/span",
+                              load_config(path, [f"mesh.elements_per_span={n_el}", *curv])))
+        lines += ["", f"Fidelity ladder, {title}: the modes below {fmax:g} Hz against ANCF at 64 el/span "
+                      f"({int((ref.frequency <= fmax).sum())} modes); transient at dt = 1e-4 s:", "",
+                  "| rung | DOFs | worst error below fmax | static + modal wall | transient wall per simulated s |",
+                  "|---|---:|---:|---:|---:|"]
+        for name, cfg in rungs:
+            md, t = timed(lambda: analyse(cfg, modal=True, n_modes=n_modes))
+            missing, err = match_modes(md.modal, ref, fmax)
+            err_txt = f"{err:.1e}" + (f" ({missing} modes missing)" if missing else "")
+            tcfg = load_config(path, [f"transient.duration={duration}", "transient.spectrum.enabled=false",
+                                      "transient.step=1e-4"])
+            from dataclasses import replace
+
+            tcfg = replace(tcfg, spans=cfg.spans, mesh=cfg.mesh, model=cfg.model)
+            run = analyse(tcfg)
+            run_transient(run.system, run.static, tcfg.transient, sink=lambda t, b: None)  # kernels warm
+            t0 = time.perf_counter()
+            run_transient(run.system, run.static, tcfg.transient, sink=lambda t, b: None)
+            per_s = (time.perf_counter() - t0) / duration
+            lines.append(f"| {name} | {md.system.n_dof} | {err_txt} | {t * 1e3:.2f} ms | {per_s:.3g} s |")
+    return lines
+
+
 def main() -> None:
     readme = Path(sys.argv[1]) if len(sys.argv) > 1 else ROOT / "README.md"
-    lines = mesh_table() + bending_table() + step_table() + frequency_table()
+    lines = mesh_table() + bending_table() + ladder_table() + step_table() + frequency_table()
     block = "\n".join([START, *lines, END])
     print("\n".join(lines))
     text = readme.read_text(encoding="utf-8")

@@ -25,7 +25,8 @@ SUPPORTS = ("fixed", "slide", "bearing", "arm")
 @st.composite
 def drives(draw) -> dict:
     """A drive of 2-6 pulleys on a convex loop (inside pulleys) plus, sometimes, a backside idler
-    pushed into the loop between two of them; every support kind; values from tiny to huge."""
+    pushed into the loop between two of them; every support kind; values from tiny to huge; sometimes
+    a [spans] table (spring, string or ANCF spans, their own meshes)."""
     n = draw(st.integers(2, 6))
     R0 = draw(st.floats(0.15, 2.0))
     angles = np.sort(np.array([draw(st.floats(0.0, 2 * math.pi)) for _ in range(n)]))
@@ -58,6 +59,17 @@ def drives(draw) -> dict:
                     "mass_per_length": draw(st.floats(0.01, 1.0))},
            "pulleys": pulleys, "mesh": {"elements_per_span": draw(st.integers(1, 24))},
            "model": {"gravity": [0.0, draw(st.sampled_from([0.0, -9.81]))]}, "modal": {"modes": 4}}
+    if draw(st.booleans()):  # per-span models ([spans]): the fidelity ladder, spring to ANCF, any mix
+        spans = {}
+        for i in range(n):
+            model = draw(st.sampled_from([None, "ancf", "string", "spring"]))
+            entry = {} if model is None else {"model": model}
+            if model != "spring" and draw(st.booleans()):
+                entry["elements"] = draw(st.integers(1, 12))
+            if entry:
+                spans[f"P{i}-P{(i + 1) % n}"] = entry
+        if spans:
+            raw["spans"] = spans
     path_length = _path_length(centres, [p["radius"] for p in pulleys])
     if movable and draw(st.booleans()):
         pulleys[movable[0]]["adjustable"] = True

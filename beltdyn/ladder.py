@@ -1,0 +1,343 @@
+"""The fidelity ladder of the spans: the cheapest model of each span for a frequency band and a tolerance.
+
+Rungs, cheapest first: "spring" (an axial spring between the tangent points, no DOFs of its own,
+`system.SpringSpans`), "string" (ANCF elements without bending) and "ancf" (ANCF beam elements), the
+last two with 1, 2, 4, ... elements (4 DOFs per element). `choose_models(cfg, fmax=, rtol=)` picks,
+span by span, the cheapest rung whose modes below fmax are within rtol of the converged ANCF answer:
+
+1. The all-spring (rotational) model of the drive gives, at almost no cost, the static span tensions
+   N_s and stretches lam_s and the drive's own modes below fmax (pulley rotations, translations, arms).
+2. A spring span has no modes of its own: it is a candidate only if its first transverse and first
+   axial mode (`continuum_frequencies`, the converged ANCF answer of the span pinned at its ends)
+   lie above SPRING_MARGIN x fmax; the modes it cannot represent are listed (`unrepresented_modes`),
+   never dropped silently.
+3. What a spring span changes in a drive mode i: the dynamic stiffness of the span between its end
+   displacements y differs from that of the continuous span (`spring_errors`). Per direction (along
+   the chord: stiffness k = dN/dl, across: the string's N / l; span mass m) with x = omega sqrt(m / k):
+       D_exact = k x / sin x [[cos x, -1], [-1, cos x]]      (bar / taut string between two points)
+       D_spring = k [[1, -1], [-1, 1]] - omega^2 m / 2 I      (the spring with its lumped mass)
+   so omega_i^2 moves by y^T (D_spring - D_exact) y / (phi^T M phi) to first order, and the relative
+   frequency error is e_is = |sum over both directions y^T dD y| / (2 omega_i^2) (mass-normalized
+   shapes). For small x, dD = -(k x^2 / 6) [[1, -1], [-1, 1]]: the lumped mass misses a sixth of the
+   span's inertia in the stretching motion. Candidate spans are dropped (the largest contributor to
+   the worst mode first) until every drive mode's sum over the spring spans is within the budget.
+4. Every other span gets the cheapest string or ANCF mesh whose local modes (the span pinned at its
+   ends under N_s, `span_frequencies`: the same elements, linearized about the straight stretched
+   span) are within the budget of the closed-form continuum of the ANCF span, pinned beam under
+   tension: omega_n^2 = (S k_n^2 + EI_eff k_n^4) / rho, k_n = n pi / L_ref, S = EA eps the second
+   Piola-Kirchhoff force (EI_eff = EI for the linear curvature of paper Eq. 17, EI / lam^4 for the
+   exact one), and the fixed bar omega_n^2 = EA (3 lam^2 - 1) / 2 k_n^2 / rho. The modes below fmax
+   count, and the first one above, its error scaled by (fmax / f)^4 for "ancf" (the mesh error of
+   cubic Hermite elements grows as (k h)^4 with the wave number k) and (fmax / f)^2 for "string" (its
+   missing bending, EI k^2 / 2S, grows as k^2), so that it bounds the error of a mode up to fmax.
+   This continuum is the limit that Richardson extrapolation (`sweep.richardson`, `modal --rtol`)
+   approximates for a whole drive; for one span it is known in closed form, so the error of a mesh
+   is measured, not extrapolated.
+5. The budget: rtol for the spring spans when all spans are springs, else rtol / 2 for the spring
+   spans and rtol / 2 for the others. The chosen drive is solved, and the spring spans' errors are
+   evaluated again on its modes below fmax (a posteriori, no extra solve); where the sum exceeds the
+   budget, the worst spring span is raised to the next rung and the drive solved again. A band that
+   even ANCF at `max_elements` elements cannot meet is reported as not met (`LadderChoice.met`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .config import DriveConfig, SpanSetting
+
+SPRING_MARGIN = 1.05  # a spring span's own first mode must lie this far above fmax
+MESHES = (1, 2, 4, 8, 16, 32, 64)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SpanChoice:
+    """The rung chosen for one span: model, elements, its own DOFs and the estimated relative error
+    of the modes below fmax it causes."""
+
+    span: int  # 0-based span index
+    name: str
+    model: str  # "spring" | "string" | "ancf"
+    elements: int  # 0 for a spring span
+    dofs: int  # the span's own DOFs (4 per element; a spring span none)
+    estimate: float  # relative frequency error (spring: the largest over the drive modes below fmax)
+    note: str = ""
+
+
+@dataclass(frozen=True, kw_only=True)
+class LadderChoice:
+    """What `choose_models` chose and why; `config` is the drive with the [spans] table filled in."""
+
+    fmax: float
+    rtol: float
+    spans: tuple[SpanChoice, ...]
+    config: DriveConfig
+    met: bool  # every estimate within the budget
+    estimate: float  # largest estimated relative error of a mode below fmax (spring + mesh parts)
+    mode_estimate: np.ndarray  # (n_below,) estimate per mode of the chosen drive below fmax
+    solves: int  # drive solves (static + modal) the choice took, the final one included
+    unrepresented: tuple[tuple[int, str, int, float], ...] = ()  # modes of spring spans below fmax
+
+
+# ------------------------------------------------------------------------------------ the span alone
+def continuum_frequencies(*, length: float, stretch: float, EA: float, EI: float, rho: float, curvature: str,
+                          n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The first n transverse and axial frequencies (Hz) of the converged ANCF span pinned at its ends,
+    reference length `length`, stretched by `stretch` (module docstring, item 4)."""
+    k = np.arange(1, n + 1) * np.pi / length
+    S = EA * 0.5 * (stretch**2 - 1.0)
+    EI_eff = 0.0 if curvature == "none" else (EI / stretch**4 if curvature == "exact" else EI)
+    f_t = np.sqrt(np.maximum(S * k**2 + EI_eff * k**4, 0.0) / rho) / (2 * np.pi)
+    f_a = np.sqrt(EA * (3.0 * stretch**2 - 1.0) / 2.0 * k**2 / rho) / (2 * np.pi)
+    return f_t, f_a
+
+
+def span_frequencies(*, length: float, stretch: float, EA: float, EI: float, rho: float, curvature: str,
+                     elements: int, n_gauss: int, n_t: int, n_a: int) -> tuple[np.ndarray, np.ndarray]:
+    """The lowest n_t transverse and n_a axial frequencies (Hz) of one span of `elements` ANCF elements,
+    pinned at both ends, linearized about the straight span stretched by `stretch` (NaN where the
+    mesh has fewer modes). Along x the straight span's tangent decouples: x entries axial, y transverse."""
+    from scipy.linalg import eigh
+
+    from . import ancf
+
+    h = length / elements
+    el = ancf.make_elements(np.array([h]), EA, EI, rho, curvature=curvature, n_gauss=n_gauss)
+    e = np.array([[0.0, 0.0, stretch, 0.0, stretch * h, 0.0, stretch, 0.0]])
+    _, Ke = ancf.internal_forces_and_tangent(el, e)
+    n = 4 * (elements + 1)
+    rows = (4 * np.arange(elements)[:, None] + np.arange(8)[None, :])  # (n_e, 8): every element alike
+    K = np.zeros((n, n))
+    M = np.zeros((n, n))
+    ii, jj = rows[:, :, None], rows[:, None, :]
+    np.add.at(K, (ii, jj), np.broadcast_to(Ke[0], (elements, 8, 8)))
+    np.add.at(M, (ii, jj), np.broadcast_to(el.mass[0], (elements, 8, 8)))
+    out = []
+    for comp, want in ((1, n_t), (0, n_a)):  # y: transverse, x: axial; the end positions held
+        keep = np.r_[np.arange(comp, n, 4)[1:-1], np.arange(comp + 2, n, 4)]
+        f = np.full(want, np.nan)
+        k = min(want, len(keep))
+        if k > 0:
+            w = eigh(K[np.ix_(keep, keep)], M[np.ix_(keep, keep)], eigvals_only=True, subset_by_index=[0, k - 1],
+                     check_finite=False)
+            f[:k] = np.sqrt(np.maximum(w, 0.0)) / (2 * np.pi)
+        out.append(f)
+    return out[0], out[1]
+
+
+def local_error(*, model: str, elements: int, fmax: float, length: float, stretch: float, EA: float, EI: float,
+                rho: float, curvature: str, n_gauss: int) -> float:
+    """Relative error of the span's local modes up to fmax for model "string" or "ancf" with `elements`
+    elements against the converged ANCF span (module docstring, item 4); inf where the mesh lacks a mode."""
+    ref_curv = curvature if curvature != "none" else "linear"
+    n_max = 1
+    while True:  # enough continuum modes to pass fmax in both directions
+        f_t, f_a = continuum_frequencies(length=length, stretch=stretch, EA=EA, EI=EI, rho=rho, curvature=ref_curv,
+                                         n=n_max)
+        if f_t[-1] > fmax and f_a[-1] > fmax:
+            break
+        n_max *= 2
+    n_t = int(np.searchsorted(f_t, fmax, side="right")) + 1
+    n_a = int(np.searchsorted(f_a, fmax, side="right")) + 1
+    h_curv = "none" if model == "string" else ref_curv
+    g_t, g_a = span_frequencies(length=length, stretch=stretch, EA=EA, EI=0.0 if model == "string" else EI, rho=rho,
+                                curvature=h_curv, elements=elements, n_gauss=n_gauss, n_t=n_t, n_a=n_a)
+    worst = 0.0
+    for g, f in ((g_t, f_t[:n_t]), (g_a, f_a[:n_a])):
+        err = np.abs(g / f - 1.0)
+        if not np.all(np.isfinite(err)):
+            return np.inf
+        err[-1] *= (fmax / f[-1]) ** (2 if model == "string" else 4)  # the first mode above fmax bounds the top
+        worst = max(worst, float(err.max()))
+    return worst
+
+
+# ------------------------------------------------------------------------------------ spring spans
+def span_state(system, static) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(tension (n_span,) N, reference length (n_span,) m, stretch (n_span,)) of each span at the static
+    equilibrium: the mean of its end tensions N, and the stretch of the Green-Lagrange law that
+    carries it, EA (lam^3 - lam) / 2 = N (the layout's chord at q = 0 is not the solved one)."""
+    from .system import stretch_for_tension
+
+    T = static.span_tension.mean(axis=1)
+    return T, np.asarray(system.belt.reference_length, dtype=float), stretch_for_tension(T, system.EA)
+
+
+def unrepresented_modes(system, static, band: float) -> tuple[tuple[int, str, int, float], ...]:
+    """The modes below `band` (Hz) that the spring spans of `system` cannot represent: each spring span's
+    own transverse and axial modes (the converged ANCF span pinned at its ends: n c / 2L for a taut
+    string, corrected for bending). ((span index, "transverse" | "longitudinal", order, Hz), ...)."""
+    sp = system.springs
+    if sp is None or not band > 0:
+        return ()
+    _, L_ref, lam = span_state(system, static)
+    out = []
+    for s in sp.span.tolist():
+        n = 1
+        while True:
+            f_t, f_a = continuum_frequencies(length=L_ref[s], stretch=lam[s], EA=sp.EA, EI=sp.EI, rho=sp.rho,
+                                             curvature=sp.curvature, n=n)
+            if f_t[-1] > band and f_a[-1] > band:
+                break
+            n *= 2
+        out += [(s, "transverse", i + 1, float(f)) for i, f in enumerate(f_t) if f <= band]
+        out += [(s, "longitudinal", i + 1, float(f)) for i, f in enumerate(f_a) if f <= band]
+    return tuple(sorted(out, key=lambda x: x[3]))
+
+
+def _dD(k: np.ndarray, m: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """(modes, k, 2, 2) D_spring - D_exact of a span of static stiffness k (k,) and mass m (k,) at the
+    circular frequencies omega (modes,) (module docstring, item 3)."""
+    x = omega[:, None] * np.sqrt(m / k)[None, :]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(x > 1e-6, x / np.sin(x), 1.0)
+    diag = 1.0 - 0.5 * x**2 - r * np.cos(x)
+    off = -1.0 + r
+    out = np.empty(x.shape + (2, 2))
+    out[..., 0, 0] = out[..., 1, 1] = diag
+    out[..., 0, 1] = out[..., 1, 0] = off
+    return k[None, :, None, None] * out
+
+
+def spring_errors(system, q: np.ndarray, frequency: np.ndarray, shapes: np.ndarray) -> np.ndarray:
+    """(modes, k) e_is: the relative frequency error each spring span of `system` causes in each mode
+    (frequency (modes,) Hz, mass-normalized shapes (modes, n_dof) about q) against the continuous span
+    (module docstring, item 3). The chord, tension and stiffness at the state q."""
+    sp = system.springs
+    if sp is None or not len(frequency):
+        return np.zeros((len(frequency), 0))
+    p = system.expand(q)
+    u, l, lam, _, N = sp.axial(sp.positions(p))
+    k_axial = sp.EA * (3.0 * lam**2 - 1.0) / (2.0 * sp.reference_length)
+    k_across = N / l
+    m = sp.rho * sp.reference_length
+    Y = sp.positions_batch(system.expand_motion(q, shapes), offset=False).reshape(len(frequency), -1, 2, 2)
+    nrm = np.column_stack([-u[:, 1], u[:, 0]])
+    a = np.einsum("bkjd,kd->bkj", Y, u)
+    b = np.einsum("bkjd,kd->bkj", Y, nrm)
+    omega = 2 * np.pi * np.asarray(frequency, dtype=float)
+    quad = (np.einsum("bki,bkij,bkj->bk", a, _dD(k_axial, m, omega), a)
+            + np.einsum("bki,bkij,bkj->bk", b, _dD(np.maximum(k_across, 1e-300), m, omega), b))
+    return np.abs(quad) / (2.0 * omega[:, None] ** 2)
+
+
+# ------------------------------------------------------------------------------------ the choice
+def with_spans(cfg: DriveConfig, models: dict[int, tuple[str, int]]) -> DriveConfig:
+    """cfg with a [spans] entry for every span: models[s] = (model, elements) (elements 0 for a spring)."""
+    names = cfg.span_names
+    spans = tuple((names[s], SpanSetting(model=m, elements=None if m == "spring" else int(n)))
+                  for s, (m, n) in sorted(models.items()))
+    return replace(cfg, spans=spans)
+
+
+def _mesh_choice(cfg: DriveConfig, s: int, *, fmax: float, budget: float, L_ref, lam,
+                 max_elements: int) -> tuple[str, int, float]:
+    """(model, elements, estimate) of flexible span s: the fewest elements, a string where it is good
+    enough; the finest ANCF mesh tried when none meets the budget."""
+    b = cfg.belt
+    common = dict(fmax=fmax, length=float(L_ref[s]), stretch=float(lam[s]), EA=b.EA, EI=b.EI,
+                  rho=b.mass_per_length, curvature=cfg.model.curvature, n_gauss=cfg.model.gauss_points)
+    best = ("ancf", MESHES[0], np.inf)
+    for n_e in (n for n in MESHES if n <= max_elements):
+        for model in ("string", "ancf"):
+            err = local_error(model=model, elements=n_e, **common)
+            if err <= budget:
+                return model, n_e, err
+            if model == "ancf":
+                best = ("ancf", n_e, err)
+    return best
+
+
+def choose_models(cfg: DriveConfig, *, fmax: float, rtol: float, max_elements: int = 64):
+    """The cheapest model of each span whose modes below fmax are estimated within rtol of the
+    converged ANCF drive (module docstring). Returns (LadderChoice, the chosen drive's
+    pipeline.Analysis with static and modal results, its modes covering the band)."""
+    from .pipeline import analyse
+
+    from .errors import SolverError
+
+    n = len(cfg.pulleys)
+    spring_all = with_spans(cfg, {s: ("spring", 0) for s in range(n)})
+    try:
+        base = analyse(spring_all, modal=True, n_modes=max(1, n + 8))
+    except SolverError as exc:  # say which model failed: the user asked for none of them
+        raise SolverError(f"the choice starts from the drive with every span a spring, which failed ({exc})",
+                          analysis="span model choice") from None
+    _, L_ref, lam = span_state(base.system, base.static)
+    b = cfg.belt
+    curvature = cfg.model.curvature if cfg.model.curvature != "none" else "linear"
+    first = [continuum_frequencies(length=L_ref[s], stretch=lam[s], EA=b.EA, EI=b.EI, rho=b.mass_per_length,
+                                   curvature=curvature, n=1) for s in range(n)]
+    candidates = [s for s in range(n) if min(first[s][0][0], first[s][1][0]) > SPRING_MARGIN * fmax]
+    md = base.modal
+    below = md.frequency <= fmax
+    e_all = spring_errors(base.system, base.static.q, md.frequency[below], md.shapes[below])  # (modes, n)
+
+    def springs_within(budget: float) -> list[int]:
+        chosen = list(candidates)
+        while chosen:
+            e = e_all[:, chosen]
+            tot = e.sum(axis=1)
+            if not len(tot) or tot.max() <= budget:
+                break
+            i = int(np.argmax(tot))
+            chosen.pop(int(np.argmax(e[i])))
+        return chosen
+
+    springs = springs_within(rtol)
+    if len(springs) < n:
+        springs = springs_within(0.5 * rtol)
+    solves = 1
+    while True:
+        flexible = [s for s in range(n) if s not in springs]
+        budget = 0.5 * rtol if springs and flexible else rtol
+        models: dict[int, tuple[str, int]] = {s: ("spring", 0) for s in springs}
+        est: dict[int, float] = {}
+        for s in flexible:
+            m, n_e, err = _mesh_choice(cfg, s, fmax=fmax, budget=budget, L_ref=L_ref, lam=lam,
+                                       max_elements=max_elements)
+            models[s], est[s] = (m, n_e), err
+        chosen_cfg = with_spans(cfg, models)
+        n_local = sum(int(np.searchsorted(f_t, fmax, side="right")) + int(np.searchsorted(f_a, fmax, side="right"))
+                      for f_t, f_a in (continuum_frequencies(length=L_ref[s], stretch=lam[s], EA=b.EA, EI=b.EI,
+                                                             rho=b.mass_per_length, curvature=curvature, n=64)
+                                       for s in flexible))
+        n_modes = max(cfg.modal.modes, int(below.sum()) + n_local + 4)
+        run = analyse(chosen_cfg, modal=True, n_modes=n_modes)
+        solves += 1
+        fm = run.modal
+        band = fm.frequency <= fmax
+        e_spring = spring_errors(run.system, run.static.q, fm.frequency[band], fm.shapes[band])
+        flex_part = max([est[s] for s in flexible], default=0.0)
+        spring_tot = e_spring.sum(axis=1) if e_spring.size else np.zeros(int(band.sum()))
+        spring_budget = 0.5 * rtol if flexible else rtol
+        if springs and spring_tot.size and spring_tot.max() > spring_budget:
+            i = int(np.argmax(spring_tot))  # raise the rung of the worst spring span and solve again
+            springs.pop(int(np.argmax(e_spring[i])))
+            continue
+        break
+    mode_est = spring_tot + flex_part
+    sp_est = e_spring.max(axis=0) if e_spring.size else np.zeros(len(springs))
+    order = {s: i for i, s in enumerate(run.system.springs.span.tolist())} if run.system.springs is not None else {}
+    names = cfg.span_names
+    choices = []
+    for s in range(n):
+        m, n_e = models[s]
+        if m == "spring":
+            e = float(sp_est[order[s]]) if order and len(sp_est) else 0.0
+            note = f"own first mode {min(first[s][0][0], first[s][1][0]):.4g} Hz"
+        else:
+            e = est[s]
+            note = "" if e <= budget else f"does NOT meet {budget:.3g} at {n_e} elements (the finest tried)"
+        choices.append(SpanChoice(span=s, name=names[s], model=m, elements=n_e, dofs=4 * n_e, estimate=e, note=note))
+    worst = float(mode_est.max(initial=0.0))
+    met = worst <= rtol and all(c.note == "" or c.model == "spring" for c in choices)
+    return (LadderChoice(fmax=fmax, rtol=rtol, spans=tuple(choices), config=chosen_cfg, met=met, estimate=worst,
+                         mode_estimate=mode_est, solves=solves,
+                         unrepresented=unrepresented_modes(run.system, run.static, fmax)), run)
+
+
+__all__ = ["SpanChoice", "LadderChoice", "choose_models", "continuum_frequencies", "span_frequencies", "local_error",
+           "spring_errors", "unrepresented_modes", "with_spans", "span_state", "SPRING_MARGIN", "MESHES"]

@@ -1,0 +1,100 @@
+"""Compiled (numba) forces of the spring spans for the time stepper: `system.SpringSpans` in loops.
+
+Nomenclature as `system.SpringSpans`: per spring span k, end positions x = x0 + T p[idx] (4,),
+chord d = x[2:4] - x[0:2] = d0 + D p[idx] (D = T[2:4] - T[0:2], precomputed), l = |d|, u = d / l, stretch lam = l / L, Green-Lagrange strain
+eps = (lam^2 - 1) / 2, true axial force N = EA eps lam, Kelvin-Voigt N_d = EA eta lam^2 (u . d') / L,
+strain energy EA L eps^2 / 2. The end forces [-N u, N u] go back through T^T. Held equal to the
+numpy `SpringSpans` by tests/test_ladder.py.
+
+`SpringData` is a field of `integrator.BeltData` (`springs`); no spring spans: k = 0 (`no_springs`).
+"""
+
+from __future__ import annotations
+
+from collections import namedtuple
+
+import numpy as np
+from numba import njit
+
+# D (k, 2, m) the chord d = x[2:4] - x[0:2] per joint coordinate, idx (k, m) (padding n), d0 (k, 2) the chord at
+# p = 0, L (k,), span (k,) span index, EA, eta (retardation time, s)
+SpringData = namedtuple("SpringData", ["D", "idx", "d0", "L", "span", "EA", "eta"])
+
+
+def no_springs() -> SpringData:
+    return SpringData(D=np.zeros((0, 2, 1)), idx=np.zeros((0, 1), dtype=np.int64), d0=np.zeros((0, 2)),
+                      L=np.zeros(0), span=np.zeros(0, dtype=np.int64), EA=0.0, eta=0.0)
+
+
+def spring_data(springs, eta: float) -> SpringData:
+    """The kernel's data of a `system.SpringSpans` (None: no spring spans)."""
+    if springs is None:
+        return no_springs()
+    T = np.asarray(springs.T, dtype=float)
+    return SpringData(D=np.ascontiguousarray(T[:, 2:4] - T[:, 0:2]), idx=np.ascontiguousarray(springs.idx, dtype=np.int64),
+                      d0=np.ascontiguousarray(springs.x0[:, 2:4] - springs.x0[:, 0:2], dtype=float),
+                      L=np.ascontiguousarray(springs.reference_length, dtype=float),
+                      span=np.ascontiguousarray(springs.span, dtype=np.int64), EA=float(springs.EA), eta=float(eta))
+
+
+@njit(cache=True)
+def _chord(sp, k, q_ext):
+    """The chord (dx, dy) = d0 + D q_ext[idx] of spring k."""
+    dx, dy = sp.d0[k, 0], sp.d0[k, 1]
+    for j in range(sp.D.shape[2]):
+        qj = q_ext[sp.idx[k, j]]
+        dx += sp.D[k, 0, j] * qj
+        dy += sp.D[k, 1, j] * qj
+    return dx, dy
+
+
+@njit(cache=True)
+def spring_forces(sp, q_ext, v_ext, f_el, f_dmp, gross, with_gross):
+    """Add the spring spans' elastic (f_el) and damping (f_dmp) forces (n + 1,) at (q, v); with_gross:
+    also |T^T f| per entry to gross (the round-off scale)."""
+    k_n, _, m = sp.D.shape
+    for k in range(k_n):
+        dx, dy = _chord(sp, k, q_ext)
+        l = np.sqrt(dx * dx + dy * dy)
+        ux, uy = dx / l, dy / l
+        lam = l / sp.L[k]
+        N = sp.EA * 0.5 * (lam * lam - 1.0) * lam
+        Nd = 0.0
+        if sp.eta != 0.0:
+            vx, vy = 0.0, 0.0
+            for j in range(m):
+                vj = v_ext[sp.idx[k, j]]
+                vx += sp.D[k, 0, j] * vj
+                vy += sp.D[k, 1, j] * vj
+            Nd = sp.EA * sp.eta * lam * lam * (ux * vx + uy * vy) / sp.L[k]
+        for j in range(m):
+            c = sp.D[k, 0, j] * ux + sp.D[k, 1, j] * uy  # u . d(chord)/dp_j
+            f_el[sp.idx[k, j]] += N * c
+            f_dmp[sp.idx[k, j]] += Nd * c
+            if with_gross:
+                gross[sp.idx[k, j]] += abs(N * c)
+
+
+@njit(cache=True)
+def spring_energy(sp, q_ext):
+    """Strain energy of the spring spans, sum EA L eps^2 / 2."""
+    total = 0.0
+    for k in range(sp.D.shape[0]):
+        dx, dy = _chord(sp, k, q_ext)
+        lam = np.sqrt(dx * dx + dy * dy) / sp.L[k]
+        eps = 0.5 * (lam * lam - 1.0)
+        total += 0.5 * sp.EA * sp.L[k] * eps * eps
+    return total
+
+
+@njit(cache=True)
+def spring_min_force(sp, q_ext, min_span):
+    """min_span[span] = min(min_span[span], EA eps) of each spring span (slack detection, the second
+    Piola-Kirchhoff force as the belt's)."""
+    for k in range(sp.D.shape[0]):
+        dx, dy = _chord(sp, k, q_ext)
+        lam = np.sqrt(dx * dx + dy * dy) / sp.L[k]
+        v = sp.EA * 0.5 * (lam * lam - 1.0)
+        s = sp.span[k]
+        if v < min_span[s]:
+            min_span[s] = v
