@@ -151,7 +151,12 @@ def _read_group(path: Path, name: str) -> dict:
             if not isinstance(ds, h5py.Dataset):
                 continue
             kind = "coords" if h5py.h5ds.is_scale(ds.id) else "variables"
-            out[kind][dname] = _read_dataset(ds)
+            try:
+                out[kind][dname] = _read_dataset(ds)
+            except OSError as exc:  # a virtual dataset's part removed while HDF5 opened it
+                if replaced():
+                    raise _Replaced from None
+                raise OutputError(f"{path}: cannot read {ds.name} ({exc})") from exc
             if ds.is_virtual:
                 _check_sources(path, ds, replaced)
             out["dims"][dname] = (dname,) if kind == "coords" else _dataset_dims(ds)

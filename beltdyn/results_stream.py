@@ -459,18 +459,22 @@ def recover(path: Path) -> list[str]:
     file that is missing, unreadable or not a beltdyn results file of this schema is left alone."""
     h5py = h5py_module()
     path = resolve_target(path)
-    if not path.is_file():
+    if not path.parent.is_dir() or (path.exists() and not path.is_file()):
         return []
     with writing(path):
-        try:
-            with h5py.File(path, "r") as f:
-                attrs = {k: decode_attr(v) for k, v in f.attrs.items()}
-                if "config_sha256" not in attrs or str(attrs.get("schema_version")) != SCHEMA_VERSION:
-                    return []
-                dead = _dead_groups(f)
-                refs = references(f)
-        except OSError:
-            return []
+        attrs: dict = {}
+        dead: list = []
+        refs: set[str] = set()
+        if path.exists():  # else: only what a killed first write of this file may have left
+            try:
+                with h5py.File(path, "r") as f:
+                    attrs = {k: decode_attr(v) for k, v in f.attrs.items()}
+                    if "config_sha256" not in attrs or str(attrs.get("schema_version")) != SCHEMA_VERSION:
+                        return []
+                    dead = _dead_groups(f)
+                    refs = references(f)
+            except OSError:
+                return []
         folder = str(attrs.get("parts_folder", parts_folder(path)))
         file_id = str(attrs.get("file_id", ""))
         notes = []
