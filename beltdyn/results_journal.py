@@ -9,9 +9,9 @@ the `stream_journal` attribute of the group (status `running`) in the results fi
   trailing dims) and the number of columns;
 * from the next multiple of 4096 bytes: the rows, C order, one row = [time, series 1 flattened, ...].
 
-Appending writes the rows with `write()` and then the `written` count (a `pwrite` of the 20 bytes of
-counts and CRC, inside one disk sector): once written, rows survive the writer's death (kill -9:
-they are in the page cache). `sync` makes them durable: fdatasync, then the `synced` count, then
+Appending writes the rows (`pwrite` after the rows counted so far) and then the `written` count (a
+`pwrite` of the 20 bytes of counts and CRC, inside one disk sector): once written, rows survive the
+writer's death (kill -9: they are in the page cache). `sync` makes them durable: fdatasync, then the `synced` count, then
 fdatasync again; only synced rows count after a reboot (power loss), as rows not yet on the disk may
 read back as zeros. Nothing is ever overwritten but the counts, so a reader (or the next run) reads
 `count` complete rows at any moment.
@@ -91,26 +91,27 @@ class JournalWriter:
         try:
             head = _HEAD.pack(MAGIC, 0, 0, 0, len(text))
             head = head[:8] + _counts(0, 0) + head[28:]
-            self._write_all(head + text + bytes(self._offset - _HEAD.size - len(text)))
+            self._write_all(head + text + bytes(self._offset - _HEAD.size - len(text)), 0)
             os.fsync(self._fd)
         except BaseException:
             self.close()
             raise
 
-    def _write_all(self, data) -> None:
+    def _write_all(self, data, offset: int) -> None:
         view = memoryview(data).cast("B")
         while view.nbytes:
-            n = os.write(self._fd, view)
-            view = view[n:]
+            n = os.pwrite(self._fd, view, offset)
+            view, offset = view[n:], offset + n
 
     def write(self, rows: np.ndarray) -> None:
-        """Append rows (n, columns) float64, then record them as written."""
+        """Append rows (n, columns) float64 after the rows written so far, then record them as written
+        (an interrupt in between: the same rows written again land at the same place)."""
         rows = np.ascontiguousarray(rows, dtype=np.float64)
         if rows.ndim != 2 or rows.shape[1] != self.columns:
             raise ValueError(f"journal rows must have shape (n, {self.columns}), got {rows.shape}")
         if not len(rows):
             return
-        self._write_all(rows)
+        self._write_all(rows, self._offset + 8 * self.columns * self.written)
         self.written += len(rows)
         os.pwrite(self._fd, _counts(self.written, self.synced), 8)
 

@@ -16,6 +16,7 @@ from .errors import OutputError
 from .results_files import open_read, same_boot, writer_alive
 from .results_journal import read_journal
 from .results_schema import TIME_DIM, decode_attr, h5py_module
+from .results_write import source_file
 
 _ATTEMPTS = 5
 
@@ -64,11 +65,12 @@ def _dataset_dims(ds) -> tuple[str, ...]:
 def _check_sources(path: Path, ds, replaced) -> None:
     """After reading a virtual dataset: its part file existed (else the reader saw fill values)."""
     for src in ds.virtual_sources():
-        if not (path.parent / src.file_name).is_file():
+        name = source_file(src)
+        if not (path.parent / name).is_file():
             if replaced():
                 raise _Replaced
-            raise OutputError(f"{path}: {ds.name} is stored in the part file {path.parent / src.file_name}, which is "
-                              f"missing: keep the folder {Path(src.file_name).parent} beside the results file "
+            raise OutputError(f"{path}: {ds.name} is stored in the part file {path.parent / name}, which is "
+                              f"missing: keep the folder {Path(name).parent} beside the results file "
                               "(copy or move both)")
 
 

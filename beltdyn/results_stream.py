@@ -189,9 +189,11 @@ class StreamWriter:
             return tx.commit()
         except BaseException as exc:
             tx.abort()
-            if self._journal is not None:
+            if self._journal is not None and not tx.committed:
                 self._journal.close()
                 unlink_quietly(self._journal.path)
+            elif self._journal is not None:  # committed: the file names the journal; the next run recovers it
+                self._journal.close()
             if isinstance(exc, OSError):
                 raise OutputError(f"{self._path}: cannot start group /{self._name}: {exc}") from exc
             raise

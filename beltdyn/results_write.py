@@ -56,6 +56,11 @@ def now_utc() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
+def source_file(vds_map) -> str:
+    """The part file a virtual dataset maps onto, relative to the root's folder (unescaped)."""
+    return vds_map.file_name.replace("%%", "%")
+
+
 def references(f) -> set[str]:
     """The files an open root names (relative to its folder): virtual dataset sources and the stream
     journals of running groups."""
@@ -65,7 +70,7 @@ def references(f) -> set[str]:
     def visit(_name, obj):
         if isinstance(obj, h5py.Dataset):
             if obj.is_virtual:
-                refs.update(src.file_name for src in obj.virtual_sources())
+                refs.update(source_file(src) for src in obj.virtual_sources())
         elif "stream_journal" in obj.attrs:
             refs.add(str(decode_attr(obj.attrs["stream_journal"])))
 
@@ -105,6 +110,7 @@ class Transaction:
         identity = _root_identity(path) if update else None
         self.folder, self.file_id = identity or (parts_folder(path), new_file_id())
         self._parts: dict[str, tuple[Path, object]] = {}
+        self.committed = False
         self.tmp = temp_name(path, self.file_id)
         try:
             if update:
@@ -162,6 +168,7 @@ class Transaction:
             self.f.close()
             fsync_file(self.tmp)
             os.replace(self.tmp, self.path)
+            self.committed = True  # from here on nothing is undone (abort does nothing)
         except BaseException:
             self.abort()
             raise
@@ -173,7 +180,11 @@ class Transaction:
         return [r for r in removed if r not in self.old_refs]
 
     def abort(self) -> None:
-        """Close and remove the temporary root and the new parts; the root stays as it was."""
+        """Close and remove the temporary root and the new parts; the root stays as it was. Nothing
+        after the commit's rename (an interrupt during the removal of old parts leaves leftovers that
+        the next run removes)."""
+        if self.committed:
+            return
         for _rel, part in self._parts.values():
             try:
                 part.close()
@@ -211,7 +222,9 @@ def _virtual(tx: Transaction, g, name: str, src, *, growable: bool):
     rel = tx._parts[_top_group(g)][0]
     shape = src.shape
     maxshape = (None, *shape[1:]) if growable else shape
-    vsrc = h5py.VirtualSource(rel, src.name, shape=shape, dtype=src.dtype, maxshape=maxshape)
+    # "%" starts a printf-like pattern in source names (HDF5): escaped as "%%"
+    vsrc = h5py.VirtualSource(rel.replace("%", "%%"), src.name.replace("%", "%%"), shape=shape, dtype=src.dtype,
+                              maxshape=maxshape)
     layout = h5py.VirtualLayout(shape=shape, dtype=src.dtype, maxshape=maxshape)
     if growable:
         unlimited = h5py.h5s.UNLIMITED
