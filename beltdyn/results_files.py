@@ -337,16 +337,17 @@ def read_only(path: Path) -> bool:
     return hasattr(os, "geteuid") and os.geteuid() == 0 and not path.stat().st_mode & 0o222
 
 
-def inspect_target(path: Path, *, config_sha256: str, force: bool, base_config_sha256: str | None = None) -> bool:
-    """True if `path` is a beltdyn file to be updated, False if a fresh file is to be started (none
-    there, or `force` replaces it); OutputError if the file must not be touched.
+def inspect_target(path: Path, *, config_sha256: str, force: bool,
+                   base_config_sha256: str | None = None) -> dict | None:
+    """The root attributes of `path` if it is a beltdyn file to be updated, None if a fresh file is to
+    be started (none there, or `force` replaces it); OutputError if the file must not be touched.
 
     The file is accepted when its `config_sha256` is `config_sha256`, or when `base_config_sha256`
     is given and equals the file's `base_config_sha256` (the configuration as given, before
     `modal --rtol` chose the mesh)."""
     h5py = h5py_module()
     if not path.exists():
-        return False
+        return None
     if not path.is_file():
         raise OutputError(f"{path}: exists and is not a regular file; choose another output path")
     if read_only(path):
@@ -358,7 +359,7 @@ def inspect_target(path: Path, *, config_sha256: str, force: bool, base_config_s
         raise OutputError(f"{path}: cannot be read ({exc})") from exc
     if not ok:
         if force:
-            return False
+            return None
         raise OutputError(f"{path}: exists and is not an HDF5 file; it is not overwritten: --force replaces it "
                           "(or choose another output path)")
     try:
@@ -366,28 +367,28 @@ def inspect_target(path: Path, *, config_sha256: str, force: bool, base_config_s
             attrs = {k: decode_attr(v) for k, v in f.attrs.items()}
     except OSError as exc:
         if force:
-            return False
+            return None
         raise OutputError(f"{path}: cannot be read as an HDF5 file ({exc}); it is not overwritten: --force "
                           "replaces it (or choose another output path)") from exc
     if "config_sha256" not in attrs or "beltdyn_version" not in attrs:
         if force:
-            return False
+            return None
         raise OutputError(f"{path}: exists and is not a beltdyn results file; it is not overwritten: --force "
                           "replaces it (or choose another output path)")
     if str(attrs.get("schema_version")) != SCHEMA_VERSION:
         if force:
-            return False
+            return None
         raise OutputError(f"{path}: was written with results schema {attrs.get('schema_version')!r}, this "
                           f"beltdyn writes schema {SCHEMA_VERSION!r}; use --force to start the file afresh "
                           "or choose another output path")
     same_base = base_config_sha256 is not None and attrs.get("base_config_sha256") == base_config_sha256
     if attrs["config_sha256"] != config_sha256 and not same_base:
         if force:
-            return False
+            return None
         raise OutputError(f"{path}: holds results of a different configuration (config_sha256 "
                           f"{str(attrs['config_sha256'])[:12]}..., now {config_sha256[:12]}...); use --force "
                           "to start the file afresh or choose another output path")
-    return True
+    return attrs
 
 
 def check_target(path: Path, *, config_sha256: str, force: bool = False,

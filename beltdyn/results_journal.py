@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import OutputError
+from .results_files import fsync_dir
 
 MAGIC = b"BDSTREAM"
 _HEAD = struct.Struct("<8sQQII")  # magic, written, synced, crc32(written, synced), layout length
@@ -87,12 +88,12 @@ class JournalWriter:
         text = layout.to_json()
         self._offset = _data_offset(len(text))
         self.written = self.synced = 0
+        self._entry_synced = False
         self._fd = os.open(self.path, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_CLOEXEC, 0o666)
         try:
             head = _HEAD.pack(MAGIC, 0, 0, 0, len(text))
             head = head[:8] + _counts(0, 0) + head[28:]
             self._write_all(head + text + bytes(self._offset - _HEAD.size - len(text)), 0)
-            os.fsync(self._fd)
         except BaseException:
             self.close()
             raise
@@ -116,10 +117,14 @@ class JournalWriter:
         os.pwrite(self._fd, _counts(self.written, self.synced), 8)
 
     def sync(self) -> None:
-        """Make every written row durable, then record them as synced (durable too)."""
+        """Make every written row durable, then record them as synced (durable too); the first time also
+        the journal's entry in its folder."""
         if self.synced == self.written:
             return
         os.fdatasync(self._fd)
+        if not self._entry_synced:
+            fsync_dir(self.path.parent)
+            self._entry_synced = True
         self.synced = self.written
         os.pwrite(self._fd, _counts(self.written, self.synced), 8)
         os.fdatasync(self._fd)

@@ -19,7 +19,7 @@ TIME_DIM = "time"
 PROVENANCE = "provenance"
 # the writer's bookkeeping of a group (status, error, the running writer and its stream journal)
 WRITER_ATTRS = ("writer_pid", "writer_host", "writer_start", "stream_journal", "started_utc")
-RESERVED_GROUP_ATTRS = frozenset({"status", "error", *WRITER_ATTRS})
+RESERVED_GROUP_ATTRS = frozenset({"status", "error", "parts", *WRITER_ATTRS})  # parts: the group's part files
 # Attribute names used by the HDF5 dimension-scale API and by netCDF-4; never set by callers.
 RESERVED_ATTRS = frozenset(
     {"CLASS", "NAME", "DIMENSION_LIST", "REFERENCE_LIST", "DIMENSION_LABELS", "_Netcdf4Dimid",

@@ -381,8 +381,7 @@ class StreamWriter:
             raise ValueError(f"close: status must be one of {FINAL_STATUSES}, not {status!r}")
         self._closed = True
         try:
-            self._drain()
-            self._journal.sync()
+            self._drain()  # (not synced: the commit makes the samples durable in the results file)
             self._finish(status, error)
         except OSError as exc:
             raise OutputError(f"{self._path}: cannot finish group /{self._name}: {exc}; its samples are kept in "

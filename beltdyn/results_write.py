@@ -62,30 +62,32 @@ def source_file(vds_map) -> str:
 
 
 def references(f) -> set[str]:
-    """The files an open root names (relative to its folder): virtual dataset sources and the stream
-    journals of running groups."""
-    h5py = h5py_module()
+    """The files an open root names (relative to its folder): each top-level group lists its part files
+    in its `parts` attribute (the sources of its virtual datasets) and, while running, its stream
+    journal in `stream_journal`."""
     refs: set[str] = set()
-
-    def visit(_name, obj):
-        if isinstance(obj, h5py.Dataset):
-            if obj.is_virtual:
-                refs.update(source_file(src) for src in obj.virtual_sources())
-        elif "stream_journal" in obj.attrs:
-            refs.add(str(decode_attr(obj.attrs["stream_journal"])))
-
-    f.visititems(visit)
+    for obj in f.values():
+        attrs = obj.attrs
+        if "parts" in attrs:
+            refs.update(str(p) for p in decode_attr(attrs["parts"]))
+        if "stream_journal" in attrs:
+            refs.add(str(decode_attr(attrs["stream_journal"])))
     return refs
 
 
-def _root_identity(path: Path) -> tuple[str, str] | None:
-    """(parts folder, file id) of an existing beltdyn root, None if it has none (or is unreadable)."""
+def _identity(attrs: dict | None) -> tuple[str, str] | None:
+    """(parts folder, file id) from a root's attributes, None if it has none."""
+    if not attrs or "parts_folder" not in attrs or "file_id" not in attrs:
+        return None
+    return str(attrs["parts_folder"]), str(attrs["file_id"])
+
+
+def _old_identity(path: Path) -> tuple[str, str] | None:
+    """(parts folder, file id) of the beltdyn root at `path` that `force` replaces, if readable."""
     h5py = h5py_module()
     try:
         with h5py.File(path, "r") as f:
-            folder, file_id = f.attrs.get("parts_folder"), f.attrs.get("file_id")
-            return (str(decode_attr(folder)), str(decode_attr(file_id))) if folder is not None and file_id is not None \
-                else None
+            return _identity({k: decode_attr(v) for k, v in f.attrs.items()})
     except (OSError, ValueError):
         return None
 
@@ -101,14 +103,14 @@ class Transaction:
     def __init__(self, path: Path, *, config_sha256: str, force: bool = False) -> None:
         h5py = h5py_module()
         self.path = path = resolve_target(path)
-        update = inspect_target(path, config_sha256=config_sha256, force=force)
+        attrs = inspect_target(path, config_sha256=config_sha256, force=force)
+        update = attrs is not None
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise OutputError(f"{path}: cannot create the output directory: {exc}") from exc
-        self._dropped = None if update or not path.exists() else _root_identity(path)  # force replaces it
-        identity = _root_identity(path) if update else None
-        self.folder, self.file_id = identity or (parts_folder(path), new_file_id())
+        self._dropped = None if update or not path.exists() else _old_identity(path)  # force replaces it
+        self.folder, self.file_id = _identity(attrs) or (parts_folder(path), new_file_id())
         self._parts: dict[str, tuple[Path, object]] = {}
         self.committed = False
         self.tmp = temp_name(path, self.file_id)
@@ -147,6 +149,8 @@ class Transaction:
         if group not in self._parts:
             rel, p = self.new_part_path(group, ".h5")
             self._parts[group] = (rel, h5py_module().File(p, "w-"))
+            attrs = self.f[group].attrs  # the group lists its parts (what `references` finds)
+            attrs["parts"] = [*(str(x) for x in decode_attr(attrs.get("parts", np.array([], dtype=object)))), rel]
         return self._parts[group][0], self._parts[group][1]
 
     # -- end -----------------------------------------------------------------------------------

@@ -82,8 +82,18 @@ def samples(path: Path) -> int:
 
 
 def referenced_parts(path: Path) -> set[str]:
+    """The files the root names; checked against the sources of all its virtual datasets."""
+    sources = set()
+
+    def visit(_name, obj):
+        if isinstance(obj, h5py.Dataset) and obj.is_virtual:
+            sources.update(rwrite.source_file(src) for src in obj.virtual_sources())
+
     with h5py.File(path, "r") as f:
-        return rwrite.references(f)
+        f.visititems(visit)
+        refs = rwrite.references(f)
+    assert sources == {r for r in refs if r.endswith(".h5")}
+    return refs
 
 
 def files_beside(path: Path) -> list[str]:
