@@ -31,6 +31,9 @@ paper: $(STAMP)
 	@echo "Paper Table 2 as data: the influence of EI from 0.02 to 100 N m^2 (T = 200 N)"
 	$(BIN)/beltdyn sweep configs/paper/bench_T200.toml --param belt.EI=0.02:100:9:log --modes 12 \
 		-o results/paper/ei_sweep.h5 --force
+	@echo "Paper Figs. 3b and 4 (beltdyn plot):"
+	$(BIN)/beltdyn plot results/paper/fig3b_tension_sweep.h5 sweep -o results/paper/fig3b.png
+	$(BIN)/beltdyn plot results/paper/bench_T200.h5 modes --modes 1-8 -o results/paper/fig4_modes.png
 
 trade: $(STAMP)
 	$(BIN)/python bench/trade.py README.md

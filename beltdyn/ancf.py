@@ -16,6 +16,23 @@ flexible multibody method":
 * Eq. 15-16  kappa = (r' x r'') / |r'|^3,  U_t = 1/2 int EI kappa^2 dx   ("exact" model)
 * Eq. 17  Q_t = EI int S''^T S'' dx e        ("linear" model, constant matrix, the default)
 
+Axial transport (the running belt, beyond the paper; `transport_matrices`). A span is fixed in space
+between its tangent points while the material flows through it at the rate c (undeformed length per
+second, so the mass flow is rho c): x is a mesh (Eulerian/ALE) coordinate, and the material point at
+x moves with V = dr/dt + c r'. The kinetic energy of an element is then
+
+    T = 1/2 int rho |S e' + c S' e|^2 dx = 1/2 e'^T M e' + c e'^T A e + 1/2 c^2 e^T B e,
+    A = int rho S^T S' dx,   B = int rho S'^T S' dx          (constant 8 x 8 matrices),
+
+and Lagrange's equations give the transport terms of the element's equation of motion
+
+    M e'' + c G e' + c' A e - c^2 B e + dU/de = Q,     G = A - A^T  (skew: gyroscopic, no work),
+
+-c^2 B the centripetal ("rho v^2") stiffness. The boundary momentum flux rho c V at the span's ends is
+left out on purpose: it is the flux into the next control volume (the wrap), and summed over the belt
+loop the fluxes cancel (the material velocity is continuous at a tangent point), so this is the
+closed loop's Lagrangian (see `running` for what that means for the span tension and hub loads).
+
 Conventions: ``n_elem`` elements, ``n_qp`` Gauss points per element, ``n_pts`` evaluation points.
 Every 8-vector is ordered like ``e`` (node-major, then x/y), i.e. index ``2 * a + i`` for shape
 function ``a`` in 0..3 and component ``i`` in 0..1; an 8 x 8 matrix uses the same order on both
@@ -50,6 +67,7 @@ __all__ = [
     "make_elements",
     "shape_functions",
     "mass_matrices",
+    "transport_matrices",
     "gravity_forces",
     "internal_forces",
     "internal_forces_and_tangent",
@@ -296,6 +314,23 @@ def mass_matrices(el: ElementSet) -> np.ndarray:
     Integrated exactly (4-point Gauss rule on a degree-6 integrand).  Returns a read-only array.
     """
     return el.mass
+
+
+def transport_matrices(el: ElementSet) -> tuple[np.ndarray, np.ndarray]:
+    """The axial-transport matrices of the running belt (module docstring), each (n_elem, 8, 8):
+
+    A = int rho S^T S' dx (the gyroscopic matrix per unit speed is A - A^T) and B = int rho S'^T S' dx
+    (symmetric positive semi-definite; the centripetal stiffness is -c^2 B). Integrated exactly (the
+    4-point rule of the constant matrices: degrees 5 and 4). New arrays owned by the caller.
+    """
+    xi_c, w_c = _gauss01(_N_GAUSS_CONST)
+    s_c, d_c, _ = shape_functions(xi_c, el.length)
+    wr = w_c[None, :] * (el.length * el.rho)[:, None]
+    a4 = np.einsum("nq,nqa,nqb->nab", wr, s_c, d_c)
+    b4 = np.einsum("nq,nqa,nqb->nab", wr, d_c, d_c)
+    b4 = 0.5 * (b4 + np.swapaxes(b4, 1, 2))  # symmetric to the last bit
+    eye2 = np.eye(2)
+    return _kron_i2(a4, eye2), _kron_i2(b4, eye2)
 
 
 def gravity_forces(el: ElementSet, g: np.ndarray) -> np.ndarray:

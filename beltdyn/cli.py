@@ -301,7 +301,7 @@ def _refined_modal(job: "_Job", n_modes: int, rtol: float) -> None:
     check_target(job.output, config_sha256=job.sha, force=job.force)
     job.add(geometry_group(job.layout))  # the L0 fit (the mesh does not change it); /static: the solved layout
     job.add(static_group(model, st, cfg.tension.target))
-    group = modal_group(model, md)
+    group = modal_group(model, md, st.q)
     attrs = dict(group.attrs, rtol=rtol, chosen_elements_per_span=int(ref.elements[ref.chosen]),
                  mesh_converged=int(ref.converged), estimated_error=float(np.nanmax(ref.estimate[ref.chosen])))
     job.add(type(group)(name=group.name, coords=group.coords, variables=group.variables, attrs=attrs))
@@ -355,7 +355,7 @@ def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None, co
         raise
     job.add(static_group(run.system, run.static, job.cfg.tension.target))
     if run.modal is not None:
-        job.add(modal_group(run.system, run.modal))
+        job.add(modal_group(run.system, run.modal, run.static.q))
     job.write()
     return run
 
@@ -488,6 +488,63 @@ def _print_response(con, res) -> None:
     con.print(table)
 
 
+@app.command()
+def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5)."),
+         what: Optional[str] = typer.Argument(None, help="layout | modes | sweep | transient | response "
+                                                         "[default: every figure the file holds]"),
+         output: Optional[Path] = typer.Option(None, "-o", "--output",
+                                               help="Figure file (.png, .svg, .pdf); without WHAT a prefix: "
+                                                    "PREFIX_<what>.png [default: next to RESULT]"),
+         modes: Optional[str] = typer.Option(None, "--modes", help="Modes to draw, e.g. 1-8 or 1,3,5 [default: 1-8]."),
+         show: bool = typer.Option(False, "--show", help="Also open the figures in a window.")) -> None:
+    """Figures of a results file: drive layout, mode shapes, frequency maps and Campbell diagrams,
+    histories and spectra, forced response (needs the plot extra: pip install 'beltdyn[plot]')."""
+
+    def body() -> None:
+        from .errors import ConfigError, OutputError
+
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise ConfigError("matplotlib is not installed: pip install 'beltdyn[plot]'", file=str(result),
+                              key="plot") from None
+        from . import plot as P
+
+        if what is not None and what not in P.KINDS:
+            raise ConfigError(f"unknown figure {what!r}; one of {', '.join(P.KINDS)}", file=str(result), key="WHAT")
+        try:
+            chosen_modes = P.parse_modes(modes)
+        except ValueError:
+            raise ConfigError(f"--modes must be like 1-8 or 1,3,5, got {modes!r}", file=str(result),
+                              key="--modes") from None
+        P.set_interactive(show)
+        res = P.read_results(result)
+        kinds = (what,) if what else P.available(res)
+        if not kinds:
+            raise OutputError(f"{result}: holds no group a figure is drawn from (/geometry, /modal, /sweep, "
+                              f"/transient or /response)")
+        written = []
+        for kind in kinds:
+            fig = P.figure(kind, res, modes=chosen_modes)
+            if what and output is not None:
+                path = output
+            else:
+                base = output if output is not None else result.with_suffix("")
+                path = base.with_name(f"{base.name}_{kind}.png")
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_name(f".{path.name}.tmp{path.suffix}")
+            fig.savefig(tmp)  # then renamed: an interrupted run leaves no half-written figure
+            tmp.replace(path)
+            written.append(str(path))
+        if show:
+            import matplotlib.pyplot as plt
+
+            plt.show()
+        _console().print("wrote " + ", ".join(written))
+
+    _run(body)
+
+
 def _check_output_volume(job: "_Job", force_large: bool) -> None:
     """Before any work: histories above transient.max_output_mb need --force-large (exit 2)."""
     from .system import build_system
@@ -545,6 +602,10 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
     from .pipeline import transient_start
 
     (model, res), mres = transient_start(run), run.modal
+    if mres is not None and model.belt_speed != run.system.belt_speed:  # the peaks against the modes at the start speed
+        from .modal import solve_modes
+
+        mres = solve_modes(model, res.q, n_modes=len(mres.frequency), solver=cfg.modal.solver)
     setup = prepare(model, res, opts)
     _warm_kernels(_console())
     shapes = {name: len(v) for name, v in setup.coords.items()}
@@ -796,6 +857,7 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
             job.write()
             journal.remove()
         _print_sweep(con, result)
+        _print_campbell(con, cfg, result)
         if result.failed.all():
             from .errors import SolverError
 
@@ -883,6 +945,34 @@ def _print_sweep(con, result) -> None:
         con.print(conv)
 
 
+def _print_campbell(con, cfg, result) -> None:
+    """A speed sweep's resonance table: the engine-order crossings of [running] orders and the critical
+    speeds (`running.campbell`)."""
+    from rich.table import Table
+
+    from .running import campbell, speed_axis
+
+    if not speed_axis(result):
+        return
+    names = [p.name for p in cfg.pulleys]
+    spans = [f"{names[i]}-{names[(i + 1) % len(names)]}" for i in range(len(names))]
+    orders = cfg.running.orders if cfg.running is not None else ()
+    crossings, unstable = campbell(result, orders, spans)
+    if orders:
+        t = Table(title=f"Campbell diagram: crossings of the modes with the engine orders {', '.join(f'{k:g}' for k in orders)}")
+        for col in ("order", "driver speed (rad/s)", "(rpm)", "belt speed (m/s)", "frequency (Hz)", "mode"):
+            t.add_column(col, justify="left" if col == "mode" else "right")
+        for x in crossings:
+            t.add_row(f"{x.order:g}", f"{x.driver_speed:.2f}", f"{x.driver_speed * 30 / 3.141592653589793:.0f}",
+                      f"{x.belt_speed:.3f}", f"{x.frequency:.3f}", f"{x.mode + 1}: {x.label}")
+        if not crossings:
+            t.add_row("", "", "", "", "", "no crossing in the swept range")
+        con.print(t)
+    for x in unstable:
+        con.print(f"[bold yellow]{x.kind}:[/] mode {x.mode + 1} ({x.label}) at the critical driver speed "
+                  f"{x.driver_speed:.4g} rad/s (belt speed {x.belt_speed:.4g} m/s)")
+
+
 @app.command()
 def paper(outdir: Path = typer.Option(Path("results/paper"), "--outdir", help="Folder for the HDF5 files and tables.md."),
           configs: Path = typer.Option(Path("configs/paper"), "--configs", help="Folder of the paper configs."),
@@ -952,7 +1042,8 @@ def _print_static(layout, model, res) -> None:
     from rich.table import Table
 
     con = _console()
-    t = Table(title=f"Static equilibrium ({res.iterations} Newton iterations, {model.n_dof} DOFs)")
+    speed = f" of the belt running at {model.belt_speed:.4g} m/s" if model.belt_speed else ""
+    t = Table(title=f"Static equilibrium{speed} ({res.iterations} Newton iterations, {model.n_dof} DOFs)")
     for col in ("span", "tension start (N)", "tension end (N)"):
         t.add_column(col, justify="right" if col != "span" else "left")
     for i in range(layout.n):
@@ -1003,17 +1094,26 @@ def _print_static(layout, model, res) -> None:
 
 
 def _print_modal(mres) -> None:
+    import numpy as np
     from rich.table import Table
 
     con = _console()
-    t = Table(title=f"Modes ({mres.solver} solver; {mres.n_rigid} rigid-body mode(s) excluded)")
+    speed = f" at belt speed {mres.belt_speed:.4g} m/s (gyroscopic)" if mres.belt_speed else ""
+    t = Table(title=f"Modes{speed} ({mres.solver} solver; {mres.n_rigid} rigid-body mode(s) excluded)")
     tens = bool(mres.energy_share[:, 4].any()) if mres.energy_share.shape[1] > 4 else False
-    for col in ("mode", "frequency (Hz)", "modal shape", "rot", "trans", "long", "transv") + (("tens",) if tens else ()):
+    unstable = mres.growth_rate is not None and bool(np.any(mres.growth_rate > 0))
+    for col in ("mode", "frequency (Hz)") + (("growth (1/s)",) if unstable else ()) + \
+            ("modal shape", "rot", "trans", "long", "transv") + (("tens",) if tens else ()):
         t.add_column(col, justify="left" if col == "modal shape" else "right")
     for k in range(len(mres.frequency)):
         sh = mres.energy_share[k][: 5 if tens else 4]
-        t.add_row(str(k + 1), f"{mres.frequency[k]:.3f}", mres.label[k], *(f"{x:.2f}" for x in sh))
+        growth = (f"{mres.growth_rate[k]:.4g}",) if unstable else ()
+        t.add_row(str(k + 1), f"{mres.frequency[k]:.3f}", *growth, mres.label[k], *(f"{x:.2f}" for x in sh))
     con.print(t)
+    if unstable:
+        con.print(f"[bold yellow]warning:[/] the running belt is unstable at {mres.belt_speed:.4g} m/s: above its first "
+                  f"critical speed {mres.critical_speed:.4g} m/s (about this equilibrium) a span diverges "
+                  f"(frequency 0, growth rate > 0)")
 
 
 def _print_paper(rows) -> None:

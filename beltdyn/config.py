@@ -613,6 +613,9 @@ class ResponseOptions:
                                      units="rad/s")
     points: int = key(POSINT, 100, doc="driver speeds in the range, evenly spaced")
     orders: tuple[float, ...] = key(_Numbers(), (1.0,), doc="engine orders", units="1")
+    transport: bool = key(BOOL, True, doc="linearize about the running equilibrium at each speed (the belt at "
+                                          "speed x R_driver, with its transport terms); false: once, about the "
+                                          "equilibrium of [running] (or at rest): the travelling frame")
     damping: Damping = key(_Table(Damping), factory=Damping,
                              doc="[response.damping]: Rayleigh and belt damping, as [transient.damping]")
     excitation: tuple[ResponseExcitation, ...] = key(
@@ -664,6 +667,9 @@ class TransientOptions:
                                  doc="relative frequency error the time step must meet up to fmax (with fmax)")
     fmax: float | None = key(POSFLOAT, None, doc="highest frequency the run must resolve (with accuracy)",
                              units="Hz")
+    transport: bool = key(BOOL, True, omit_default=True,
+                          doc="the running belt's transport terms (gyroscopic, centripetal); false: the former "
+                              "travelling-frame approximation (the belt's nominal inertia only)")
     max_output_mb: float = key(POSFLOAT, 1000.0, omit_default=True,
                                doc="output volume above which a run needs --force-large", units="MB (1e6 bytes)")
     record: Record = key(_Table(Record), factory=Record, doc="[transient.record]: the series written")
@@ -678,6 +684,23 @@ class TransientOptions:
     def __post_init__(self) -> None:
         if self.step is None and (self.accuracy is None or self.fmax is None):  # no accuracy to choose it
             object.__setattr__(self, "step", DEFAULT_STEP)
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunningOptions:
+    """[running]: the belt running at a constant speed (static, modal and the transient's start; see
+    `beltdyn.running`). One of belt_speed (m/s: undeformed belt length per second, the mass flow over
+    rho; positive along the belt's direction of travel A -> B -> ...) or driver_speed (rad/s of the
+    driver pulley, counter-clockwise; belt speed = omega R_driver with the sign of the travel); none:
+    at rest. orders: engine orders whose lines a speed sweep crosses with the modes (the Campbell
+    diagram's resonance table)."""
+
+    belt_speed: float | None = key(FLOAT, None, units="m/s",
+                                   doc="belt speed along the direction of travel (undeformed length per second)")
+    driver_speed: float | None = key(FLOAT, None, units="rad/s",
+                                     doc="driver pulley speed, counter-clockwise (instead of belt_speed)")
+    orders: tuple[float, ...] = key(_Numbers(), (), omit_default=True, units="1",
+                                    doc="engine orders: a speed sweep lists each mode's crossings with their lines")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -706,6 +729,8 @@ class DriveConfig:
     sweep: SweepTable | None = key(_Table(SweepTable), None, doc="[sweep]: parameter sweep (beltdyn sweep)")
     response: ResponseOptions | None = key(_Table(ResponseOptions), None,
                                            doc="[response]: steady forced response (beltdyn response)")
+    running: RunningOptions | None = key(_Table(RunningOptions), None,
+                                         doc="[running]: the belt running at a constant speed")
     title: str = key(TEXT, "", omit_default=True, doc="a title for the results")
     source: str = ""  # file the config came from (not part of the resolved TOML)
 
@@ -977,6 +1002,8 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>", tables: dic
         transient = _check_transient(chk, transient, pulleys, file)
     if cfg.response is not None:
         _check_response(chk, cfg.response, pulleys)
+    if cfg.running is not None and cfg.running.belt_speed is not None and cfg.running.driver_speed is not None:
+        raise chk.fail("running.driver_speed", "give either running.belt_speed or running.driver_speed, not both")
     return replace(cfg, pulleys=pulleys, tension=tension, transient=transient, source=file)
 
 

@@ -45,7 +45,7 @@ PARAM_UNITS = {
     "pulleys.*.arm_pivot": "m", "pulleys.*.arm_inertia": "kg m^2", "pulleys.*.arm_stiffness": "N m/rad",
     "pulleys.*.arm_free_angle": "rad", "pulleys.*.arm_damping": "N m s/rad", "pulleys.*.arm_friction": "N m",
     "pulleys.*.arm_range": "rad", "pulleys.*.friction": "1", "static.torque.*.value": "N m",
-    "tension.target": "N", "mesh.elements_per_span": "1",
+    "tension.target": "N", "mesh.elements_per_span": "1", "running.belt_speed": "m/s", "running.driver_speed": "rad/s",
     "model.gravity": "m/s^2", "model.gauss_points": "1",
     "static.tolerance": "1", "static.max_iterations": "1", "static.load_steps": "1", "modal.modes": "1",
     "transient.duration": "s", "transient.step": "s", "transient.min_step": "s", "transient.output_interval": "s",
@@ -110,7 +110,8 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
     return GroupData(
         name="static",
         coords={"pulley": list(lay.names), "component": XY, "span": spans, "end": ["start", "end"],
-                "dof": list(model.dof_labels), "iteration": np.arange(1, len(res.residual_history) + 1)},
+                "dof": list(model.dof_labels), "iteration": np.arange(1, len(res.residual_history) + 1),
+                "node": np.arange(len(node_spans(model)))},
         variables=(
             Variable(name="span_tension", data=res.span_tension, dims=("span", "end"), units="N",
                      description="true axial force at the start and end of each span"),
@@ -132,6 +133,12 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
                      units="rad" if lay.adjust_kind == "arm" else "m",
                      description="travel of the adjustable pulley from its given centre (an arm: the angle it turned)"),
             *_static_extras(res),
+            Variable(name="node_position", data=belt_nodes(model, model.belt.element_coordinates(model.expand(res.q))),
+                     dims=("node", "component"), units="m",
+                     description="the belt's nodes at equilibrium, span after span from its start to its end "
+                                 "(the figures draw the belt from them)"),
+            Variable(name="node_span", data=node_spans(model), dims=("node",), units="1",
+                     description="0-based span of each node"),
             Variable(name="q", data=res.q, dims=("dof",), units=MIXED,
                      description="independent coordinates from the reference state, each in its dof_unit"),
             dof_unit_variable(model),
@@ -145,8 +152,18 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
         ),
         attrs={"iterations": int(res.iterations), "tension_mode": res.tension_mode, "warnings": static_warnings(model, res),
                "tension_target_N": float(target) if target is not None else float("nan"),
-               "n_dof": int(model.n_dof)},
+               "n_dof": int(model.n_dof), **_running_attrs(model)},
     )
+
+
+def _running_attrs(model: DriveModel) -> dict:
+    """The running belt's speed (attributes of /static and /modal; none at rest)."""
+    if not model.belt_speed:
+        return {}
+    from .running import driver_speed_of
+
+    return {"belt_speed_m_per_s": float(model.belt_speed),
+            "driver_speed_rad_per_s": driver_speed_of(model.belt_speed, model.layout, model.driver)}
 
 
 STRAIN_WARNING = 0.05  # belt strain above which the constant-EA axial law is flagged (real belts: ~1 % at most)
@@ -210,15 +227,43 @@ def _static_extras(res: StaticResult) -> tuple[Variable, ...]:
     )
 
 
-def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
+def belt_nodes(model: DriveModel, E: np.ndarray) -> np.ndarray:
+    """(..., n_node, 2) the belt's node positions (or motions) of element states E (..., n_elem, 8): each
+    span's element start nodes and its last element's end node, span after span."""
+    parts = []
+    for els in model.belt.span_elements:
+        parts.append(E[..., els, 0:2])
+        parts.append(E[..., els[-1:], 4:6])
+    return np.concatenate(parts, axis=-2)
+
+
+def node_spans(model: DriveModel) -> np.ndarray:
+    """(n_node,) 0-based span of each node of `belt_nodes`."""
+    return np.concatenate([np.full(len(els) + 1, s) for s, els in enumerate(model.belt.span_elements)]).astype(np.int64)
+
+
+def modal_group(model: DriveModel, res: ModalResult, q: np.ndarray | None = None) -> GroupData:
+    """/modal; with the equilibrium q also the shapes' motion of the belt's nodes (`node_shape`)."""
     from .modal import KINDS
 
     lay = model.layout
+    extra = ()
+    if q is not None:
+        motion = model.belt.element_coordinates_batch(model.expand_motion(q, res.shapes), offset=False)
+        nodes = belt_nodes(model, motion)
+        extra = (Variable(name="node_shape", data=np.real(nodes), dims=("mode", "node", "component"),
+                          units="m per sqrt(kg m^2)",
+                          description="motion of the belt's nodes (/static node_position) in each mass-normalized "
+                                      "shape (at a belt speed the real part, see node_shape_imag)"),)
+        if np.iscomplexobj(nodes):
+            extra += (Variable(name="node_shape_imag", data=np.imag(nodes), dims=("mode", "node", "component"),
+                               units="m per sqrt(kg m^2)", description="imaginary part of node_shape"),)
     return GroupData(
         name="modal",
         coords={"mode": np.arange(1, len(res.frequency) + 1), "dof": list(model.dof_labels),
                 "energy_kind": list(KINDS), "belt_span": [lay.span_name(i) for i in range(lay.n)],
-                "rigid": np.arange(1, res.n_rigid + 1)},
+                "rigid": np.arange(1, res.n_rigid + 1),
+                **({"node": np.arange(len(node_spans(model)))} if q is not None else {})},
         variables=(
             Variable(name="frequency", data=res.frequency, dims=("mode",), units="Hz"),
             Variable(name="kind", data=list(res.kind), dims=("mode",), units="1"),
@@ -230,17 +275,39 @@ def modal_group(model: DriveModel, res: ModalResult) -> GroupData:
             Variable(name="energy_share", data=res.energy_share, dims=("mode", "energy_kind"), units="1",
                      description="share of the modal kinetic energy"),
             Variable(name="span_share", data=res.span_share, dims=("mode", "belt_span"), units="1"),
-            Variable(name="midspan_displacement", data=res.midspan_displacement, dims=("mode", "belt_span"),
+            Variable(name="midspan_displacement", data=np.real(res.midspan_displacement), dims=("mode", "belt_span"),
                      units="m per sqrt(kg m^2)",
                      description="mid-span displacement of each mass-normalized shape across the chord between the "
                                  "span's moving end points (the definition of /transient midspan_displacement)"),
-            Variable(name="shape", data=res.shapes, dims=("mode", "dof"), units=MIXED,
+            Variable(name="shape", data=np.real(res.shapes), dims=("mode", "dof"), units=MIXED,
                      description="mass-normalized mode shapes (phi^T M phi = 1): entry i in dof_unit[i] "
-                                 "per sqrt(kg m^2)"),
+                                 "per sqrt(kg m^2); at a belt speed the real part (see shape_imag)"),
             dof_unit_variable(model),
             Variable(name="rigid_frequency", data=res.rigid_frequency, dims=("rigid",), units="Hz"),
+            *extra,
+            *_running_modal(res),
         ),
-        attrs={"n_rigid": int(res.n_rigid), "solver": res.solver, "n_dof": int(model.n_dof), "warnings": []},
+        attrs={"n_rigid": int(res.n_rigid), "solver": res.solver, "n_dof": int(model.n_dof), "warnings": [],
+               **_running_attrs(model), **({"critical_belt_speed_m_per_s": float(res.critical_speed)}
+                                          if np.isfinite(res.critical_speed) else {})},
+    )
+
+
+def _running_modal(res: ModalResult) -> tuple:
+    """The running belt's modes: complex shapes stored as `shape` (real part) and `shape_imag` (imaginary
+    part), phi = shape + 1j shape_imag with phi^H M phi = 1 and the largest entry real and positive, the
+    motion Re(phi e^(s t)); likewise `midspan_displacement(_imag)`; `growth_rate` Re s and `stability`."""
+    if res.growth_rate is None:
+        return ()
+    return (
+        Variable(name="shape_imag", data=np.imag(res.shapes), dims=("mode", "dof"), units=MIXED,
+                 description="imaginary part of the complex mode shapes (shape + 1j shape_imag, phi^H M phi = 1)"),
+        Variable(name="midspan_displacement_imag", data=np.imag(res.midspan_displacement), dims=("mode", "belt_span"),
+                 units="m per sqrt(kg m^2)", description="imaginary part of midspan_displacement"),
+        Variable(name="growth_rate", data=res.growth_rate, dims=("mode",), units="1/s",
+                 description="real part of the eigenvalue s (0: stable; > 0: divergence (frequency 0) or flutter)"),
+        Variable(name="stability", data=list(res.stability), dims=("mode",), units="1",
+                 description="stable, divergence or flutter"),
     )
 
 
@@ -283,10 +350,15 @@ def sweep_group(cfg, result) -> GroupData:
             Variable(name="mac", data=result.mac, dims=("case", "mode"), units="1",
                      description="MAC with the tracked mode of the parent case (1 at the first case)"),
         ]
+    if result.growth_rate is not None and result.extras.get("belt_speed") is not None:
+        variables.append(Variable(name="growth_rate", data=result.growth_rate, dims=("case", "mode"), units="1/s",
+                                  description="real part of the tracked eigenvalue s (0: stable; > 0 with "
+                                              "frequency 0: divergence, with a frequency: flutter)"))
+    variables += _campbell_variables(cfg, result, coords, spans)
     dims_of = {"mean_tension": ((), "N"), "span_tension": (("belt_span", "end"), "N"),
                "hub_load": (("pulley", "component"), "N"), "pulley_center": (("pulley", "component"), "m"),
                "n_slack_events": ((), "1"), "arm_angle": (("pulley",), "rad"), "arm_torque": (("pulley",), "N m"),
-               "slip_margin": (("pulley",), "1")}
+               "slip_margin": (("pulley",), "1"), "belt_speed": ((), "m/s"), "driver_speed": ((), "rad/s")}
     for key, arr in result.extras.items():
         base = key.replace("_first_harmonic", "").replace("_half_range", "")
         if key in dims_of:
@@ -309,6 +381,42 @@ def sweep_group(cfg, result) -> GroupData:
     return GroupData(name="sweep", coords=coords, variables=tuple(variables),
                      attrs={"analysis": spec.analysis, "zip": int(spec.zip), "shape": json.dumps(list(spec.shape)),
                             "params": json.dumps(spec.to_json()["params"]), "n_failed": int(result.failed.sum())})
+
+
+def _campbell_variables(cfg, result, coords: dict, spans: list[str]) -> list:
+    """A speed sweep's resonance table (`running.campbell`): each crossing of a tracked mode with an
+    engine-order line of [running] orders on a `crossing` axis, and each loss of stability on an
+    `instability` axis (added to coords)."""
+    from .running import campbell, speed_axis
+
+    if not speed_axis(result):
+        return []
+    orders = cfg.running.orders if cfg.running is not None else ()
+    crossings, unstable = campbell(result, orders, spans)
+    coords["crossing"] = np.arange(1, len(crossings) + 1)
+    coords["instability"] = np.arange(1, len(unstable) + 1)
+    return [
+        Variable(name="crossing_order", data=np.array([x.order for x in crossings], dtype=float), dims=("crossing",),
+                 units="1", description="engine order k of the line f = k |Omega| / (2 pi) ([running] orders)"),
+        Variable(name="crossing_mode", data=np.array([x.mode + 1 for x in crossings], dtype=np.int64),
+                 dims=("crossing",), units="1", description="tracked mode (the sweep's mode axis, 1-based)"),
+        Variable(name="crossing_label", data=[x.label for x in crossings], dims=("crossing",), units="1"),
+        Variable(name="crossing_driver_speed", data=np.array([x.driver_speed for x in crossings], dtype=float),
+                 dims=("crossing",), units="rad/s", description="driver speed of the crossing (interpolated)"),
+        Variable(name="crossing_belt_speed", data=np.array([x.belt_speed for x in crossings], dtype=float),
+                 dims=("crossing",), units="m/s"),
+        Variable(name="crossing_frequency", data=np.array([x.frequency for x in crossings], dtype=float),
+                 dims=("crossing",), units="Hz"),
+        Variable(name="instability_kind", data=[x.kind for x in unstable], dims=("instability",), units="1",
+                 description="divergence (a frequency reaching zero: critical speed) or flutter"),
+        Variable(name="instability_mode", data=np.array([x.mode + 1 for x in unstable], dtype=np.int64),
+                 dims=("instability",), units="1"),
+        Variable(name="instability_label", data=[x.label for x in unstable], dims=("instability",), units="1"),
+        Variable(name="instability_driver_speed", data=np.array([x.driver_speed for x in unstable], dtype=float),
+                 dims=("instability",), units="rad/s", description="critical driver speed (interpolated)"),
+        Variable(name="instability_belt_speed", data=np.array([x.belt_speed for x in unstable], dtype=float),
+                 dims=("instability",), units="m/s", description="critical belt speed (interpolated)"),
+    ]
 
 
 def response_group(system, res) -> GroupData:
@@ -334,5 +442,6 @@ def response_group(system, res) -> GroupData:
         coord_units={"speed": "rad/s", "order": "1"},
         variables=tuple(variables),
         attrs={"prescribed": list(res.prescribed), "warnings": list(res.warnings),
-               "model": "linearized about the static equilibrium; transport terms of the running belt not included"},
+               "model": "linearized about the static equilibrium; the running belt's transport terms only at the "
+                        "speed of [running] (its running equilibrium), none without it"},
     )

@@ -30,6 +30,15 @@ round-off: 1e3 machine epsilons of the largest gross force |T^T f_e| + |K (q - q
 in the group, plus the round-off of the Green-Lagrange strain, which loses ~eps of EA per Gauss
 point whatever the force (noise = 100 eps EA sqrt(n_elem), and the linear bending force's share).
 
+The running belt (`Transport`, see `running`): the spans' transport terms, constant CSR matrices
+per unit speed on the joint coordinates scaled by the belt speed c(t) (constant, or the nominal
+speed of the prescribed rotation: c = theta_nominal' / u_rot) and its rate c'(t):
+    f_tr = c G v - c^2 (B q + b0) + c' (A q + a0),   G = A - A^T,
+added to the internal force f; in the iteration matrix c G joins C and -c^2 B + c' A joins K_t (S is
+then non-symmetric: band LU). Energy: the centripetal potential V_c = -c^2 (q.B q + 2 b0.q) / 2 joins
+the strain energy; G does no work; while the speed changes, the power the drive spends on the belt's
+transport, -c' (c (q.B q + 2 b0.q) + v.(A q + a0)), counts as work (trapezoid).
+
 Energy balance at the steps (never at interpolated outputs): at each step that ends at or after an
 output time, kinetic + strain (belt + linear components about q_ref) - work of the external forces
 and reactions (trapezoid of the power over each step) + dissipated (belt and constant damping) -
@@ -82,6 +91,10 @@ Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind
 State = namedtuple("State", ["q", "v", "a", "f0", "fd0", "F0", "R0", "scal"])
 Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n"])
 Events = namedtuple("Events", ["data", "n", "slack"])
+# the running belt's transport terms (module docstring): A, G = A - A^T, B (Csr, per unit speed) on the joint
+# coordinates, a0, b0 (n,); the belt speed c = speed (follow = 0) or the nominal speed of the prescribed
+# rotation (follow = 1: c = theta_nominal' * Forcing.nominal_scale)
+Transport = namedtuple("Transport", ["A", "G", "B", "a0", "b0", "speed", "follow"])
 # tensioner arms: q index of the angle, p index of the centre offset x (y: + 1), arm length, angle at q = 0,
 # dry friction torque, its bristle stiffness and anchor angle (state); n_q the independent coordinates (p[:n_q] = q)
 Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction", "bristle", "anchor", "n_q"])
@@ -92,9 +105,15 @@ ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry frict
 def no_arms(n: int) -> Arms:
     return Arms(dof=np.zeros(0, dtype=np.int64), slot=np.zeros(0, dtype=np.int64), length=np.zeros(0),
                 angle=np.zeros(0), friction=np.zeros(0), bristle=np.zeros(0), anchor=np.zeros(0), n_q=n)
+def no_transport(n: int) -> Transport:
+    """The belt at rest (no transport terms)."""
+    return Transport(A=empty_csr(n), G=empty_csr(n), B=empty_csr(n), a0=np.zeros(n), b0=np.zeros(n), speed=0.0,
+                     follow=0)
+
+
 # scal slots
-T_NOW, H, T_OUT, WORK, DISS, STEPS, E0, WORST, MOVED, KIN0, POT0, ITERS = range(12)
-N_SCAL = 12
+T_NOW, H, T_OUT, WORK, DISS, STEPS, E0, WORST, MOVED, KIN0, POT0, ITERS, TR_P0 = range(13)
+N_SCAL = 13  # TR_P0: the transport power at the last accepted step
 ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
 
 
@@ -293,6 +312,34 @@ def external_forces(F, cons, t, out, sig_val):
 
 
 @njit(cache=True)
+def transport_speed(tr, F, t):
+    """(c, c') the belt speed (m/s) and its rate at time t."""
+    if tr.follow:
+        st = rotation_state(F.nominal_rotation, t)
+        return st[1] * F.nominal_scale, st[2] * F.nominal_scale
+    return tr.speed, 0.0
+
+
+@njit(cache=True)
+def transport_forces(tr, c, cd, q, v, out, Bq, Aq):
+    """out (n,) = c G v - c^2 (B q + b0) + c' (A q + a0); Bq, Aq (n,) receive B q + b0 and A q + a0.
+    Returns (q.B q + 2 b0.q, v.(A q + a0)) for the energy and the transport power."""
+    n = q.shape[0]
+    csr_matvec(tr.B, q, Bq)
+    csr_matvec(tr.A, q, Aq)
+    csr_matvec(tr.G, v, out)
+    qbq = 0.0
+    vaq = 0.0
+    for i in range(n):
+        qbq += q[i] * (Bq[i] + 2.0 * tr.b0[i])  # q.B q + 2 b0.q
+        Bq[i] += tr.b0[i]
+        Aq[i] += tr.a0[i]
+        vaq += v[i] * Aq[i]
+        out[i] = c * out[i] - c * c * Bq[i] + cd * Aq[i]
+    return qbq, vaq
+
+
+@njit(cache=True)
 def potential_energy(belt, lin, q, q_ext, E, U, dq, Kdq):
     """Belt strain energy + 1/2 (q - q_ref)^T K_lin (q - q_ref)."""
     bk.gather(q_ext, belt.e0, belt.T, belt.idx, belt.tsel, E)
@@ -378,7 +425,7 @@ def slide_anchors(arms, q):
 
 
 @njit(cache=True)
-def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms):
+def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr):
     """Advance the state until t_stop, a full buffer, a refactorization request or the step budget.
 
     Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
@@ -441,6 +488,12 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
     worst_g = np.zeros(G, dtype=np.int64)
     R1 = np.zeros(max(n_con, 1))
     min_span = np.empty(max(belt.n_span, 1))
+    f_tr = np.zeros(n)
+    tr_Bq = np.empty(n)
+    tr_Aq = np.empty(n)
+    moving = tr.follow != 0 or tr.speed != 0.0
+    qbq = 0.0
+    p_tr = 0.0
     csr_matvec(lin.M, a, Ma0)
     csr_matvec(lin.C, v, Cv0)
     project(arms, q, Ma0, Ma0_q)
@@ -475,6 +528,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             a1[d] = gdd
         complete(arms, q1, v1, a1)
         external_forces(F, cons, t1, F1, sig_val)
+        c1, cd1 = transport_speed(tr, F, t1)
         converged = False
         prev = np.inf
         it = 0
@@ -492,9 +546,12 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             csr_matvec(lin.K, dq, Kd)
             csr_matvec(lin.M, a1, Ma)
             csr_matvec(lin.C, v1, Cv)
+            if moving:
+                qbq, vaq = transport_forces(tr, c1, cd1, q1, v1, f_tr, tr_Bq, tr_Aq)
+                p_tr = -cd1 * (c1 * qbq + vaq)
             for i in range(n):
-                fi[i] = f_el[i] + Kd[i] + f_dmp[i]
-                fl[i] = gross[i] + abs(Kd[i]) + abs(F.constant[i])
+                fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
+                fl[i] = gross[i] + abs(Kd[i]) + abs(F.constant[i]) + abs(f_tr[i])
             project(arms, q1, Ma, Ma_q)
             project(arms, q1, Cv, Cv_q)
             project(arms, q1, fi, fi_q)
@@ -586,6 +643,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             d = cons.dof[k]
             R1[k] = Ma_q[d] + Cv_q[d] + fi_q[d] - F1_q[d]
             p_ext += 0.5 * (R1[k] * v1[d] + state.R0[k] * v[d])
+        p_ext += 0.5 * (p_tr + th[TR_P0])  # the drive's work on the belt's transport while its speed changes
         W_old, D_old = th[WORK], th[DISS]
         th[WORK] = W_old + h * p_ext
         th[DISS] = D_old + h * p_dis - (bristle1 - bristle0)  # the bristles' stored part is not lost
@@ -594,7 +652,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
         pot = 0.0
         if n_pend > 0:  # energy at this step (exact, not interpolated)
             kin = kinetic_energy(lin, v1, tmp)
-            pot = potential_energy(belt, lin, q1, q_ext, E, U, tmp, tmp2) + bristle1
+            pot = potential_energy(belt, lin, q1, q_ext, E, U, tmp, tmp2) + bristle1 - 0.5 * c1 * c1 * qbq
             bal = kin + pot - th[WORK] + th[DISS] - th[E0]
             if abs(bal) > th[WORST]:
                 th[WORST] = abs(bal)
@@ -659,6 +717,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             F0_q[i] = F1_q[i]
         for k in range(n_con):
             state.R0[k] = R1[k]
+        th[TR_P0] = p_tr
         slide_anchors(arms, q)
         bristle0 = arm_friction(arms, q, tmp)  # after the return mapping (tmp: scratch)
         th[T_NOW] = t1

@@ -11,6 +11,21 @@ chord (longitudinal) and across it (transverse). Since M_e = M_s (x) I2, project
 vectors of a span on its unit direction t and normal n splits the span's kinetic energy exactly.
 The kind is the largest share ("mixed" when no share reaches 1/2); the order of a transverse mode is
 its half-wave count along the dominant span, of any other kind its rank within that kind.
+
+The running belt (`System.belt_speed` c != 0, see `running`): the gyroscopic eigenproblem
+(s^2 M + s G + K) phi = 0 with G = -G^T. Dense: with M = L L^T and L^-1 K L^-T = R^T R (pivoted
+Cholesky; positive semi-definite below the first critical speed, one zero for the belt turning with
+the pulleys), the real skew-symmetric matrix H = [[0, R], [-R^T, -L^-1 G L^-T]] has the eigenvalues
+s = +-i omega of the elastic modes exactly (s y = H y for y = (R xi, s xi), phi = L^-T xi); its
+lowest eigenpairs come from the symmetric H^T H (LAPACK syevd) and a small Hermitian Rayleigh-Ritz
+(`_gyroscopic_dense`), so the frequencies stay real and paired (the gyroscopic structure is kept).
+Above a critical speed the companion linearization is solved in full (LAPACK geev). Sparse:
+ARPACK in shift-invert mode on the companion linearization about a small negative real shift
+(one sparse LU of K + sigma G + sigma^2 M). Frequencies are Im s / 2 pi, shapes complex,
+normalized phi^H M phi = 1 with their largest entry real and positive. A real s > 0 is a divergent
+mode (frequency 0, growth rate s: the span buckles), a complex s with Re s > 0 flutter; classification
+uses the kinetic energy of Re phi and Im phi together and, for transverse modes, the number of humps of
+the envelope |w(x)| (a travelling wave has no fixed nodes).
 """
 
 from __future__ import annotations
@@ -42,6 +57,11 @@ class ModalResult:
     n_rigid: int
     rigid_frequency: np.ndarray  # (n_rigid,) Hz (numerically ~0)
     solver: str
+    # the running belt (belt_speed != 0): complex shapes (phi^H M phi = 1) and the eigenvalues' real parts
+    belt_speed: float = 0.0  # m/s
+    growth_rate: np.ndarray | None = None  # (n_modes,) 1/s, Re s (0 for a stable mode; > 0: divergence or flutter)
+    stability: tuple[str, ...] = ()  # per mode: "stable", "divergence" (s real > 0) or "flutter" (Re s > 0)
+    critical_speed: float = float("nan")  # m/s, the first critical (divergence) speed about this equilibrium
 
 
 def ordinal(n: int) -> str:
@@ -51,7 +71,10 @@ def ordinal(n: int) -> str:
 
 def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "auto") -> ModalResult:
     """The lowest `n_modes` elastic modes about the equilibrium q (tangent of the loaded residual:
-    with tensioner arms the loads' geometric term and the mass J^T M J at q)."""
+    with tensioner arms the loads' geometric term and the mass J^T M J at q); at a belt speed the
+    gyroscopic modes (module docstring)."""
+    if model.belt_speed:
+        return _solve_running(model, q, n_modes=n_modes, solver=solver)
     _, K = model.equilibrium(q)
     M = model.mass_matrix(q)
     n = model.n_dof
@@ -105,18 +128,7 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     rigid = np.abs(w) <= tol
     n_rigid = int(rigid.sum())
     if n_rigid > 1:  # beyond the belt turning with the pulleys: a mechanism (no stiffness somewhere)
-        # kinetic energy of the zero modes per model item (a span or a pulley): the largest is at fault
-        energy = (v[:, rigid] ** 2 * Mdiag[:, None]).sum(axis=1)
-        items = [" ".join(lab.split()[:2]) for lab in model.dof_labels]
-        totals: dict[str, float] = {}
-        for item, e in zip(items, energy):
-            totals[item] = totals.get(item, 0.0) + float(e)
-        worst = max(totals, key=totals.get)
-        dof = max((k for k in range(n) if items[k] == worst), key=lambda k: energy[k])
-        raise SolverError(
-            f"{n_rigid} zero-frequency modes: besides the belt turning with the pulleys the drive is a "
-            f"mechanism (no stiffness: slack belt without bending stiffness, or a free support)",
-            analysis="modal", item=f"{worst} ({model.dof_labels[dof]})")
+        _mechanism(model, v[:, rigid], Mdiag)
     w_el, v_el = w[~rigid][:n_modes], v[:, ~rigid][:, :n_modes]
     freq = np.sqrt(np.maximum(w_el, 0.0)) / (2 * np.pi)
     shapes = v_el.T.copy()
@@ -166,6 +178,205 @@ def _symmetric_shift_invert(M, lu, sigma: float, k: int) -> tuple[np.ndarray, np
     return lam, X
 
 
+def _mechanism(model: System, vecs: np.ndarray, Mdiag: np.ndarray) -> None:
+    """Raise the error of a drive with more than one zero-frequency mode, naming the model item (a span
+    or a pulley) with the largest kinetic energy in the zero modes vecs (n_dof, k)."""
+    n = model.n_dof
+    energy = (np.abs(vecs) ** 2 * Mdiag[:, None]).sum(axis=1)
+    items = [" ".join(lab.split()[:2]) for lab in model.dof_labels]
+    totals: dict[str, float] = {}
+    for item, e in zip(items, energy):
+        totals[item] = totals.get(item, 0.0) + float(e)
+    worst = max(totals, key=totals.get)
+    dof = max((k for k in range(n) if items[k] == worst), key=lambda k: energy[k])
+    raise SolverError(
+        f"{vecs.shape[1]} zero-frequency modes: besides the belt turning with the pulleys the drive is a "
+        f"mechanism (no stiffness: slack belt without bending stiffness, or a free support)",
+        analysis="modal", item=f"{worst} ({model.dof_labels[dof]})")
+
+
+# ------------------------------------------------------------------------------------ the running belt
+def _dense(A) -> np.ndarray:
+    return np.asarray(A.toarray() if hasattr(A, "toarray") else A, dtype=float)
+
+
+def _gyroscopic_dense(K, G, M, tol: float, n_want: int):
+    """Eigenvalues s (k,) and shapes (n, k) of (s^2 M + s G + K) phi = 0, dense (module docstring):
+    the lowest n_want elastic modes s = i omega and the zero modes (|s|^2 <= tol) while L^-1 K L^-T is
+    positive semi-definite, else every eigenvalue of the companion linearization. Returns
+    (s, phi, solver name).
+
+    Below the critical speed, with K~ = L^-1 K L^-T = R^T R (pivoted Cholesky, rank r) and G~ likewise,
+    H = [[0, R], [-R^T, -G~]] is real skew-symmetric: its eigenvalues are +-i omega, and those of the
+    symmetric H^T H = [[R R^T, R G~], [-G~ R^T, R^T R - G~^2]] are omega^2, each twice. The lowest
+    eigenpairs of H^T H (LAPACK syevr, real) span an invariant subspace Q of H, on which the small
+    Hermitian i Q^T H Q gives the eigenvalues and eigenvectors of H exactly (Rayleigh-Ritz on an
+    invariant subspace)."""
+    from scipy.linalg import cholesky, eig, eigh, solve_triangular
+    from scipy.linalg.lapack import dpstrf
+
+    Kd, Gd, Md = _dense(K), _dense(G), _dense(M)
+    n = Kd.shape[0]
+    try:
+        L = cholesky(Md, lower=True, check_finite=False)
+    except np.linalg.LinAlgError as exc:
+        raise SolverError(f"the mass matrix is not positive definite: {exc}", analysis="modal") from None
+
+    def congruent(A: np.ndarray) -> np.ndarray:  # L^-1 A L^-T
+        X = solve_triangular(L, A, lower=True, check_finite=False)
+        return solve_triangular(L, X.T, lower=True, check_finite=False).T
+
+    Kt = congruent(Kd)
+    Kt = 0.5 * (Kt + Kt.T)
+    Gt = congruent(Gd)
+    Gt = 0.5 * (Gt - Gt.T)
+    back = lambda X: solve_triangular(L, X, lower=True, trans="T", check_finite=False)  # noqa: E731  L^-T X
+    fac, piv, r, _ = dpstrf(Kt, lower=0, tol=tol)  # P^T K~ P = U^T U, U (r, n) upper trapezoidal
+    U = np.triu(fac[:r])
+    R = np.zeros((r, n))
+    R[:, piv - 1] = U
+    rest = piv[r:] - 1  # the pivots left: K~ is positive semi-definite iff their Schur complement vanishes
+    schur = Kt[np.ix_(rest, rest)] - R[:, rest].T @ R[:, rest]
+    if np.abs(schur).max(initial=0.0) <= 10.0 * tol and r > 0:
+        N = r + n
+        S = np.empty((N, N))
+        S[:r, :r] = R @ R.T
+        S[:r, r:] = R @ Gt
+        S[r:, :r] = S[:r, r:].T
+        S[r:, r:] = Kt - Gt @ Gt  # R^T R = K~ up to the vanishing Schur complement
+        m = min(r, n_want + 2)  # two more: a cut through a near-degenerate pair spoils only the discarded ones
+        try:
+            # all eigenpairs by divide and conquer: faster here than the subset driver (syevr) for ~40 of them
+            Q = eigh(S, driver="evd", check_finite=False, overwrite_a=True)[1][:, n - r: n - r + 2 * m]
+            HQ = np.empty((N, 2 * m))
+            HQ[:r] = R @ Q[r:]
+            HQ[r:] = -R.T @ Q[:r] - Gt @ Q[r:]
+            mu, W = eigh(1j * (Q.T @ HQ), driver="evd", check_finite=False)
+        except np.linalg.LinAlgError as exc:
+            raise SolverError(f"dense gyroscopic eigen-solver failed: {exc}", analysis="modal") from None
+        # i H z = mu z: H z = -i mu z; the conjugate is the eigenvector of s = +i mu, with y = (R xi, s xi)
+        mu, W = mu[m:], W[:, m:]
+        xi = np.conj(Q[r:] @ W)
+        null = np.zeros((n, n - r))  # K~'s null directions (the belt turning with the pulleys): R x = 0
+        y = np.eye(n - r)
+        null[piv[r:] - 1] = y
+        null[piv[:r] - 1] = -solve_triangular(U[:, :r], U[:, r:], check_finite=False) @ y
+        s = np.concatenate([np.zeros(n - r, dtype=complex), 1j * mu])
+        return s, back(np.concatenate([null.astype(complex), xi], axis=1)), "dense gyroscopic"
+    A = np.zeros((2 * n, 2 * n))
+    A[:n, n:] = np.eye(n)
+    A[n:, :n] = -Kt
+    A[n:, n:] = -Gt
+    try:
+        s, Z = eig(A, check_finite=False)
+    except np.linalg.LinAlgError as exc:
+        raise SolverError(f"dense eigen-solver failed: {exc}", analysis="modal") from None
+    return s, back(Z[:n]), "dense companion"
+
+
+def _gyroscopic_sparse(K, G, M, tol: float, n_want: int):
+    """As `_gyroscopic_dense` by ARPACK: shift-invert about sigma < 0 on the companion linearization
+    z = (x, s x): (A - sigma B)^-1 B with one sparse LU of P = K + sigma G + sigma^2 M."""
+    from scipy.sparse import csc_matrix, csr_matrix
+    from scipy.sparse.linalg import LinearOperator, eigs, splu
+
+    Ks, Gs, Ms = csr_matrix(K), csr_matrix(G), csr_matrix(M)
+    n = Ks.shape[0]
+    sigma = -np.sqrt(max(tol, 1e-12)) * 10.0 - 1.0
+    try:
+        lu = splu(csc_matrix(Ks + sigma * Gs + sigma * sigma * Ms))
+    except RuntimeError as exc:
+        raise SolverError(f"sparse shift-invert eigen-solver failed: {exc}", analysis="modal") from None
+    GsM = (Gs + sigma * Ms).tocsr()
+
+    def op(v: np.ndarray) -> np.ndarray:
+        v1, v2 = v[:n], v[n:]
+        x = -lu.solve(Ms @ v2 + GsM @ v1)
+        return np.concatenate([x, v1 + sigma * x])
+
+    k = min(2 * n - 2, 2 * n_want + 4)
+    try:
+        nu, Z = eigs(LinearOperator((2 * n, 2 * n), matvec=op, dtype=float), k=k, which="LM", tol=1e-12)
+    except Exception as exc:  # ArpackNoConvergence and friends
+        raise SolverError(f"sparse gyroscopic eigen-solver failed: {exc}", analysis="modal") from None
+    return sigma + 1.0 / nu, Z[:n], "sparse gyroscopic"
+
+
+def _normalized(phi: np.ndarray, M) -> np.ndarray:
+    """Shapes (n, k) scaled to phi^H M phi = 1 with their largest entry real and positive."""
+    Mphi = np.asarray(M @ phi)
+    norm = np.sqrt(np.real(np.einsum("ik,ik->k", np.conj(phi), Mphi)))
+    phi = phi / np.where(norm > 0, norm, 1.0)
+    big = phi[np.argmax(np.abs(phi), axis=0), np.arange(phi.shape[1])]
+    return phi * (np.conj(big) / np.where(np.abs(big) > 0, np.abs(big), 1.0))
+
+
+def _solve_running(model: System, q: np.ndarray, *, n_modes: int, solver: str) -> ModalResult:
+    """`solve_modes` of the running belt: the gyroscopic eigenproblem about q (module docstring)."""
+    _, K = model.equilibrium(q)
+    M = model.mass_matrix(q)
+    G = model.gyroscopic_matrix(q)
+    n = model.n_dof
+    use_dense = model.dense if solver == "auto" else solver == "dense"
+    Kdiag = np.asarray(K.diagonal() if hasattr(K, "toarray") else np.diag(K))
+    Mdiag = np.asarray(M.diagonal() if hasattr(M, "toarray") else np.diag(M))
+    lam_max = float(np.max(np.abs(Kdiag) / Mdiag))
+    tol = max((2 * np.pi * 1e-4) ** 2, 1000 * np.finfo(float).eps * lam_max)  # on |s|^2, as at rest
+    n_want = min(n - 1, n_modes)
+    s, phi, name = (_gyroscopic_dense if use_dense else _gyroscopic_sparse)(K, G, M, tol, n_want)
+    size = np.abs(s)
+    rigid = size ** 2 <= tol
+    eps = 1e-7 * size + np.sqrt(tol) * 1e-3  # |Re s| and |Im s| below this are round-off
+    oscillating = ~rigid & (s.imag > eps) & (s.real >= -eps)  # one of each conjugate pair; flutter's growing one
+    diverging = ~rigid & (np.abs(s.imag) <= eps) & (s.real > eps)  # one of each +-s pair
+    pick = np.flatnonzero(oscillating | diverging)
+    order = np.lexsort((np.abs(s[pick].imag), ~diverging[pick]))  # divergent modes first, then by frequency
+    pick = pick[order][:n_modes]
+    # the companion linearization has two zero eigenvalues (a Jordan chain) per rigid mode, i H one
+    n_rigid = int(rigid.sum()) if name == "dense gyroscopic" else (int(rigid.sum()) + 1) // 2
+    if n_rigid > 1:
+        _mechanism(model, phi[:, rigid], Mdiag)
+    shapes = _normalized(phi[:, pick], M).T.copy()
+    sel = s[pick]
+    freq = np.where(diverging[pick], 0.0, np.abs(sel.imag)) / (2 * np.pi)
+    growth = np.where(np.abs(sel.real) > eps[pick], sel.real, 0.0)
+    stability = tuple("divergence" if d else ("flutter" if g > 0 else "stable")
+                      for d, g in zip(diverging[pick], growth))
+    belt = model.belt
+    motion = belt.element_coordinates_batch(model.expand_motion(q, shapes), offset=False)
+    kind, order_, span, label, share, sshare = classify(model, shapes, freq, q, motion=motion)
+    label = tuple(lab if st == "stable" else f"{lab} ({st})" for lab, st in zip(label, stability))
+    mid = belt.midspan_displacement_linear(belt.element_coordinates(model.expand(q)), motion)
+    critical = critical_speed(model, q) if any(st != "stable" for st in stability) else float("nan")
+    return ModalResult(
+        frequency=freq, shapes=shapes, kind=kind, order=order_, span=span, label=label, energy_share=share,
+        span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid,
+        rigid_frequency=np.sort(size[rigid])[:n_rigid] / (2 * np.pi), solver=name,
+        belt_speed=float(model.belt_speed), growth_rate=growth, stability=stability, critical_speed=critical)
+
+
+def critical_speed(model: System, q: np.ndarray) -> float:
+    """The first critical belt speed (m/s) about the state q: the smallest c with K_0 - c^2 B singular
+    besides the belt's rigid turn, K_0 the loaded tangent without the centripetal stiffness, B its
+    matrix per unit speed squared (both on q). The tensions are those of q (frozen); inf if none."""
+    from scipy.linalg import eigh, null_space
+
+    c = model.belt_speed
+    B = _dense(model.project_matrix(q, model.transport_matrices()[1]))
+    _, K = model.equilibrium(q)
+    K0 = _dense(K) + c * c * B
+    M = _dense(model.mass_matrix(q))
+    w, v = eigh(K0, M, driver="gvd", check_finite=False)
+    lam_max = float(np.max(np.abs(np.diag(K0)) / np.diag(M)))
+    tol = max((2 * np.pi * 1e-4) ** 2, 1000 * np.finfo(float).eps * lam_max)
+    Z = null_space((M @ v[:, np.abs(w) <= tol]).T)  # the complement of the rigid turn
+    if w[0] < -tol:
+        return 0.0  # unstable at rest
+    nu = eigh(Z.T @ B @ Z, Z.T @ K0 @ Z, eigvals_only=True, check_finite=False)
+    top = float(nu.max(initial=0.0))
+    return float(1.0 / np.sqrt(top)) if top > 0 else float("inf")
+
+
 def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None, *, motion=None
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Kinetic-energy shares of mass-normalized shapes (n_modes, n_dof), from the system's components.
@@ -173,7 +384,14 @@ def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None
     Returns shares (n_modes, len(KINDS)), span_long (n_modes, n_span), span_trans (n_modes, n_span)
     (all divided by the total) and the transverse nodal motion (n_modes, n_elem, 4).
     """
-    kinds, span_long, span_trans, b = model.kinetic_energy_shares(shapes, q, motion=motion)
+    if np.iscomplexobj(shapes):  # the energy of Re phi and Im phi together (phi^H M phi), in one call
+        k = shapes.shape[0]
+        parts = model.kinetic_energy_shares(np.concatenate([shapes.real, shapes.imag]), q,
+                                            motion=None if motion is None else np.concatenate([motion.real, motion.imag]))
+        kinds, span_long, span_trans = (x[:k] + x[k:] for x in parts[:3])
+        b = parts[3][:k] + 1j * parts[3][k:]
+    else:
+        kinds, span_long, span_trans, b = model.kinetic_energy_shares(shapes, q, motion=motion)
     total = kinds.sum(axis=1, keepdims=True)
     total[total == 0] = 1.0
     return kinds / total, span_long / total, span_trans / total, b
@@ -191,7 +409,23 @@ def _parts(shares: np.ndarray, span_long: np.ndarray, span_trans: np.ndarray, la
 
 
 def half_waves(w: np.ndarray, threshold: float = 0.05) -> int:
-    """Half-wave count of a sampled transverse displacement: sign changes between significant samples + 1."""
+    """Half-wave count of a sampled transverse displacement: sign changes between significant samples + 1.
+    A complex (travelling) shape: the humps of its envelope |w|, i.e. 1 + the interior minima of |w| that
+    dip below half of the smaller neighbouring maximum."""
+    if np.iscomplexobj(w):
+        env = np.abs(w)
+        floor = threshold * env.max()
+        slope = np.sign(np.diff(env))
+        turns = env[np.concatenate(([0], np.flatnonzero(slope[1:] != slope[:-1]) + 1, [len(env) - 1]))]  # extrema
+        humps, top, low = 1, turns[0], turns[0]  # the current hump's maximum and the lowest value after it
+        for x in turns[1:]:
+            if low < 0.5 * top and x > 2.0 * low and x > floor:  # a rise after a deep dip: a new hump
+                humps, top, low = humps + 1, x, x
+            elif x > top and low >= 0.5 * top:  # still climbing the same hump
+                top = low = x
+            else:
+                low = min(low, x)
+        return humps
     big = np.abs(w) > threshold * np.abs(w).max()
     s = np.sign(w[big])
     return int(np.count_nonzero(s[1:] != s[:-1])) + 1

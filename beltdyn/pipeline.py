@@ -46,9 +46,11 @@ class Analysis:
 
 
 def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_modes: int | None = None,
-            layout: Layout | None = None, compiled: bool = False) -> Analysis:
+            layout: Layout | None = None, compiled: bool = False, belt_speed: float | None = None) -> Analysis:
     """Geometry, system, and the static equilibrium (on the solved geometry) and modes if asked for
-    (modal implies static). `layout`: the L0 fit, if already computed.
+    (modal implies static). `layout`: the L0 fit, if already computed. belt_speed (m/s): the running
+    belt's speed instead of [running]'s (`running.belt_speed_of`); the static equilibrium is then the
+    running one and the modes the gyroscopic ones.
 
     compiled: belt forces by the compiled kernel, for a process that evaluates them many times (a
     sweep, a transient follows); the numpy reference otherwise, which spares numba's ~0.3 s start-up
@@ -56,7 +58,7 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
     from .system import build_system
 
     def build(lay: Layout, stretch=None, spring_free=None) -> "System":
-        system = build_system(cfg, lay, prestrain_stretch=stretch, spring_free=spring_free)
+        system = build_system(cfg, lay, prestrain_stretch=stretch, spring_free=spring_free, belt_speed=belt_speed)
         return system.with_belt(compiled=True) if compiled else system
 
     from .system import check_model_size
@@ -86,19 +88,41 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
     return out
 
 
+def initial_belt_speed(system: "System", opts) -> float:
+    """The belt speed (m/s) a transient starts at: its prescribed rotation's nominal speed at t = 0
+    (0 with a speed ramp; the rotation's speed over the pulley's belt-travel factor u_rot otherwise),
+    or without a prescribed speed the system's constant belt speed ([running]); 0 without the transport
+    terms (transient.transport = false)."""
+    if not opts.transport:
+        return 0.0
+    for r in opts.rotation:
+        if r.speed != 0.0:
+            if r.ramp_time > 0.0:
+                return 0.0
+            from .transient import belt_travel
+
+            return float(r.speed / belt_travel(system)[system.rot_dof[system.pulley_index(r.pulley)]])
+    return float(system.belt_speed)
+
+
 def transient_start(run: Analysis):
     """(system, static result) the transient starts from. transient.start = "static": the solved
-    drive (laid out at the solved positions). "rest": the stress-free reference, so the drive on the
-    L0 fit (q = 0 there is stress-free; the re-laid system's q = 0 carries the tension) with its own
-    static solution for the spring preloads."""
+    drive (laid out at the solved positions) at the belt speed the run starts with
+    (`initial_belt_speed`: the running equilibrium, solved again if [running] asked for another speed).
+    "rest": the stress-free reference, so the drive on the L0 fit (q = 0 there is stress-free; the
+    re-laid system's q = 0 carries the tension) with its own static solution for the spring preloads."""
     cfg = run.config
+    speed = initial_belt_speed(run.system, cfg.transient) if cfg.transient is not None else run.system.belt_speed
     if cfg.transient is not None and cfg.transient.start == "rest" and run.fit_layout is not None \
             and run.fit_layout is not run.layout:
         from .static import solve_static
         from .system import build_system
 
-        system = build_system(cfg, run.fit_layout)
+        system = build_system(cfg, run.fit_layout, belt_speed=speed)
         return system, solve_static(system, cfg.static)
+    if speed != run.system.belt_speed:
+        again = analyse(cfg, layout=run.fit_layout, belt_speed=speed)
+        return again.system, again.static
     return run.system, run.static
 
 

@@ -26,10 +26,14 @@ directions Re X and Im X (the velocities i omega X and accelerations -omega^2 X 
 span tension, hub load, bearing force or mid-span displacement means here exactly what it means in
 /transient; amplitudes |Y| and phases arg Y (y(t) = |Y| cos(omega t + arg Y)).
 
+The running belt: with response.transport (default) the drive is linearized at each speed about its
+running equilibrium at the belt speed c = speed x R_driver (`running.linearized_matrices`: the
+gyroscopic G joins C, K holds the centripetal -c^2 B; the hub loads carry the momentum flux), one
+static solve per speed; transport = false linearizes once about the equilibrium of [running] (or at
+rest), the travelling frame of the transient's transport = false.
+
 Left out, and why: the arms' dry friction (not linear: a sticking damper is a spring, a sliding one a
-constant torque; the transient models it); the running belt's transport terms (gyroscopic and
-centripetal) until the running-belt model provides them at the belt speed Omega R_driver (until then
-the response is that of the drive at rest excited at k Omega, as the transient's travelling frame).
+constant torque; the transient models it).
 """
 
 from __future__ import annotations
@@ -73,27 +77,12 @@ class LinearDrive:
 
 
 def linearize(system: System, static: StaticResult, damping: Damping) -> LinearDrive:
-    """M, C, K of the drive about its static equilibrium (see the module docstring)."""
-    q0 = static.q
-    _, K = system.equilibrium(q0)
-    M = system.mass_matrix(q0)
-    C_p = system.linear_damping
-    if damping.rayleigh_mass or damping.rayleigh_stiffness:
-        ray = damping.rayleigh_mass * system.mass + damping.rayleigh_stiffness * system.tangent_on_joints(q0)
-        C_p = ray if C_p is None else C_p + ray
-    if damping.belt_axial or damping.belt_bending:
-        from . import belt_kernel as bk
+    """M, C, K of the drive about its static equilibrium (see the module docstring;
+    `running.linearized_matrices`, whose gyroscopic G is zero at rest)."""
+    from .running import linearized_matrices
 
-        belt = system.belt
-        tab = belt.kernel_tables
-        E = belt.element_coordinates(system.expand(q0))
-        Ce = np.empty((E.shape[0], 8, 8))
-        bk.element_damping_matrix(E, tab.dS, tab.d2S, tab.wEA, tab.wEI, tab.Kb, tab.curvature,
-                                  float(damping.belt_axial), float(damping.belt_bending), Ce)
-        Cb = system.assemble(belt.reduce_blocks(Ce), linear=False)
-        C_p = Cb if C_p is None else C_p + Cb
-    C = system.project_matrix(q0, C_p) if C_p is not None else 0.0 * M
-    return LinearDrive(M=M, C=C, K=K, q0=q0)
+    lin = linearized_matrices(system, static.q, damping)
+    return LinearDrive(M=lin.M, C=lin.C + lin.G if system.belt_speed else lin.C, K=lin.K, q0=lin.q0)
 
 
 def excitation_sets(system: System, opts: ResponseOptions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -172,8 +161,11 @@ def _outputs_of(system: System, q0: np.ndarray, q: np.ndarray, v: np.ndarray, a:
     E = belt.element_coordinates_batch(p)
     Ed = belt.element_coordinates_batch(vp, offset=False)
     F = belt.end_forces(E, Ed, system.gravity)
+    H = F + belt.end_inertia(belt.element_coordinates_batch(ap, offset=False))
+    if system.belt_speed:  # the running belt's momentum flux at the span ends (as /transient's hub loads)
+        H = H + belt.transport_end_forces(E, Ed, system.belt_speed)
     out = {"span_tension": belt.end_tensions(E, F),
-           "hub_load": system.hub_loads(F + belt.end_inertia(belt.element_coordinates_batch(ap, offset=False))),
+           "hub_load": system.hub_loads(H),
            "pulley_angle": q[:, system.rot_dof], "pulley_speed": v[:, system.rot_dof],
            "midspan_displacement": belt.midspan_displacement(E)}
     if system.arms is not None:
@@ -214,11 +206,18 @@ def linear_outputs(system: System, lin: LinearDrive, X: np.ndarray, omega: np.nd
     return out
 
 
-def solve_response(system: System, static: StaticResult, opts: ResponseOptions) -> ResponseResult:
-    """The steady forced response over opts.speed x opts.orders (see the module docstring)."""
+def speeds_of(opts: ResponseOptions) -> np.ndarray:
+    """(points,) the driver's mean speeds of the response, rad/s."""
+    return np.linspace(opts.speed[0], opts.speed[1], opts.points)
+
+
+def solve_response(system: System, static: StaticResult, opts: ResponseOptions,
+                   speed: np.ndarray | None = None) -> ResponseResult:
+    """The steady forced response over the speeds (default `speeds_of(opts)`) x opts.orders, all about
+    the one equilibrium `static` of `system` (see the module docstring)."""
     lin = linearize(system, static, opts.damping)
     presc, B, tau = excitation_sets(system, opts)
-    speed = np.linspace(opts.speed[0], opts.speed[1], opts.points)
+    speed = speeds_of(opts) if speed is None else np.asarray(speed, dtype=float)
     orders = np.asarray(opts.orders, dtype=float)
     omega = (speed[:, None] * orders[None, :]).ravel()  # (S * O,)
     o_idx = np.tile(np.arange(len(orders)), len(speed))
@@ -241,7 +240,9 @@ def solve_response(system: System, static: StaticResult, opts: ResponseOptions) 
                         "(give [response.damping])")
     if system.arms is not None and system.arms.friction is not None and np.any(system.arms.friction):
         warnings.append("the tensioner arms' dry friction is not in the linear response (the transient models it)")
-    R_d = float(lay.radius[system.driver])
+    from .running import travel_sense
+
+    R_d = float(lay.radius[system.driver]) * travel_sense(lay, system.driver)
     names = tuple(lay.names[j] for j in range(lay.n) if int(system.rot_dof[j]) in set(presc.tolist()))
     return ResponseResult(speed=speed, orders=orders, frequency=(speed[:, None] * orders[None, :]) / (2 * np.pi),
                           belt_speed=speed * R_d, outputs=outputs, dims=dims, units=units, prescribed=names,
@@ -278,9 +279,33 @@ def coordinates(system: System) -> dict:
 
 
 def response_of(cfg: DriveConfig, run) -> ResponseResult:
-    """The response of an analysed drive (`pipeline.analyse`) to cfg.response."""
-    assert cfg.response is not None
-    system = run.system
-    if cfg.response.damping.belt_axial or cfg.response.damping.belt_bending:
-        system = system.with_belt_damping(cfg.response.damping.belt_axial, cfg.response.damping.belt_bending)
-    return solve_response(system, run.static, cfg.response)
+    """The response of an analysed drive (`pipeline.analyse`) to cfg.response: with response.transport
+    (default) linearized at each speed about the running equilibrium at the belt speed
+    speed x R_driver (one static solve per speed, warm from the L0 fit), else once about `run`."""
+    from dataclasses import replace
+
+    opts = cfg.response
+    assert opts is not None
+    d = opts.damping
+
+    def damped(system: System) -> System:
+        return system.with_belt_damping(d.belt_axial, d.belt_bending) if (d.belt_axial or d.belt_bending) else system
+
+    if not opts.transport:
+        return solve_response(damped(run.system), run.static, opts)
+    from .pipeline import analyse
+    from .running import travel_sense
+
+    lay = run.fit_layout if run.fit_layout is not None else run.layout
+    driver = cfg.driver_index
+    per_metre = float(lay.radius[driver]) * travel_sense(lay, driver)
+    parts = []
+    for omega in speeds_of(opts):
+        at = analyse(cfg, belt_speed=float(omega) * per_metre, layout=lay)
+        parts.append(solve_response(damped(at.system), at.static, opts, np.array([omega])))
+    first = parts[0]
+    outputs = {k: np.concatenate([p.outputs[k] for p in parts]) for k in first.outputs}
+    warnings = tuple(dict.fromkeys(w for p in parts for w in p.warnings))
+    return replace(first, speed=np.concatenate([p.speed for p in parts]),
+                   frequency=np.concatenate([p.frequency for p in parts]),
+                   belt_speed=np.concatenate([p.belt_speed for p in parts]), outputs=outputs, warnings=warnings)

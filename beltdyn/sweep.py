@@ -265,9 +265,15 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
             out["arm_torque"] = st.arm_torque
         if st.slip_margin is not None and not np.all(np.isnan(st.slip_margin)):
             out["slip_margin"] = st.slip_margin
+        if model.belt_speed or cfg.running is not None:  # the running belt's speeds (a Campbell diagram)
+            from .running import driver_speed_of
+
+            out["belt_speed"] = float(model.belt_speed)
+            out["driver_speed"] = driver_speed_of(model.belt_speed, model.layout, model.driver)
         if analysis == "modal":
             md = run.modal
             out["frequency"] = md.frequency
+            out["growth_rate"] = md.growth_rate if md.growth_rate is not None else np.zeros(len(md.frequency))
             out["shapes"] = md.shapes
             out["mshapes"] = np.asarray((model.mass_matrix(st.q) @ md.shapes.T).T)
             out["kind"] = np.array(md.kind)
@@ -845,9 +851,10 @@ class SweepResult:
     label: np.ndarray | None  # (n_track,) labels at the first case
     mac: np.ndarray | None  # (n_cases, n_track) MAC with the parent's tracked mode (1 for the root)
     extras: dict[str, np.ndarray]  # per-case static / transient quantities (n_cases, ...)
+    growth_rate: np.ndarray | None = None  # (n_cases, n_track) 1/s, tracked (> 0: divergence or flutter)
 
 
-_MODAL_KEYS = ("frequency", "shapes", "mshapes", "kind", "order", "span", "label")
+_MODAL_KEYS = ("frequency", "growth_rate", "shapes", "mshapes", "kind", "order", "span", "label")
 _NOT_EXTRA = ("failed", "error", "wall_time", *_MODAL_KEYS)
 
 
@@ -880,6 +887,7 @@ class Assembly:
         if self.modal:
             k = spec.n_modes
             self.frequency = np.full((n, k), np.nan)
+            self.growth = np.full((n, k), np.nan)
             self.kind = np.full((n, k), "", dtype=object)
             self.order = np.zeros((n, k), dtype=np.int64)
             self.span = np.zeros((n, k), dtype=np.int64)
@@ -950,9 +958,11 @@ class Assembly:
                 prev = cp["sel"]
                 alive = np.flatnonzero(prev >= 0)
                 if cp["shapes"].shape[1] == c["shapes"].shape[1]:
-                    # MAC_ij = (phi_p^T M_c phi_c)(phi_c^T M_p phi_p): the usual MAC when the mass
-                    # matrices are equal, and insensitive to a change of mass scale between the cases
-                    M = np.abs((cp["shapes"][prev[alive]] @ c["mshapes"].T) * (cp["mshapes"][prev[alive]] @ c["shapes"].T))
+                    # MAC_ij = |(phi_p^H M_c phi_c)(phi_c^H M_p phi_p)|: the usual MAC when the mass
+                    # matrices are equal, insensitive to a change of mass scale between the cases, and to
+                    # the phase of complex (running-belt) shapes
+                    M = np.abs((np.conj(cp["shapes"][prev[alive]]) @ c["mshapes"].T)
+                               * (cp["mshapes"][prev[alive]] @ np.conj(c["shapes"]).T))
                 else:  # different meshes: match by classification, then frequency
                     M = np.zeros((len(alive), m))
                     for a, j in enumerate(prev[alive]):
@@ -969,6 +979,8 @@ class Assembly:
                         macs[alive[r]] = M[r, col]
             ok = sel >= 0
             self.frequency[i, ok] = c["frequency"][sel[ok]]
+            if "growth_rate" in c:
+                self.growth[i, ok] = c["growth_rate"][sel[ok]]
             self.kind[i, ok] = c["kind"][sel[ok]]
             self.kind[i, ~ok] = "lost"
             self.order[i, ok] = c["order"][sel[ok]]
@@ -1004,7 +1016,7 @@ class Assembly:
                            frequency=self.frequency if modal else None, kind=self.kind if modal else None,
                            order=self.order if modal else None, span=self.span if modal else None,
                            label=label if modal else None, mac=self.mac if modal else None,
-                           extras=self.extras or {})
+                           extras=self.extras or {}, growth_rate=self.growth if modal else None)
 
 
 def assemble(spec: SweepSpec, journal: Journal, assembly: Assembly | None = None) -> SweepResult:

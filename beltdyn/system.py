@@ -422,6 +422,43 @@ class BeltSpans:
             F = F + fd.reshape(B, len(ends), 8)
         return np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2)
 
+    # -------------------------------------------------------------------- the running belt (transport)
+    def transport_blocks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The axial-transport terms of the running belt (`ancf.transport_matrices`) on the joint
+        coordinates: blocks T^T A_e T and T^T B_e T (n_elem, m, m), and the reduced vectors
+        a0 = sum_e T^T A_e e0 and b0 = sum_e T^T B_e e0 (n_dof,), so that sum_e T^T A_e e = A p + a0 and
+        sum_e T^T B_e e = B p + b0 for e = e0 + T p. Per unit speed; cached."""
+        got = self.__dict__.get("_transport")
+        if got is None:
+            A_e, B_e = ancf.transport_matrices(self.elements)
+            got = (self.reduce_blocks(A_e), self.reduce_blocks(B_e),
+                   self.reduce_vector(np.matmul(A_e, self.e0[:, :, None])[:, :, 0]),
+                   self.reduce_vector(np.matmul(B_e, self.e0[:, :, None])[:, :, 0]))
+            object.__setattr__(self, "_transport", got)
+            object.__setattr__(self, "_transport_e", (A_e, B_e))
+        return got
+
+    def transport_end_forces(self, E: np.ndarray, Ed: np.ndarray | None, speed, acceleration=0.0) -> np.ndarray:
+        """(B, n_span, 2 ends, 2) the transport forces of the end elements on the span-end nodes for element
+        states E, Ed (B, n_elem, 8) at the belt speed c (m/s) and its rate c' (m/s^2), each a number or one
+        per state (B,): c (A_e - A_e^T) e' - c^2 B_e e + c' A_e e (rows of the end nodes' positions). With
+        the elastic forces (`end_forces`) and the inertia (`end_inertia`) they make the force the pulley
+        holds the node with: the running belt's momentum flux, which lowers the hub loads by
+        rho c^2 lambda per span end."""
+        self.transport_blocks()
+        A_e, B_e = self.__dict__["_transport_e"]
+        c = np.broadcast_to(np.asarray(speed, dtype=float), (E.shape[0],))[:, None, None]
+        cd = np.broadcast_to(np.asarray(acceleration, dtype=float), (E.shape[0],))[:, None, None]
+        out = []
+        for els, rows in ((self.first, slice(0, 2)), (self.last, slice(4, 6))):
+            A, B = A_e[els][:, rows], B_e[els][:, rows]
+            f = -c * c * np.einsum("eij,bej->bei", B, E[:, els]) + cd * np.einsum("eij,bej->bei", A, E[:, els])
+            if Ed is not None:
+                G = A - A_e[els].transpose(0, 2, 1)[:, rows]
+                f += c * np.einsum("eij,bej->bei", G, Ed[:, els])
+            out.append(f)
+        return np.stack(out, axis=2)
+
     def end_inertia(self, Ea: np.ndarray) -> np.ndarray:
         """(B, n_span, 2, 2) inertia forces M_e a_e of the end elements on the span-end nodes."""
         m = self.elements.mass
@@ -679,6 +716,7 @@ class System:
     loads: np.ndarray | None = None  # (n_p,) constant applied forces of the static load case (accessory torques)
     arms: ArmJoints | None = None  # tensioner arms: p = P(q); None: p = q
     pulley_friction: np.ndarray | None = None  # (n_pulley,) belt-pulley friction coefficient, NaN if not given
+    belt_speed: float = 0.0  # m/s, the running belt's transport speed c (`running`); 0: the drive at rest
 
     # The belt, the components, mass, pattern, gravity_force, loads and the linear matrices live on the
     # joint coordinates p (n_p); the analyses see the independent q (n_dof). Without arms p = q.
@@ -733,9 +771,10 @@ class System:
 
     def with_components(self, *extra: LinearComponent) -> "System":
         """A system with more components (matrices and pattern rebuilt)."""
-        return _assemble(self.layout, self.dofs, self.belt, self.components + tuple(extra), pulley_names=self.pulley_names,
-                         driver=self.driver, tension=self.tension, gravity=self.gravity, dense=self.dense,
-                         loads=self.loads, arms=self.arms, friction=self.pulley_friction)
+        out = _assemble(self.layout, self.dofs, self.belt, self.components + tuple(extra), pulley_names=self.pulley_names,
+                        driver=self.driver, tension=self.tension, gravity=self.gravity, dense=self.dense,
+                        loads=self.loads, arms=self.arms, friction=self.pulley_friction)
+        return out.with_speed(self.belt_speed) if self.belt_speed else out
 
     def with_belt(self, **changes) -> "System":
         """The same system with belt fields changed (e.g. damping_axial, compiled)."""
@@ -744,6 +783,43 @@ class System:
 
     def with_belt_damping(self, axial: float, bending: float) -> "System":
         return self.with_belt(damping_axial=float(axial), damping_bending=float(bending))
+
+    def with_speed(self, belt_speed: float) -> "System":
+        """The same drive with its belt running at belt_speed (m/s; see `running`)."""
+        return System(**{**{k: v for k, v in self.__dict__.items() if not k.startswith("_")},
+                         "belt_speed": float(belt_speed)})
+
+    # -------------------------------------------------------------------- the running belt
+    def transport_matrices(self):
+        """(A, B, a0, b0) of the running belt per unit speed on the joint coordinates (dense (n_p, n_p) or
+        CSR; `BeltSpans.transport_blocks`): the gyroscopic matrix is c (A - A^T), the centripetal stiffness
+        -c^2 B, the centripetal force -c^2 (B p + b0). Cached."""
+        got = self.__dict__.get("_transport")
+        if got is None:
+            Ab, Bb, a0, b0 = self.belt.transport_blocks()
+            got = (self.assemble(Ab, linear=False), self.assemble(Bb, linear=False), a0, b0)
+            object.__setattr__(self, "_transport", got)
+        return got
+
+    def centripetal_force(self, p: np.ndarray) -> np.ndarray:
+        """-c^2 (B p + b0) (n_p,) at the joint coordinates p: the running belt's centripetal term of the
+        internal force, the gradient of the centripetal potential V = -c^2/2 sum_e e^T B_e e (the force on
+        the belt is its negative, outward along the spans' ends: the momentum flux)."""
+        belt = self.belt
+        belt.transport_blocks()
+        B_e = belt.__dict__["_transport_e"][1]
+        e = belt.element_coordinates(p)
+        return -(self.belt_speed * self.belt_speed) * belt.reduce_vector(np.matmul(B_e, e[:, :, None])[:, :, 0])
+
+    def _running_blocks(self, blocks: np.ndarray) -> np.ndarray:
+        """The element tangent blocks (n_elem, m, m) with the centripetal stiffness -c^2 T^T B_e T added."""
+        return blocks - (self.belt_speed * self.belt_speed) * self.belt.transport_blocks()[1]
+
+    def gyroscopic_matrix(self, q: np.ndarray | None = None):
+        """The gyroscopic matrix G = J^T c (A - A^T) J on q at the state q (skew-symmetric; zeros at rest)."""
+        A = self.transport_matrices()[0]
+        G = self.belt_speed * (A - A.T)
+        return self.project_matrix(np.zeros(self.n_dof) if q is None else q, G)
 
     # -------------------------------------------------------------------- assembly
     def assemble(self, blocks: np.ndarray, *, linear: bool = True, diagonal: np.ndarray | None = None):
@@ -790,9 +866,12 @@ class System:
 
     # -------------------------------------------------------------------- forces
     def internal_force(self, q: np.ndarray) -> np.ndarray:
-        """f(q) (n_dof,): belt elastic force + components' K q (preloads excluded)."""
+        """f(q) (n_dof,): belt elastic force + components' K q (preloads excluded), and the running belt's
+        centripetal force at speed."""
         p = self.expand(q)
         f = self.belt.force(p) + self.linear_force(p)
+        if self.belt_speed:
+            f = f + self.centripetal_force(p)
         return f if self.arms is None else self.arms.project(q, f)
 
     def force_and_tangent(self, q: np.ndarray):
@@ -800,6 +879,8 @@ class System:
         geometric term is that of the internal force alone (see `equilibrium` for the loaded one)."""
         if self.arms is None:
             f, blocks = self.belt.force_and_blocks(q)
+            if self.belt_speed:
+                f, blocks = f + self.centripetal_force(q), self._running_blocks(blocks)
             return f + self.linear_force(q), self.assemble(blocks)
         return self.equilibrium(q, 0.0)
 
@@ -815,9 +896,13 @@ class System:
         p = self.expand(q)
         if not tangent:
             f = self.belt.force(p) + self.linear_force(p) - self.external_force(load_factor)
+            if self.belt_speed:
+                f = f + self.centripetal_force(p)
             return (f if self.arms is None else self.arms.project(q, f)), None
         f, blocks = self.belt.force_and_blocks(p)
         f = f + self.linear_force(p) - self.external_force(load_factor)
+        if self.belt_speed:
+            f, blocks = f + self.centripetal_force(p), self._running_blocks(blocks)
         K = self.assemble(blocks)
         if self.arms is None:
             return f, K
@@ -850,7 +935,8 @@ class System:
         discrete equilibrium even where the strain is tiny)."""
         E = self.belt.element_coordinates(self.expand(q))[None]
         F = self.belt.end_forces(E, None, self.gravity)
-        return self.hub_loads(F)[0], self.belt.end_tensions(E, F)[0]
+        hub = F if not self.belt_speed else F + self.belt.transport_end_forces(E, None, self.belt_speed)
+        return self.hub_loads(hub)[0], self.belt.end_tensions(E, F)[0]
 
     def hub_loads(self, F_end: np.ndarray) -> np.ndarray:
         """(B, n_pulley, 2) force of the belt on each pulley from the span end-node forces."""
@@ -1196,23 +1282,30 @@ def check_model_size(cfg: DriveConfig) -> None:
 
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
                  prestrain_stretch: float | np.ndarray | None = None, spring_free: np.ndarray | None = None,
-                 dense: bool | None = None, extra: tuple[LinearComponent, ...] = ()) -> System:
+                 dense: bool | None = None, extra: tuple[LinearComponent, ...] = (),
+                 belt_speed: float | None = None) -> System:
     """The one place a system is built from a configuration: geometry, DOFs, belt, pulleys, springs.
 
     layout: the belt path (default: the L0 fit of the configuration); prestrain_stretch: the spans'
     stretch at q = 0, one number or one per span (default: what the tension mode asks for,
     `reference_stretch`); spring_free (n_dof,): where the bearing springs are relaxed (default: the
-    layout's centres; see `pulley_components`)."""
+    layout's centres; see `pulley_components`); belt_speed (m/s): the running belt's speed (default:
+    [running] of the configuration, `running.belt_speed_of`)."""
     check_model_size(cfg)
     layout = layout or layout_from_config(cfg)
     lam = reference_stretch(cfg, layout) if prestrain_stretch is None else prestrain_stretch
     dofs = number_dofs(cfg)
     belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam)
-    return _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free) + tuple(extra),
-                     pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index,
-                     tension=tension_setting(cfg, dofs), gravity=np.asarray(cfg.model.gravity, dtype=float),
-                     dense=dense, loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
-                     friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]))
+    system = _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free) + tuple(extra),
+                       pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index,
+                       tension=tension_setting(cfg, dofs), gravity=np.asarray(cfg.model.gravity, dtype=float),
+                       dense=dense, loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
+                       friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]))
+    if belt_speed is None:
+        from .running import belt_speed_of
+
+        belt_speed = belt_speed_of(cfg, layout)
+    return system.with_speed(belt_speed) if belt_speed else system
 
 
 def tension_setting(cfg: DriveConfig, dofs: DofMap) -> TensionSetting:

@@ -10,13 +10,16 @@ observers (the belt, the pulleys, the components' own series, the constraints' r
 over each batch.
 
 Belt travel. A prescribed pulley rotation theta(t) = nominal (speed ramp) + fluctuation is split:
-the fluctuation is the prescribed value of the pulley's rotation DOF; the nominal part moves the
-whole belt as a rigid loop, s(t) = theta_nominal(t) / u_rot, along the belt-travel vector u_nom (pulley
-rotations 1/R, span nodes along their chords). The spans are described in that travelling frame:
-their node coordinates stay where they are while the material passes through, and the nominal
-motion enters only through its inertia, -M u_nom s''(t). Axial-transport (Coriolis and centripetal,
-rho v^2) terms are not modelled: they matter when rho v^2 approaches the tension (at 10 m/s on the
-paper's belt, rho v^2 = 12 N against 200 N).
+the fluctuation is the prescribed value of the pulley's rotation DOF; the nominal part turns the pulleys
+(their inertia: -M_pulleys u_nom s''(t), u_nom the belt-travel vector, pulley rotations 1/R) and makes
+the belt's material flow through the spans, which stay fixed in space between their tangent points
+(Eulerian/ALE, see `running`): the belt speed c(t) = s'(t) = theta_nominal'(t) / u_rot enters through
+the spans' transport terms, gyroscopic c G q', centripetal -c^2 (B q + b0) and the axial inertia
+c' (A q + a0) (`integrator.Transport`). Without a prescribed speed the belt runs at the system's
+constant belt speed ([running]). transient.transport = false keeps the former travelling-frame
+approximation instead (the belt's nominal inertia -M_belt u_nom s'' only, no gyroscopic or centripetal
+term); on the bench it shifts the first transverse span frequency by the factor 1 - rho c^2 / T that
+the moving-string closed form gives (-6 % at 10 m/s), see tests/test_running.py.
 """
 
 from __future__ import annotations
@@ -57,6 +60,7 @@ class TransientSetup:
     nom_scale: float
     excitation_frequency: float | None
     preload: np.ndarray  # (n,) static spring preload
+    transport: tuple | None = None  # integrator.Transport (the running belt's transport terms)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -265,13 +269,34 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
         nominal_rotation=nom_rot, nominal_scale=float(nom_scale))
     constraints = itg.Constraints(dof=np.array(cons_dof, dtype=np.int64),
                                   params=np.array(cons_par, dtype=float).reshape(-1, 9))
+    transport = itg.no_transport(n)
+    if opts.transport and (nom_scale or system.belt_speed):  # the running belt (module docstring)
+        A, B, a0, b0 = system.transport_matrices()
+        transport = itg.Transport(A=itg.to_csr(A), G=itg.to_csr(A - A.T), B=itg.to_csr(B), a0=a0.astype(float),
+                                  b0=b0.astype(float), speed=0.0 if nom_scale else float(system.belt_speed),
+                                  follow=1 if nom_scale else 0)
+        if nom_scale:  # the belt's axial inertia is c' (A q + a0): only the pulleys' stays a nominal load
+            belt_mass = system.assemble(belt.reduce_blocks(belt.elements.mass), linear=False)
+            forcing = forcing._replace(nominal_mass=np.asarray((M - belt_mass) @ u_nom).ravel().astype(float))
     perm, bandwidth = band_order(system)
     q0 = q_ref.copy() if opts.start == "static" else np.zeros(n)
     series, coords = _series(system, opts, cons_dof)
     return TransientSetup(series=series, coords=coords, belt=belt_data, linear=linear, forcing=forcing,
                           constraints=constraints, groups=system.dof_groups.astype(np.int64), C=C, perm=perm,
                           bandwidth=bandwidth, q0=q0, v0=np.zeros(n), u_nom=u_nom, nom_scale=nom_scale,
-                          excitation_frequency=f_exc, preload=preload)
+                          excitation_frequency=f_exc, preload=preload, transport=transport)
+
+
+def transport_speed(setup: TransientSetup, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The belt speed c (m/s) and its rate c' (m/s^2) at the times t (B,) of a run (`integrator.Transport`)."""
+    tr = setup.transport
+    t = np.asarray(t, dtype=float)
+    if tr is None or not tr.follow:
+        return np.full(t.shape, 0.0 if tr is None else float(tr.speed)), np.zeros(t.shape)
+    from .integrator import rotation_state
+
+    st = np.array([rotation_state(setup.forcing.nominal_rotation, float(x))[1:3] for x in t]).reshape(-1, 2)
+    return st[:, 0] * setup.nom_scale, st[:, 1] * setup.nom_scale
 
 
 def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
@@ -314,8 +339,9 @@ def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
         coords["energy_term"] = list(ENERGY_TERMS)
         out.append(Series(name="energy", dims=("energy_term",), units="J",
                           description="kinetic + strain - work + dissipated - initial = balance error, evaluated "
-                                      "at the end of the step that contains the output time (travelling frame; "
-                                      "springs measured from the static state)"))
+                                      "at the end of the step that contains the output time (springs measured "
+                                      "from the static state; the running belt's centripetal potential in strain, "
+                                      "the drive's work on its transport in work)"))
     if cons_dof:
         out.append(Series(name="driver_torque", dims=(), units="N m",
                           description="torque the first prescribed rotation applies to its pulley"))
@@ -363,8 +389,9 @@ def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool):
 
 
 def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: float, rho_inf: float,
-                      v: np.ndarray | None = None, arms=None):
-    """S = c_m M + c_c (C + C_belt(q)) + (1 - alpha_f) K_t(q), prescribed DOFs held (identity)."""
+                      v: np.ndarray | None = None, arms=None, t: float = 0.0):
+    """S = c_m M + c_c (C + C_belt(q) + c G) + (1 - alpha_f) (K_t(q) - c^2 B + c' A), prescribed DOFs held
+    (identity); c, c' the belt speed and its rate at t (no transport terms at rest)."""
     from . import belt_kernel as bk
     from .integrator import alpha_parameters
 
@@ -372,11 +399,17 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
     c_m = (1.0 - am) / (beta * h * h)
     c_c = (1.0 - af) * gamma / (beta * h)
     q = q[: system.n_dof]  # the stepper's state is on the joint coordinates: q is its head
+    at_rest = system.with_speed(0.0) if system.belt_speed else system  # the transport terms: below, at t
     if system.arms is None:
-        _, K = system.force_and_tangent(q)
+        _, K = at_rest.force_and_tangent(q)
     else:  # the loaded tangent (the arm's geometric term of the static loads; a Newton matrix only)
-        _, K = system.equilibrium(q, 1.0)
+        _, K = at_rest.equilibrium(q, 1.0)
     S = (1.0 - af) * K + c_m * system.mass_matrix(q)
+    tr = setup.transport
+    if tr is not None and (tr.follow or tr.speed):
+        c, cd = (float(x[0]) for x in transport_speed(setup, np.array([t])))
+        A, B, _, _ = system.transport_matrices()
+        S = S + system.project_matrix(q, c_c * c * (A - A.T) + (1.0 - af) * (cd * A - c * c * B))
     b = setup.belt
     if b.eta_a or b.eta_b:
         E = system.belt.element_coordinates(system.expand(q))
@@ -428,9 +461,10 @@ class StepProblem:
     groups: np.ndarray
     q0: np.ndarray
     v0: np.ndarray
-    factor: Callable  # factor(q, h, v) -> integrator.Factor at the state (q, v) for the step h
+    factor: Callable  # factor(q, h, v, t) -> integrator.Factor at the state (q, v) at time t for the step h
     labels: tuple[str, ...]
     arms: tuple | None = None  # integrator.Arms (None: no arms, q = p)
+    transport: tuple | None = None  # integrator.Transport (None: the belt at rest)
 
 
 def initial_state(problem: StepProblem, rho_inf: float, step: float):
@@ -458,7 +492,11 @@ def initial_state(problem: StepProblem, rho_inf: float, step: float):
     itg.csr_matvec(lin.K, q - lin.q_ref, Kd)
     itg.csr_matvec(lin.C, v, Cv)
     itg.external_forces(F, cons, 0.0, F0, np.empty(F.sig_params.shape[0]))
-    f0 = f_el[:n] + Kd + f_dmp[:n]
+    tr = problem.transport if problem.transport is not None else itg.no_transport(n)
+    c0, cd0 = itg.transport_speed(tr, F, 0.0)
+    f_tr = np.zeros(n)
+    qbq, vaq = itg.transport_forces(tr, c0, cd0, q, v, f_tr, np.empty(n), np.empty(n))
+    f0 = f_el[:n] + Kd + f_dmp[:n] + f_tr
     from scipy.sparse import csr_matrix
 
     Md = csr_matrix((lin.M.data, lin.M.indices, lin.M.indptr), shape=(n, n)).toarray()
@@ -481,8 +519,9 @@ def initial_state(problem: StepProblem, rho_inf: float, step: float):
     scal[itg.H] = step
     tmp, tmp2 = np.empty(n), np.empty(n)
     kin = itg.kinetic_energy(lin, v, tmp)
-    pot = itg.potential_energy(belt, lin, q, np.append(q, 0.0), E, np.empty(n_elem), tmp, tmp2)
+    pot = itg.potential_energy(belt, lin, q, np.append(q, 0.0), E, np.empty(n_elem), tmp, tmp2) - 0.5 * c0 * c0 * qbq
     scal[itg.E0], scal[itg.KIN0], scal[itg.POT0] = kin + pot, kin, pot
+    scal[itg.TR_P0] = -cd0 * (c0 * qbq + vaq)
     R0 = np.pad(R0, (0, max(len(R0), 1) - len(R0)))  # the stepper needs at least one slot
     return itg.State(q=q, v=v, a=a, f0=f0, fd0=f_dmp[:n].copy(), F0=F0, R0=R0, scal=scal)
 
@@ -524,6 +563,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     am, af, beta, gamma = itg.alpha_parameters(rho_inf)
     n = len(problem.q0)
     arms = problem.arms if problem.arms is not None else itg.no_arms(n)
+    tr = problem.transport if problem.transport is not None else itg.no_transport(n)
     state = initial_state(problem, rho_inf, step)
     th = state.scal
     chk = itg.Check(group=problem.groups, n_groups=int(problem.groups.max(initial=0)) + 1, tol=float(tolerance),
@@ -539,7 +579,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     n_total_out = int(math.floor(duration / output_interval + 1e-9)) + 1
     opts = itg.StepOptions(am=am, af=af, beta=beta, gamma=gamma, t_stop=float(duration), dt_out=float(output_interval),
                            max_steps=2000)
-    fac = problem.factor(state.q, th[itg.H], state.v)
+    fac = problem.factor(state.q, th[itg.H], state.v, th[itg.T_NOW])
     fresh = True
     run = _Run()
     run.refactors = 1
@@ -565,7 +605,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         while True:
             started, steps_before = time.perf_counter(), th[itg.STEPS]
             code = itg.run_steps(state, problem.belt, problem.linear, problem.forcing, problem.constraints, chk, opts,
-                                 fac, fresh, out, ev, info, arms)
+                                 fac, fresh, out, ev, info, arms, tr)
             now = time.perf_counter()
             if th[itg.STEPS] > steps_before:  # the step budget of a call: about HANDOVER_SECONDS of wall time
                 per_step = (now - started) / (th[itg.STEPS] - steps_before)
@@ -587,11 +627,11 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
                     calm += 1
                     if calm >= 2:
                         th[itg.H] = min(2.0 * th[itg.H], step)
-                        fac, fresh, calm = problem.factor(state.q, th[itg.H], state.v), True, 0
+                        fac, fresh, calm = problem.factor(state.q, th[itg.H], state.v, th[itg.T_NOW]), True, 0
                         run.refactors += 1
                 continue
             if code == itg.REFACTOR:
-                fac, fresh, calm = problem.factor(state.q, th[itg.H], state.v), True, 0
+                fac, fresh, calm = problem.factor(state.q, th[itg.H], state.v, th[itg.T_NOW]), True, 0
                 run.refactors += 1
                 continue
             # HALVE
@@ -606,7 +646,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
             min_h = min(min_h, th[itg.H])
             run.halvings += 1
             calm = 0
-            fac, fresh = problem.factor(state.q, th[itg.H], state.v), True
+            fac, fresh = problem.factor(state.q, th[itg.H], state.v, th[itg.T_NOW]), True
             run.refactors += 1
         drain()
     except KeyboardInterrupt:
@@ -634,14 +674,15 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
     # the time stepper evaluates the belt thousands of times: the compiled kernel (system.BeltSpans)
     system = system.with_belt(damping_axial=float(opts.damping.belt_axial),
                               damping_bending=float(opts.damping.belt_bending), compiled=True)
-    symmetric = True  # no transport terms yet: S is symmetric (the band LU is the fallback)
+    tr = setup.transport
+    symmetric = tr is None or not (tr.follow or tr.speed)  # the gyroscopic term makes S non-symmetric: band LU
     arms = stepper_arms(system)
     problem = StepProblem(
         belt=setup.belt, linear=setup.linear, forcing=setup.forcing, constraints=setup.constraints,
         groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels,
-        factor=lambda q, h, v=None: band_factor(_iteration_matrix(system, setup, q, h, opts.rho_inf, v, arms),
-                                                setup.perm, setup.bandwidth, symmetric=symmetric),
-        arms=arms)
+        factor=lambda q, h, v=None, t=0.0: band_factor(_iteration_matrix(system, setup, q, h, opts.rho_inf, v, arms, t),
+                                                       setup.perm, setup.bandwidth, symmetric=symmetric),
+        arms=arms, transport=tr)
     observer = Observers(system=system, setup=setup)
     run, th, min_h, events = drive(
         problem, rho_inf=opts.rho_inf, step=opts.step, min_step=opts.min_step, duration=opts.duration,
@@ -724,7 +765,11 @@ class Observers:
                         self.worst_slip = (float(finite[b, j]), float(t[b]), sysm.layout.names[j])
             if "hub_load" in names:  # the pulley also carries the inertia of the end elements' nodes
                 Ea = belt.element_coordinates_batch(a, offset=False)
-                out["hub_load"] = sysm.hub_loads(F + belt.end_inertia(Ea))
+                H = F + belt.end_inertia(Ea)
+                tr = setup.transport
+                if tr is not None and (tr.follow or tr.speed):  # and the running belt's momentum flux
+                    H = H + belt.transport_end_forces(E, Ed, *transport_speed(setup, t))
+                out["hub_load"] = sysm.hub_loads(H)
         for c in sysm.components:
             for obs in c.observations(sysm):
                 if obs.name in names:
@@ -781,7 +826,7 @@ def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.
     cons = itg.Constraints(dof=np.zeros(0, dtype=np.int64), params=np.zeros((0, 8)))
     am, af, beta, gamma = itg.alpha_parameters(rho_inf)
 
-    def factor(q, h, v=None):
+    def factor(q, h, v=None, t=0.0):
         S = (1 - am) / (beta * h * h) * M + (1 - af) * gamma / (beta * h) * Cm + (1 - af) * K
         return band_factor(S, np.arange(n, dtype=np.int64), max(n - 1, 0), symmetric=bool(np.allclose(S, S.T)))
 
