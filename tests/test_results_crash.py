@@ -9,6 +9,7 @@ with the holder's pid while readers go on; adding a group next to a large one wr
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import signal
 import subprocess
@@ -116,9 +117,9 @@ def assert_nothing_unexplained(path: Path) -> None:
 def test_transient_kill_9_leaves_running_with_dead_writer_and_next_command_recovers(tmp_path):
     # A streaming `beltdyn transient` killed with SIGKILL: every reader then sees /transient "running"
     # with its writer dead (group_states(...).orphaned, read_group(...)["writer"]["alive"] False) and
-    # at least every sample a reader saw before the kill; plain h5py opens the file. The next command
-    # on the file (geometry) says it recovered them and marks /transient interrupted; nothing is left
-    # beside the file but the parts it references.
+    # at least every sample a reader saw before the kill; plain h5py opens the file; `beltdyn plot`
+    # says so. The next command writing the file (geometry) says it recovered them and marks
+    # /transient interrupted; nothing is left beside the file but the parts it references.
     out = tmp_path / "k.h5"
     proc = popen("transient", TRANSIENT, "-o", out, "--duration", "200", "--step", "2e-5", cwd=tmp_path)
     try:
@@ -145,6 +146,11 @@ def test_transient_kill_9_leaves_running_with_dead_writer_and_next_command_recov
     assert np.all(np.diff(live["coords"]["time"]) > 0)
     assert read_group(out, "static")["attrs"]["status"] == "complete"
     assert any(name.endswith(".stream") for name in files_beside(out))
+
+    if importlib.util.find_spec("matplotlib") is not None:  # a reading command says so too
+        p = run("plot", out, "transient", "-o", tmp_path / "t.png", cwd=tmp_path)
+        assert p.returncode == 2 and f"its writer, pid {proc.pid}" in p.stderr and "no longer runs" in p.stderr, \
+            p.stderr
 
     r = run("geometry", TRANSIENT, "-o", out, *LONG, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
