@@ -63,12 +63,15 @@ Streaming (`StreamWriter`) and what is lost after a kill
 A transient first commits `/transient` with status `running` (its coordinates, fixed variables,
 attributes, writer and journal name), then appends its samples to the stream journal
 `OUT.h5.parts/transient-<file id>-<token>.stream` (fixed-size rows, see `results_journal`):
-written to the OS at least every `WRITE_SECONDS` (0.2 s) and fsync'ed at least every
-`SYNC_SECONDS` (0.5 s) of wall time; the stepper hands over its samples at least every ~0.2 s. At
-`close` the samples are copied into the file (root or part, as above) with the final status, in one
-commit, and the journal is removed. SIGINT and SIGTERM end a run through `close` ("interrupted",
-every sample kept). After a kill -9 the samples lost are those of at most the last ~0.4 s of wall
-time (not yet handed to the OS); after a power loss, at most the last ~1 s (not yet synced).
+written to the OS at the first append `WRITE_SECONDS` (0.05 s) after the last write, and fsync'ed
+at least every `SYNC_SECONDS` (0.5 s) of wall time; the stepper hands its samples over at least every
+0.2 s (`transient.HANDOVER_SECONDS`). At `close` the samples are copied into the file (root or part,
+as above) with the final status, in one commit, and the journal is removed. SIGINT and SIGTERM end a
+run through `close` ("interrupted", every sample kept). After a kill -9 the samples lost are those
+computed in at most the last ~0.4 s of wall time (not yet handed over: <= 0.2 s; handed over but
+still buffered: until the next hand-over, <= 0.2 s; usually each hand-over is written at once);
+after a power loss, in at most the last ~0.9 s (not yet synced: the sync comes with the first
+hand-over 0.5 s after the last one).
 
 What a reader sees after a kill -9 at any moment: before a commit's rename, the previous file,
 complete (the temporary root and new parts are invisible leftovers); after it, the new one. During

@@ -56,7 +56,8 @@ from .results_write import (
     write_series,
 )
 
-WRITE_SECONDS = 0.2  # appended rows reach the journal (the OS: safe from a kill -9) at least this often
+WRITE_SECONDS = 0.05  # rows reach the journal (the OS: safe from a kill -9) at the first append this long
+# after the last write (coalescing tiny appends)
 SYNC_SECONDS = 0.5  # ... and the disk (safe from a power loss) at least this often
 _BUFFER_BYTES = 4 << 20  # at most ~4 MiB of rows buffered in memory between journal writes
 
@@ -85,8 +86,8 @@ class StreamWriter:
     group is committed with status "running", its fixed coordinates and variables and attributes;
     from then on every reader of the file sees it so, with the writer's pid, host and start token and
     the name of its stream journal (`read_group` reads the samples so far from it). `append` buffers
-    rows in memory (at most 256 rows and about 4 MiB, at most `WRITE_SECONDS` or `flush_every`
-    appends) and writes them to the journal; every `SYNC_SECONDS` the journal is synced to the disk.
+    rows in memory (at most 256 rows and about 4 MiB, until an append `WRITE_SECONDS` after the
+    last write, or `flush_every` appends) and writes them to the journal; every `SYNC_SECONDS` the journal is synced to the disk.
     `close(status)` copies the samples into the file (growable chunked datasets with `time` as the
     dimension scale of axis 0), writes the summaries added meanwhile (`set_attrs`, `add_variables`,
     `add_subgroup`) and the status in one commit, and removes the journal. If the process dies before
