@@ -505,3 +505,19 @@ def test_a_percent_sign_in_the_file_name_is_not_a_pattern(tmp_path, monkeypatch)
     assert float(read_group(path, "modal")["variables"]["shape"].mean()) == 6.0
     assert_nothing_unexplained(path)
     assert len(referenced_parts(path)) == 1
+
+
+def test_an_older_beltdyns_orphan_temporary_copy_is_removed_and_reported(tmp_path):
+    # The orphan `OUT.h5.tmp-<pid>-<hex>` that an older beltdyn left after a kill -9 (the report):
+    # the next command on the file removes it and says so; a file of another name is left alone.
+    path = tmp_path / "o.h5"
+    write_group(path, big_group(1.0), config_toml=TOML, config_sha256=SHA)
+    orphan = tmp_path / "o.h5.tmp-4242-1a2b3c4d"
+    orphan.write_bytes(b"\x89HDF" + bytes(4096))
+    other = tmp_path / "other.h5.tmp-4242-1a2b3c4d"
+    other.write_bytes(b"x")
+    r = run("geometry", BENCH, "-o", tmp_path / "unrelated.h5", cwd=tmp_path)  # another output: not touched
+    assert r.returncode == 0 and orphan.exists()
+    notes = recover(path)
+    assert len(notes) == 1 and "o.h5.tmp-4242-1a2b3c4d" in notes[0] and "removed 1 leftover" in notes[0]
+    assert not orphan.exists() and other.exists()
