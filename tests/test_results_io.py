@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 import beltdyn
-from beltdyn import results_io as rio
 from beltdyn import results_write as rwrite
 from beltdyn.errors import OutputError
 from beltdyn.results_io import (
