@@ -2,9 +2,10 @@
 
 `StreamWriter` commits the group with status `running` at once (coordinates, fixed variables,
 attributes, the writer's identity and the name of its stream journal), appends the samples to the
-journal (`results_journal`: written to the OS at least every `WRITE_SECONDS`, to the disk at least
-every `SYNC_SECONDS`) and, at `close`, copies them into the file as growable chunked datasets in one
-more commit. `recover` does that same copy for a group whose writer died, marking it `interrupted`.
+journal (`results_journal`: written to the OS at the first append `WRITE_SECONDS` after the last
+write, synced to the disk at the first append `SYNC_SECONDS` after the last sync) and, at `close`,
+copies them into the file as growable chunked datasets in one more commit. `recover` does that same
+copy for a group whose writer died, marking it `interrupted`.
 """
 
 from __future__ import annotations
