@@ -30,10 +30,12 @@ Files: a small root and the parts of large groups
 `OUT.h5` is the results file (the root). A numeric dataset above `INLINE_BYTES` (1 MiB) is stored
 in a part file of its group, `OUT.h5.parts/<group>-<file id>-<token>.h5`, and the root holds an HDF5
 virtual dataset of the same name, shape, dims and units mapping onto it (a relative path: HDF5
-resolves it against the root's folder, whatever the reader's working directory). Readers see one
-file; keep `OUT.h5.parts` beside `OUT.h5` when copying or moving results (`read_group` names a
-missing part; a plain HDF5 reader would see NaN). Small results (geometry, static, modal, short
-transients) stay entirely in the root.
+resolves it against the root's folder, whatever the reader's working directory; virtual datasets
+need HDF5 >= 1.10 in the reader). Readers see one file; keep `OUT.h5.parts` beside `OUT.h5` when
+copying or moving results (`read_group` names a missing part; a plain HDF5 reader would see NaN). A
+copy made beside the original (`cp OUT.h5 COPY.h5`) shares the original's parts: a later write that
+replaces a large group of either removes that part for both. Small results (geometry, static,
+modal, short transients) stay entirely in the root.
 
 Why: the root is small whatever the file holds, so every change is a copy of the root (a few kB to a
 few MB) plus what the change itself writes: adding `/modal` next to a 1 GB `/transient` writes
