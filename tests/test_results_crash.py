@@ -521,3 +521,17 @@ def test_an_older_beltdyns_orphan_temporary_copy_is_removed_and_reported(tmp_pat
     notes = recover(path)
     assert len(notes) == 1 and "o.h5.tmp-4242-1a2b3c4d" in notes[0] and "removed 1 leftover" in notes[0]
     assert not orphan.exists() and other.exists()
+
+
+def test_a_renamed_results_file_keeps_its_parts(tmp_path, monkeypatch):
+    # `mv p.h5 q.h5`: the root still finds its parts (p.h5.parts, named in the root), a write to q.h5
+    # replacing the large group puts the new part there and removes the old one.
+    monkeypatch.setattr(rwrite, "INLINE_BYTES", 1024)
+    write_group(tmp_path / "p.h5", big_group(7.0), config_toml=TOML, config_sha256=SHA)
+    (tmp_path / "p.h5").rename(tmp_path / "q.h5")
+    path = tmp_path / "q.h5"
+    assert float(read_group(path, "modal")["variables"]["shape"].mean()) == 7.0
+    write_group(path, big_group(8.0), config_toml=TOML, config_sha256=SHA)
+    assert float(read_group(path, "modal")["variables"]["shape"].mean()) == 8.0
+    assert_nothing_unexplained(path)
+    assert [p.parent.name for p in tmp_path.rglob("*.h5") if p.parent != tmp_path] == ["p.h5.parts"]
