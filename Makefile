@@ -42,4 +42,4 @@ bench: $(STAMP)
 	$(BIN)/python bench/run.py
 
 clean:
-	rm -rf results/*.h5 results/paper/*.h5 .pytest_cache
+	rm -rf results/*.h5 results/*.h5.parts results/paper/*.h5 results/paper/*.h5.parts .pytest_cache

@@ -199,6 +199,9 @@ class _Job:
         from .results_io import lock_output
 
         lock_output(self.output)  # held until this command ends: no other beltdyn command writes it meanwhile
+        from .results_io import recover
+
+        _notes(recover(self.output))  # what a killed earlier command left: its samples recovered, leftovers removed
         self.groups: list = []
 
     def add(self, group) -> None:
@@ -207,8 +210,16 @@ class _Job:
     def write(self) -> None:
         from .results_io import write_groups
 
-        write_groups(self.output, self.groups, config_toml=self.toml, config_sha256=self.sha, force=self.force,
-                     base_config_sha256=self.base_sha)
+        _notes(write_groups(self.output, self.groups, config_toml=self.toml, config_sha256=self.sha,
+                            force=self.force, base_config_sha256=self.base_sha))
+
+
+def _notes(notes: list[str]) -> None:
+    """What the results modules did on their own (recovering a killed writer's group), on stderr."""
+    from rich.text import Text
+
+    for note in notes:
+        _console(stderr=True).print(Text.assemble(("note", "bold yellow"), f": {_one_line(note)}"))
 
 
 def _on_sigterm(signum, frame) -> None:
@@ -733,6 +744,7 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
         attrs["fmax_frequency_error"] = frequency_error(opts.fmax, opts.step, opts.rho_inf)
     with StreamWriter(job.output, "transient", series=series, coords=setup.coords, attrs=attrs,
                       config_toml=job.toml, config_sha256=job.sha, force=True) as writer:
+        _notes(writer.notes)
         if "dof" in setup.coords:  # full state recorded: the unit of each DOF beside q and v
             from .export import dof_unit_variable
 

@@ -99,7 +99,22 @@ def require(res: Results, kind: str) -> None:
     missing = [g for g in groups if not res.has(g)]
     if missing:
         raise OutputError(f"{res.path}: the {kind} figure needs /{' and /'.join(missing)}, which this file does "
-                          f"not hold (complete); make it with {command} CONFIG -o {res.path.name}")
+                          f"not hold (complete){_running(res, missing)}; make it with {command} CONFIG -o "
+                          f"{res.path.name}")
+
+
+def _running(res: Results, names: list[str]) -> str:
+    """What a missing group is doing if it is marked running: written now, or left so by a dead writer."""
+    for name in names:
+        writer = res.groups.get(name, {}).get("writer")
+        if writer is None:
+            continue
+        if writer["alive"] is False:
+            return (f" (/{name} is marked running, but its writer, pid {writer['pid']} on {writer['host']}, no longer "
+                    "runs: the next beltdyn command writing this file recovers its samples)")
+        return f" (/{name} is being written by pid {writer['pid']} on {writer['host']})"
+    return ""
+
 
 
 def figure(kind: str, res: Results, *, modes: tuple[int, ...] | None = None):

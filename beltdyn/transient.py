@@ -25,6 +25,7 @@ the moving-string closed form gives (-6 % at 10 m/s), see tests/test_running.py.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 from typing import Callable
 
@@ -555,6 +556,9 @@ class _Run:
     delivered: int = 0
 
 
+HANDOVER_SECONDS = 0.2  # wall time between hand-overs of samples to the sink (and checks for Ctrl-C/SIGTERM)
+
+
 def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float, duration: float,
           output_interval: float, tolerance: float, max_iterations: int, on_batch: Callable,
           progress: Progress | None = None, batch: int = 256, n_span: int = 0):
@@ -604,10 +608,19 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
             all_events.append(ev.data[: int(ev.n[0])].copy())
             ev.n[0] = 0
 
+    last_drain = time.perf_counter()
     try:
         while True:
+            started, steps_before = time.perf_counter(), th[itg.STEPS]
             code = itg.run_steps(state, problem.belt, problem.linear, problem.forcing, problem.constraints, chk, opts,
                                  fac, fresh, out, ev, info, arms, tr)
+            now = time.perf_counter()
+            if th[itg.STEPS] > steps_before:  # the step budget of a call: about HANDOVER_SECONDS of wall time
+                per_step = (now - started) / (th[itg.STEPS] - steps_before)
+                opts = opts._replace(max_steps=int(min(2000, max(10, HANDOVER_SECONDS / max(per_step, 1e-9)))))
+            if now - last_drain >= HANDOVER_SECONDS:  # the samples so far reach the sink (the results file)
+                drain()
+                last_drain = now
             collect_events()
             if th[itg.STEPS] > run.steps:
                 fresh = False

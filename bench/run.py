@@ -104,6 +104,26 @@ def step_study() -> list[tuple[str, ...]]:
     return rows
 
 
+def add_group_next_to_large_transient() -> float:
+    """Median wall time of writing /modal (20 modes x 1283 DOFs) into a file holding a streamed /transient
+    of 131072 rows x 1024 floats (1.07 GB), in process; the transient is written once beforehand."""
+    import numpy as np
+
+    from beltdyn.results_io import GroupData, StreamWriter, Variable, write_group
+
+    sha, toml = "b" * 64, "bench = true\n"
+    modal = GroupData(name="modal", coords={"mode": np.arange(1, 21)},
+                      variables=(Variable(name="frequency", data=np.arange(20.0), dims=("mode",), units="Hz"),
+                                 Variable(name="shape", data=np.ones((20, 1283)), dims=("mode", "dof"), units="1")))
+    with tempfile.TemporaryDirectory(dir=ROOT / "results") as tmp:
+        path = Path(tmp) / "large.h5"
+        with StreamWriter(path, "transient", series={"q": ((1024,), "m", ("dof",))}, coords={}, config_toml=toml,
+                          config_sha256=sha) as w:
+            for i in range(0, 131072, 512):
+                w.append(np.arange(i, i + 512) * 1e-4, {"q": np.full((512, 1024), float(i))})
+        return median_time(lambda: write_group(path, modal, config_toml=toml, config_sha256=sha), repeats=5, warmup=1)
+
+
 def main() -> None:
     from beltdyn.config import load_config
 
@@ -246,6 +266,10 @@ def main() -> None:
         tracemalloc.stop()
     add("transient peak memory, 0.5 s vs 2 s simulated", f"{peaks[0] / 1e6:.2f} MB vs {peaks[1] / 1e6:.2f} MB",
         "flat in duration", peaks[1] < 1.2 * peaks[0])
+
+    # --- results files (issue 10): add /modal next to a 1.07 GB /transient (was a copy of the whole file)
+    t = add_group_next_to_large_transient()
+    add("add /modal (205 kB) to a file holding a 1.07 GB /transient", f"{t * 1e3:.1f} ms", "<= 1 s", t <= 1.0)
 
     width = [max(len(r[i]) for r in rows + [("benchmark", "measured", "target", "")]) for i in range(4)]
     line = "  ".join("{:<%d}" % w for w in width)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from datetime import datetime, timedelta
@@ -12,7 +13,7 @@ import numpy as np
 import pytest
 
 import beltdyn
-from beltdyn import results_io as rio
+from beltdyn import results_write as rwrite
 from beltdyn.errors import OutputError
 from beltdyn.results_io import (
     GroupData,
@@ -245,7 +246,7 @@ def test_failure_midway_leaves_target_unchanged_and_no_temp_file(tmp_path, monke
     path = tmp_path / "results.h5"
     write_group(path, geometry_group(), config_toml=TOML, config_sha256=SHA)
     before = path.read_bytes()
-    real = rio._write_dataset
+    real = rwrite.write_dataset
     calls = {"n": 0}
 
     def failing(*args, **kwargs):
@@ -254,7 +255,7 @@ def test_failure_midway_leaves_target_unchanged_and_no_temp_file(tmp_path, monke
             raise RuntimeError("disk on fire")
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(rio, "_write_dataset", failing)
+    monkeypatch.setattr(rwrite, "write_dataset", failing)
     with pytest.raises(RuntimeError, match="disk on fire"):
         write_group(path, geometry_group(name="static"), config_toml=TOML, config_sha256=SHA)
     assert calls["n"] == 3
@@ -269,8 +270,8 @@ def test_failure_midway_leaves_target_unchanged_and_no_temp_file(tmp_path, monke
     def interrupt(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(rio, "_commit", interrupt)
-    monkeypatch.setattr(rio, "_write_dataset", real)
+    monkeypatch.setattr(rwrite, "fsync_file", interrupt)  # within the commit, before the rename
+    monkeypatch.setattr(rwrite, "write_dataset", real)
     with pytest.raises(KeyboardInterrupt):
         write_group(path, geometry_group(name="modal"), config_toml=TOML, config_sha256=SHA)
     assert path.read_bytes() == before
@@ -488,25 +489,33 @@ def test_stream_writer_keyboard_interrupt_marks_interrupted(tmp_path):
     assert out["variables"]["q"].shape == (300, 3, 2)
 
 
-def test_stream_writer_target_untouched_until_close(tmp_path):
-    """While the writer is open (e.g. the process dies before close) the target keeps its old
-    bytes and only the temporary file holds the new group; close replaces the target."""
+def test_stream_writer_running_group_is_visible_and_readable_until_close(tmp_path):
+    """While the writer is open the file shows the group "running" with this process as its (live)
+    writer; another process reads it without waiting (plain h5py, and read_group with the samples so
+    far from the stream journal), the earlier groups unchanged; close makes it complete in the file,
+    and leaves nothing beside it (small results: no parts folder, the journal and lock removed)."""
     path = tmp_path / "results.h5"
     write_group(path, geometry_group(), config_toml=TOML, config_sha256=SHA)
-    before = path.read_bytes()
     w = stream(path, flush_every=1)
     t = np.arange(50) * 0.1
     w.append(t, rows(t))
-    assert path.read_bytes() == before
-    temps = [p for p in tmp_path.iterdir() if p.name != "results.h5"]
-    assert len(temps) == 1 and temps[0].name.startswith("results.h5.tmp")
-    # flushed: another process can read the temp file (status running, rows so far)
-    code = ("import h5py, sys; f = h5py.File(sys.argv[1], 'r', locking=False); "
-            "assert f['transient'].attrs['status'] == 'running'; assert f['transient/q'].shape[0] == 50")
-    subprocess.run([sys.executable, "-c", code, str(temps[0])], check=True)
+    assert w.journal_path.is_file() and w.journal_path.parent.name == "results.h5.parts"
+    code = ("import sys, os, h5py; from beltdyn.results_io import read_group, group_states\n"
+            "f = h5py.File(sys.argv[1], 'r'); g = f['transient']\n"
+            "assert g.attrs['status'] == 'running' and int(g.attrs['writer_pid']) == int(sys.argv[2])\n"
+            "assert 'time' not in g and 'center' in f['geometry']\n"
+            "out = read_group(sys.argv[1], 'transient')\n"
+            "assert out['writer']['alive'] is True and out['variables']['q'].shape == (50, 3, 2), out['writer']\n"
+            "assert out['dims']['q'] == ('time', 'node', 'component') and out['coords']['time'][-1] == 4.9\n"
+            "s = group_states(sys.argv[1])['transient']\n"
+            "assert s.status == 'running' and s.writer_alive is True and not s.orphaned and s.samples == 50\n")
+    subprocess.run([sys.executable, "-c", code, str(path), str(os.getpid())], check=True, timeout=60)
     w.close("complete")
     w.close("failed")  # second close: no effect
-    assert read_group(path, "transient")["attrs"]["status"] == "complete"
+    out = read_group(path, "transient")
+    assert out["attrs"]["status"] == "complete" and "writer" not in out
+    assert not set(out["attrs"]) & {"writer_pid", "writer_host", "writer_start", "stream_journal"}
+    np.testing.assert_array_equal(out["coords"]["time"], t)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["results.h5"]
     with pytest.raises(RuntimeError):
         w.append(t, rows(t))

@@ -281,7 +281,7 @@ def test_transient_interrupt_keeps_steps(tmp_path):
                             # Ctrl-C reaches the CLI even when this runner has SIGINT ignored (background)
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 60
-    while time.time() < deadline and not list(tmp_path.glob("int.h5.tmp*")):
+    while time.time() < deadline and not list(tmp_path.glob("int.h5.parts/*.stream")):
         time.sleep(0.2)
     time.sleep(3.0)
     proc.send_signal(signal.SIGINT)
