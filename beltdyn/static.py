@@ -489,9 +489,10 @@ def solve_static(system: System, options: StaticOptions, *, q0: np.ndarray | Non
     """Static equilibrium of the drive (raises SolverError naming step, residual and DOF).
 
     Tension mode "adjust": a bordered Newton on (equilibrium, T = target) from the linear axial
-    predictor, which converges in one or two iterations for taut spans; if it fails (sagging spans,
-    strong nonlinearity), an outer Newton on the slide offset around inner equilibrium solves with
-    load stepping on the weight. Other modes: equilibrium with load stepping. q0: a start (n_dof,)
+    predictor, which converges in one or two iterations for taut spans; if it stalls on spans that sag
+    under their weight, a continuation in the tension target (`_Problem.tension_continuation`); if
+    that fails too, an outer Newton on the slide offset around inner equilibrium solves with load
+    stepping on the weight. Other modes: equilibrium with load stepping. q0: a start (n_dof,)
     instead of the predictor (warm start; the driver's rotation is held at q0's value); if Newton
     fails from it, the solve starts over as without it.
 
