@@ -356,6 +356,7 @@ def static(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Opti
 
     def body() -> None:
         job = _Job(config, output, set_, force)
+        _announce_cost(job.cfg)
         run = _static_pipeline(job, modal=False)
         _print_static(run.layout, run.system, run.static)
         _console().print(f"wrote [bold]/geometry /static[/] to {job.output}")
@@ -376,6 +377,7 @@ def modal(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
         if rtol is not None:
             _refined_modal(job, modes or job.cfg.modal.modes, rtol)
             return
+        _announce_cost(job.cfg)
         run = _static_pipeline(job, modal=True, n_modes=modes)
         _print_static(run.layout, run.system, run.static)
         _print_modal(run.modal)
@@ -414,6 +416,7 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
         if resolved.step != cfg.transient.step:  # the chosen step goes into the resolved configuration
             job = _Job(config, output, sets + [f"transient.step={resolved.step!r}"], force)  # (provenance)
         job.step_origin = origin
+        _announce_cost(job.cfg, resolved)
         _check_output_volume(job, force_large)
         spec_opts = cfg.transient.spectrum
         run = _static_pipeline(job, modal=spec_opts.enabled)
@@ -477,6 +480,15 @@ def _print_response(con, res) -> None:
     con.print(table)
 
 
+def _announce_cost(cfg, transient=None) -> None:
+    """Before any work: a run estimated to take long says so, with its DOFs and steps (`guards`)."""
+    from .guards import cost_note, estimate_cost
+
+    note = cost_note(estimate_cost(cfg, transient))
+    if note:
+        _console().print(f"[bold]note[/]: {note}")
+
+
 def _check_output_volume(job: "_Job", force_large: bool) -> None:
     """Before any work: histories above transient.max_output_mb need --force-large (exit 2)."""
     from .system import build_system
@@ -535,6 +547,9 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
 
     (model, res), mres = transient_start(run), run.modal
     setup = prepare(model, res, opts)
+    early = _step_warnings(opts, setup, mres)
+    for w in early:  # before the work: a step that resolves nothing is said at once
+        _console().print(f"[bold yellow]warning[/]: {w}")
     _warm_kernels(_console())
     shapes = {name: len(v) for name, v in setup.coords.items()}
     series = {s.name: (tuple(shapes[d] for d in s.dims), s.units, s.dims) for s in setup.series}
@@ -567,7 +582,8 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
                          newton_iterations=summary.newton_iterations,
                          energy_balance_error=summary.energy_error, energy_moved_J=summary.energy_moved,
                          step_halvings=summary.step_halvings, smallest_step_s=summary.min_step,
-                         n_slack_events=int(len(ev)), warnings=list(summary.warnings))
+                         n_slack_events=int(len(ev)),
+                         warnings=list(early) + [w for w in summary.warnings if w not in early])
         if np.isfinite(summary.worst_slip_margin[0]):
             writer.set_attrs(worst_slip_margin=summary.worst_slip_margin[0],
                              worst_slip_time_s=summary.worst_slip_margin[1],
@@ -589,7 +605,7 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
                 kept = {name: writer.read(name, first) for name in keep}
                 peaks = _spectra(writer, setup, t_all[first:], kept, mres, opts)
     con.print(f"time step ({attrs['step_origin']}): {step_text}")
-    _print_transient(con, summary, spans, peaks, setup.excitation_frequency)
+    _print_transient(con, summary, spans, peaks, setup.excitation_frequency, shown=early)
     con.print(f"wrote [bold]/transient[/] ({summary.n_outputs} samples) to {job.output}")
 
 
@@ -696,7 +712,22 @@ def _channel_labels(series, coords) -> list[str]:
     return [f"{series.name}[{', '.join(map(str, combo))}]" for combo in itertools.product(*axes)]
 
 
-def _print_transient(con, summary, spans, peaks, f_exc) -> None:
+def _step_warnings(opts, setup, mres) -> tuple[str, ...]:
+    """The step against the excitation and the highest mode the run is meant to resolve:
+    transient.fmax if given, else the highest of the modes computed for the spectra (modal.modes)."""
+    from .timestep import step_warnings
+
+    f_mode, source = None, ""
+    if opts.fmax is not None:
+        f_mode, source = float(opts.fmax), "transient.fmax"
+    elif mres is not None and len(mres.frequency):
+        f_mode = float(mres.frequency.max())
+        source = f"mode {int(mres.frequency.argmax()) + 1}, the highest of the {len(mres.frequency)} computed (modal.modes)"
+    return step_warnings(opts.step, excitation_frequency=setup.excitation_frequency, mode_frequency=f_mode,
+                         mode_source=source)
+
+
+def _print_transient(con, summary, spans, peaks, f_exc, shown=()) -> None:
     from rich.table import Table
 
     con.print(f"transient {summary.status}: {summary.steps} steps to t = {summary.final_time:.6g} s "
@@ -705,7 +736,8 @@ def _print_transient(con, summary, spans, peaks, f_exc) -> None:
               f"(smallest step {summary.min_step:.3g} s); energy balance error {summary.energy_error:.2e} "
               f"of the energy moved")
     for w in summary.warnings:
-        con.print(f"[bold yellow]warning[/]: {w}")
+        if w not in shown:  # (those shown before the run are not repeated)
+            con.print(f"[bold yellow]warning[/]: {w}")
     ev = summary.slack_events
     for t, s, slack, fmin in ev[:8]:
         con.print(f"  span {spans[int(s)]} {'went slack' if slack else 'taut again'} at t = {t:.6g} s "

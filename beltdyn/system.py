@@ -1180,11 +1180,17 @@ def memory_limit() -> int:
     return limit
 
 
+def model_dofs(cfg: DriveConfig) -> int:
+    """The DOF count of a configuration's model, known before anything is built: per span 4 per
+    element (the interior nodes and the end slopes) and 3 per pulley (rotation and translations, at most)."""
+    return len(cfg.pulleys) * (4 * cfg.mesh.elements_per_span + 3)
+
+
 def check_model_size(cfg: DriveConfig) -> None:
     """A mesh whose model cannot fit in memory is a configuration error before any work (exit 2),
     not a run that is killed or fails after minutes."""
     n_e = cfg.mesh.elements_per_span
-    n_dof = len(cfg.pulleys) * (4 * n_e + 3)
+    n_dof = model_dofs(cfg)
     need = n_dof * BYTES_PER_DOF
     have = memory_limit()
     if need > 0.5 * have:
