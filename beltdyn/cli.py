@@ -282,9 +282,11 @@ def _refined_modal(job: "_Job", n_modes: int, rtol: float) -> None:
     from .export import geometry_group, modal_group, static_group
     from .sweep import refine_mesh
 
+    replace = _rtol_target(job)  # before the refinement: may its result replace what the output holds?
     (cfg, model, st, md), ref = refine_mesh(job.cfg, n_modes=n_modes, rtol=rtol)
     # the results belong to the chosen mesh: record that configuration
     job.cfg, job.toml, job.sha = cfg, resolved_toml(cfg), config_hash(cfg)
+    job.force = job.force or replace
     from .results_io import check_target
 
     check_target(job.output, config_sha256=job.sha, force=job.force)
@@ -310,6 +312,31 @@ def _refined_modal(job: "_Job", n_modes: int, rtol: float) -> None:
               f"(largest estimate {np.nanmax(ref.estimate[ref.chosen]):.2e}); wrote {job.output}")
     if not ref.converged:
         _rtol_not_met(ref, rtol, job.output)
+
+
+REFINED_GROUPS = {"geometry", "static", "modal"}  # what `modal --rtol` writes, all of it
+
+
+def _rtol_target(job: "_Job") -> bool:
+    """Before the refinement: the output of `modal --rtol` is decided whatever mesh it will choose.
+
+    The early check (`_Job`) refused a file of another configuration. A file of this configuration (or
+    of an earlier `--rtol` run of it) holding only /geometry /static /modal is replaced by the run's
+    (True: they are all written anew, for the mesh chosen); one holding more (a /transient, a /sweep)
+    is refused now (exit 2), since the chosen mesh may not be theirs, unless --force. False: no file,
+    or --force."""
+    from .results_io import group_names
+
+    if job.force or not job.output.exists():
+        return False
+    others = sorted(set(group_names(job.output)) - REFINED_GROUPS)
+    if not others:
+        return True
+    from .errors import OutputError
+
+    raise OutputError(f"{job.output}: holds /{', /'.join(others)} of this configuration; modal --rtol may choose "
+                      f"another mesh, whose /static and /modal would not belong with them: use --force to start "
+                      f"the file afresh or choose another output path")
 
 
 def _rtol_not_met(ref, rtol: float, output) -> None:

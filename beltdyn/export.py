@@ -281,7 +281,7 @@ def sweep_group(cfg, result) -> GroupData:
                      description="tracked natural frequencies (NaN for failed cases)"),
             Variable(name="label", data=[str(x) for x in result.label] + [""] * (k - len(result.label)),
                      dims=("mode",), units="1", description="classification of each tracked mode at the first case"),
-            Variable(name="kind", data=result.kind.astype(str), dims=("case", "mode"), units="1"),
+            Variable(name="kind", data=result.kind, dims=("case", "mode"), units="1"),  # (shared str objects)
             Variable(name="order", data=result.order, dims=("case", "mode"), units="1"),
             Variable(name="span", data=result.span, dims=("case", "mode"), units="1"),
             Variable(name="mac", data=result.mac, dims=("case", "mode"), units="1",

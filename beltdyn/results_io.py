@@ -324,6 +324,12 @@ def read_group(path: Path, name: str) -> dict:
         return out
 
 
+def group_names(path: Path) -> list[str]:
+    """The analysis groups of a results file (top level, /provenance left out); `OutputError` if unreadable."""
+    with _open_read(Path(path)) as f:
+        return [k for k in f.keys() if k != _PROVENANCE]
+
+
 def read_root_attrs(path: Path) -> dict:
     """The root attributes of a results file (strings decoded); `OutputError` if unreadable."""
     path = Path(path)
