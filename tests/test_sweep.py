@@ -631,3 +631,28 @@ def test_swept_csv_tables_travel_and_are_pinned(tmp_path):
     before = spec_hash(cfg, spec)
     (tmp_path / "b.csv").write_text("# time (s), torque (N m)\n0.0, 0.0\n0.01, 3.0\n1.0, 3.0\n")
     assert spec_hash(cfg, spec) != before
+
+
+def test_modal_rtol_decides_on_its_output_before_the_refinement(tmp_path):
+    # A file of this configuration holding only /geometry /static /modal is replaced by the refined
+    # run (its mesh is the chosen one afterwards); a file holding a /transient of this configuration is
+    # refused at once (exit 2, before any refinement: no refinement table), and left as it was.
+    plain = [*BELTDYN, "modal", str(BENCH)]
+    r = subprocess.run([*plain, "-o", "m.h5"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    r = subprocess.run([*plain, "--rtol", "1e-4", "-o", "m.h5"], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "m.h5") as f:
+        chosen = int(f["modal"].attrs["chosen_elements_per_span"])
+        assert chosen > 10 and f"elements_per_span = {chosen}" in f["provenance/config_toml"].asstr()[()]
+    sets = ["--set", "transient.duration=0.01", "--set", "transient.spectrum.enabled=false"]
+    r = subprocess.run([*BELTDYN, "transient", str(BENCH), *sets, "-o", "t.h5"], cwd=tmp_path, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    before = (tmp_path / "t.h5").read_bytes()
+    r = subprocess.run([*plain, *sets, "--rtol", "1e-5", "-o", "t.h5"], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2 and "holds /transient" in r.stderr and "--force" in r.stderr, r.stderr
+    assert "Mesh refinement" not in r.stdout and "Traceback" not in r.stderr
+    assert (tmp_path / "t.h5").read_bytes() == before
