@@ -298,9 +298,11 @@ def _refined_modal(job: "_Job", n_modes: int, rtol: float) -> None:
     from .export import geometry_group, modal_group, static_group
     from .sweep import refine_mesh
 
+    replace = _rtol_target(job)  # before the refinement: may its result replace what the output holds?
     (cfg, model, st, md), ref = refine_mesh(job.cfg, n_modes=n_modes, rtol=rtol)
     # the results belong to the chosen mesh: record that configuration
     job.cfg, job.toml, job.sha = cfg, resolved_toml(cfg), config_hash(cfg)
+    job.force = job.force or replace
     from .results_io import check_target
 
     check_target(job.output, config_sha256=job.sha, force=job.force)
@@ -326,6 +328,31 @@ def _refined_modal(job: "_Job", n_modes: int, rtol: float) -> None:
               f"(largest estimate {np.nanmax(ref.estimate[ref.chosen]):.2e}); wrote {job.output}")
     if not ref.converged:
         _rtol_not_met(ref, rtol, job.output)
+
+
+REFINED_GROUPS = {"geometry", "static", "modal"}  # what `modal --rtol` writes, all of it
+
+
+def _rtol_target(job: "_Job") -> bool:
+    """Before the refinement: the output of `modal --rtol` is decided whatever mesh it will choose.
+
+    The early check (`_Job`) refused a file of another configuration. A file of this configuration (or
+    of an earlier `--rtol` run of it) holding only /geometry /static /modal is replaced by the run's
+    (True: they are all written anew, for the mesh chosen); one holding more (a /transient, a /sweep)
+    is refused now (exit 2), since the chosen mesh may not be theirs, unless --force. False: no file,
+    or --force."""
+    from .results_io import group_names
+
+    if job.force or not job.output.exists():
+        return False
+    others = sorted(set(group_names(job.output)) - REFINED_GROUPS)
+    if not others:
+        return True
+    from .errors import OutputError
+
+    raise OutputError(f"{job.output}: holds /{', /'.join(others)} of this configuration; modal --rtol may choose "
+                      f"another mesh, whose /static and /modal would not belong with them: use --force to start "
+                      f"the file afresh or choose another output path")
 
 
 def _rtol_not_met(ref, rtol: float, output) -> None:
@@ -470,6 +497,7 @@ def static(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Opti
     def body() -> None:
         job = _Job(config, output, set_, force)
         _choose_spans(job, fmax, rtol, command="static")
+        _announce_cost(job.cfg)
         run = _static_pipeline(job, modal=False)
         _print_static(run.layout, run.system, run.static)
         _console().print(f"wrote [bold]/geometry /static[/] to {job.output}")
@@ -501,6 +529,7 @@ def modal(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
             job.write()
             run = chosen
         else:
+            _announce_cost(job.cfg)
             run = _static_pipeline(job, modal=True, n_modes=modes)
         _print_static(run.layout, run.system, run.static)
         _print_modal(run.modal)
@@ -545,6 +574,7 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
             job = _Job(config, output, sets + [f"transient.step={resolved.step!r}"], force)  # (provenance)
         job.step_origin = origin
         _choose_spans(job, fmax, rtol, command="transient")
+        _announce_cost(job.cfg, resolved)
         _check_output_volume(job, force_large)
         spec_opts = cfg.transient.spectrum
         run = _static_pipeline(job, modal=spec_opts.enabled)
@@ -666,6 +696,15 @@ def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5).
     _run(body)
 
 
+def _announce_cost(cfg, transient=None) -> None:
+    """Before any work: a run estimated to take long says so, with its DOFs and steps (`guards`)."""
+    from .guards import cost_note, estimate_cost
+
+    note = cost_note(estimate_cost(cfg, transient))
+    if note:
+        _console().print(f"[bold]note[/]: {note}")
+
+
 def _check_output_volume(job: "_Job", force_large: bool) -> None:
     """Before any work: histories above transient.max_output_mb need --force-large (exit 2)."""
     from .system import build_system
@@ -728,6 +767,9 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
 
         mres = solve_modes(model, res.q, n_modes=len(mres.frequency), solver=cfg.modal.solver)
     setup = prepare(model, res, opts)
+    early = _step_warnings(opts, setup, mres)
+    for w in early:  # before the work: a step that resolves nothing is said at once
+        _console().print(f"[bold yellow]warning[/]: {w}")
     _warm_kernels(_console())
     shapes = {name: len(v) for name, v in setup.coords.items()}
     series = {s.name: (tuple(shapes[d] for d in s.dims), s.units, s.dims) for s in setup.series}
@@ -761,7 +803,8 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
                          newton_iterations=summary.newton_iterations,
                          energy_balance_error=summary.energy_error, energy_moved_J=summary.energy_moved,
                          step_halvings=summary.step_halvings, smallest_step_s=summary.min_step,
-                         n_slack_events=int(len(ev)), warnings=list(summary.warnings))
+                         n_slack_events=int(len(ev)),
+                         warnings=list(early) + [w for w in summary.warnings if w not in early])
         if np.isfinite(summary.worst_slip_margin[0]):
             writer.set_attrs(worst_slip_margin=summary.worst_slip_margin[0],
                              worst_slip_time_s=summary.worst_slip_margin[1],
@@ -783,7 +826,7 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
                 kept = {name: writer.read(name, first) for name in keep}
                 peaks = _spectra(writer, setup, t_all[first:], kept, mres, opts)
     con.print(f"time step ({attrs['step_origin']}): {step_text}")
-    _print_transient(con, summary, spans, peaks, setup.excitation_frequency)
+    _print_transient(con, summary, spans, peaks, setup.excitation_frequency, shown=early)
     con.print(f"wrote [bold]/transient[/] ({summary.n_outputs} samples) to {job.output}")
 
 
@@ -890,7 +933,22 @@ def _channel_labels(series, coords) -> list[str]:
     return [f"{series.name}[{', '.join(map(str, combo))}]" for combo in itertools.product(*axes)]
 
 
-def _print_transient(con, summary, spans, peaks, f_exc) -> None:
+def _step_warnings(opts, setup, mres) -> tuple[str, ...]:
+    """The step against the excitation and the highest mode the run is meant to resolve:
+    transient.fmax if given, else the highest of the modes computed for the spectra (modal.modes)."""
+    from .timestep import step_warnings
+
+    f_mode, source = None, ""
+    if opts.fmax is not None:
+        f_mode, source = float(opts.fmax), "transient.fmax"
+    elif mres is not None and len(mres.frequency):
+        f_mode = float(mres.frequency.max())
+        source = f"mode {int(mres.frequency.argmax()) + 1}, the highest of the {len(mres.frequency)} computed (modal.modes)"
+    return step_warnings(opts.step, excitation_frequency=setup.excitation_frequency, mode_frequency=f_mode,
+                         mode_source=source)
+
+
+def _print_transient(con, summary, spans, peaks, f_exc, shown=()) -> None:
     from rich.table import Table
 
     con.print(f"transient {summary.status}: {summary.steps} steps to t = {summary.final_time:.6g} s "
@@ -899,7 +957,8 @@ def _print_transient(con, summary, spans, peaks, f_exc) -> None:
               f"(smallest step {summary.min_step:.3g} s); energy balance error {summary.energy_error:.2e} "
               f"of the energy moved")
     for w in summary.warnings:
-        con.print(f"[bold yellow]warning[/]: {w}")
+        if w not in shown:  # (those shown before the run are not repeated)
+            con.print(f"[bold yellow]warning[/]: {w}")
     ev = summary.slack_events
     for t, s, slack, fmin in ev[:8]:
         con.print(f"  span {spans[int(s)]} {'went slack' if slack else 'taut again'} at t = {t:.6g} s "

@@ -1253,15 +1253,14 @@ def _check_transient(chk: _Checker, t: TransientOptions, pulleys: tuple[Pulley, 
     return t
 
 
-def table_bytes(cfg: DriveConfig) -> dict[str, bytes]:
-    """The bytes of every CSV table the configuration reads, by the name it gives them (read next to
-    cfg.source now; the sha256 check on parsing still holds them to the configuration's version)."""
-    out: dict[str, bytes] = {}
-    if cfg.transient is None:
-        return out
+def table_bytes(cfg: DriveConfig, names: tuple[str, ...] = ()) -> dict[str, bytes]:
+    """The bytes of every CSV table the configuration reads, and of the tables `names` (a sweep's other
+    table values), by the name it gives them (read next to cfg.source now; the sha256 check on
+    parsing still holds them to the configuration's version)."""
+    wanted = [load.signals[0].table for load in cfg.transient.loads] if cfg.transient is not None else []
     base = Path(cfg.source).parent if cfg.source and not cfg.source.startswith("<") else Path(".")
-    for load in cfg.transient.loads:
-        name = load.signals[0].table
+    out: dict[str, bytes] = {}
+    for name in [*wanted, *names]:
         if name and name not in out:
             out[name] = ((base / name) if not Path(name).is_absolute() else Path(name)).read_bytes()
     return out

@@ -214,20 +214,24 @@ STRAIN_WARNING = 0.05  # belt strain above which the constant-EA axial law is fl
 SLACK_WARNING = 0.1  # a span whose smaller end tension is below this share of the mean tension is flagged
 
 
+def strain_warning(T: float, EA: float, when: str = "") -> list[str]:
+    """[a warning] if the largest span tension T (N) stretches the belt beyond STRAIN_WARNING, else [].
+    when: where in a run (e.g. " at t = 0.2 s"), empty for a static result."""
+    from .system import stretch_for_tension
+
+    strain = stretch_for_tension(T, EA) - 1.0 if np.isfinite(T) and T > 0 else 0.0  # engineering strain
+    if strain <= STRAIN_WARNING:
+        return []
+    return [f"the belt is stretched by {strain:.1%}{when} (tension {T:.4g} N on EA = {EA:.4g} N): far beyond a "
+            f"belt's working strain, where the axial law (constant EA) no longer describes it; check "
+            f"tension.target and belt.EA"]
+
+
 def static_warnings(model: DriveModel, res: StaticResult) -> list[str]:
     """What makes a static result doubtful for the engineer: a strain far beyond a belt's (the axial
     law with a constant EA means nothing there), a span close to slack (its smaller end tension below
     10 % of the mean), a pulley that slips (margin < 1)."""
-    out = []
-    from .system import stretch_for_tension
-
-    EA = float(model.EA)
-    T = float(np.max(res.span_tension))
-    strain = stretch_for_tension(T, EA) - 1.0 if T > 0 else 0.0  # engineering strain of the stretch
-    if strain > STRAIN_WARNING:
-        out.append(f"the belt is stretched by {strain:.1%} (tension {T:.4g} N on "
-                   f"EA = {EA:.4g} N): far beyond a belt's working strain, where the axial law (constant EA) "
-                   f"no longer describes it; check tension.target and belt.EA")
+    out = strain_warning(float(np.max(res.span_tension)), float(model.EA))
     T_min = res.span_tension.min(axis=1)  # (span,) the smaller end tension of each span
     for s_, t in enumerate(T_min):
         if t < SLACK_WARNING * abs(res.mean_tension):
@@ -390,7 +394,7 @@ def sweep_group(cfg, result) -> GroupData:
                      description="tracked natural frequencies (NaN for failed cases)"),
             Variable(name="label", data=[str(x) for x in result.label] + [""] * (k - len(result.label)),
                      dims=("mode",), units="1", description="classification of each tracked mode at the first case"),
-            Variable(name="kind", data=result.kind.astype(str), dims=("case", "mode"), units="1"),
+            Variable(name="kind", data=result.kind, dims=("case", "mode"), units="1"),  # (shared str objects)
             Variable(name="order", data=result.order, dims=("case", "mode"), units="1"),
             Variable(name="span", data=result.span, dims=("case", "mode"), units="1"),
             Variable(name="mac", data=result.mac, dims=("case", "mode"), units="1",

@@ -104,7 +104,7 @@ from .results_files import (
     lock_pid,
     take_lock,
 )
-from .results_read import GroupState, group_states, read_group, read_root_attrs
+from .results_read import GroupState, group_names, group_states, read_group, read_root_attrs
 from .results_schema import GroupData, Variable
 from .results_stream import SYNC_SECONDS, WRITE_SECONDS, StreamWriter, recover
 from .results_write import INLINE_BYTES, write_group, write_groups
@@ -126,6 +126,7 @@ __all__ = [
     "lock_pid",
     "read_group",
     "read_root_attrs",
+    "group_names",
     "recover",
     "take_lock",
     "write_group",

@@ -187,6 +187,12 @@ def read_root_attrs(path: Path) -> dict:
         return {k: decode_attr(v) for k, v in f.attrs.items()}
 
 
+def group_names(path: Path) -> list[str]:
+    """The analysis groups of a results file (top level, /provenance left out); `OutputError` if unreadable."""
+    with open_read(Path(path)) as f:
+        return [k for k in f.keys() if k != "provenance"]
+
+
 def group_states(path: Path) -> dict[str, GroupState]:
     """The analysis groups of a results file and their status; for a `running` group whether its
     writer still runs (`GroupState.orphaned`: it does not) and how many samples its journal holds."""

@@ -278,6 +278,8 @@ class _Problem:
         self.noise = 1e3 * np.finfo(float).eps * (system.EA * np.sqrt(el.n_elem + n_sp) + bend)
         self.history: list[tuple[float, float]] = []
         self.has_load = bool(np.any(system.external_force(1.0) != 0.0))
+        self.has_weight = bool(np.any(system.gravity != 0.0))
+        self.accept = 1.0  # Newton stops at err <= accept (a continuation's intermediate stages: looser)
         self.EA = system.EA
         self.scales = ResidualScales(system)
         self.last: tuple = (None, 0.0, 0.0, None)  # (q, load factor, driver residual, mean tension) evaluated last
@@ -316,13 +318,18 @@ class _Problem:
         return R, K, float(scaled.max(initial=0.0)), rank1
 
     def newton(self, q: np.ndarray, lam: float, pinned: np.ndarray, *, bordered: bool = False,
-               max_iterations: int | None = None) -> np.ndarray:
+               max_iterations: int | None = None, line_search: bool = True, stall: bool = False) -> np.ndarray:
+        """Newton from q. line_search: steps shortened (halved) until the largest scaled residual
+        decreases; without it every step is taken whole (a continuation stage, whose predictor is
+        close: there the first step of a sagging string may raise the largest residual a thousandfold
+        on its way to converging, which a line search on that merit stalls on). stall: give up
+        (_Fail) at the first step the line search cuts below 1/16 (the sign of such a stall)."""
         m = self.model
         labels = m.dof_labels
         n_max = self.opts.max_iterations if max_iterations is None else max_iterations
         R, K, err, rank1 = self.evaluate(q, lam, pinned, bordered)
         for it in range(n_max):
-            if err <= 1.0:
+            if err <= self.accept:
                 return q
             try:
                 dq = _solve(K, -R, m.dense, rank1)
@@ -331,18 +338,22 @@ class _Problem:
                 raise _Fail(f"singular tangent stiffness in Newton iteration {it + 1} "
                             f"(no stiffness against a motion of '{dof}')", err, dof) from None
             alpha = 1.0
-            for _ in range(12):
+            for _ in range(12 if line_search else 1):
                 q_try = q + alpha * dq
                 R_t, K_t, err_t, r1_t = self.evaluate(q_try, lam, pinned, bordered)
-                if np.isfinite(err_t) and (err_t < err * (1.0 - 1e-4 * alpha) or err_t <= 1.0):
+                if np.isfinite(err_t) and (err_t < err * (1.0 - 1e-4 * alpha) or err_t <= self.accept
+                                           or not line_search):
                     break
                 alpha *= 0.5
+                if stall and alpha < 1.0 / 16:
+                    raise _Fail(f"Newton stalls in iteration {it + 1} (line search step {alpha:.3g})", err,
+                                labels[int(np.argmax(np.abs(R)))])
             else:
                 raise _Fail(f"line search failed in Newton iteration {it + 1}", err,
                             labels[int(np.argmax(np.abs(R)))])
             q, R, K, err, rank1 = q_try, R_t, K_t, err_t, r1_t
             self.history.append((err, lam))
-        if err <= 1.0:
+        if err <= self.accept:
             return q
         raise _Fail(f"Newton did not converge in {n_max} iterations", err, labels[int(np.argmax(np.abs(R)))])
 
@@ -363,6 +374,76 @@ class _Problem:
                 continue
             lam_done, dlam = lam, 2.0 * dlam
         return q
+
+    def start_tension(self) -> float:
+        """The mean tension from which a tension continuation starts: where the straight spans take
+        their sag under the weight in a few Newton iterations. A span of chord L under the weight w
+        per length (its component across the chord, at most |g| rho) sags s = w L^2 / (8 T) in the
+        linear (parabola) estimate, which lengthens it by (8/3) (s/L)^2 L, a tension EA w^2 L^2 /
+        (24 T^2): Newton's first step overshoots the tension by this much, so the continuation starts
+        where it is at most T, T^3 >= EA w^2 L^2 / 24, doubled for margin (and never below the target)."""
+        m = self.model
+        el = m.belt.elements
+        w = float(np.linalg.norm(m.gravity)) * float(el.rho.max())
+        L = float(m.layout.span_length.max())
+        return max(abs(float(self.target)), 2.0 * (self.EA * (w * L) ** 2 / 24.0) ** (1.0 / 3.0))
+
+    def tension_continuation(self, q_at, pinned: np.ndarray) -> np.ndarray:
+        """Continuation in the tension target for sagging spans (low tension under the weight, little
+        or no bending stiffness), where Newton from straight spans overshoots (the sag's elongation
+        times EA) and a line search on the largest residual stalls.
+
+        The bordered Newton (full steps, `newton(line_search=False)`) solves at `start_tension` from
+        straight spans `q_at(T)`, then at targets lowered geometrically to the given one, with u = 1/T
+        as the continuation parameter (a string's sag is linear in 1/T: the parabola s = w L^2 u / 8).
+        Predictor from the last solution q_k: its tangent dq/du = -T^2 dq/dT, K_b dq/dT = e_a (the
+        derivative of [R_eq; T(q) - T_target] = 0 by the target), plus the curvature that the
+        solution before it adds (quadratic extrapolation in u). A stage solved in <= 3 iterations
+        squares the ratio between targets (first 4); a stage not solved in 8 takes its square root
+        and starts again from the same solution. The intermediate stages are solved to 100 times
+        the tolerance (the next predictor's error is far larger), the last one to the tolerance.
+        Returns q at the given target; raises _Fail when the ratio falls below 1.01."""
+        target = float(self.target)
+        T = self.start_tension()
+        e_a = np.zeros(self.model.n_dof)
+        e_a[self.a] = 1.0
+        try:
+            self.target = T
+            q = self.newton(q_at(T), 1.0, pinned, bordered=True, max_iterations=12, line_search=False)
+            ratio, prev = 4.0, None
+            while T > target:
+                _, K, _, rank1 = self.evaluate(q, 1.0, pinned, True)
+                try:
+                    dq_du = -T * T * _solve(K, e_a, self.model.dense, rank1)
+                except (np.linalg.LinAlgError, RuntimeError):
+                    dq_du = np.zeros_like(q)
+                curvature = 0.0  # (n,) d2q/du2 / 2 from the solution before the last one
+                if prev is not None:
+                    dp = 1.0 / prev[1] - 1.0 / T
+                    curvature = (prev[0] - q - dq_du * dp) / dp**2
+                while True:
+                    T_next = max(target, T / ratio)
+                    du = 1.0 / T_next - 1.0 / T
+                    self.target = T_next
+                    self.accept = 1.0 if T_next == target else 100.0
+                    n0 = len(self.history)
+                    try:
+                        q_new = self.newton(q + dq_du * du + curvature * du**2, 1.0, pinned, bordered=True,
+                                            max_iterations=8, line_search=False)
+                    except _Fail:
+                        ratio = float(np.sqrt(ratio))
+                        if ratio < 1.01:
+                            raise
+                        continue
+                    break
+                if len(self.history) - n0 <= 3:
+                    ratio = min(ratio * ratio, 1e3)
+                prev = (q, T)
+                q, T = q_new, T_next
+            return q
+        finally:
+            self.target = target
+            self.accept = 1.0
 
     def tension_loop(self, q: np.ndarray) -> np.ndarray:
         """Outer Newton on the adjustable pulley's slide offset s: equilibrium at fixed s inside,
@@ -417,9 +498,10 @@ def solve_static(system: System, options: StaticOptions, *, q0: np.ndarray | Non
     """Static equilibrium of the drive (raises SolverError naming step, residual and DOF).
 
     Tension mode "adjust": a bordered Newton on (equilibrium, T = target) from the linear axial
-    predictor, which converges in one or two iterations for taut spans; if it fails (sagging spans,
-    strong nonlinearity), an outer Newton on the slide offset around inner equilibrium solves with
-    load stepping on the weight. Other modes: equilibrium with load stepping. q0: a start (n_dof,)
+    predictor, which converges in one or two iterations for taut spans; if it stalls on spans that sag
+    under their weight, a continuation in the tension target (`_Problem.tension_continuation`); if
+    that fails too, an outer Newton on the slide offset around inner equilibrium solves with load
+    stepping on the weight. Other modes: equilibrium with load stepping. q0: a start (n_dof,)
     instead of the predictor (warm start; the driver's rotation is held at q0's value); if Newton
     fails from it, the solve starts over as without it.
 
@@ -442,19 +524,32 @@ def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray 
     pinned = np.array([prob.driver])
     try:
         q = None
+        sagging = prob.adjust and prob.has_weight  # the continuation in the tension target may be needed
         if q0 is not None:
+            q0 = np.array(q0, dtype=float)
             try:
-                q = prob.newton(np.array(q0, dtype=float), 1.0, pinned, bordered=prob.adjust)
+                q = prob.newton(q0, 1.0, pinned, bordered=prob.adjust, stall=sagging)
             except _Fail:
-                prob.history.clear()
+                pass
         if q is not None:
             pass
         elif prob.adjust:
-            q0 = _predictor(model, stretch_for_tension(prob.target, prob.EA), prob.a, prob.driver)
-            try:
-                q = prob.newton(q0, 1.0, pinned, bordered=True, max_iterations=8)
-            except _Fail:
-                prob.history.clear()
+            def straight(T: float) -> np.ndarray:
+                return _predictor(model, stretch_for_tension(T, prob.EA), prob.a, prob.driver)
+
+            tried = q0
+            q0 = straight(prob.target)
+            if tried is None or not np.array_equal(tried, q0):  # (a re-lay pass's first start is this one)
+                try:
+                    q = prob.newton(q0, 1.0, pinned, bordered=True, max_iterations=8, stall=sagging)
+                except _Fail:
+                    q = None
+            if q is None and sagging:
+                try:  # sagging spans: continuation in the tension target
+                    q = prob.tension_continuation(straight, pinned)
+                except _Fail:
+                    q = None
+            if q is None:
                 q = prob.tension_loop(q0)
         else:
             q = prob.continuation(np.zeros(n), pinned)
@@ -606,6 +701,7 @@ class SolvedDrive:
     passes: int  # layouts solved on (the first included)
     solves: int  # static solves (prestrain iterations included)
     movement: np.ndarray  # (passes,) largest pulley displacement from its laid centre after each pass, m
+    newton_iterations: int = 0  # Newton iterations of all passes and solves (failed attempts included)
 
 
 def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
@@ -919,15 +1015,17 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         system = system.full()
     prev_step = None
     movement: list[float] = []
-    solves = 0
+    solves = iterations = 0
     for p in range(1, max_passes + 1):
         if prestrain:
             system, st, lam_p, slope, k = _meet_prestrain(build, lay, lam_p, free, options, slope)
             solves += k
             q_p = st.q
+            iterations += st.iterations  # (the last prestrain solve's)
         else:
             q_p, preload, hist, known = solve_equilibrium(system, options, q0=warm, known=True)
             solves += 1
+            iterations += len(hist)
         solved_centers = system.pulley_centers(q_p)
         step = solved_centers - lay.center
         movement.append(float(np.linalg.norm(step, axis=1).max(initial=0.0)))
@@ -936,7 +1034,8 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                 st = _result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
                              known=known)
             _check_slack(system, st)
-            return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement))
+            return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement),
+                               newton_iterations=iterations)
         # the next layout: at the solved centres, extrapolated (Aitken) where the passes contract steadily
         centers = solved_centers
         if prev_step is not None:

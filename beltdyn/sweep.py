@@ -186,6 +186,7 @@ def _check_cases(cfg: DriveConfig, spec: SweepSpec) -> None:
     from .config import apply_override, config_from_dict, config_to_dict
 
     raw = config_to_dict(cfg)
+    tables = sweep_tables(cfg, spec)
     if spec.zip or spec.n_cases <= CHECK_EVERY_CASE:
         cases = [spec.case_values(i) for i in range(spec.n_cases)]
     else:
@@ -194,7 +195,7 @@ def _check_cases(cfg: DriveConfig, spec: SweepSpec) -> None:
                  for j, p in enumerate(spec.params) for v in p.values]
     seen = set()
     for values in cases:
-        assignments = [_assign(p.key, v) for p, v in zip(spec.params, values)]
+        assignments = case_assignments(spec, values, tables)
         marker = tuple(assignments)
         if marker in seen:
             continue
@@ -225,8 +226,38 @@ def _assign(key: str, value: Any) -> str:
     return f"{key}={text}"
 
 
+def case_assignments(spec: SweepSpec, values: tuple, tables: dict[str, bytes]) -> list[str]:
+    """The overrides of one case. A swept table file (a key ending in .table) also sets its
+    table_sha256 to that file's (`tables`, from `sweep_tables`), in place of the one the base
+    configuration resolved for its own table: every case is held to the table version swept."""
+    out = []
+    for p, v in zip(spec.params, values):
+        out.append(_assign(p.key, v))
+        if p.key.endswith(".table"):
+            out.append(_assign(f"{p.key}_sha256", hashlib.sha256(tables[str(v)]).hexdigest()))
+    return out
+
+
+def sweep_tables(cfg: DriveConfig, spec: SweepSpec) -> dict[str, bytes]:
+    """The bytes of every CSV table the sweep's cases read (the configuration's and every swept table
+    value), sent with the cases to the workers (`run_case`)."""
+    from .config import table_bytes
+
+    swept = tuple(str(v) for p in spec.params if p.key.endswith(".table") for v in p.values)
+    try:
+        return table_bytes(cfg, swept)
+    except OSError as exc:  # (the cases' check read them a moment ago)
+        raise ConfigError(f"cannot read a table: {exc}", file=cfg.source, key="--param") from None
+
+
 def spec_hash(cfg: DriveConfig, spec: SweepSpec) -> str:
-    return hashlib.sha256((config_hash(cfg) + json.dumps(spec.to_json(), sort_keys=True)).encode()).hexdigest()
+    """The sweep's identity (a journal resumes only the same one): the configuration (its tables'
+    sha256 included), the grid, and the sha256 of every swept table file."""
+    tables = sweep_tables(cfg, spec)
+    swept = {str(v): hashlib.sha256(tables[str(v)]).hexdigest()
+             for p in spec.params if p.key.endswith(".table") for v in p.values}
+    return hashlib.sha256((config_hash(cfg) + json.dumps(spec.to_json(), sort_keys=True)
+                           + json.dumps(swept, sort_keys=True)).encode()).hexdigest()
 
 
 # ------------------------------------------------------------------------------------ the worker
@@ -695,7 +726,8 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
     done = journal.done()
     todo = [i for i in range(spec.n_cases) if i not in done]
     base = resolved_toml(cfg)
-    items = [(i, [_assign(p.key, v) for p, v in zip(spec.params, spec.case_values(i))]) for i in todo]
+    tables = sweep_tables(cfg, spec)
+    items = [(i, case_assignments(spec, spec.case_values(i), tables)) for i in todo]
     if progress:
         progress(len(done), spec.n_cases)
     assembly = Assembly(spec)
@@ -723,9 +755,7 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
         assembly.advance(journal)
 
     try:
-        from .config import table_bytes
-
-        _execute(base, cfg.source, spec, chunks, n_workers, client, record, table_bytes(cfg))
+        _execute(base, cfg.source, spec, chunks, n_workers, client, record, tables)
     except BaseException:  # Ctrl-C, SIGTERM, a failure: what is journaled is made durable, then it goes on
         try:
             journal.sync()
@@ -888,7 +918,8 @@ class Assembly:
             k = spec.n_modes
             self.frequency = np.full((n, k), np.nan)
             self.growth = np.full((n, k), np.nan)
-            self.kind = np.full((n, k), "", dtype=object)
+            self._kind = np.zeros((n, k), dtype=np.int16)  # codes into _kind_names (0: "")
+            self._kind_names: list[str] = ["", "lost"]
             self.order = np.zeros((n, k), dtype=np.int64)
             self.span = np.zeros((n, k), dtype=np.int64)
             self.mac = np.full((n, k), np.nan)
@@ -981,8 +1012,8 @@ class Assembly:
             self.frequency[i, ok] = c["frequency"][sel[ok]]
             if "growth_rate" in c:
                 self.growth[i, ok] = c["growth_rate"][sel[ok]]
-            self.kind[i, ok] = c["kind"][sel[ok]]
-            self.kind[i, ~ok] = "lost"
+            self._kind[i, ok] = [self._kind_code(str(x)) for x in c["kind"][sel[ok]]]
+            self._kind[i, ~ok] = 1  # "lost"
             self.order[i, ok] = c["order"][sel[ok]]
             self.span[i, ok] = c["span"][sel[ok]]
             self.mac[i, ok] = np.minimum(macs[ok], 1.0)
@@ -1000,6 +1031,20 @@ class Assembly:
             self._release(anc)
         if not failed:
             self._release(i)
+
+    def _kind_code(self, name: str) -> int:
+        try:
+            return self._kind_names.index(name)
+        except ValueError:
+            self._kind_names.append(name)
+            return len(self._kind_names) - 1
+
+    @property
+    def kind(self) -> np.ndarray:
+        """(n_cases, n_track) object array of str: a case's tracked modes' classification ("" for a
+        failed case, "lost" for a mode that left the computed window), one shared str per kind (the
+        codes are kept per case: 2 bytes a mode instead of a string object)."""
+        return np.array(self._kind_names, dtype=object)[self._kind]
 
     def _release(self, j: int) -> None:
         if self._refs[j] <= 0 and j != self._last:

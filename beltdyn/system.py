@@ -94,7 +94,11 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
     """DOF order along the loop: pulley j (its support's DOFs, rotation), then span j (start
     gradients, interior nodes, end gradients; none for a spring span); the supports' dependent DOFs
     after all of them."""
-    key = (cfg.span_elements, tuple((p.name, p.support, tuple(p.slide_direction)) for p in cfg.pulleys))
+    from .supports import SUPPORT_CLASSES
+
+    # the support's class too: a registered class (tests/test_system.py) may replace a kind's
+    key = (cfg.span_elements, tuple((p.name, p.support, SUPPORT_CLASSES[p.support], tuple(p.slide_direction))
+                                    for p in cfg.pulleys))
     hit = _DOFMAPS.get(key)
     if hit is None:
         if len(_DOFMAPS) > 64:
@@ -1663,11 +1667,17 @@ def memory_limit() -> int:
     return limit
 
 
+def model_dofs(cfg: DriveConfig) -> int:
+    """The DOF count of a configuration's model, known before anything is built: per span 4 per
+    element (the interior nodes and the end slopes) and 3 per pulley (rotation and translations, at most)."""
+    return 3 * len(cfg.pulleys) + 4 * sum(cfg.span_elements)
+
+
 def check_model_size(cfg: DriveConfig) -> None:
     """A mesh whose model cannot fit in memory is a configuration error before any work (exit 2),
     not a run that is killed or fails after minutes."""
     n_e = max(cfg.span_elements)
-    n_dof = 3 * len(cfg.pulleys) + 4 * sum(cfg.span_elements)
+    n_dof = model_dofs(cfg)
     need = n_dof * BYTES_PER_DOF
     have = memory_limit()
     if need > 0.5 * have:

@@ -118,8 +118,6 @@ def series_coefficient(rho_inf: float) -> float:
 
 def critical_omega(accuracy: float, rho_inf: float) -> float:
     """Omega* = 2 pi f h at which |e| reaches `accuracy` (0 < accuracy < 1)."""
-    from scipy.optimize import brentq
-
     if not 0.0 < accuracy < 1.0:
         raise ValueError(f"accuracy must be in (0, 1), got {accuracy!r}")
 
@@ -134,7 +132,41 @@ def critical_omega(accuracy: float, rho_inf: float) -> float:
         lo, hi = hi, 2.0 * hi
         if hi > 1e6:
             raise ValueError(f"no step reaches the frequency error {accuracy!r}")
-    return brentq(excess, lo, hi, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    return _root(excess, lo, hi)
+
+
+def _root(f, lo: float, hi: float) -> float:
+    """The root of f in [lo, hi] (f(lo) < 0 <= f(hi)) to a few ulps: regula falsi (Illinois), with a
+    bisection whenever an interval fails to halve. scipy.optimize would cost the transient command
+    ~0.15 s of imports for this one root."""
+    f_lo, f_hi = f(lo), f(hi)
+    side = 0
+    while hi - lo > 4.0 * np.finfo(float).eps * hi + 1e-300:
+        width = hi - lo
+        x = hi - f_hi * (hi - lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
+        if not lo < x < hi:
+            x = 0.5 * (lo + hi)
+        fx = f(x)
+        if fx == 0.0:
+            return x
+        if fx < 0.0:
+            lo, f_lo = x, fx
+            if side == -1:
+                f_hi *= 0.5  # Illinois: the end kept twice in a row counts half
+            side = -1
+        else:
+            hi, f_hi = x, fx
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+        if hi - lo > 0.5 * width:  # too slow: bisect
+            mid = 0.5 * (lo + hi)
+            fm = f(mid)
+            if fm < 0.0:
+                lo, f_lo = mid, fm
+            else:
+                hi, f_hi = mid, fm
+    return 0.5 * (lo + hi)
 
 
 def step_for_accuracy(fmax: float, accuracy: float, rho_inf: float) -> float:
@@ -187,3 +219,26 @@ def describe(step: float, *, accuracy: float | None, fmax: float | None,
     if fmax is not None:
         text += f"; {frequency_error(fmax, step, rho_inf):+.3%} at fmax = {fmax:g} Hz"
     return text, band, acc
+
+
+STEP_PER_PERIOD = 0.1  # the longest step, as a share of the period, that resolves a motion (about 1 % in frequency)
+
+
+def step_warnings(step: float, *, excitation_frequency: float | None = None,
+                  mode_frequency: float | None = None, mode_source: str = "") -> tuple[str, ...]:
+    """What a step does not resolve: a step longer than a tenth of the period of the excitation
+    (Hz), or of the highest mode the run is meant to resolve (`mode_frequency`, Hz; `mode_source`
+    says where it comes from: transient.fmax, or the highest mode computed). At a tenth of the
+    period the generalized-alpha frequency error is about 0.8 % (e = -c (2 pi f h)^2, c ~ 0.08);
+    longer steps lose the motion."""
+    out = []
+    if excitation_frequency and step > STEP_PER_PERIOD / excitation_frequency:
+        out.append(f"the step {step:g} s exceeds a tenth of the excitation period "
+                   f"({1.0 / excitation_frequency:.4g} s at {excitation_frequency:g} Hz): the response is not "
+                   f"resolved; use transient.step <= {STEP_PER_PERIOD / excitation_frequency:.3g} s")
+    if mode_frequency and step > STEP_PER_PERIOD / mode_frequency:
+        out.append(f"the step {step:g} s exceeds a tenth of the period of the highest mode the run is meant to "
+                   f"resolve ({1.0 / mode_frequency:.4g} s at {mode_frequency:.6g} Hz, {mode_source}): no motion above "
+                   f"{STEP_PER_PERIOD / step:.4g} Hz is resolved; use transient.step <= "
+                   f"{STEP_PER_PERIOD / mode_frequency:.3g} s, or transient.accuracy and transient.fmax")
+    return tuple(out)

@@ -95,10 +95,9 @@ def accuracy_warnings(opts: TransientOptions, *, energy_error: float, excitation
     if energy_error > ENERGY_WARNING:
         out.append(f"energy balance error {energy_error:.2e} of the energy moved exceeds {ENERGY_WARNING:.0%}: "
                    f"the step {opts.step:g} s is too long for this run; reduce transient.step")
-    if excitation_frequency and opts.step > 0.1 / excitation_frequency:
-        out.append(f"the step {opts.step:g} s exceeds a tenth of the excitation period "
-                   f"({1.0 / excitation_frequency:.4g} s at {excitation_frequency:g} Hz): the response is not "
-                   f"resolved; use transient.step <= {0.1 / excitation_frequency:.3g} s")
+    from .timestep import step_warnings
+
+    out += step_warnings(opts.step, excitation_frequency=excitation_frequency)
     if opts.accuracy is not None and opts.fmax is not None:
         from .timestep import frequency_error
 
@@ -704,8 +703,36 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
                             slack_events=events, n_outputs=run.delivered, energy_error=error, energy_moved=moved,
                             warnings=accuracy_warnings(opts, energy_error=error, min_step=float(min_h),
                                                        excitation_frequency=setup.excitation_frequency)
-                            + _slip_warning(observer.worst_slip) + _stop_warning(observer.stop_hit),
+                            + _slip_warning(observer.worst_slip) + _stop_warning(observer.stop_hit)
+                            + tension_warnings(system, observer, events, static.mean_tension),
                             worst_slip_margin=observer.worst_slip, newton_iterations=int(th[itg.ITERS]))
+
+
+def tension_warnings(system: System, observer: "Observers", events: np.ndarray,
+                     mean_tension: float) -> tuple[str, ...]:
+    """The spans' tension outside the model's validity during the run (the static thresholds,
+    export.SLACK_WARNING and STRAIN_WARNING): a span that went slack (slack events), one that came
+    close to slack (its smaller end tension below 10 % of the static mean tension at a sample), and a
+    belt strain beyond 5 % at a sample (the last two from the recorded span tensions)."""
+    from .export import SLACK_WARNING, strain_warning
+
+    lay = system.layout
+    out = []
+    went = set()
+    for s_ in np.unique(events[events[:, 2] == 1, 1].astype(int)) if len(events) else ():
+        rows = events[(events[:, 1] == s_) & (events[:, 2] == 1)]
+        went.add(int(s_))
+        out.append(f"span {lay.span_name(int(s_))} went slack {len(rows)} time(s), first at t = {rows[0, 0]:.6g} s "
+                   f"(axial force down to {events[events[:, 1] == s_, 3].min():.4g} N): a real belt carries no "
+                   f"compression, it flaps and may slip there; raise the tension or lower the excitation")
+    scale = abs(float(mean_tension))
+    for s_, (t_low, when) in enumerate(zip(observer.tension_low, observer.tension_low_time)):
+        if s_ not in went and np.isfinite(t_low) and t_low < SLACK_WARNING * scale:
+            out.append(f"span {lay.span_name(s_)} came close to slack: {t_low:.4g} N at one end at t = {when:.6g} s, "
+                       f"{t_low / scale:.1%} of the static mean tension {scale:.4g} N")
+    T, when = observer.tension_high
+    out += strain_warning(T, float(system.EA), f" at t = {when:.6g} s")
+    return tuple(out)
 
 
 def _stop_warning(hit) -> tuple[str, ...]:
@@ -734,7 +761,24 @@ class Observers:
     def __post_init__(self) -> None:
         self.names = {s.name for s in self.setup.series}
         self.worst_slip = (np.inf, np.nan, "")  # smallest slip margin, its time and pulley
+        n_span = self.system.belt.n_span
+        self.tension_low = np.full(n_span, np.inf)  # (n_span,) smallest end tension of each span, N
+        self.tension_low_time = np.full(n_span, np.nan)  # (n_span,) s, when
+        self.tension_high = (-np.inf, np.nan)  # largest end tension of any span (N) and when (s)
         self.stop_hit: tuple[float, str, float] | None = None  # first time an arm is beyond a stop, its pulley, angle
+
+    def _track_tension(self, t: np.ndarray, T: np.ndarray) -> None:
+        """The smallest end tension of each span (and when) and the largest of all, over the samples
+        T (B, n_span, 2) at times t (B,)."""
+        low = T.min(axis=2)  # (B, n_span)
+        k = np.argmin(low, axis=0)
+        lowest = low[k, np.arange(low.shape[1])]
+        better = lowest < self.tension_low
+        self.tension_low = np.where(better, lowest, self.tension_low)
+        self.tension_low_time = np.where(better, t[k], self.tension_low_time)
+        b = int(np.argmax(T.max(axis=(1, 2))))
+        if T[b].max() > self.tension_high[0]:
+            self.tension_high = (float(T[b].max()), float(t[b]))
 
     def compute(self, t, q, v, a, energy, reaction) -> dict[str, np.ndarray]:
         sysm, setup, names = self.system, self.setup, self.names
@@ -761,6 +805,7 @@ class Observers:
             F = sysm.span_end_forces(q, v, E)  # internal (elastic + damping) - weight, spring spans included
             if "span_tension" in names:
                 out["span_tension"] = sysm.span_end_tensions(q, F, E)
+                self._track_tension(t, out["span_tension"])
                 if "slip_margin" in names:
                     from .slip import required_friction, slip_margin
 

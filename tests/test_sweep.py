@@ -597,3 +597,62 @@ def test_csv_tables_travel_with_the_case(tmp_path):
     np.testing.assert_allclose(got["span_tension"], local.span_tension, rtol=1e-12)
     lost = run_case(resolved_toml(cfg), elsewhere, ["tension.target=250.0"], "static", 4)
     assert lost["failed"] == 1 and "torque.csv" in lost["error"]
+
+
+def test_swept_csv_tables_travel_and_are_pinned(tmp_path):
+    # Sweeping the table file itself: each case names its own table and carries its sha256
+    # (sweep.case_assignments), the bytes of every swept table travel with the cases
+    # (sweep_tables): a worker without the files gets the same results as one reading them (1e-12),
+    # the two tables give different runs, and changing a swept table changes the sweep's identity
+    # (a journal of the old table is not resumed with the new one).
+    from beltdyn.config import resolved_toml
+    from beltdyn.sweep import case_assignments, run_case, spec_hash, sweep_tables
+
+    (tmp_path / "a.csv").write_text("# time (s), torque (N m)\n0.0, 0.0\n0.01, 2.0\n1.0, 2.0\n")
+    (tmp_path / "b.csv").write_text("# time (s), torque (N m)\n0.0, 0.0\n0.01, 4.0\n1.0, 4.0\n")
+    path = tmp_path / "drive.toml"
+    path.write_text(BENCH.read_text() + '\n[transient]\nduration = 0.02\nstep = 1e-4\n'
+                    '[transient.spectrum]\nenabled = false\n[[transient.torque]]\npulley = "C"\n'
+                    'table = "a.csv"\n')
+    cfg = load_config(path)
+    spec = make_spec(cfg, [("transient.torque[0].table", '"a.csv","b.csv"')], analysis="transient", zip_=False)
+    tables = sweep_tables(cfg, spec)
+    assert set(tables) == {"a.csv", "b.csv"}
+    elsewhere = str(tmp_path / "remote" / "drive.toml")
+    got = []
+    for i in range(spec.n_cases):
+        a = case_assignments(spec, spec.case_values(i), tables)
+        remote = run_case(resolved_toml(cfg), elsewhere, a, "transient", 4, tables)
+        local = run_case(resolved_toml(cfg), str(path), a, "transient", 4)
+        assert remote["failed"] == 0 and local["failed"] == 0, (remote["error"], local["error"])
+        np.testing.assert_allclose(remote["span_tension_half_range"], local["span_tension_half_range"], rtol=1e-12)
+        got.append(remote["span_tension_half_range"])
+    assert not np.allclose(got[0], got[1])
+    before = spec_hash(cfg, spec)
+    (tmp_path / "b.csv").write_text("# time (s), torque (N m)\n0.0, 0.0\n0.01, 3.0\n1.0, 3.0\n")
+    assert spec_hash(cfg, spec) != before
+
+
+def test_modal_rtol_decides_on_its_output_before_the_refinement(tmp_path):
+    # A file of this configuration holding only /geometry /static /modal is replaced by the refined
+    # run (its mesh is the chosen one afterwards); a file holding a /transient of this configuration is
+    # refused at once (exit 2, before any refinement: no refinement table), and left as it was.
+    plain = [*BELTDYN, "modal", str(BENCH)]
+    r = subprocess.run([*plain, "-o", "m.h5"], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    r = subprocess.run([*plain, "--rtol", "1e-4", "-o", "m.h5"], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "m.h5") as f:
+        chosen = int(f["modal"].attrs["chosen_elements_per_span"])
+        assert chosen > 10 and f"elements_per_span = {chosen}" in f["provenance/config_toml"].asstr()[()]
+    sets = ["--set", "transient.duration=0.01", "--set", "transient.spectrum.enabled=false"]
+    r = subprocess.run([*BELTDYN, "transient", str(BENCH), *sets, "-o", "t.h5"], cwd=tmp_path, capture_output=True,
+                       text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    before = (tmp_path / "t.h5").read_bytes()
+    r = subprocess.run([*plain, *sets, "--rtol", "1e-5", "-o", "t.h5"], cwd=tmp_path, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 2 and "holds /transient" in r.stderr and "--force" in r.stderr, r.stderr
+    assert "Mesh refinement" not in r.stdout and "Traceback" not in r.stderr
+    assert (tmp_path / "t.h5").read_bytes() == before
