@@ -274,3 +274,20 @@ def test_random_invalid_drives_exit_2_naming_the_key_long(tmp_path, case):
     raw, key = case
     proc, out = _run(tmp_path, raw, ["geometry"])
     _check_invalid(proc, out, key)
+
+
+# ------------------------------------------------------------------------------- found by the fuzzer
+def test_prestrain_target_below_what_the_weight_gives_is_a_named_failure(tmp_path):
+    # A heavy belt (1 kg/m) on four fixed pulleys carries a mean tension of ~74 N from its weight with
+    # unstretched spans: "prestrain" cannot reach 1 N. Was an internal ZeroDivisionError (the secant on
+    # a stretch that no longer moves); now exit 1 naming tension.target.
+    raw = {"belt": {"EA": 1e5, "EI": 0.02, "mass_per_length": 1.0, "length": 7.878295718571563},
+           "pulleys": [{"name": f"P{i}", "center": [math.cos(i * math.pi / 2), math.sin(i * math.pi / 2)],
+                        "radius": 0.35355339059327373, "mass": 1.0, "inertia": 1.0} for i in range(4)],
+           "mesh": {"elements_per_span": 1}, "model": {"gravity": [0.0, -9.81]},
+           "tension": {"target": 1.0, "mode": "prestrain"}}
+    raw["pulleys"][0]["driver"] = True
+    proc, out = _run(tmp_path, raw, ["static"])
+    assert proc.returncode == 1 and "cannot reach tension.target = 1 N" in proc.stderr, proc.stderr
+    assert "at fault: tension.target" in proc.stderr
+    _check_valid(proc, out)
