@@ -50,7 +50,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from .jitcache import configure
+
+configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
+from numba import njit  # noqa: E402
 
 from . import ancf
 from .system import joint_selection  # noqa: F401  (set-up helper, pure numpy, lives with the joints)

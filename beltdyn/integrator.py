@@ -66,7 +66,11 @@ from __future__ import annotations
 from collections import namedtuple
 
 import numpy as np
-from numba import njit
+
+from .jitcache import configure
+
+configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
+from numba import njit  # noqa: E402
 
 from . import belt_kernel as bk
 from . import spring_kernel as sk

@@ -745,6 +745,12 @@ def _meet_prestrain(build, layout, lam: float, free: np.ndarray, options: Static
         g = st.mean_tension - target
         if abs(g) <= tol_T:
             return system, st, lam, slope, it + 1
+        if prev is not None and lam == prev[0]:  # no representable step left (the stretch is at 1)
+            raise SolverError(
+                f'tension.mode = "prestrain" cannot reach tension.target = {target:g} N: the mean span tension is '
+                f"{st.mean_tension:.6g} N at span stretch {lam:.12g}" + (" (unstretched spans: the weight and the "
+                f"supports alone give it)" if lam == 1.0 else "") + '; lower the target or use mode = "adjust"',
+                analysis="static", step=f"prestrain iteration {it + 1}", residual=abs(g) / tol_T, item="tension.target")
         if prev is not None:
             secant = (g - prev[1]) / (lam - prev[0])
             if not (np.isfinite(secant) and secant > 1e-9 * EA):

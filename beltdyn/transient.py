@@ -382,8 +382,8 @@ def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool):
         mask = Sp.row <= Sp.col
         np.add.at(ab, (u + Sp.row[mask] - Sp.col[mask], Sp.col[mask]), Sp.data[mask])
         try:
-            return Factor(kind=0, ab=cholesky_banded(ab, lower=False, check_finite=False), piv=none, perm=perm,
-                          kl=0, ku=u)
+            return Factor(kind=0, ab=np.asfortranarray(cholesky_banded(ab, lower=False, check_finite=False)),
+                          piv=none, perm=perm, kl=0, ku=u)
         except np.linalg.LinAlgError:
             pass
     ab = np.zeros((3 * u + 1, n))
@@ -391,7 +391,8 @@ def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool):
     lu, piv, info = dgbtrf(ab, u, u, overwrite_ab=True)
     if info > 0:
         raise np.linalg.LinAlgError(f"singular iteration matrix (pivot {info})")
-    return Factor(kind=1, ab=np.ascontiguousarray(lu), piv=piv.astype(np.int64), perm=perm, kl=u, ku=u)
+    # both factors column-major (the solves run down the columns), so the stepper has one signature
+    return Factor(kind=1, ab=np.asfortranarray(lu), piv=piv.astype(np.int64), perm=perm, kl=u, ku=u)
 
 
 def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: float, rho_inf: float,
@@ -895,7 +896,36 @@ def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.
     return t, q, v, a
 
 
+WARM_DRIVE = {  # the smallest drive that takes every compiled path of a transient (see `warm_up`)
+    "belt": {"length": 1.2, "EA": 1e5, "EI": 0.02, "mass_per_length": 0.1},
+    "pulleys": [
+        {"name": "A", "center": [0.0, 0.0], "radius": 0.05, "mass": 1.0, "inertia": 1e-3, "driver": True},
+        {"name": "B", "center": [0.5, 0.0], "radius": 0.05, "mass": 1.0, "inertia": 1e-3, "support": "slide",
+         "bearing_stiffness": 1e6, "adjustable": True},
+        {"name": "T", "center": [0.25, -0.06], "radius": 0.02, "mass": 0.2, "inertia": 1e-4, "side": "backside",
+         "support": "arm", "arm_pivot": [0.3, -0.09], "arm_stiffness": 20.0, "arm_damping": 0.01,
+         "arm_friction": 0.01}],
+    "tension": {"target": 100.0},
+    "mesh": {"elements_per_span": 2},
+    "model": {"gravity": [0.0, -9.81]},
+    "transient": {"duration": 4e-4, "step": 1e-4, "output_interval": 1e-4,
+                  "damping": {"rayleigh_mass": 1.0, "rayleigh_stiffness": 1e-5, "belt_axial": 1e-5,
+                              "belt_bending": 1e-5},
+                  "rotation": [{"pulley": "A", "speed": 1.0, "amplitude": 1e-3, "frequency": 50.0}],
+                  "torque": [{"pulley": "B", "constant": 0.1, "amplitude": 0.1, "frequency": 30.0}],
+                  "spectrum": {"enabled": False}},
+}
+
+
 def warm_up() -> None:
-    """Compile (or load from numba's cache) the stepper and the belt kernels: a two-step run of a
-    one-DOF oscillator through the production path."""
-    integrate_linear(np.eye(1), np.eye(1), None, np.ones(1), np.zeros(1), step=0.1, n_steps=2, rho_inf=0.5)
+    """Compile (or load from numba's cache) every kernel a transient runs, with the signatures it
+    runs them with: a few steps of a small drive (slide, backside arm with friction, belt and Rayleigh
+    damping, a prescribed rotation and a load, gravity) through `run_transient` (the band Cholesky
+    and band LU factors share one signature: both column-major). `make` calls it at install; the CLI
+    before a transient's output is opened."""
+    from .config import config_from_dict
+    from .pipeline import analyse
+
+    cfg = config_from_dict(WARM_DRIVE, file="<warm-up drive>")
+    run = analyse(cfg, compiled=True)
+    run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)

@@ -1,0 +1,85 @@
+"""Where numba caches the compiled kernels, and whether they are cached already (issue 10, item 5).
+
+numba caches each ``@njit(cache=True)`` function next to its source (``beltdyn/__pycache__``). In a
+read-only installation (a system site-packages, a container image) numba falls back to its own user
+cache folder, and fails at import when that is not writable either. `configure` decides before
+numba compiles anything: the package folder when writable, else ``$XDG_CACHE_HOME/beltdyn/numba``
+(``~/.cache/beltdyn/numba``), else a folder in the temporary directory, set as NUMBA_CACHE_DIR. A
+user's NUMBA_CACHE_DIR is left as it is. Call it before ``import numba`` (`belt_kernel` and
+`integrator` do); numba reads the variable when it is first imported, so a numba imported earlier
+gets its ``config.CACHE_DIR`` set too.
+
+`is_warm` tells whether every kernel of a module is in the cache for this source, so the CLI can say
+"compiling ..., once" only when it compiles.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parent
+_CHOSEN: list[str | None] = []  # configure's answer, once per process
+
+
+def _writable(folder: Path) -> bool:
+    """True if files can be created in `folder` (made if missing), tried as numba tries it."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        tempfile.TemporaryFile(dir=folder).close()
+        return True
+    except OSError:
+        return False
+
+
+def user_cache_dir() -> Path:
+    """$XDG_CACHE_HOME/beltdyn/numba, or ~/.cache/beltdyn/numba."""
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "beltdyn" / "numba"
+
+
+def cache_dir(in_tree: Path = PACKAGE / "__pycache__") -> str | None:
+    """The folder to set as NUMBA_CACHE_DIR, or None when numba's own choice is right (a user's
+    NUMBA_CACHE_DIR, or the writable `in_tree` folder next to the sources)."""
+    if os.environ.get("NUMBA_CACHE_DIR") or _writable(in_tree):
+        return None
+    uid = os.getuid() if hasattr(os, "getuid") else 0
+    for folder in (user_cache_dir(), Path(tempfile.gettempdir()) / f"beltdyn-numba-{uid}"):
+        if _writable(folder):
+            return str(folder)
+    return None  # nowhere to write: numba compiles in memory each time (its caching then warns)
+
+
+def configure() -> str | None:
+    """Set NUMBA_CACHE_DIR if the package folder cannot hold the cache (see the module docstring);
+    returns the folder set, or None. Cheap after the first call."""
+    if not _CHOSEN:
+        folder = cache_dir()
+        if folder is not None:
+            os.environ["NUMBA_CACHE_DIR"] = folder
+            config = sys.modules.get("numba.core.config")
+            if config is not None:  # numba already imported: it read the environment before
+                config.CACHE_DIR = folder
+        _CHOSEN.append(folder)
+    return _CHOSEN[0]
+
+
+def is_warm(*modules) -> bool | None:
+    """True if every cached numba function of `modules` has an entry in the cache for its current
+    source (numba's index file, stamped with the source's hash), False if one has none, None if this
+    cannot be told (numba's internals differ)."""
+    try:
+        for module in modules:
+            for obj in vars(module).values():
+                cache = getattr(obj, "_cache", None)
+                if cache is None or not hasattr(obj, "py_func") or getattr(obj, "__module__", "") != module.__name__:
+                    continue
+                if obj.targetoptions.get("inline") == "always":  # compiled into its callers only
+                    continue
+                if not cache._cache_file._load_index():
+                    return False
+        return True
+    except Exception:  # noqa: BLE001 - private numba API: unknown is not an error
+        return None
