@@ -622,6 +622,8 @@ def slow_warm_up():
     time.sleep(0.2)
     open({str(tmp_path / 'compiled')!r}, 'w').close()
 t.warm_up = slow_warm_up
+import beltdyn.jitcache as j
+j.is_warm = lambda *modules: False  # as on a first run: the kernels not in numba's cache
 """
     r = run_patched(patch, "transient", TRANSIENT, "--duration", "0.05", "--set", "transient.spectrum.enabled=false",
                     "-o", "t.h5", cwd=tmp_path)
