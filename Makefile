@@ -10,7 +10,7 @@ $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
-	@echo "compiling the transient kernels once (numba cache, about 10 s)"
+	@echo "compiling the transient kernels once (numba cache, about 20 s)"
 	$(BIN)/python -c "from beltdyn.transient import warm_up; warm_up()"
 	@touch $(STAMP)
 

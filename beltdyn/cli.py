@@ -1320,10 +1320,6 @@ def _print_paper(rows) -> None:
     con.print(t)
 
 
-def run() -> None:  # pragma: no cover - console-script shim for python -m
-    app()
-
-
 def run() -> None:
     """The `beltdyn` console script: the app, then a quick exit. The interpreter's teardown (freeing
     every module numba, scipy and h5py loaded) takes ~0.2 s of a short command; it is skipped once the

@@ -66,20 +66,20 @@ def configure() -> str | None:
     return _CHOSEN[0]
 
 
+def _kernels(module):
+    """The cached numba functions of `module` that are compiled on their own (not inlined)."""
+    for obj in vars(module).values():
+        if (hasattr(obj, "py_func") and getattr(obj, "_cache", None) is not None
+                and getattr(obj, "__module__", "") == module.__name__
+                and obj.targetoptions.get("inline") != "always"):  # (an inlined one lives in its callers)
+            yield obj
+
+
 def is_warm(*modules) -> bool | None:
     """True if every cached numba function of `modules` has an entry in the cache for its current
     source (numba's index file, stamped with the source's hash), False if one has none, None if this
     cannot be told (numba's internals differ)."""
     try:
-        for module in modules:
-            for obj in vars(module).values():
-                cache = getattr(obj, "_cache", None)
-                if cache is None or not hasattr(obj, "py_func") or getattr(obj, "__module__", "") != module.__name__:
-                    continue
-                if obj.targetoptions.get("inline") == "always":  # compiled into its callers only
-                    continue
-                if not cache._cache_file._load_index():
-                    return False
-        return True
+        return all(k._cache._cache_file._load_index() for m in modules for k in _kernels(m))
     except Exception:  # noqa: BLE001 - private numba API: unknown is not an error
         return None

@@ -47,6 +47,20 @@ def cli_time(args: list[str], repeats: int = 7) -> float:
     return statistics.median(times)
 
 
+def sweep_peak_rss(n_cases: int) -> float:
+    """MB: the largest resident set of a `beltdyn sweep` of n_cases modal cases of the paper bench
+    (tension 100 to 600 N) and of its worker processes (wait4's maximum over the process tree)."""
+    exe = shutil.which("beltdyn") or str(Path(sys.executable).parent / "beltdyn")
+    with tempfile.TemporaryDirectory() as tmp:
+        proc = subprocess.Popen([exe, "sweep", str(PAPER), "--param", f"tension.target=100:600:{n_cases}", "-o",
+                                 "s.h5", "--force"], cwd=tmp, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        if proc.returncode:
+            raise RuntimeError(f"the sweep of {n_cases} cases failed (exit {proc.returncode})")
+    return usage.ru_maxrss / 1024.0
+
+
 def pipeline(cfg):
     from beltdyn.pipeline import analyse
 
@@ -244,10 +258,33 @@ def main() -> None:
     t = cli_time(["sweep", str(PAPER), "--param", "tension.target=100:600:1000", "-o", "s.h5", "--force"], repeats=3)
     add("beltdyn sweep, 1000 tension cases, modal (process wall, 2 workers)", f"{t:.2f} s", "<= 10 s", t <= 10.0)
 
+    # --- issue 10: the whole `beltdyn transient` command (process start, imports, static, modal, the
+    # kernels from numba's cache, stepping, spectra, HDF5 writes) against Exudyn's in-process time for
+    # the same run (issue 4: 3.6 s at 40 el/span, 1 s at 1e-4 s, on this machine class)
+    small = ROOT / "configs" / "examples" / "bench_transient_small.toml"
+    exudyn = 3.6
+    e2e = ["transient", str(small), "--set", "mesh.elements_per_span=40", "--duration", "1", "--step", "1e-4",
+           "--set", "transient.output_interval=1e-3", "--set", "transient.spectrum.start=0.5", "-o", "e2e.h5",
+           "--force"]
+    cli_time(e2e, repeats=1)  # the numba cache warm (make did it; a changed source compiles here)
+    t = cli_time(e2e, repeats=5)
+    add("beltdyn transient end to end, 40 el/span, 1 s at 1e-4 s (process wall)", f"{t:.2f} s = {t / exudyn:.2f} x Exudyn",
+        f"<= 0.25 x Exudyn ({0.25 * exudyn:.2f} s)", t <= 0.25 * exudyn)
+    t = cli_time(["transient", str(small), "--duration", "0.01", "--set", "transient.spectrum.enabled=false",
+                  "-o", "s.h5", "--force"], repeats=5)
+    add("beltdyn transient start-up: 10 el/span, 10 ms simulated (process wall)", f"{t * 1e3:.0f} ms", "reference",
+        None)
+
+    # --- issue 10: sweep assembly memory, flat in the number of cases (peak RSS of the sweep's processes)
+    peaks = {n: sweep_peak_rss(n) for n in (2000, 8000)}
+    slope = (peaks[8000] - peaks[2000]) / 6000
+    at = peaks[8000] + slope * (100_000 - 8000)
+    add("beltdyn sweep peak memory, modal bench: 2000 / 8000 cases -> 100 000 (linear extrapolation)",
+        f"{peaks[2000]:.0f} / {peaks[8000]:.0f} MB -> {at:.0f} MB", "<= 500 MB at 100 000", at <= 500)
+
     # --- transient (issue 4): 1 s simulated at dt = 1e-4 s, in process after the numba warm-up
     from beltdyn.transient import run_transient
 
-    small = ROOT / "configs" / "examples" / "bench_transient_small.toml"
     for n_el, target in ((10, 0.4), (40, 1.5)):
         cfg = load_config(small, [f"mesh.elements_per_span={n_el}", "transient.duration=1.0", "transient.step=1e-4",
                                   "transient.output_interval=1e-3", "transient.spectrum.start=0.5"])

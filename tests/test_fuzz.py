@@ -272,21 +272,22 @@ def _check_invalid(proc: subprocess.CompletedProcess, out: Path, key: str) -> No
     assert not out.exists()
 
 
+def _check_invalid_case(tmp_path: Path, case: tuple[dict, str]) -> None:
+    raw, key = case
+    _check_invalid(*_run(tmp_path, raw, ["geometry"]), key)
+
+
 @FAST
 @given(case=broken())
 def test_random_invalid_drives_exit_2_naming_the_key(tmp_path, case):
-    raw, key = case
-    proc, out = _run(tmp_path, raw, ["geometry"])
-    _check_invalid(proc, out, key)
+    _check_invalid_case(tmp_path, case)
 
 
 @pytest.mark.slow
 @SLOW
 @given(case=broken())
 def test_random_invalid_drives_exit_2_naming_the_key_long(tmp_path, case):
-    raw, key = case
-    proc, out = _run(tmp_path, raw, ["geometry"])
-    _check_invalid(proc, out, key)
+    _check_invalid_case(tmp_path, case)
 
 
 # ------------------------------------------------------------------------------- found by the fuzzer

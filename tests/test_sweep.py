@@ -575,6 +575,18 @@ def test_the_journal_is_fsynced_at_the_end_and_on_an_interrupt(tmp_path, monkeyp
     assert kept and len(kept) < 12
 
 
+def _drive_with_tables(folder: Path, tables: dict[str, float]) -> Path:
+    """Torque tables (a ramp to the given torque in 10 ms, N m) and the bench with a 20 ms transient
+    whose torque on C reads the first of them; the configuration's path."""
+    for name, torque in tables.items():
+        (folder / name).write_text(f"# time (s), torque (N m)\n0.0, 0.0\n0.01, {torque}\n1.0, {torque}\n")
+    path = folder / "drive.toml"
+    path.write_text(BENCH.read_text() + '\n[transient]\nduration = 0.02\nstep = 1e-4\n'
+                    '[transient.spectrum]\nenabled = false\n[[transient.torque]]\npulley = "C"\n'
+                    f'table = "{next(iter(tables))}"\n')
+    return path
+
+
 def test_csv_tables_travel_with_the_case(tmp_path):
     # A remote worker has no files next to the configuration: the case carries the tables' bytes
     # (config.table_bytes), and the worker parses the configuration from them (same static result as
@@ -582,11 +594,7 @@ def test_csv_tables_travel_with_the_case(tmp_path):
     from beltdyn.config import resolved_toml, table_bytes
     from beltdyn.sweep import run_case
 
-    (tmp_path / "torque.csv").write_text("# time (s), torque (N m)\n0.0, 0.0\n0.01, 2.0\n1.0, 2.0\n")
-    path = tmp_path / "drive.toml"
-    path.write_text(BENCH.read_text() + '\n[transient]\nduration = 0.02\nstep = 1e-4\n'
-                    '[transient.spectrum]\nenabled = false\n[[transient.torque]]\npulley = "C"\n'
-                    'table = "torque.csv"\n')
+    path = _drive_with_tables(tmp_path, {"torque.csv": 2.0})
     cfg = load_config(path)
     tables = table_bytes(cfg)
     assert set(tables) == {"torque.csv"}
@@ -608,12 +616,7 @@ def test_swept_csv_tables_travel_and_are_pinned(tmp_path):
     from beltdyn.config import resolved_toml
     from beltdyn.sweep import case_assignments, run_case, spec_hash, sweep_tables
 
-    (tmp_path / "a.csv").write_text("# time (s), torque (N m)\n0.0, 0.0\n0.01, 2.0\n1.0, 2.0\n")
-    (tmp_path / "b.csv").write_text("# time (s), torque (N m)\n0.0, 0.0\n0.01, 4.0\n1.0, 4.0\n")
-    path = tmp_path / "drive.toml"
-    path.write_text(BENCH.read_text() + '\n[transient]\nduration = 0.02\nstep = 1e-4\n'
-                    '[transient.spectrum]\nenabled = false\n[[transient.torque]]\npulley = "C"\n'
-                    'table = "a.csv"\n')
+    path = _drive_with_tables(tmp_path, {"a.csv": 2.0, "b.csv": 4.0})
     cfg = load_config(path)
     spec = make_spec(cfg, [("transient.torque[0].table", '"a.csv","b.csv"')], analysis="transient", zip_=False)
     tables = sweep_tables(cfg, spec)
@@ -629,7 +632,7 @@ def test_swept_csv_tables_travel_and_are_pinned(tmp_path):
         got.append(remote["span_tension_half_range"])
     assert not np.allclose(got[0], got[1])
     before = spec_hash(cfg, spec)
-    (tmp_path / "b.csv").write_text("# time (s), torque (N m)\n0.0, 0.0\n0.01, 3.0\n1.0, 3.0\n")
+    _drive_with_tables(tmp_path, {"b.csv": 3.0})
     assert spec_hash(cfg, spec) != before
 
 

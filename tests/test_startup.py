@@ -1,0 +1,98 @@
+"""Start-up (issue 10, item 5): where numba's cache goes, whether it is warm, and that `warm_up` (what
+`make` runs at install) compiles every signature a transient uses, so a user's first run loads
+instead of compiling. Timings are in `make bench`, not here."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from beltdyn import jitcache
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "beltdyn"
+
+
+def test_cache_goes_to_the_user_cache_when_the_package_folder_is_not_writable(tmp_path, monkeypatch):
+    # an in-tree folder that cannot be made (a path below a regular file): the user cache folder
+    # ($XDG_CACHE_HOME/beltdyn/numba); when that cannot be made either: the temporary folder's
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    blocked = tmp_path / "a-file"
+    blocked.write_text("")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    assert jitcache.cache_dir(blocked / "__pycache__") == str(tmp_path / "cache" / "beltdyn" / "numba")
+    assert (tmp_path / "cache" / "beltdyn" / "numba").is_dir()
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocked))
+    got = jitcache.cache_dir(blocked / "__pycache__")
+    assert got is not None and Path(got).parent == Path(__import__("tempfile").gettempdir())
+    assert jitcache.cache_dir(tmp_path / "writable" / "__pycache__") is None  # numba's own in-tree cache
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "mine"))
+    assert jitcache.cache_dir(blocked / "__pycache__") is None  # the user's choice stands
+
+
+def _read_only_namespace() -> list[str] | None:
+    """`unshare` prefix that runs a command with the package folder mounted read-only, or None."""
+    if shutil.which("unshare") is None:
+        return None
+    probe = subprocess.run(["unshare", "-rm", "sh", "-c", f"mount --bind -o ro {PACKAGE} {PACKAGE} && "
+                            f"! touch {PACKAGE}/__pycache__/.probe 2>/dev/null"], capture_output=True)
+    return ["unshare", "-rm", "sh", "-c"] if probe.returncode == 0 else None
+
+
+def test_read_only_installation_caches_in_the_user_folder(tmp_path):
+    # The package folder mounted read-only (a mount namespace; skipped where there is none): importing
+    # the kernels sets NUMBA_CACHE_DIR to $XDG_CACHE_HOME/beltdyn/numba, and numba's config follows.
+    prefix = _read_only_namespace()
+    if prefix is None:
+        pytest.skip("no mount namespace here to make the package folder read-only")
+    code = ("import os, beltdyn.integrator, numba.core.config as c; "
+            "print(os.environ['NUMBA_CACHE_DIR']); print(c.CACHE_DIR)")
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env["XDG_CACHE_HOME"] = str(tmp_path / "cache")
+    r = subprocess.run([*prefix, f"mount --bind -o ro {PACKAGE} {PACKAGE} && {sys.executable} -c \"{code}\""],
+                       capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr
+    want = str(tmp_path / "cache" / "beltdyn" / "numba")
+    assert r.stdout.split() == [want, want]
+
+
+def test_a_fresh_cache_is_cold():
+    # a cache folder with nothing in it: is_warm says so without compiling anything
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as empty:
+        env = dict(os.environ, NUMBA_CACHE_DIR=empty)
+        r = subprocess.run([sys.executable, "-c", "from beltdyn import jitcache, integrator, belt_kernel; "
+                            "print(jitcache.is_warm(integrator, belt_kernel))"], capture_output=True, text=True,
+                           env=env, timeout=120)
+        assert r.returncode == 0 and r.stdout.strip() == "False", r.stderr
+
+
+def test_warm_up_compiles_every_signature_a_transient_uses():
+    # After warm_up (in the cache since `make`), transients of the bench (slide), the FEAD example
+    # (arm with friction, many pulleys) and a backside idler with belt damping add no signature to any
+    # compiled kernel: a user's first run loads them, none is compiled on the way.
+    from beltdyn import belt_kernel, integrator
+    from beltdyn.config import load_config
+    from beltdyn.pipeline import analyse
+    from beltdyn.transient import run_transient, warm_up
+
+    warm_up()
+    assert jitcache.is_warm(integrator, belt_kernel)
+    kernels = [o for m in (integrator, belt_kernel) for o in vars(m).values()
+               if hasattr(o, "signatures") and getattr(o, "__module__", "") == m.__name__]
+    before = {k.__name__: len(k.signatures) for k in kernels}
+    cases = [(ROOT / "configs/examples/bench_transient_small.toml", []),
+             (ROOT / "configs/examples/fead_4cyl.toml", []),
+             (ROOT / "configs/examples/three_pulley_tensioner.toml", ["transient.damping.belt_axial=1e-5"])]
+    for path, sets in cases:
+        cfg = load_config(path, ["transient.duration=0.002", "transient.spectrum.enabled=false", *sets])
+        run = analyse(cfg)
+        run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)
+    after = {k.__name__: len(k.signatures) for k in kernels}
+    assert after == before
