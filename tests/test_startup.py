@@ -75,21 +75,23 @@ def test_a_fresh_cache_is_cold():
 
 def test_warm_up_compiles_every_signature_a_transient_uses():
     # After warm_up (in the cache since `make`), transients of the bench (slide), the FEAD example
-    # (arm with friction, many pulleys) and a backside idler with belt damping add no signature to any
+    # (arm with friction, many pulleys, running belt; with a spring span) and a backside idler with belt
+    # damping add no signature to any
     # compiled kernel: a user's first run loads them, none is compiled on the way.
-    from beltdyn import belt_kernel, integrator
+    from beltdyn import belt_kernel, integrator, spring_kernel
     from beltdyn.config import load_config
     from beltdyn.pipeline import analyse
     from beltdyn.transient import run_transient, warm_up
 
     warm_up()
     assert jitcache.is_warm(integrator, belt_kernel)
-    kernels = [o for m in (integrator, belt_kernel) for o in vars(m).values()
+    kernels = [o for m in (integrator, belt_kernel, spring_kernel) for o in vars(m).values()
                if hasattr(o, "signatures") and getattr(o, "__module__", "") == m.__name__]
     before = {k.__name__: len(k.signatures) for k in kernels}
     cases = [(ROOT / "configs/examples/bench_transient_small.toml", []),
              (ROOT / "configs/examples/fead_4cyl.toml", []),
-             (ROOT / "configs/examples/three_pulley_tensioner.toml", ["transient.damping.belt_axial=1e-5"])]
+             (ROOT / "configs/examples/three_pulley_tensioner.toml", ["transient.damping.belt_axial=1e-5"]),
+             (ROOT / "configs/examples/fead_4cyl.toml", ['spans.ALT-TEN.model="spring"'])]
     for path, sets in cases:
         cfg = load_config(path, ["transient.duration=0.002", "transient.spectrum.enabled=false", *sets])
         run = analyse(cfg)
