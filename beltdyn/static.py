@@ -783,18 +783,19 @@ def torque_split(layout, loads: np.ndarray | None, rot_dof: np.ndarray, driver: 
     return split
 
 
-def _conserved_tension(layout, split: np.ndarray, material: float, EA: float) -> np.ndarray:
-    """(n,) span tensions T_ref + split on `layout` of a belt of `material` length whose wraps are
-    unstretched: sum_s L_s / lambda(T_s) + sum(arcs) = material (Newton on T_ref)."""
+def _conserved_tension(layout, split: np.ndarray, reference: np.ndarray, EA: float) -> np.ndarray:
+    """(n,) span tensions T_ref + split on `layout` of a belt whose spans' reference lengths there are
+    `reference` (n,) (`carried_reference`: the wraps unstretched) and whose pulleys turn freely: the
+    rotations slide the span ends along the tangent lines (the joints), which moves chord between
+    neighbouring spans and keeps their sum, so sum_s lambda(T_s) reference_s = sum_s L_s (Newton on T_ref)."""
     from .system import stretch_for_tension as _stretch
 
-    free = material - float(layout.arc_length.sum())
-    L = layout.span_length
-    T_ref = EA * (float(L.sum()) / free - 1.0) - float(L @ split) / float(L.sum())
+    L = float(layout.span_length.sum())
+    T_ref = EA * (L / float(reference.sum()) - 1.0) - float(reference @ split) / float(reference.sum())
     for _ in range(30):
         lam = _stretch(T_ref + split, EA)
-        g = float((L / lam).sum()) - free
-        dg = -float((L / lam**2 / (0.5 * EA * (3.0 * lam**2 - 1.0))).sum())
+        g = float(lam @ reference) - L
+        dg = float((reference / (0.5 * EA * (3.0 * lam**2 - 1.0))).sum())
         step = g / dg
         T_ref -= step
         if abs(step) <= 1e-12 * EA:
@@ -979,14 +980,15 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     free = np.zeros(n_dof)
     warm = None
     lam_p, slope = float(system.belt.prestrain_stretch), None
-    material = float(system.belt.reference_length.sum() + lay0.arc_length.sum())  # L0, wraps unstretched
+    ref0 = system.belt.reference_length
+    material = float(ref0.sum() + lay0.arc_length.sum())  # L0, wraps unstretched
     split = torque_split(lay0, system.loads, d.rot_dof, system.driver_dof)
     if ts.target is not None:
         def span_tension(lay):  # the target as the length-weighted mean, split by the torques
             return float(ts.target) - float(lay.span_length @ split) / float(lay.span_length.sum()) + split
     elif conserve and ts.mode != "adjust":
         def span_tension(lay):  # what the belt's length gives on that path
-            return _conserved_tension(lay, split, material, EA)
+            return _conserved_tension(lay, split, carried_reference(lay0, lay, ref0), EA)
     else:
         span_tension = None
     predict = span_tension is not None and (moving or ts.mode == "adjust")

@@ -95,6 +95,28 @@ def test_solved_layout_is_consistent():
     assert st.adjust_offset == pytest.approx(lay.center[1, 1] - cfg.pulleys[1].center[1], abs=tol_x)
 
 
+FEAD = ROOT / "configs" / "examples" / "fead_4cyl.toml"
+
+
+@pytest.mark.parametrize("springs", [False, True], ids=["ancf", "all-spring"])
+def test_rigid_belt_prediction_is_the_taut_equilibrium(springs):
+    # Without gravity a taut belt's spans are straight and meet their pulleys on the tangent, so the
+    # rigid-belt prediction (span tensions by the torque split and the belt's conserved length, with the
+    # spans' reference lengths carried between span and wrap; the tensioner arm turned to its balance)
+    # is the equilibrium itself: one layout, no Newton iteration, and the solved centres within
+    # static.tolerance x the shortest span of the laid ones. Before the carried reference lengths it
+    # was off by 0.1 N (7.4e-7 m of arm travel) and took 3 layouts.
+    cfg = load_config(FEAD)
+    if springs:
+        cfg = load_config(FEAD, [f'spans.{n}.model="spring"' for n in cfg.span_names])
+    run = analyse(cfg)
+    assert run.static_passes == 1 and run.static.iterations == 0
+    tol_x = cfg.static.tolerance * run.layout.span_length.min()
+    assert np.abs(run.static.pulley_center - run.layout.center).max() <= tol_x
+    assert cfg.belt.length == pytest.approx(run.system.belt.reference_length.sum() + run.layout.arc_length.sum(),
+                                            rel=1e-13)
+
+
 @pytest.mark.parametrize("path,sets", [(BENCH, []), (THREE, ["model.gravity=[0.0, 0.0]"])], ids=["bench", "three"])
 def test_belt_carried_between_span_and_wrap(path, sets):
     # Where a tangent point moves along its pulley, that arc of belt passes between the span and the
