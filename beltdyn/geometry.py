@@ -145,11 +145,12 @@ def compute_layout(
     alpha_in = alpha[prv]
     wrap = np.mod(turn_sign * (alpha - alpha_in), TWO_PI)
     if check:
-        for j in range(n):
-            if wrap[j] < 1e-9 or wrap[j] > TWO_PI - 1e-9:
-                raise GeometryError(
-                    f"the belt does not wrap pulley '{names[j]}' (wrap angle {math.degrees(wrap[j]):.3g} deg);"
-                    f" check its side and position", f"pulleys[{j}].side")
+        bad = (wrap < 1e-9) | (wrap > TWO_PI - 1e-9)
+        if bad.any():
+            j = int(np.argmax(bad))
+            raise GeometryError(
+                f"the belt does not wrap pulley '{names[j]}' (wrap angle {math.degrees(wrap[j]):.3g} deg);"
+                f" check its side and position", f"pulleys[{j}].side")
         total = float(np.sum(turn_sign * wrap))
         if abs(total - o * TWO_PI) > 1e-6:
             raise GeometryError(
@@ -230,47 +231,55 @@ def fit_adjustable(
         raise GeometryError(f"at the given centre of the adjustable pulley: {exc}", exc.key) from None
     orientation = base.orientation
 
-    def layout_at(s: float) -> Layout:
+    def layout_at(s: float, check: bool) -> Layout:
         c = center.copy()
         c[index] = offset_point(s)[0]
-        return compute_layout(c, radius, side_sign, names, orientation=orientation)
+        return compute_layout(c, radius, side_sign, names, orientation=orientation, check=check)
 
     def length(lay: Layout) -> float:
         return lay.belt_length + (arc_weight - 1.0) * float(lay.arc_length.sum())
 
-    s, lay = 0.0, base
-    for _ in range(max_iter):
-        f = length(lay) - target_length
-        if abs(f) <= tol * target_length:
-            break
-        slope = float(belt_length_gradient(lay, index) @ offset_point(s)[1])
-        if abs(slope) < 1e-9 * (1.0 if arm is None else float(np.hypot(*(center[index] - arm)))):
-            raise GeometryError(
-                f"{how} '{name}' {where} does not change the belt length "
-                + ("(slide_direction perpendicular to the belt pull)" if arm is None else
-                   "(the arm points along the belt pull)"),
-                f"pulleys[{index}].{'slide_direction' if arm is None else 'arm_pivot'}")
-        step = -f / slope
-        for _ in range(60):
-            try:
-                trial = layout_at(s + step)
-            except GeometryError:
-                step *= 0.5
-                continue
-            if abs(length(trial) - target_length) < abs(f) or abs(step) < 1e-15:
+    def newton(check: bool) -> tuple[float, Layout]:
+        s, lay = 0.0, base
+        for _ in range(max_iter):
+            f = length(lay) - target_length
+            if abs(f) <= tol * target_length:
                 break
-            step *= 0.5
+            slope = float(belt_length_gradient(lay, index) @ offset_point(s)[1])
+            if abs(slope) < 1e-9 * (1.0 if arm is None else float(np.hypot(*(center[index] - arm)))):
+                raise GeometryError(
+                    f"{how} '{name}' {where} does not change the belt length "
+                    + ("(slide_direction perpendicular to the belt pull)" if arm is None else
+                       "(the arm points along the belt pull)"),
+                    f"pulleys[{index}].{'slide_direction' if arm is None else 'arm_pivot'}")
+            step = -f / slope
+            for _ in range(60):
+                try:
+                    trial = layout_at(s + step, check)
+                except GeometryError:
+                    step *= 0.5
+                    continue
+                if abs(length(trial) - target_length) < abs(f) or abs(step) < 1e-15:
+                    break
+                step *= 0.5
+            else:
+                trial = None
+            if trial is None or abs(length(trial) - target_length) >= abs(f):
+                word = "short" if f > 0 else "long"
+                raise GeometryError(
+                    f"L0 = {target_length:.6g} m is too {word}: {how} '{name}' {where} "
+                    f"cannot make the belt fit (closest belt length {length(lay):.6g} m at offset {s:.6g} m)",
+                    "belt.length")
+            s, lay = s + step, trial
         else:
-            trial = None
-        if trial is None or abs(length(trial) - target_length) >= abs(f):
-            word = "short" if f > 0 else "long"
-            raise GeometryError(
-                f"L0 = {target_length:.6g} m is too {word}: {how} '{name}' {where} "
-                f"cannot make the belt fit (closest belt length {length(lay):.6g} m at offset {s:.6g} m)",
-                "belt.length")
-        s, lay = s + step, trial
-    else:
-        raise GeometryError(f"L0 fit did not converge (belt length {length(lay):.9g} m)", "belt.length")
+            raise GeometryError(f"L0 fit did not converge (belt length {length(lay):.9g} m)", "belt.length")
+        return s, lay
+
+    try:  # the iterates unchecked (a third of the cost), the answer checked; on any doubt the checked way
+        s, lay = newton(False)
+        lay = lay if lay is base else layout_at(s, True)
+    except GeometryError:
+        s, lay = newton(True)
     if slide_range is not None and not (slide_range[0] <= s <= slide_range[1]):
         word = "short" if s * float(belt_length_gradient(lay, index) @ offset_point(s)[1]) < 0 else "long"
         if arm is None:
@@ -287,11 +296,13 @@ def fit_adjustable(
                      "adjust_kind": "slide" if arm is None else "arm"})
 
 
-def relay(layout: Layout, center: np.ndarray, *, adjust_offset: float | None = None) -> Layout:
+def relay(layout: Layout, center: np.ndarray, *, adjust_offset: float | None = None, check: bool = True) -> Layout:
     """The same belt path laid anew with the pulleys at `center` (n, 2): tangent points, spans,
     wraps and belt length recomputed, the loop's orientation kept. adjust_offset: the adjustable
-    pulley's travel from its given centre at `center` (default: unchanged)."""
-    lay = compute_layout(center, layout.radius, layout.side_sign, layout.names, orientation=layout.orientation)
+    pulley's travel from its given centre at `center` (default: unchanged). check: as `compute_layout`
+    (False: an iterate whose answer is checked later)."""
+    lay = compute_layout(center, layout.radius, layout.side_sign, layout.names, orientation=layout.orientation,
+                         check=check)
     return Layout(**{**lay.__dict__, "adjust_index": layout.adjust_index, "adjust_kind": layout.adjust_kind,
                      "adjust_offset": layout.adjust_offset if adjust_offset is None else float(adjust_offset)})
 

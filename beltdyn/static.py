@@ -815,7 +815,7 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
     from .geometry import relay
 
     lay0 = system.layout
-    place = fit if fit is not None else (lambda c: relay(lay0, c))
+    place = fit if fit is not None else (lambda c: relay(lay0, c, check=False))  # checked where laid (lay_out)
     k_diag = np.asarray(system.linear_matrix().diagonal()).ravel() if anchored else None
     arms = []  # (pulley, pivot, length, stiffness, layout angle, free angle) of each sprung arm it turns
     if system.arms is not None:
