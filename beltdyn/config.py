@@ -789,26 +789,26 @@ class DriveConfig:
     title: str = key(TEXT, "", omit_default=True, doc="a title for the results")
     source: str = ""  # file the config came from (not part of the resolved TOML)
 
-    @property
+    @functools.cached_property  # a frozen config: computed once (its __dict__, not a field)
     def adjustable_index(self) -> int | None:
         for i, p in enumerate(self.pulleys):
             if p.adjustable:
                 return i
         return None
 
-    @property
+    @functools.cached_property
     def driver_index(self) -> int:
         for i, p in enumerate(self.pulleys):
             if p.driver:
                 return i
         return 0
 
-    @property
+    @functools.cached_property
     def span_names(self) -> tuple[str, ...]:
         """Span i runs from pulley i to pulley i + 1: "A-C" (as the console names it)."""
         return span_names(self.pulleys)
 
-    @property
+    @functools.cached_property
     def span_models(self) -> tuple[str, ...]:
         """The resolved model of each span: "ancf", "string" or "spring" ([spans], else "ancf", or
         "string" where model.curvature = "none")."""
@@ -816,7 +816,7 @@ class DriveConfig:
         default = "string" if self.model.curvature == "none" else "ancf"
         return tuple((given[n].model if n in given and given[n].model else default) for n in self.span_names)
 
-    @property
+    @functools.cached_property
     def span_elements(self) -> tuple[int, ...]:
         """The resolved elements of each span (0 for a spring span)."""
         given = dict(self.spans)

@@ -717,7 +717,7 @@ def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
         return (d + np.pi) % TWO_PI - np.pi
 
     sigma = new.orientation * new.side_sign  # sense in which the belt travels around each pulley
-    nxt = np.roll(np.arange(new.n), -1)
+    nxt = (np.arange(new.n) + 1) % new.n
     onto_start = new.radius * sigma * turn(old.start_normal, new.start_normal)  # span s leaving pulley s
     onto_end = -new.radius[nxt] * sigma[nxt] * turn(old.end_normal, new.end_normal)  # span s reaching pulley s+1
     out = reference_length - onto_start - onto_end
@@ -791,14 +791,16 @@ def _conserved_tension(layout, split: np.ndarray, reference: np.ndarray, EA: flo
     from .system import stretch_for_tension as _stretch
 
     L = float(layout.span_length.sum())
-    T_ref = EA * (L / float(reference.sum()) - 1.0) - float(reference @ split) / float(reference.sum())
-    for _ in range(30):
-        lam = _stretch(T_ref + split, EA)
-        g = float(lam @ reference) - L
-        dg = float((reference / (0.5 * EA * (3.0 * lam**2 - 1.0))).sum())
-        step = g / dg
+    total = float(reference.sum())
+    T_ref = EA * (L / total - 1.0) - float(reference @ split) / total
+    lam = _stretch(T_ref + split, EA)
+    for _ in range(50):  # Newton on T_ref and lambda together: one stretch step per tension step
+        dT = 0.5 * EA * (3.0 * lam**2 - 1.0)  # dT/dlambda
+        step = (float(lam @ reference) - L) / float((reference / dT).sum())
         T_ref -= step
-        if abs(step) <= 1e-12 * EA:
+        d_lam = (0.5 * EA * (lam**3 - lam) - (T_ref + split)) / dT
+        lam = lam - d_lam
+        if abs(step) <= 1e-12 * EA and float(np.abs(d_lam).max()) <= 1e-15:
             break
     return T_ref + split
 
@@ -833,9 +835,11 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
     if not anchored and not arms and fit is not None:  # nothing deflects: the fit alone places the pulleys
         return fit(centers).center
 
+    prv = (np.arange(lay0.n) - 1) % lay0.n
+
     def pull(lay) -> np.ndarray:
-        t, T = lay.span_direction, span_tension(lay)
-        return T[:, None] * t - np.roll(T[:, None] * t, 1, axis=0)
+        f = span_tension(lay)[:, None] * lay.span_direction
+        return f - f[prv]
 
     for _ in range(50):
         for j, pv, length, k_s, phi_ref, phi_f in arms:  # each arm's balance, the other pulleys where they are
@@ -857,6 +861,8 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
                     break
                 m1 = moment(phi1)
             centers[j] = pv + length * np.array([np.cos(phi1), np.sin(phi1)])
+        if not anchored and len(arms) == 1 and fit is None:  # the one arm balanced, nothing else moves: done
+            break
         lay = place(centers)
         force = pull(lay)
         new = lay.center.copy()
