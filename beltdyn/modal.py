@@ -64,6 +64,16 @@ class ModalResult:
     critical_speed: float = float("nan")  # m/s, the first critical (divergence) speed about this equilibrium
 
 
+def zero_tolerance(lam_max: float) -> float:
+    """omega^2 (1/s^2) at or below which an eigenvalue counts as zero (a rigid turn, a mechanism):
+    (2 pi 1e-4 Hz)^2, or the round-off of a pencil whose largest diagonal ratio K_ii / M_ii is lam_max,
+    100 eps lam_max. Measured: the belt's rigid turn comes out at 1e-5..0.9 eps lam_max (dense and
+    sparse solvers, 10-640 el/span), a slack EI = 0 belt's zero modes at up to 32 eps lam_max (40
+    el/span), while the FEAD example's first elastic mode (52.8 Hz) lies at 520 eps lam_max at 640
+    el/span, which the earlier 1000 eps lam_max took for a second zero mode (`modal --rtol 1e-8`)."""
+    return max((2 * np.pi * 1e-4) ** 2, 100 * np.finfo(float).eps * lam_max)
+
+
 def ordinal(n: int) -> str:
     suffix = "th" if 10 <= n % 100 <= 20 else ORDINAL.get(n % 10, "th")
     return f"{n}{suffix}"
@@ -118,7 +128,7 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     Kdiag = np.asarray(K.diagonal() if not model.dense else np.diag(K))
     Mdiag = np.asarray(M.diagonal() if not model.dense else np.diag(M))
     lam_max = float(np.max(Kdiag / Mdiag))
-    tol = max((2 * np.pi * 1e-4) ** 2, 1000 * np.finfo(float).eps * lam_max)
+    tol = zero_tolerance(lam_max)
     if np.any(w < -tol) :
         i = int(np.argmin(w))
         dof = model.dof_labels[int(np.argmax(np.abs(v[:, i])))]
@@ -321,7 +331,7 @@ def _solve_running(model: System, q: np.ndarray, *, n_modes: int, solver: str) -
     Kdiag = np.asarray(K.diagonal() if hasattr(K, "toarray") else np.diag(K))
     Mdiag = np.asarray(M.diagonal() if hasattr(M, "toarray") else np.diag(M))
     lam_max = float(np.max(np.abs(Kdiag) / Mdiag))
-    tol = max((2 * np.pi * 1e-4) ** 2, 1000 * np.finfo(float).eps * lam_max)  # on |s|^2, as at rest
+    tol = zero_tolerance(lam_max)  # on |s|^2, as at rest
     n_want = min(n - 1, n_modes)
     s, phi, name = (_gyroscopic_dense if use_dense else _gyroscopic_sparse)(K, G, M, tol, n_want)
     size = np.abs(s)
@@ -368,7 +378,7 @@ def critical_speed(model: System, q: np.ndarray) -> float:
     M = _dense(model.mass_matrix(q))
     w, v = eigh(K0, M, driver="gvd", check_finite=False)
     lam_max = float(np.max(np.abs(np.diag(K0)) / np.diag(M)))
-    tol = max((2 * np.pi * 1e-4) ** 2, 1000 * np.finfo(float).eps * lam_max)
+    tol = zero_tolerance(lam_max)
     Z = null_space((M @ v[:, np.abs(w) <= tol]).T)  # the complement of the rigid turn
     if w[0] < -tol:
         return 0.0  # unstable at rest

@@ -295,6 +295,21 @@ def test_slack_free_belt_fails_clearly():
     assert text.startswith("modal:") and "mechanism" in text and "span" in err.value.item
 
 
+@pytest.mark.slow
+def test_a_fine_mesh_keeps_its_lowest_mode_elastic():
+    # At 640 el/span the FEAD example's stiffest element ratio K_ii/M_ii is 9.5e17 1/s^2 (eps x that =
+    # 210): a zero tolerance of 1000 eps x that (2.1e5) took the first elastic mode (52.8 Hz, 1.1e5) for a
+    # second zero mode and failed as a mechanism (`modal --rtol 1e-8`). Reference: the same drive at 160
+    # el/span; the mode has converged to 1e-7 there (the --rtol estimates), compared within 1e-6.
+    from beltdyn.pipeline import analyse
+
+    fead = CONFIGS / "examples" / "fead_4cyl.toml"
+    coarse = analyse(load_config(fead, ["mesh.elements_per_span=160"]), modal=True, n_modes=3).modal
+    fine = analyse(load_config(fead, ["mesh.elements_per_span=640"]), modal=True, n_modes=3).modal
+    assert fine.n_rigid == 1
+    np.testing.assert_allclose(fine.frequency, coarse.frequency, rtol=1e-6)
+
+
 @pytest.mark.parametrize("EI", [0.0, 0.02, 100.0, 1000.0])
 @pytest.mark.parametrize("tension", [1.0, 200.0, 5000.0])
 def test_extremes_on_a_fine_mesh(EI, tension):
