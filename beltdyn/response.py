@@ -162,7 +162,8 @@ def _outputs_of(system: System, q0: np.ndarray, q: np.ndarray, v: np.ndarray, a:
     F = system.span_end_forces(p, vp, E)
     H = F + system.span_end_inertia(ap)
     if system.belt_speed:  # the running belt's momentum flux at the span ends (as /transient's hub loads)
-        H = H + system.span_transport_forces(E, belt.element_coordinates_batch(vp, offset=False), system.belt_speed)
+        H = H + system.span_transport_forces(E, belt.element_coordinates_batch(vp, offset=False), system.belt_speed,
+                                             p=p, vp=vp)
     out = {"span_tension": system.span_end_tensions(p, F, E),
            "hub_load": system.hub_loads(H),
            "pulley_angle": q[:, system.rot_dof], "pulley_speed": v[:, system.rot_dof],

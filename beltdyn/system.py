@@ -527,6 +527,13 @@ class SpringSpans:
     transverse modes). A spring also carries compression, where a belt would go slack: the static
     analysis refuses a compressed span, the transient records it as a slack event. Evaluated in numpy
     here (static, modal) and by `spring_kernel` in the time stepper, held equal by the tests.
+
+    Running belt (`running`): the material flows through the chord at c (m/s of undeformed length), so
+    each lumped end moves at x' + c d / L. Its kinetic energy's terms in c are those of the ANCF span
+    on the linear interpolation between the ends: c x'^T (A x) with A = rho / 2 [[-I, I], [-I, I]]
+    (gyroscopic c (A - A^T) = c rho [[0, I], [-I, 0]], the axial inertia c' A x) and the centripetal
+    c^2 x^T B x / 2 with B = rho / L [[I, -I], [-I, I]]: the ends feel -c^2 B x = rho c^2 lam [u, -u],
+    so a pulley receives N - rho c^2 lam from the span, as from an ANCF span (`transport_blocks`).
     """
 
     span: np.ndarray  # (k,) span index of each spring span
@@ -618,6 +625,40 @@ class SpringSpans:
     def mass_blocks(self) -> np.ndarray:
         """(k, m, m) T^T (rho L / 2 I4) T, constant."""
         return self.end_mass[:, None, None] * np.matmul(self.Tt, self.T)
+
+    def transport_end_matrices(self) -> tuple[np.ndarray, np.ndarray]:
+        """(A_s, B_s) (k, 4, 4) per unit speed on the end positions (class docstring)."""
+        eye = np.broadcast_to(np.eye(2), (len(self.span), 2, 2))
+        half = 0.5 * self.rho * eye
+        A = np.concatenate([np.concatenate([-half, half], axis=2), np.concatenate([-half, half], axis=2)], axis=1)
+        return A, self._pair((self.rho / self.reference_length)[:, None, None] * eye)
+
+    def transport_blocks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """As `BeltSpans.transport_blocks`: T^T A_s T, T^T B_s T (k, m, m) and the reduced A_s x0, B_s x0
+        (n_dof,). Cached."""
+        got = self.__dict__.get("_transport")
+        if got is None:
+            A, B = self.transport_end_matrices()
+            got = (self.reduce_blocks(A), self.reduce_blocks(B), self.reduce_vector(np.matmul(A, self.x0[:, :, None])[:, :, 0]),
+                   self.reduce_vector(np.matmul(B, self.x0[:, :, None])[:, :, 0]))
+            object.__setattr__(self, "_transport", got)
+        return got
+
+    def centripetal_force(self, p: np.ndarray, speed: float) -> np.ndarray:
+        """-c^2 T^T B_s x (n_dof,) at the joint coordinates p."""
+        B = self.transport_end_matrices()[1]
+        return -(speed * speed) * self.reduce_vector(np.matmul(B, self.positions(p)[:, :, None])[:, :, 0])
+
+    def transport_end_forces(self, X: np.ndarray, Xd: np.ndarray | None, speed, acceleration=0.0) -> np.ndarray:
+        """(B, n_span, 2, 2) as `BeltSpans.transport_end_forces` for end states X, Xd (B, k, 4):
+        c (A_s - A_s^T) x' - c^2 B_s x + c' A_s x on each end (zeros for the other spans)."""
+        A, Bm = self.transport_end_matrices()
+        c = np.broadcast_to(np.asarray(speed, dtype=float), (X.shape[0],))[:, None, None]
+        cd = np.broadcast_to(np.asarray(acceleration, dtype=float), (X.shape[0],))[:, None, None]
+        f = -c * c * np.einsum("kij,bkj->bki", Bm, X) + cd * np.einsum("kij,bkj->bki", A, X)
+        if Xd is not None:
+            f = f + c * np.einsum("kij,bkj->bki", A - A.transpose(0, 2, 1), Xd)
+        return self._scatter(f.reshape(X.shape[0], -1, 2, 2))
 
     def gravity_force(self, g: np.ndarray) -> np.ndarray:
         """(n_dof,) the generalized weight of the lumped masses for the gravity vector g (2,)."""
@@ -1032,7 +1073,13 @@ class System:
         got = self.__dict__.get("_transport")
         if got is None:
             Ab, Bb, a0, b0 = self.belt.transport_blocks()
-            got = (self.assemble(Ab, linear=False), self.assemble(Bb, linear=False), a0, b0)
+            sp = self.springs
+            if sp is None:
+                got = (self.assemble(Ab, linear=False), self.assemble(Bb, linear=False), a0, b0)
+            else:  # + the spring spans' (their blocks on the same joint coordinates)
+                As, Bs, a0s, b0s = sp.transport_blocks()
+                got = (self.assemble(Ab, linear=False, springs=As), self.assemble(Bb, linear=False, springs=Bs),
+                       a0 + a0s, b0 + b0s)
             object.__setattr__(self, "_transport", got)
         return got
 
@@ -1041,14 +1088,22 @@ class System:
         internal force, the gradient of the centripetal potential V = -c^2/2 sum_e e^T B_e e (the force on
         the belt is its negative, outward along the spans' ends: the momentum flux)."""
         belt = self.belt
+        c = self.belt_speed
+        f = self.springs.centripetal_force(p, c) if self.springs is not None else 0.0
+        if not belt.elements.n_elem:
+            return f if self.springs is not None else np.zeros(self.n_p)
         belt.transport_blocks()
         B_e = belt.__dict__["_transport_e"][1]
         e = belt.element_coordinates(p)
-        return -(self.belt_speed * self.belt_speed) * belt.reduce_vector(np.matmul(B_e, e[:, :, None])[:, :, 0])
+        return f - (c * c) * belt.reduce_vector(np.matmul(B_e, e[:, :, None])[:, :, 0])
 
     def _running_blocks(self, blocks: np.ndarray) -> np.ndarray:
         """The element tangent blocks (n_elem, m, m) with the centripetal stiffness -c^2 T^T B_e T added."""
         return blocks - (self.belt_speed * self.belt_speed) * self.belt.transport_blocks()[1]
+
+    def _running_spring_blocks(self, blocks: np.ndarray) -> np.ndarray:
+        """The spring spans' tangent blocks (k, m, m) with their centripetal stiffness -c^2 T^T B_s T."""
+        return blocks - (self.belt_speed * self.belt_speed) * self.springs.transport_blocks()[1]
 
     def gyroscopic_matrix(self, q: np.ndarray | None = None):
         """The gyroscopic matrix G = J^T c (A - A^T) J on q at the state q (skew-symmetric; zeros at rest)."""
@@ -1109,39 +1164,49 @@ class System:
 
     # -------------------------------------------------------------------- forces
     def belt_force(self, p: np.ndarray) -> np.ndarray:
-        """The belt's elastic force on the joint coordinates (n_p,): ANCF spans (with the running belt's
-        centripetal force at speed) + spring spans (no transport terms)."""
-        running = self.belt_speed and self.belt.elements.n_elem
+        """The belt's elastic force on the joint coordinates (n_p,): ANCF spans + spring spans, with the
+        running belt's centripetal force at speed."""
         if self.springs is None:
             f = self.belt.force(p)
-            return f + self.centripetal_force(p) if running else f
-        fs = self.springs.force(p)
-        if self.belt.elements.n_elem == 0:
-            return fs
-        f = fs + self.belt.force(p)
-        return f + self.centripetal_force(p) if running else f
+        elif self.belt.elements.n_elem == 0:
+            f = self.springs.force(p)
+        else:
+            f = self.springs.force(p) + self.belt.force(p)
+        return f + self.centripetal_force(p) if self.belt_speed else f
 
     def belt_force_and_tangent(self, p: np.ndarray, *, linear: bool = True):
         """The belt's elastic force (n_p,) and its tangent (+ the components' constant stiffness with
-        linear=True) on the joint coordinates, assembled (dense or CSR); at speed with the ANCF spans'
+        linear=True) on the joint coordinates, assembled (dense or CSR); at speed with the spans'
         centripetal force and stiffness."""
-        if self.springs is not None and self.belt.elements.n_elem == 0:  # every span a spring
+        running = bool(self.belt_speed)
+        if self.springs is not None:
             fs, bs = self.springs.force_and_blocks(p)
-            return fs, self.assemble(np.zeros((0,) + self.belt.T.shape[2:] * 2), linear=linear, springs=bs)
+            if running:
+                bs = self._running_spring_blocks(bs)
+        if self.springs is not None and self.belt.elements.n_elem == 0:  # every span a spring
+            f = fs + self.centripetal_force(p) if running else fs
+            return f, self.assemble(np.zeros((0,) + self.belt.T.shape[2:] * 2), linear=linear, springs=bs)
         f, blocks = self.belt.force_and_blocks(p)
-        if self.belt_speed:
+        if running:
             f, blocks = f + self.centripetal_force(p), self._running_blocks(blocks)
         if self.springs is None:
             return f, self.assemble(blocks, linear=linear)
-        fs, bs = self.springs.force_and_blocks(p)
         return f + fs, self.assemble(blocks, linear=linear, springs=bs)
 
-    def span_transport_forces(self, E: np.ndarray, Ed: np.ndarray | None, speed, acceleration=0.0) -> np.ndarray:
+    def span_transport_forces(self, E: np.ndarray, Ed: np.ndarray | None, speed, acceleration=0.0, *,
+                              p: np.ndarray, vp: np.ndarray | None = None) -> np.ndarray:
         """(B, n_span, 2, 2) the running belt's transport forces on the span ends (`BeltSpans.
-        transport_end_forces`), zeros for spring spans (they carry no transport terms)."""
+        transport_end_forces`, `SpringSpans.transport_end_forces`) for the states p, vp (B, n_p) (E, Ed:
+        the belt's element states of them)."""
         if self.belt.elements.n_elem == 0:
-            return np.zeros((E.shape[0], self.belt.n_span, 2, 2))
-        return self.belt.on_spans(self.belt.transport_end_forces(E, Ed, speed, acceleration))
+            F = np.zeros((p.shape[0], self.belt.n_span, 2, 2))
+        else:
+            F = self.belt.on_spans(self.belt.transport_end_forces(E, Ed, speed, acceleration))
+        sp = self.springs
+        if sp is not None:
+            F = F + sp.transport_end_forces(sp.positions_batch(p), None if vp is None else sp.positions_batch(vp, offset=False),
+                                            speed, acceleration)
+        return F
 
     def internal_force(self, q: np.ndarray) -> np.ndarray:
         """f(q) (n_dof,): belt elastic force + components' K q (preloads excluded), and the running belt's
@@ -1280,7 +1345,7 @@ class System:
         p = self.expand(q)[None]
         E = self.belt.element_coordinates(p[0])[None]
         F = self.span_end_forces(p, None, E)
-        hub = F if not self.belt_speed else F + self.span_transport_forces(E, None, self.belt_speed)
+        hub = F if not self.belt_speed else F + self.span_transport_forces(E, None, self.belt_speed, p=p)
         return self.hub_loads(hub)[0], self.span_end_tensions(p, F, E)[0]
 
     def hub_loads(self, F_end: np.ndarray) -> np.ndarray:

@@ -822,7 +822,7 @@ class Observers:
                 tr = setup.transport
                 if tr is not None and (tr.follow or tr.speed):  # and the running belt's momentum flux
                     Ed = belt.element_coordinates_batch(v, offset=False)
-                    H = H + sysm.span_transport_forces(E, Ed, *transport_speed(setup, t))
+                    H = H + sysm.span_transport_forces(E, Ed, *transport_speed(setup, t), p=q, vp=v)
                 out["hub_load"] = sysm.hub_loads(H)
         for c in sysm.components:
             for obs in c.observations(sysm):

@@ -253,15 +253,17 @@ def test_all_spring_transient_conserves_energy_and_starts_at_the_static_state():
     assert np.abs(T0 - run.static.span_tension).max() <= 1e-9 * np.abs(run.static.span_tension).max()
 
 
-def test_mixed_transient_follows_the_ancf_transient():
+@pytest.mark.parametrize("transport", [False, True], ids=["travelling frame", "running belt"])
+def test_mixed_transient_follows_the_ancf_transient(transport):
     """FEAD transient 0.3 s with two spring spans against all ANCF: span tensions agree within 0.5 % of
-    the mean tension (the springs' missing transverse dynamics above 350 Hz and their lumped mass). Both
-    in the travelling frame (transient.transport = false): spring spans carry no transport terms."""
+    the mean tension (the springs' missing transverse dynamics above 350 Hz and their lumped mass), in
+    the travelling frame (transient.transport = false) and with the running belt's transport terms at
+    the crank's 6 m/s (the spring spans' own, `SpringSpans`)."""
     from beltdyn.transient import run_transient
 
     def tensions(sets):
         cfg = load_config(FEAD, sets + ["transient.duration=0.3", "transient.spectrum.enabled=false",
-                                        "transient.transport=false"])
+                                        f"transient.transport={str(transport).lower()}"])
         run = analyse(cfg)
         got = []
         run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: got.append(b["span_tension"]))

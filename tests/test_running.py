@@ -106,21 +106,54 @@ def test_transport_terms_are_the_kinetic_energy_derivatives():
     np.testing.assert_allclose(dT_ded, M @ ed + c * A @ e, atol=1e-9 * scale)
 
 
-def test_centripetal_force_and_tangent_against_finite_differences():
+def test_spring_span_transport_terms_are_the_kinetic_energy_derivatives():
+    # A spring span's ends carry rho L / 2 each and move at x' + c d / L (the material flowing through
+    # the chord d = x_b - x_a): T(x, x') = sum_ends 1/2 rho L / 2 |x'_end + c d / L|^2. Its gradients by
+    # central differences against the span's terms, dT/dx' = M x' + c A_s x and dT/dx = c A_s^T x' +
+    # c^2 B_s x (M = rho L / 2 I4), within 1e-9.
+    cfg = bench(*[f'spans.{n}.model="spring"' for n in ("A-C", "C-A")])
+    sp = build_system(cfg).springs
+    A, B = (m[0] for m in sp.transport_end_matrices())
+    L, m_end = float(sp.reference_length[0]), float(sp.end_mass[0])
+    c = 13.0
+    rng = np.random.default_rng(5)
+    x, xd = rng.normal(size=4), rng.normal(size=4)
+
+    def T(x_, xd_):
+        v = xd_.reshape(2, 2) + c * (x_[2:4] - x_[0:2]) / L
+        return 0.5 * m_end * float(np.sum(v * v))
+
+    h = 1e-6
+    I4 = np.eye(4)
+    dT_dx = np.array([(T(x + h * I4[i], xd) - T(x - h * I4[i], xd)) / (2 * h) for i in range(4)])
+    dT_dxd = np.array([(T(x, xd + h * I4[i]) - T(x, xd - h * I4[i])) / (2 * h) for i in range(4)])
+    scale = np.abs(dT_dx).max()
+    np.testing.assert_allclose(dT_dx, c * A.T @ xd + c * c * B @ x, atol=1e-9 * scale)
+    np.testing.assert_allclose(dT_dxd, m_end * xd + c * A @ x, atol=1e-9 * scale)
+
+
+@pytest.mark.parametrize("spring", [(), ("C-A",), ("A-C", "C-A")], ids=["ancf", "mixed", "all-spring"])
+def test_centripetal_force_and_tangent_against_finite_differences(spring):
     # On the paper bench at 20 m/s: the system's centripetal term -c^2 (B p + b0) of the internal force is
-    # the gradient of the centripetal potential V = -c^2/2 sum_e e^T B_e e (central differences), and
-    # the running tangent of the equilibrium residual is its derivative (central differences of the
-    # residual), within 1e-7 of the largest entry.
-    cfg = bench("running.belt_speed=20.0", "mesh.elements_per_span=3")
+    # the gradient of the centripetal potential V = -c^2/2 (sum_e e^T B_e e + sum_k x_k^T B_s x_k)
+    # (central differences; ANCF spans e, spring spans x), and the running tangent of the equilibrium
+    # residual is its derivative (central differences of the residual), within 1e-7 of the largest entry.
+    cfg = bench("running.belt_speed=20.0", "mesh.elements_per_span=3", *[f'spans.{n}.model="spring"' for n in spring])
     system = build_system(cfg)
     assert system.belt_speed == 20.0
     _, B_e = ancf.transport_matrices(system.belt.elements)
+    sp = system.springs
+    B_s = sp.transport_end_matrices()[1] if sp is not None else None
     rng = np.random.default_rng(0)
     q = 1e-4 * rng.normal(size=system.n_dof)
 
     def V(q_):
         E = system.belt.element_coordinates(q_)
-        return -0.5 * 400.0 * float(np.einsum("ei,eij,ej->", E, B_e, E))
+        v = float(np.einsum("ei,eij,ej->", E, B_e, E))
+        if sp is not None:
+            X = sp.positions(q_)
+            v += float(np.einsum("ki,kij,kj->", X, B_s, X))
+        return -0.5 * 400.0 * v
 
     h = 1e-6
     grad = np.array([(V(q + h * d) - V(q - h * d)) / (2 * h) for d in np.eye(system.n_dof)])
@@ -157,11 +190,15 @@ def test_speed_zero_is_the_drive_at_rest():
 
 
 # ------------------------------------------------------------------------------------ running tension
-def test_running_tension_with_fixed_centres():
+@pytest.mark.parametrize("spring", [False, True], ids=["ancf", "all-spring"])
+def test_running_tension_with_fixed_centres(spring):
     # Fixed centres (the bench with both centres held, the tension from the belt's length): the span
     # tension does not change with speed (to 1e-8 N), and every hub load drops by the centrifugal tension,
-    # H(v) = H(0) - rho c^2 lambda (t_j - t_(j-1)), to 1e-8 N (the wrap carries rho c^2 lambda).
+    # H(v) = H(0) - rho c^2 lambda (t_j - t_(j-1)), to 1e-8 N (the wrap carries rho c^2 lambda). The
+    # same for spring spans (their own transport terms, `SpringSpans`).
     raw = tomllib.loads(BENCH.read_text())
+    if spring:
+        raw["spans"] = {"A-C": {"model": "spring"}, "C-A": {"model": "spring"}}
     raw["pulleys"][0].update(support="fixed", adjustable=False, bearing_stiffness=0.0)
     raw["belt"]["length"] = 1.79
     del raw["tension"]
@@ -177,10 +214,12 @@ def test_running_tension_with_fixed_centres():
     np.testing.assert_allclose(run.static.hub_load, expected, atol=1e-8)
 
 
-def test_running_tension_of_a_dead_weight_tensioner():
+@pytest.mark.parametrize("spring", [False, True], ids=["ancf", "all-spring"])
+def test_running_tension_of_a_dead_weight_tensioner(spring):
     # A 20 kg pulley hanging on the belt (vertical slide, no spring, gravity): its weight holds
     # N - rho c^2 lambda, so the span tensions rise by the centrifugal tension rho c^2 lambda. Within
     # 1e-3 of rho c^2 (the pulley drops ~0.1 mm as the belt stretches, turning the spans by ~1e-4 rad).
+    # The same with every span a spring.
     def drive(speed):
         raw = {"belt": {"length": 2.0, "EA": EA, "EI": 0.02, "mass_per_length": RHO},
                "pulleys": [{"name": "A", "center": [0.0, 0.0], "radius": 0.05, "mass": 1.0, "inertia": 1e-3,
@@ -190,6 +229,8 @@ def test_running_tension_of_a_dead_weight_tensioner():
                             "support": "slide", "slide_direction": [0.0, 1.0], "bearing_stiffness": 0.0}],
                "model": {"gravity": [0.0, -9.81]}, "mesh": {"elements_per_span": 8},
                "running": {"belt_speed": speed}}
+        if spring:
+            raw["spans"] = {n: {"model": "spring"} for n in ("A-B", "B-W", "W-A")}
         return analyse(config_from_dict(raw)).static
 
     rest = drive(0.0)
@@ -200,11 +241,13 @@ def test_running_tension_of_a_dead_weight_tensioner():
         assert err <= 1e-3 * RHO * v * v, (v, err)
 
 
-def test_hub_loads_are_the_wraps_momentum_balance():
+@pytest.mark.parametrize("spring", [(), ("C-A",), ("A-C", "C-A")], ids=["ancf", "mixed", "all-spring"])
+def test_hub_loads_are_the_wraps_momentum_balance(spring):
     # The bench at 20 m/s (tension set at speed, mode "adjust"): the mean span tension is the target and
     # each hub load is (N_j - rho c^2 lambda_j) t_j - (N_(j-1) - rho c^2 lambda_(j-1)) t_(j-1) with the
-    # span-end tensions and chord directions of the solved layout, within 1e-6 of the load.
-    run = analyse(bench("running.driver_speed=533.3333333333334"))
+    # span-end tensions and chord directions of the solved layout, within 1e-6 of the load; ANCF and
+    # spring spans alike.
+    run = analyse(bench("running.driver_speed=533.3333333333334", *[f'spans.{n}.model="spring"' for n in spring]))
     c = run.system.belt_speed
     assert c == pytest.approx(20.0, rel=1e-12)
     st = run.static
@@ -306,12 +349,16 @@ def transient_raw(**transient):
     return raw
 
 
-def test_transient_energy_balance_at_constant_speed():
+@pytest.mark.parametrize("spring", [(), ("C-A",)], ids=["ancf", "mixed"])
+def test_transient_energy_balance_at_constant_speed(spring):
     # The bench at a constant belt speed of 15 m/s ([running], no prescribed rotation), no damping,
     # rho_inf = 1, started from the equilibrium at rest so that the centripetal force sets it moving:
     # kinetic + strain (with the centripetal potential) - work stays constant, the balance error
-    # <= 1e-6 of the energy moved (measured ~1e-10): the gyroscopic forces do no work.
+    # <= 1e-6 of the energy moved (measured ~1e-10): the gyroscopic forces do no work (a spring span's
+    # included).
     raw = transient_raw()
+    if spring:
+        raw["spans"] = {n: {"model": "spring"} for n in spring}
     rest = analyse(config_from_dict(raw))
     raw["running"] = {"belt_speed": 15.0}
     cfg = config_from_dict(raw)
