@@ -94,26 +94,42 @@ def continuum_frequencies(*, length: float, stretch: float, EA: float, EI: float
     return f_t, f_a
 
 
-def span_frequencies(*, length: float, stretch: float, EA: float, EI: float, rho: float, curvature: str,
-                     elements: int, n_gauss: int, n_t: int, n_a: int) -> tuple[np.ndarray, np.ndarray]:
-    """The lowest n_t transverse and n_a axial frequencies (Hz) of one span of `elements` ANCF elements,
-    pinned at both ends, linearized about the straight span stretched by `stretch` (NaN where the
-    mesh has fewer modes). Along x the straight span's tangent decouples: x entries axial, y transverse."""
-    from scipy.linalg import eigh
-
+def element_blocks(lengths: np.ndarray, *, stretch: float, EA: float, EI: float, rho: float, curvature: str,
+                   n_gauss: int) -> tuple[np.ndarray, np.ndarray]:
+    """Tangent and mass matrices (k, 8, 8) of ANCF elements of the given lengths (k,), straight along x and
+    stretched by `stretch`: one element build for any number of meshes."""
     from . import ancf
 
-    h = length / elements
-    el = ancf.make_elements(np.array([h]), EA, EI, rho, curvature=curvature, n_gauss=n_gauss)
-    e = np.array([[0.0, 0.0, stretch, 0.0, stretch * h, 0.0, stretch, 0.0]])
-    _, Ke = ancf.internal_forces_and_tangent(el, e)
+    h = np.asarray(lengths, dtype=float)
+    el = ancf.make_elements(h, EA, np.full(len(h), EI), rho, curvature=curvature, n_gauss=n_gauss)
+    e = np.zeros((len(h), 8))
+    e[:, 2] = e[:, 6] = stretch
+    e[:, 4] = stretch * h
+    return ancf.internal_forces_and_tangent(el, e)[1], el.mass
+
+
+def span_frequencies(*, length: float, stretch: float, EA: float, EI: float, rho: float, curvature: str,
+                     elements: int, n_gauss: int, n_t: int, n_a: int,
+                     blocks: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The lowest n_t transverse and n_a axial frequencies (Hz) of one span of `elements` ANCF elements,
+    pinned at both ends, linearized about the straight span stretched by `stretch` (NaN where the
+    mesh has fewer modes). Along x the straight span's tangent decouples: x entries axial, y transverse.
+    blocks: the element's (tangent, mass) (8, 8) each, if built already (`element_blocks`)."""
+    from scipy.linalg import eigh
+
+    if blocks is None:
+        Kt, Mt = element_blocks(np.array([length / elements]), stretch=stretch, EA=EA, EI=EI, rho=rho,
+                                curvature=curvature, n_gauss=n_gauss)
+        blocks = (Kt[0], Mt[0])
     n = 4 * (elements + 1)
-    rows = (4 * np.arange(elements)[:, None] + np.arange(8)[None, :])  # (n_e, 8): every element alike
     K = np.zeros((n, n))
     M = np.zeros((n, n))
-    ii, jj = rows[:, :, None], rows[:, None, :]
-    np.add.at(K, (ii, jj), np.broadcast_to(Ke[0], (elements, 8, 8)))
-    np.add.at(M, (ii, jj), np.broadcast_to(el.mass[0], (elements, 8, 8)))
+    e_ = np.arange(elements)
+    for A, Ae in ((K, blocks[0]), (M, blocks[1])):  # every element alike: its 4 x 4 node blocks on the node pairs
+        nodes = A.reshape(elements + 1, 4, elements + 1, 4)
+        for a in (0, 1):
+            for b in (0, 1):
+                nodes[e_ + a, :, e_ + b, :] += Ae[4 * a: 4 * a + 4, 4 * b: 4 * b + 4]
     out = []
     for comp, want in ((1, n_t), (0, n_a)):  # y: transverse, x: axial; the end positions held
         keep = np.r_[np.arange(comp, n, 4)[1:-1], np.arange(comp + 2, n, 4)]
@@ -128,9 +144,10 @@ def span_frequencies(*, length: float, stretch: float, EA: float, EI: float, rho
 
 
 def local_error(*, model: str, elements: int, fmax: float, length: float, stretch: float, EA: float, EI: float,
-                rho: float, curvature: str, n_gauss: int) -> float:
+                rho: float, curvature: str, n_gauss: int, blocks: tuple[np.ndarray, np.ndarray] | None = None) -> float:
     """Relative error of the span's local modes up to fmax for model "string" or "ancf" with `elements`
-    elements against the converged ANCF span (module docstring, item 4); inf where the mesh lacks a mode."""
+    elements against the converged ANCF span (module docstring, item 4); inf where the mesh lacks a mode.
+    blocks: the mesh's element matrices, if built already (`element_blocks`, with the model's EI and law)."""
     ref_curv = curvature if curvature != "none" else "linear"
     n_max = 1
     while True:  # enough continuum modes to pass fmax in both directions
@@ -143,7 +160,7 @@ def local_error(*, model: str, elements: int, fmax: float, length: float, stretc
     n_a = int(np.searchsorted(f_a, fmax, side="right")) + 1
     h_curv = "none" if model == "string" else ref_curv
     g_t, g_a = span_frequencies(length=length, stretch=stretch, EA=EA, EI=0.0 if model == "string" else EI, rho=rho,
-                                curvature=h_curv, elements=elements, n_gauss=n_gauss, n_t=n_t, n_a=n_a)
+                                curvature=h_curv, elements=elements, n_gauss=n_gauss, n_t=n_t, n_a=n_a, blocks=blocks)
     worst = 0.0
     for g, f in ((g_t, f_t[:n_t]), (g_a, f_a[:n_a])):
         err = np.abs(g / f - 1.0)
@@ -240,9 +257,16 @@ def _mesh_choice(cfg: DriveConfig, s: int, *, fmax: float, budget: float, L_ref,
     common = dict(fmax=fmax, length=float(L_ref[s]), stretch=float(lam[s]), EA=b.EA, EI=b.EI,
                   rho=b.mass_per_length, curvature=cfg.model.curvature, n_gauss=cfg.model.gauss_points)
     best = ("ancf", MESHES[0], np.inf)
-    for n_e in (n for n in MESHES if n <= max_elements):
+    meshes = [n for n in MESHES if n <= max_elements]
+    ref_curv = cfg.model.curvature if cfg.model.curvature != "none" else "linear"
+    lengths = float(L_ref[s]) / np.array(meshes, dtype=float)
+    blocks = {model: element_blocks(lengths, stretch=float(lam[s]), EA=b.EA, EI=0.0 if model == "string" else b.EI,
+                                    rho=b.mass_per_length, curvature="none" if model == "string" else ref_curv,
+                                    n_gauss=cfg.model.gauss_points)
+              for model in ("string", "ancf")}  # every mesh's element at once (one build per model)
+    for i, n_e in enumerate(meshes):
         for model in ("string", "ancf"):
-            err = local_error(model=model, elements=n_e, **common)
+            err = local_error(model=model, elements=n_e, blocks=(blocks[model][0][i], blocks[model][1][i]), **common)
             if err <= budget:
                 return model, n_e, err
             if model == "ancf":
