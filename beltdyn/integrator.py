@@ -20,7 +20,12 @@ Newton on q1 with a reused factorization of the iteration matrix
     S = (1 - alpha_m)/(beta h^2) M + (1 - alpha_f) gamma/(beta h) C_t + (1 - alpha_f) K_t,
 given in band storage (RCM order): an upper Cholesky factor (symmetric S) or an LU factor with
 partial pivoting (LAPACK dgbtrf; a non-symmetric S, e.g. with transport terms). The stepper returns
-to Python when the factor is stale (slow convergence) or the step must be halved.
+to Python when the factor is stale (slow convergence) or the step must be halved, and after an
+accepted step once the factor has aged: the Newton iterations its steps took beyond what it took
+fresh (the mean of its first REF_STEPS steps) add up, and when they cost more than a new factor
+(StepOptions.refresh, the measured factor time over the measured time per residual evaluation) the
+next step gets one (the rent-or-buy rule: never more than twice the cost of the best choice). On the
+FEAD example at 6 m/s: 3.5 -> 2.7 iterations per step with ~120 factors in 10 000 steps.
 
 Convergence per DOF group (span coordinates, rotations, translations, ...): in every group g,
     max_{i in g} |R_i| <= tol * s_g + floor_g,
@@ -78,7 +83,8 @@ from . import spring_kernel as sk
 # return codes of run_steps
 DONE = 0  # reached t_stop
 BUFFER_FULL = 1  # output buffer full: drain and call again
-REFACTOR = 2  # convergence slowed: refactorize S at the current state and call again
+REFACTOR = 2  # convergence slowed (or the factor's extra iterations outweigh a new one): refactorize S at the
+#              current state and call again
 HALVE = 3  # no convergence with a fresh factor: halve the step, refactorize, call again
 MAX_STEPS = 4  # step budget of this call used up (keeps Ctrl-C responsive)
 
@@ -91,7 +97,8 @@ Forcing = namedtuple("Forcing", ["constant", "load_dof", "load_coef", "load_sig"
                                  "tab_v", "nominal_mass", "nominal_rotation", "nominal_scale"])
 Constraints = namedtuple("Constraints", ["dof", "params"])  # dof (k,), params (k, 9): rotation law (rotation_state)
 Check = namedtuple("Check", ["group", "n_groups", "tol", "max_iter", "noise"])
-StepOptions = namedtuple("StepOptions", ["am", "af", "beta", "gamma", "t_stop", "dt_out", "max_steps"])
+# refresh: the cost of a new factor in Newton iterations (0: refactorize only when convergence slows)
+StepOptions = namedtuple("StepOptions", ["am", "af", "beta", "gamma", "t_stop", "dt_out", "max_steps", "refresh"])
 Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind 0 band Cholesky, 1 band LU
 State = namedtuple("State", ["q", "v", "a", "f0", "fd0", "F0", "R0", "scal"])
 Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n"])
@@ -99,7 +106,9 @@ Events = namedtuple("Events", ["data", "n", "slack"])
 # the running belt's transport terms (module docstring): A, G = A - A^T, B (Csr, per unit speed) on the joint
 # coordinates, a0, b0 (n,); the belt speed c = speed (follow = 0) or the nominal speed of the prescribed
 # rotation (follow = 1: c = theta_nominal' * Forcing.nominal_scale)
-Transport = namedtuple("Transport", ["A", "G", "B", "a0", "b0", "speed", "follow"])
+# mag: M, A, G, B on their union pattern (`fused`), for one pass per Newton iteration (`fused_matvec`)
+Transport = namedtuple("Transport", ["A", "G", "B", "a0", "b0", "speed", "follow", "mag"])
+Fused = namedtuple("Fused", ["indptr", "indices", "data"])  # data (k, nnz): k matrices on one CSR pattern
 # tensioner arms: q index of the angle, p index of the centre offset x (y: + 1), arm length, angle at q = 0,
 # dry friction torque, its bristle stiffness and anchor angle (state); n_q the independent coordinates (p[:n_q] = q)
 Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction", "bristle", "anchor", "n_q"])
@@ -110,17 +119,20 @@ ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry frict
 def no_arms(n: int) -> Arms:
     return Arms(dof=np.zeros(0, dtype=np.int64), slot=np.zeros(0, dtype=np.int64), length=np.zeros(0),
                 angle=np.zeros(0), friction=np.zeros(0), bristle=np.zeros(0), anchor=np.zeros(0), n_q=n)
+
+
 def no_transport(n: int) -> Transport:
     """The belt at rest (no transport terms)."""
     return Transport(A=empty_csr(n), G=empty_csr(n), B=empty_csr(n), a0=np.zeros(n), b0=np.zeros(n), speed=0.0,
-                     follow=0)
+                     follow=0, mag=Fused(np.zeros(n + 1, dtype=np.int64), np.zeros(0, dtype=np.int64),
+                                         np.zeros((4, 0))))
 
 
 # scal slots
-T_NOW, H, T_OUT, WORK, DISS, STEPS, E0, WORST, MOVED, KIN0, POT0, ITERS, TR_P0 = range(13)
-N_SCAL = 13  # TR_P0: the transport power at the last accepted step
+T_NOW, H, T_OUT, WORK, DISS, STEPS, E0, WORST, MOVED, KIN0, POT0, ITERS, TR_P0, STALE, REF_SUM, REF_N = range(16)
+N_SCAL = 16  # TR_P0: the transport power at the last accepted step; STALE, REF_SUM, REF_N: the factor's age
+REF_STEPS = 4  # a new factor's first steps: their mean iterations are what the factor does fresh
 ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
-
 
 from .timestep import alpha_parameters  # noqa: E402,F401  (one definition, numba-free)
 
@@ -136,6 +148,25 @@ def to_csr(A) -> Csr:
     A.eliminate_zeros()  # a system's constant matrices live on the whole pattern: the springs are few
     A.sort_indices()
     return Csr(A.indptr.astype(np.int64), A.indices.astype(np.int64), A.data.astype(np.float64))
+
+
+def fused(*mats) -> Fused:
+    """The matrices (scipy or dense, one shape) on the union of their nonzero patterns: data (k, nnz), zeros
+    where a matrix has no entry."""
+    from scipy.sparse import coo_matrix
+
+    coos = [coo_matrix(A) for A in mats]
+    for A in coos:  # a system's matrices live on its whole pattern: only their nonzeros count
+        A.eliminate_zeros()
+    n_row, n_col = coos[0].shape
+    keys = [A.row.astype(np.int64) * n_col + A.col for A in coos]
+    union = np.unique(np.concatenate(keys))
+    data = np.zeros((len(coos), len(union)))
+    for k, (A, key) in enumerate(zip(coos, keys)):
+        np.add.at(data[k], np.searchsorted(union, key), A.data)
+    indptr = np.zeros(n_row + 1, dtype=np.int64)
+    np.add.at(indptr, union // n_col + 1, 1)
+    return Fused(np.cumsum(indptr), (union % n_col).astype(np.int64), data)
 
 
 @njit(cache=True)
@@ -346,6 +377,43 @@ def transport_forces(tr, c, cd, q, v, out, Bq, Aq):
 
 
 @njit(cache=True)
+def fused_matvec(F, a, q, v, Ma, Aq, Bq, Gv):
+    """Ma = M a, Aq = A q, Bq = B q, Gv = G v in one pass over the union pattern F (data rows M, A, G, B)."""
+    n = F.indptr.shape[0] - 1
+    d = F.data
+    for i in range(n):
+        sm = 0.0
+        sa = 0.0
+        sg = 0.0
+        sb = 0.0
+        for k in range(F.indptr[i], F.indptr[i + 1]):
+            j = F.indices[k]
+            sm += d[0, k] * a[j]
+            sa += d[1, k] * q[j]
+            sg += d[2, k] * v[j]
+            sb += d[3, k] * q[j]
+        Ma[i] = sm
+        Aq[i] = sa
+        Gv[i] = sg
+        Bq[i] = sb
+
+
+@njit(cache=True)
+def transport_from(tr, c, cd, q, v, out, Bq, Aq):
+    """As `transport_forces` with the products B q, A q and G v (in out) already made (`fused_matvec`)."""
+    n = q.shape[0]
+    qbq = 0.0
+    vaq = 0.0
+    for i in range(n):
+        qbq += q[i] * (Bq[i] + 2.0 * tr.b0[i])
+        Bq[i] += tr.b0[i]
+        Aq[i] += tr.a0[i]
+        vaq += v[i] * Aq[i]
+        out[i] = c * out[i] - c * c * Bq[i] + cd * Aq[i]
+    return qbq, vaq
+
+
+@njit(cache=True)
 def potential_energy(belt, lin, q, q_ext, E, U, dq, Kdq):
     """Belt strain energy (elements and spring spans) + 1/2 (q - q_ref)^T K_lin (q - q_ref)."""
     bk.gather(q_ext, belt.e0, belt.T, belt.idx, belt.tsel, E)
@@ -508,6 +576,10 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
     project(arms, q, state.F0, F0_q)
     eps = np.finfo(np.float64).eps
     steps = 0
+    if fresh:  # a new factor: its age starts
+        th[STALE] = 0.0
+        th[REF_SUM] = 0.0
+        th[REF_N] = 0.0
     tmp[:] = 0.0
     bristle0 = arm_friction(arms, q, tmp)
     bristle1 = bristle0
@@ -550,11 +622,13 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             for i in range(n):
                 dq[i] = q1[i] - lin.q_ref[i]
             csr_matvec(lin.K, dq, Kd)
-            csr_matvec(lin.M, a1, Ma)
             csr_matvec(lin.C, v1, Cv)
-            if moving:
-                qbq, vaq = transport_forces(tr, c1, cd1, q1, v1, f_tr, tr_Bq, tr_Aq)
+            if moving:  # M a, A q, G v, B q in one pass
+                fused_matvec(tr.mag, a1, q1, v1, Ma, tr_Aq, tr_Bq, f_tr)
+                qbq, vaq = transport_from(tr, c1, cd1, q1, v1, f_tr, tr_Bq, tr_Aq)
                 p_tr = -cd1 * (c1 * qbq + vaq)
+            else:
+                csr_matvec(lin.M, a1, Ma)
             for i in range(n):
                 fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
                 fl[i] = gross[i] + abs(Kd[i]) + abs(F.constant[i]) + abs(f_tr[i])
@@ -731,3 +805,14 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
         th[STEPS] += 1.0
         th[ITERS] += it
         steps += 1
+        # an aging factor: the iterations its steps take beyond what it took fresh (the mean of its first
+        # REF_STEPS steps) add up; once they cost more than a new factor, the next step gets one (the
+        # rent-or-buy rule: within 2x of the best choice). A drive whose steps take as many iterations
+        # with any factor never pays for one.
+        if th[REF_N] < REF_STEPS:
+            th[REF_SUM] += it
+            th[REF_N] += 1.0
+        else:
+            th[STALE] = max(0.0, th[STALE] + it - th[REF_SUM] / th[REF_N])
+            if opts.refresh > 0.0 and th[STALE] > opts.refresh:
+                return REFACTOR

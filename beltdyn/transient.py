@@ -280,7 +280,7 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
         A, B, a0, b0 = system.transport_matrices()
         transport = itg.Transport(A=itg.to_csr(A), G=itg.to_csr(A - A.T), B=itg.to_csr(B), a0=a0.astype(float),
                                   b0=b0.astype(float), speed=0.0 if nom_scale else float(system.belt_speed),
-                                  follow=1 if nom_scale else 0)
+                                  follow=1 if nom_scale else 0, mag=itg.fused(M, A, A - A.T, B))
         if nom_scale:  # the belt's axial inertia is c' (A q + a0): only the pulleys' stays a nominal load
             belt_mass = system.assemble(belt.reduce_blocks(belt.elements.mass), linear=False)
             forcing = forcing._replace(nominal_mass=np.asarray((M - belt_mass) @ u_nom).ravel().astype(float))
@@ -299,10 +299,12 @@ def transport_speed(setup: TransientSetup, t: np.ndarray) -> tuple[np.ndarray, n
     t = np.asarray(t, dtype=float)
     if tr is None or not tr.follow:
         return np.full(t.shape, 0.0 if tr is None else float(tr.speed)), np.zeros(t.shape)
-    from .integrator import rotation_state
-
-    st = np.array([rotation_state(setup.forcing.nominal_rotation, float(x))[1:3] for x in t]).reshape(-1, 2)
-    return st[:, 0] * setup.nom_scale, st[:, 1] * setup.nom_scale
+    om, tr_ = float(setup.forcing.nominal_rotation[0]), float(setup.forcing.nominal_rotation[1])
+    # the nominal speed and its rate of `integrator.rotation_state`, vectorized: a linear ramp to om over tr_
+    ramp = (t < tr_) if tr_ > 0.0 else np.zeros(t.shape, dtype=bool)
+    thd = np.where(ramp, om * t / (tr_ if tr_ > 0.0 else 1.0), om)
+    thdd = np.where(ramp, om / (tr_ if tr_ > 0.0 else 1.0), 0.0)
+    return thd * setup.nom_scale, thdd * setup.nom_scale
 
 
 def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
@@ -365,29 +367,53 @@ def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
 
 
 # ------------------------------------------------------------------------------------ iteration matrix
-def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool):
-    """Factor S (dense or sparse) in RCM order: band Cholesky when symmetric positive definite, else
-    band LU with partial pivoting (LAPACK dgbtrf). Returns an integrator.Factor."""
+def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool, hold: np.ndarray | None = None,
+                diagonal: np.ndarray | None = None):
+    """Factor S (dense or sparse; + `diagonal` (n,) if given) in RCM order with the DOFs `hold` held
+    (their rows and columns replaced by the identity): band Cholesky when symmetric positive definite,
+    else band LU with partial pivoting (LAPACK dgbtrf). Returns an integrator.Factor."""
     from scipy.linalg import cholesky_banded
     from scipy.linalg.lapack import dgbtrf
-    from scipy.sparse import coo_matrix, issparse
+    from scipy.sparse import issparse
 
     from .integrator import Factor
 
     n = S.shape[0]
-    Sp = (S.tocsr()[perm][:, perm].tocoo() if issparse(S) else coo_matrix(np.asarray(S)[np.ix_(perm, perm)]))
+    if issparse(S):
+        C = S.tocoo()
+        row, col, val = C.row, C.col, C.data
+    else:
+        row, col = np.nonzero(np.asarray(S))
+        val = np.asarray(S)[row, col]
+    if hold is not None and len(hold):
+        held = np.zeros(n, dtype=bool)
+        held[hold] = True
+        keep = ~(held[row] | held[col])
+        h_ = np.asarray(hold, dtype=row.dtype)
+        row, col = np.concatenate([row[keep], h_]), np.concatenate([col[keep], h_])
+        val = np.concatenate([val[keep], np.ones(len(h_))])
+    inv = np.empty(n, dtype=np.int64)
+    inv[perm] = np.arange(n)
+    r, c = inv[row], inv[col]  # positions in RCM order (each (row, col) once: a CSR's or a dense array's entries)
+    d = None
+    if diagonal is not None:
+        d = np.flatnonzero(diagonal if hold is None else np.where(np.isin(np.arange(n), hold), 0.0, diagonal))
     none = np.zeros(1, dtype=np.int64)
     if symmetric:
         ab = np.zeros((u + 1, n))
-        mask = Sp.row <= Sp.col
-        np.add.at(ab, (u + Sp.row[mask] - Sp.col[mask], Sp.col[mask]), Sp.data[mask])
+        mask = r <= c
+        ab[u + r[mask] - c[mask], c[mask]] = val[mask]
+        if d is not None:
+            ab[u, inv[d]] += diagonal[d]
         try:
             return Factor(kind=0, ab=np.asfortranarray(cholesky_banded(ab, lower=False, check_finite=False)),
                           piv=none, perm=perm, kl=0, ku=u)
         except np.linalg.LinAlgError:
             pass
     ab = np.zeros((3 * u + 1, n))
-    np.add.at(ab, (2 * u + Sp.row - Sp.col, Sp.col), Sp.data)
+    ab[2 * u + r - c, c] = val
+    if d is not None:
+        ab[2 * u, inv[d]] += diagonal[d]
     lu, piv, info = dgbtrf(ab, u, u, overwrite_ab=True)
     if info > 0:
         raise np.linalg.LinAlgError(f"singular iteration matrix (pivot {info})")
@@ -397,8 +423,12 @@ def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool):
 
 def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: float, rho_inf: float,
                       v: np.ndarray | None = None, arms=None, t: float = 0.0):
-    """S = c_m M + c_c (C + C_belt(q) + c G) + (1 - alpha_f) (K_t(q) - c^2 B + c' A), prescribed DOFs held
-    (identity); c, c' the belt speed and its rate at t (no transport terms at rest)."""
+    """S = c_m M + c_c (C + C_belt(q) + c G) + (1 - alpha_f) (K_t(q) - c^2 B + c' A) on q (prescribed DOFs
+    are held by `band_factor`); c, c' the belt speed and its rate at t (no transport terms at rest).
+    The terms are summed on the joint coordinates p, where they share the system's pattern (their data
+    added), and projected once: J^T S_p J with the arms' geometric term of (1 - alpha_f) times the loaded
+    internal force (as `System.equilibrium`). Returns (S, diagonal): the arms' sticking bristles k_b as a
+    diagonal (n_dof,) to add, or None."""
     from . import belt_kernel as bk
     from .integrator import alpha_parameters
 
@@ -407,48 +437,61 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
     c_c = (1.0 - af) * gamma / (beta * h)
     q = q[: system.n_dof]  # the stepper's state is on the joint coordinates: q is its head
     at_rest = system.with_speed(0.0) if system.belt_speed else system  # the transport terms: below, at t
-    if system.arms is None:
-        _, K = at_rest.force_and_tangent(q)
-    else:  # the loaded tangent (the arm's geometric term of the static loads; a Newton matrix only)
-        _, K = at_rest.equilibrium(q, 1.0)
-    S = (1.0 - af) * K + c_m * system.mass_matrix(q)
+    p = system.expand(q)
+    f, K = at_rest.belt_force_and_tangent(p)  # + the components' constant stiffness
+    terms = [((1.0 - af), K), (c_m, system.mass)]
     tr = setup.transport
     if tr is not None and (tr.follow or tr.speed):
         c, cd = (float(x[0]) for x in transport_speed(setup, np.array([t])))
         A, B, _, _ = system.transport_matrices()
-        S = S + system.project_matrix(q, c_c * c * (A - A.T) + (1.0 - af) * (cd * A - c * c * B))
+        G = system.__dict__.get("_gyroscopic_unit")
+        if G is None:
+            G = A - A.T
+            object.__setattr__(system, "_gyroscopic_unit", G)
+        terms += [(c_c * c, G), ((1.0 - af) * cd, A), (-(1.0 - af) * c * c, B)]
     b = setup.belt
     if b.eta_a or b.eta_b:
-        E = system.belt.element_coordinates(system.expand(q))
+        E = system.belt.element_coordinates(p)
         Ce = np.empty((E.shape[0], 8, 8))
         bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce)
-        S = S + c_c * system.project_matrix(q, system.belt_damping_matrix(q, Ce))
+        terms.append((c_c, system.belt_damping_matrix(q, Ce)))
     if setup.C is not None:
-        S = S + c_c * system.project_matrix(q, setup.C)
+        terms.append((c_c, setup.C))
+    S = _weighted_sum(terms)
+    if system.arms is not None:
+        f_loaded = f + system.linear_force(p) - system.external_force(1.0)
+        S = system.arms.project_matrix(q, S, (1.0 - af) * f_loaded, dense=system.dense)
+    diagonal = None
     if arms is not None and np.any(arms.friction):  # a sticking bristle is a spring k_b on the arm angle
-        from scipy.sparse import diags
-
         e = q[arms.dof] - arms.anchor
-        D = np.zeros(system.n_dof)
-        D[arms.dof] = np.where(np.abs(arms.bristle * e) < arms.friction, arms.bristle, 0.0)
-        S = S + (1.0 - af) * (np.diag(D) if not hasattr(S, "tocsr") else diags(D))
-    return _hold(S, setup.constraints.dof)
+        diagonal = np.zeros(system.n_dof)
+        diagonal[arms.dof] = (1.0 - af) * np.where(np.abs(arms.bristle * e) < arms.friction, arms.bristle, 0.0)
+    return S, diagonal
 
 
-def _hold(S, dofs: np.ndarray):
-    if not len(dofs):
-        return S
-    from scipy.sparse import issparse
+def _weighted_sum(terms):
+    """sum_k w_k A_k of dense arrays or CSR matrices; CSR ones on one pattern (the same indptr and
+    indices, as `System.assemble` gives) by adding their data, others by scipy."""
+    first = terms[0][1]
+    if not hasattr(first, "tocsr"):
+        out = terms[0][0] * np.asarray(first, dtype=float)
+        for w, A in terms[1:]:
+            out = out + w * (A.toarray() if hasattr(A, "toarray") else np.asarray(A))
+        return out
+    from scipy.sparse import csr_matrix
 
-    if issparse(S):
-        S = S.tolil()
-    else:
-        S = np.array(S)
-    for p in dofs:
-        S[p, :] = 0.0
-        S[:, p] = 0.0
-        S[p, p] = 1.0
-    return S.tocsr() if hasattr(S, "tocsr") else S
+    first = csr_matrix(first)
+    data = terms[0][0] * first.data
+    rest = None
+    for w, A in terms[1:]:
+        A = csr_matrix(A)
+        if A.indptr is first.indptr or (A.nnz == first.nnz and np.array_equal(A.indptr, first.indptr)
+                                        and np.array_equal(A.indices, first.indices)):
+            data = data + w * A.data
+        else:
+            rest = w * A if rest is None else rest + w * A
+    S = csr_matrix((data, first.indices, first.indptr), shape=first.shape)
+    return S if rest is None else S + rest
 
 
 # ------------------------------------------------------------------------------------ the driver
@@ -557,6 +600,7 @@ class _Run:
 
 
 HANDOVER_SECONDS = 0.2  # wall time between hand-overs of samples to the sink (and checks for Ctrl-C/SIGTERM)
+REFRESH = True  # a new factor once the old one's extra Newton iterations cost more (`integrator.run_steps`)
 
 
 def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float, duration: float,
@@ -586,8 +630,18 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     info = np.zeros(4)
     n_total_out = int(math.floor(duration / output_interval + 1e-9)) + 1
     opts = itg.StepOptions(am=am, af=af, beta=beta, gamma=gamma, t_stop=float(duration), dt_out=float(output_interval),
-                           max_steps=2000)
-    fac = problem.factor(state.q, th[itg.H], state.v, th[itg.T_NOW])
+                           max_steps=2000, refresh=0.0)
+    clock = {"factor": 0.0, "factors": 0, "stepping": 0.0, "iterations": 0.0, "counted": 0.0, "calls": 0}
+
+    def new_factor():
+        """The factor at the current state; its wall time feeds the refresh rule (`integrator.run_steps`)."""
+        started = time.perf_counter()
+        got = problem.factor(state.q, th[itg.H], state.v, th[itg.T_NOW])
+        clock["factor"] += time.perf_counter() - started
+        clock["factors"] += 1
+        return got
+
+    fac = new_factor()
     fresh = True
     run = _Run()
     run.refactors = 1
@@ -618,6 +672,14 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
             if th[itg.STEPS] > steps_before:  # the step budget of a call: about HANDOVER_SECONDS of wall time
                 per_step = (now - started) / (th[itg.STEPS] - steps_before)
                 opts = opts._replace(max_steps=int(min(2000, max(10, HANDOVER_SECONDS / max(per_step, 1e-9)))))
+            evaluations = th[itg.ITERS] + th[itg.STEPS]  # residual evaluations: one more than corrections per step
+            if clock["calls"]:  # (not the first call: it may have loaded the kernels from numba's cache)
+                clock["stepping"] += now - started
+                clock["iterations"] += evaluations - clock["counted"]
+            clock["counted"], clock["calls"] = evaluations, clock["calls"] + 1
+            if REFRESH and clock["iterations"] > 0 and clock["stepping"] > 0.0:  # a factor's cost in evaluations
+                opts = opts._replace(refresh=(clock["factor"] / clock["factors"])
+                                     / (clock["stepping"] / clock["iterations"]))
             if now - last_drain >= HANDOVER_SECONDS:  # the samples so far reach the sink (the results file)
                 drain()
                 last_drain = now
@@ -630,16 +692,17 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
             if code == itg.DONE:
                 break
             if code in (itg.BUFFER_FULL, itg.MAX_STEPS):
-                drain()
+                if code == itg.BUFFER_FULL:  # (a call's step budget only hands over: the clock above drains)
+                    drain()
                 if th[itg.H] < step:  # grow the step back after a calm stretch
                     calm += 1
                     if calm >= 2:
                         th[itg.H] = min(2.0 * th[itg.H], step)
-                        fac, fresh, calm = problem.factor(state.q, th[itg.H], state.v, th[itg.T_NOW]), True, 0
+                        fac, fresh, calm = new_factor(), True, 0
                         run.refactors += 1
                 continue
             if code == itg.REFACTOR:
-                fac, fresh, calm = problem.factor(state.q, th[itg.H], state.v, th[itg.T_NOW]), True, 0
+                fac, fresh, calm = new_factor(), True, 0
                 run.refactors += 1
                 continue
             # HALVE
@@ -654,7 +717,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
             min_h = min(min_h, th[itg.H])
             run.halvings += 1
             calm = 0
-            fac, fresh = problem.factor(state.q, th[itg.H], state.v, th[itg.T_NOW]), True
+            fac, fresh = new_factor(), True
             run.refactors += 1
         drain()
     except KeyboardInterrupt:
@@ -665,7 +728,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
 
 
 def run_transient(system: System, static: StaticResult, opts: TransientOptions, *, sink: Sink,
-                  progress: Progress | None = None, setup: TransientSetup | None = None, batch: int = 256,
+                  progress: Progress | None = None, setup: TransientSetup | None = None, batch: int | None = None,
                   status: Callable | None = None) -> TransientSummary:
     """Integrate, feeding (time (B,), {series: (B, ...)}) batches to `sink`.
 
@@ -679,17 +742,23 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
         raise ValueError("TransientOptions.step is not set: resolve it from transient.accuracy and fmax first "
                          "(timestep.resolve_step)")
     setup = setup or prepare(system, static, opts)
+    if batch is None:  # samples per batch of outputs: ~1.5 MB of states (the observers' cost is per batch)
+        batch = int(min(4096, max(256, 65536 // max(len(setup.q0), 1))))
     # the time stepper evaluates the belt thousands of times: the compiled kernel (system.BeltSpans)
     system = system.with_belt(damping_axial=float(opts.damping.belt_axial),
                               damping_bending=float(opts.damping.belt_bending), compiled=True)
     tr = setup.transport
     symmetric = tr is None or not (tr.follow or tr.speed)  # the gyroscopic term makes S non-symmetric: band LU
     arms = stepper_arms(system)
+
+    def factor(q, h, v=None, t=0.0):
+        S, diagonal = _iteration_matrix(system, setup, q, h, opts.rho_inf, v, arms, t)
+        return band_factor(S, setup.perm, setup.bandwidth, symmetric=symmetric, hold=setup.constraints.dof,
+                           diagonal=diagonal)
+
     problem = StepProblem(
         belt=setup.belt, linear=setup.linear, forcing=setup.forcing, constraints=setup.constraints,
-        groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels,
-        factor=lambda q, h, v=None, t=0.0: band_factor(_iteration_matrix(system, setup, q, h, opts.rho_inf, v, arms, t),
-                                                       setup.perm, setup.bandwidth, symmetric=symmetric),
+        groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels, factor=factor,
         arms=arms, transport=tr)
     observer = Observers(system=system, setup=setup)
     run, th, min_h, events = drive(
