@@ -10,6 +10,7 @@ $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	@$(BIN)/python -m compileall -q beltdyn  # the bytecode a pip install writes (PYTHONDONTWRITEBYTECODE may be set)
 	@echo "compiling the transient kernels once (numba cache, about 20 s)"
 	$(BIN)/python -c "from beltdyn.transient import warm_up; warm_up()"
 	@touch $(STAMP)
@@ -39,6 +40,7 @@ trade: $(STAMP)
 	$(BIN)/python bench/trade.py README.md
 
 bench: $(STAMP)
+	@$(BIN)/python -m compileall -q beltdyn  # bytecode of the current sources, as an installed package has
 	$(BIN)/python bench/run.py
 
 clean:

@@ -707,11 +707,12 @@ def _announce_cost(cfg, transient=None) -> None:
 
 def _check_output_volume(job: "_Job", force_large: bool) -> None:
     """Before any work: histories above transient.max_output_mb need --force-large (exit 2)."""
-    from .system import build_system
+    from .system import DeferredSystem
     from .transient import output_volume
 
     opts = job.cfg.transient
-    n_samples, volume = output_volume(build_system(job.cfg, job.layout), opts)
+    facts = DeferredSystem(job.cfg, job.layout, build=None)  # the DOF map and pulleys' components: no belt built
+    n_samples, volume = output_volume(facts, opts)
     if volume > opts.max_output_mb * 1e6 and not force_large:
         from .errors import ConfigError
 

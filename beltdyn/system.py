@@ -1820,7 +1820,9 @@ class DeferredSystem:
             "loads": static_loads(cfg, dofs), "driver_dof": int(dofs.rot_dof[cfg.driver_index]),
             "belt": SimpleNamespace(reference_length=layout.span_length / lam, prestrain_stretch=float(lam),
                                     span_stretch=None, elements=SimpleNamespace(EA=np.array([cfg.belt.EA]))),
-            "EA": float(cfg.belt.EA),
+            "EA": float(cfg.belt.EA), "dof_labels": dofs.labels[: dofs.n_q],
+            "pulley_friction": np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]),
+            "pulley_index": tuple(p.name for p in cfg.pulleys).index,
         }
         self._build, self._full, self._cfg = build, None, cfg
 
