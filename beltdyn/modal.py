@@ -65,13 +65,34 @@ class ModalResult:
 
 
 def zero_tolerance(lam_max: float) -> float:
-    """omega^2 (1/s^2) at or below which an eigenvalue counts as zero (a rigid turn, a mechanism):
-    (2 pi 1e-4 Hz)^2, or the round-off of a pencil whose largest diagonal ratio K_ii / M_ii is lam_max,
-    100 eps lam_max. Measured: the belt's rigid turn comes out at 1e-5..0.9 eps lam_max (dense and
-    sparse solvers, 10-640 el/span), a slack EI = 0 belt's zero modes at up to 32 eps lam_max (40
-    el/span), while the FEAD example's first elastic mode (52.8 Hz) lies at 520 eps lam_max at 640
-    el/span, which the earlier 1000 eps lam_max took for a second zero mode (`modal --rtol 1e-8`)."""
-    return max((2 * np.pi * 1e-4) ** 2, 100 * np.finfo(float).eps * lam_max)
+    """omega^2 (1/s^2) at or below which an eigenvalue may be zero (a rigid turn, a mechanism): (2 pi
+    1e-4 Hz)^2, or 1000 eps lam_max, the round-off of a pencil whose largest diagonal ratio K_ii / M_ii is
+    lam_max. Measured: the belt's rigid turn comes out at 1e-5..0.9 eps lam_max (dense and sparse
+    solvers, 10-640 el/span), a slack EI = 0 belt's zero modes at up to -400 eps lam_max (320 el/span;
+    -200 at 160, -32 at 40).
+    A fine mesh can put a true mode below it (the FEAD example's 52.8 Hz at 520 eps lam_max at 640
+    el/span): `zero_modes` tells them apart by the gap."""
+    return max((2 * np.pi * 1e-4) ** 2, 1000 * np.finfo(float).eps * lam_max)
+
+
+ZERO_GAP = 1e3  # a factor between the zero cluster and the lowest true mode below the tolerance
+
+
+def zero_modes(w: np.ndarray, tol: float) -> np.ndarray:
+    """(k,) bool: the eigenvalues w (k,) that are zero: |w| <= tol, and below the first gap of more
+    than ZERO_GAP between consecutive candidates (sorted by |w|), above which a candidate is a positive
+    true mode that a fine mesh's round-off bound reaches (measured: rigid turn 2.7e-3, first mode 1.1e5,
+    tolerance 2.1e5 1/s^2 for the FEAD example at 640 el/span), not a round-off zero."""
+    zero = np.abs(w) <= tol
+    idx = np.flatnonzero(zero)
+    if len(idx) < 2:
+        return zero
+    order = idx[np.argsort(np.abs(w[idx]))]
+    size = np.maximum(np.abs(w[order]), (2 * np.pi * 1e-4) ** 2)
+    jumps = np.flatnonzero(size[1:] > ZERO_GAP * size[:-1])
+    if len(jumps) and np.all(w[order[jumps[0] + 1:]] > 0.0):
+        zero[order[jumps[0] + 1:]] = False
+    return zero
 
 
 def ordinal(n: int) -> str:
@@ -135,7 +156,7 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
         raise SolverError(
             f"the equilibrium is unstable: eigenvalue omega^2 = {w[i]:.4g} 1/s^2 < 0 (a compressed or "
             f"slack span?)", analysis="modal", item=dof)
-    rigid = np.abs(w) <= tol
+    rigid = zero_modes(w, tol)
     n_rigid = int(rigid.sum())
     if n_rigid > 1:  # beyond the belt turning with the pulleys: a mechanism (no stiffness somewhere)
         _mechanism(model, v[:, rigid], Mdiag)
@@ -335,7 +356,7 @@ def _solve_running(model: System, q: np.ndarray, *, n_modes: int, solver: str) -
     n_want = min(n - 1, n_modes)
     s, phi, name = (_gyroscopic_dense if use_dense else _gyroscopic_sparse)(K, G, M, tol, n_want)
     size = np.abs(s)
-    rigid = size ** 2 <= tol
+    rigid = zero_modes(size ** 2, tol)
     eps = 1e-7 * size + np.sqrt(tol) * 1e-3  # |Re s| and |Im s| below this are round-off
     oscillating = ~rigid & (s.imag > eps) & (s.real >= -eps)  # one of each conjugate pair; flutter's growing one
     diverging = ~rigid & (np.abs(s.imag) <= eps) & (s.real > eps)  # one of each +-s pair
@@ -379,7 +400,7 @@ def critical_speed(model: System, q: np.ndarray) -> float:
     w, v = eigh(K0, M, driver="gvd", check_finite=False)
     lam_max = float(np.max(np.abs(np.diag(K0)) / np.diag(M)))
     tol = zero_tolerance(lam_max)
-    Z = null_space((M @ v[:, np.abs(w) <= tol]).T)  # the complement of the rigid turn
+    Z = null_space((M @ v[:, zero_modes(w, tol)]).T)  # the complement of the rigid turn
     if w[0] < -tol:
         return 0.0  # unstable at rest
     nu = eigh(Z.T @ B @ Z, Z.T @ K0 @ Z, eigvals_only=True, check_finite=False)

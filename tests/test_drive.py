@@ -295,12 +295,48 @@ def test_slack_free_belt_fails_clearly():
     assert text.startswith("modal:") and "mechanism" in text and "span" in err.value.item
 
 
+@pytest.mark.parametrize("w, zeros", [
+    ([2.7e-3, 1.1e5, 3.9e5], [True, False, False]),  # FEAD at 640 el/span: the rigid turn, then true modes
+    ([-0.28, -0.27, -0.03, 4e-4, 0.02], [True] * 5),  # a slack string's mechanism: one cluster
+    ([-0.28, 4e-4, 0.1, 5e4], [True, True, True, False]),  # a mechanism, then a true mode past the gap
+    ([-0.28, 4e-4, -5e4], [True, True, True]),  # a negative candidate is never a true mode
+], ids=["rigid + modes", "mechanism", "mechanism + mode", "negative"])
+def test_zero_modes_split_at_the_gap(w, zeros):
+    # Candidates |w| <= tol (here 2.1e5 1/s^2, 1000 eps lam_max of the FEAD example at 640 el/span) are
+    # zero below the first gap of more than 1e3 between consecutive |w|; positive ones above it are
+    # true modes that the round-off bound reached. The cases use the measured magnitudes.
+    from beltdyn.modal import zero_modes
+
+    assert zero_modes(np.array(w), 2.1e5).tolist() == zeros
+
+
+@pytest.mark.parametrize("elements", [10, 160])
+def test_slack_string_is_a_mechanism_on_any_mesh(elements):
+    # A belt of exactly its path length without bending stiffness is a mechanism: its zero modes come
+    # out at up to 200 eps lam_max (negative) at 160 el/span; they stay one cluster of zeros there
+    # (a tolerance of 100 eps lam_max called them an unstable equilibrium).
+    from beltdyn.config import config_to_dict
+    from beltdyn.geometry import layout_from_config
+
+    raw = config_to_dict(load_config(CONFIGS / "paper" / "bench_T200.toml", [f"mesh.elements_per_span={elements}"]))
+    raw["pulleys"][0]["adjustable"] = False
+    raw["belt"]["EI"] = 0.0
+    raw["tension"] = {}
+    raw["belt"]["length"] = layout_from_config(config_from_dict(raw)).belt_length
+    cfg = config_from_dict(raw)
+    model = build_system(cfg)
+    st = solve_static(model, cfg.static)
+    with pytest.raises(SolverError, match="zero-frequency modes.*mechanism"):
+        solve_modes(model, st.q, n_modes=4)
+
+
 @pytest.mark.slow
 def test_a_fine_mesh_keeps_its_lowest_mode_elastic():
     # At 640 el/span the FEAD example's stiffest element ratio K_ii/M_ii is 9.5e17 1/s^2 (eps x that =
-    # 210): a zero tolerance of 1000 eps x that (2.1e5) took the first elastic mode (52.8 Hz, 1.1e5) for a
-    # second zero mode and failed as a mechanism (`modal --rtol 1e-8`). Reference: the same drive at 160
-    # el/span; the mode has converged to 1e-7 there (the --rtol estimates), compared within 1e-6.
+    # 210): the zero tolerance of 1000 eps x that (2.1e5) reaches the first elastic mode (52.8 Hz, 1.1e5),
+    # which was taken for a second zero mode (a mechanism: `modal --rtol 1e-8` failed); the gap to the
+    # rigid turn (2.7e-3) tells them apart. Reference: the same drive at 160 el/span; the mode has
+    # converged to 1e-7 there (the --rtol estimates), compared within 1e-6.
     from beltdyn.pipeline import analyse
 
     fead = CONFIGS / "examples" / "fead_4cyl.toml"
