@@ -282,7 +282,9 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
                                   b0=b0.astype(float), speed=0.0 if nom_scale else float(system.belt_speed),
                                   follow=1 if nom_scale else 0, mag=itg.fused(M, A, A - A.T, B))
         if nom_scale:  # the belt's axial inertia is c' (A q + a0): only the pulleys' stays a nominal load
-            belt_mass = system.assemble(belt.reduce_blocks(belt.elements.mass), linear=False)
+            springs = system.springs  # (the spring spans' lumped masses are belt too)
+            belt_mass = system.assemble(belt.reduce_blocks(belt.elements.mass), linear=False,
+                                        springs=None if springs is None else springs.mass_blocks())
             forcing = forcing._replace(nominal_mass=np.asarray((M - belt_mass) @ u_nom).ravel().astype(float))
     perm, bandwidth = band_order(system)
     q0 = q_ref.copy() if opts.start == "static" else np.zeros(n)
