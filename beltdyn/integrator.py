@@ -82,6 +82,10 @@ from numba import njit  # noqa: E402
 from . import belt_kernel as bk
 from . import spring_kernel as sk
 
+# tasks of `advance`, the stepper's one entry point from Python
+START = 0  # the forces and energies of the initial state (`start_forces`)
+STEP = 1  # integrate (`run_steps`)
+
 # return codes of run_steps
 DONE = 0  # reached t_stop
 BUFFER_FULL = 1  # output buffer full: drain and call again
@@ -138,6 +142,13 @@ REF_STEPS = 4  # a new factor's first steps: their mean iterations are what the 
 ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
 
 from .timestep import alpha_parameters  # noqa: E402,F401  (one definition, numba-free)
+
+
+def no_factor() -> Factor:
+    """A placeholder factor with the types of `transient.band_factor`'s (for `advance`'s START task,
+    which solves nothing: one compiled signature for both tasks)."""
+    return Factor(kind=0, ab=np.zeros((2, 2), order="F"), piv=np.zeros(1, dtype=np.int64),
+                  perm=np.zeros(2, dtype=np.int64), kl=0, ku=1)
 
 
 def empty_csr(n: int) -> Csr:
@@ -565,6 +576,75 @@ def slide_anchors(arms, q):
                 arms.anchor[k] = q[d] - lim
             elif e < -lim:
                 arms.anchor[k] = q[d] + lim
+
+
+@njit(cache=True)
+def advance(task, state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr):
+    """The stepper's one entry point from Python: task START runs `start_forces` (returns DONE), STEP
+    `run_steps` (returns its code). One compiled function holds every kernel a transient calls from
+    Python, so a run loads one library from numba's cache instead of one per kernel (each load parses
+    its own copy of the callees' code: ~45 ms of a short command's start)."""
+    if task == START:
+        start_forces(state, belt, lin, F, cons, arms, tr)
+        return DONE
+    return run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr)
+
+
+@njit(cache=True)
+def start_forces(state, belt, lin, F, cons, arms, tr):
+    """The initial state's forces at t = 0 (`transient.initial_state` solves for the acceleration):
+    sets the prescribed DOFs' q, v, a and the arms' dependent entries (their angle accelerations 0 so
+    far: a holds the centripetal part), relaxes the arms' friction bristles (anchors at the angles),
+    and writes state.f0 = f(q, v) (belt elastic and damping, arm friction, K (q - q_ref), transport),
+    state.fd0 its damping part, state.F0 = F(0), and scal[E0, KIN0, POT0, TR_P0] (the energy
+    reference: kinetic + strain with the centripetal potential, and the transport power)."""
+    q, v, a = state.q, state.v, state.a
+    th = state.scal
+    n = q.shape[0]
+    n_elem = belt.T.shape[0]
+    for k in range(cons.dof.shape[0]):
+        g, gd, gdd = rotation_state(cons.params[k], 0.0)[3:]
+        d = cons.dof[k]
+        q[d] = cons.params[k, 7] + g
+        v[d] = gd
+        a[d] = gdd
+    complete(arms, q, v, a)
+    q_ext = np.zeros(n + 1)
+    v_ext = np.zeros(n + 1)
+    for i in range(n):
+        q_ext[i] = q[i]
+        v_ext[i] = v[i]
+    E = np.empty((n_elem, 8))
+    Ed = np.empty((n_elem, 8))
+    fe = np.empty((n_elem, 8))
+    fd = np.empty((n_elem, 8))
+    f_el = np.zeros(n + 1)
+    f_dmp = np.zeros(n + 1)
+    gross = np.zeros(n + 1)
+    belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, False)
+    for k in range(arms.dof.shape[0]):
+        arms.anchor[k] = q[arms.dof[k]]
+    arm_friction(arms, q, f_dmp)
+    dq = np.empty(n)
+    Kd = np.empty(n)
+    for i in range(n):
+        dq[i] = q[i] - lin.q_ref[i]
+    csr_matvec(lin.K, dq, Kd)
+    external_forces(F, cons, 0.0, state.F0, np.empty(F.sig_params.shape[0]))
+    c0, cd0 = transport_speed(tr, F, 0.0)
+    f_tr = np.zeros(n)
+    tmp = np.empty(n)
+    tmp2 = np.empty(n)
+    qbq, vaq = transport_forces(tr, c0, cd0, q, v, f_tr, tmp, tmp2)
+    for i in range(n):
+        state.f0[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
+        state.fd0[i] = f_dmp[i]
+    kin = kinetic_energy(lin, v, tmp)
+    pot = potential_energy(belt, lin, q, q_ext, E, np.empty(n_elem), tmp, tmp2) - 0.5 * c0 * c0 * qbq
+    th[E0] = kin + pot
+    th[KIN0] = kin
+    th[POT0] = pot
+    th[TR_P0] = -cd0 * (c0 * qbq + vaq)
 
 
 @njit(cache=True)

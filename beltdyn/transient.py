@@ -528,42 +528,27 @@ class StepProblem:
     transport: tuple | None = None  # integrator.Transport (None: the belt at rest)
 
 
-def initial_state(problem: StepProblem, rho_inf: float, step: float):
+def initial_state(problem: StepProblem, step: float, start: Callable):
     """Consistent initial acceleration M a0 = F(0) - C v0 - f(q0, v0) on the free DOFs, and the
-    energy reference."""
+    energy reference. start(state): the compiled forces at t = 0 (`integrator.start_forces`, through
+    the stepper's entry point `integrator.advance`)."""
     from . import integrator as itg
 
-    lin, F, cons, belt = problem.linear, problem.forcing, problem.constraints, problem.belt
+    lin, cons = problem.linear, problem.constraints
     n = len(problem.q0)
     arms = problem.arms if problem.arms is not None else itg.no_arms(n)
     nq = int(arms.n_q)
-    q, v = problem.q0.copy(), problem.v0.copy()
-    a = np.zeros(n)
-    for k, d in enumerate(cons.dof):
-        st = itg.rotation_state(cons.params[k], 0.0)
-        q[d], v[d], a[d] = cons.params[k, 7] + st[3], st[4], st[5]
-    itg.complete(arms, q, v, a)  # with the arm accelerations 0 so far: a holds the centripetal part h
-    n_elem = belt.T.shape[0]
-    E, Ed, fe, fd = (np.empty((n_elem, 8)) for _ in range(4))
-    f_el, f_dmp, gross = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1)
-    itg.belt_forces(belt, np.append(q, 0.0), np.append(v, 0.0), E, Ed, fe, fd, f_el, f_dmp, gross, False)
-    arms.anchor[:] = q[arms.dof]  # the friction's bristles relaxed at the start
-    itg.arm_friction(arms, q, f_dmp)
-    Kd, Cv, F0 = np.empty(n), np.empty(n), np.empty(n)
-    itg.csr_matvec(lin.K, q - lin.q_ref, Kd)
-    itg.csr_matvec(lin.C, v, Cv)
-    itg.external_forces(F, cons, 0.0, F0, np.empty(F.sig_params.shape[0]))
-    tr = problem.transport if problem.transport is not None else itg.no_transport(n)
-    c0, cd0 = itg.transport_speed(tr, F, 0.0)
-    f_tr = np.zeros(n)
-    qbq, vaq = itg.transport_forces(tr, c0, cd0, q, v, f_tr, np.empty(n), np.empty(n))
-    f0 = f_el[:n] + Kd + f_dmp[:n] + f_tr
-    from scipy.sparse import csr_matrix
+    scal = np.zeros(itg.N_SCAL)
+    scal[itg.H] = step
+    state = itg.State(q=problem.q0.copy(), v=problem.v0.copy(), a=np.zeros(n), f0=np.empty(n), fd0=np.empty(n),
+                      F0=np.empty(n), R0=np.zeros(max(len(cons.dof), 1)), scal=scal)  # (at least one slot)
+    start(state)  # q, v, a of the prescribed DOFs and arms (a: the centripetal part), f0, fd0, F0, energies
+    q, v, a, f0, F0 = state.q, state.v, state.a, state.f0, state.F0
+    from scipy.sparse import coo_matrix, csr_matrix
 
     Md = csr_matrix((lin.M.data, lin.M.indices, lin.M.indptr), shape=(n, n)).toarray()
+    Cv = csr_matrix((lin.C.data, lin.C.indices, lin.C.indptr), shape=(n, n)) @ v
     # J^T (M (J a_q + h) + C v + f - F) = 0 on the free independent DOFs (J = I without arms)
-    from scipy.sparse import coo_matrix
-
     phi = arms.angle + q[arms.dof]
     J = coo_matrix((np.r_[np.ones(nq), -arms.length * np.sin(phi), arms.length * np.cos(phi)],
                     (np.r_[np.arange(nq), arms.slot, arms.slot + 1], np.r_[np.arange(nq), arms.dof, arms.dof])),
@@ -574,17 +559,9 @@ def initial_state(problem: StepProblem, rho_inf: float, step: float):
     rhs = J.T @ (F0 - Cv - f0 - Md @ h) - Mq[:, cons.dof] @ a[cons.dof]
     free = np.setdiff1d(np.arange(nq), cons.dof)
     a[free] = np.linalg.solve(Mq[np.ix_(free, free)], rhs[free])
-    itg.complete(arms, q, v, a)
-    R0 = (J.T @ (Md @ a + Cv + f0 - F0))[cons.dof]
-    scal = np.zeros(itg.N_SCAL)
-    scal[itg.H] = step
-    tmp, tmp2 = np.empty(n), np.empty(n)
-    kin = itg.kinetic_energy(lin, v, tmp)
-    pot = itg.potential_energy(belt, lin, q, np.append(q, 0.0), E, np.empty(n_elem), tmp, tmp2) - 0.5 * c0 * c0 * qbq
-    scal[itg.E0], scal[itg.KIN0], scal[itg.POT0] = kin + pot, kin, pot
-    scal[itg.TR_P0] = -cd0 * (c0 * qbq + vaq)
-    R0 = np.pad(R0, (0, max(len(R0), 1) - len(R0)))  # the stepper needs at least one slot
-    return itg.State(q=q, v=v, a=a, f0=f0, fd0=f_dmp[:n].copy(), F0=F0, R0=R0, scal=scal)
+    itg.complete.py_func(arms, q, v, a)  # (plain Python: a few arms, no compiled entry point to load)
+    state.R0[: len(cons.dof)] = (J.T @ (Md @ a + Cv + f0 - F0))[cons.dof]
+    return state
 
 
 def residual_noise(belt) -> float:
@@ -627,8 +604,6 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     n = len(problem.q0)
     arms = problem.arms if problem.arms is not None else itg.no_arms(n)
     tr = problem.transport if problem.transport is not None else itg.no_transport(n)
-    state = initial_state(problem, rho_inf, step)
-    th = state.scal
     chk = itg.Check(group=problem.groups, n_groups=int(problem.groups.max(initial=0)) + 1, tol=float(tolerance),
                     max_iter=int(max_iterations), noise=residual_noise(problem.belt))
     n_con = max(len(problem.constraints.dof), 1)
@@ -642,6 +617,13 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     n_total_out = int(math.floor(duration / output_interval + 1e-9)) + 1
     opts = itg.StepOptions(am=am, af=af, beta=beta, gamma=gamma, t_stop=float(duration), dt_out=float(output_interval),
                            max_steps=2000, refresh=0.0)
+
+    def advance(task, st, fac, fresh):  # the compiled stepper (`integrator.advance`), opts as they are now
+        return itg.advance(task, st, problem.belt, problem.linear, problem.forcing, problem.constraints, chk, opts,
+                           fac, fresh, out, ev, info, arms, tr)
+
+    state = initial_state(problem, step, lambda st: advance(itg.START, st, itg.no_factor(), False))
+    th = state.scal
     clock = {"factor": 0.0, "factors": 0, "stepping": 0.0, "iterations": 0.0, "counted": 0.0, "calls": 0}
 
     def new_factor():
@@ -677,8 +659,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     try:
         while True:
             started, steps_before = time.perf_counter(), th[itg.STEPS]
-            code = itg.run_steps(state, problem.belt, problem.linear, problem.forcing, problem.constraints, chk, opts,
-                                 fac, fresh, out, ev, info, arms, tr)
+            code = advance(itg.STEP, state, fac, fresh)
             now = time.perf_counter()
             if th[itg.STEPS] > steps_before:  # the step budget of a call: about HANDOVER_SECONDS of wall time
                 per_step = (now - started) / (th[itg.STEPS] - steps_before)

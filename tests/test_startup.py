@@ -98,3 +98,23 @@ def test_warm_up_compiles_every_signature_a_transient_uses():
         run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)
     after = {k.__name__: len(k.signatures) for k in kernels}
     assert after == before
+
+
+@pytest.mark.parametrize("example, loaded", [
+    ("bench_transient_small.toml", ["advance"]),  # band Cholesky (LAPACK): the stepper alone
+    ("fead_4cyl.toml", ["advance", "band_lu_nopivot"]),  # the running belt's factor without row exchanges
+])
+def test_a_transient_enters_the_stepper_through_one_kernel(example, loaded):
+    # In a fresh process a transient calls, of `integrator`'s compiled functions, only its entry point
+    # `advance` (and the factorization it needs): every other kernel runs inside it, so one library is
+    # loaded from numba's cache instead of one per kernel (each load parses its own copy of the
+    # callees' code).
+    code = ("from beltdyn.config import load_config; from beltdyn.pipeline import analyse; "
+            "from beltdyn.transient import run_transient; from beltdyn import integrator as i; "
+            f"cfg = load_config({str(ROOT / 'configs' / 'examples' / example)!r}, "
+            "['transient.duration=0.002', 'transient.spectrum.enabled=false']); run = analyse(cfg); "
+            "run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None); "
+            "print(' '.join(sorted(k.__name__ for k in vars(i).values() if getattr(k, 'signatures', None))))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == loaded
