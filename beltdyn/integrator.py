@@ -70,10 +70,12 @@ index n, tsel, e0 (n_elem, 8), dS/d2S (n_elem, n_qp, 4), wEA/wEI (n_elem, n_qp),
 
 from __future__ import annotations
 
+import sys
 from collections import namedtuple
 
 import numpy as np
 
+from . import jitcache
 from .jitcache import configure
 
 configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
@@ -982,3 +984,6 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             th[STALE] = max(0.0, th[STALE] + it - th[REF_SUM] / th[REF_N])
             if opts.refresh > 0.0 and th[STALE] > opts.refresh:
                 return REFACTOR
+
+
+jitcache.lean_loads(sys.modules[__name__])  # cache hits skip numba's full context refresh

@@ -118,3 +118,23 @@ def test_a_transient_enters_the_stepper_through_one_kernel(example, loaded):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == loaded
+
+
+def test_cache_hits_skip_the_full_context_refresh():
+    # A transient (FEAD: arms, running belt) in a fresh process with the kernels in the cache loads them
+    # the lean way (jitcache.lean_loads): numba's lowering of things the kernels never use (typed dicts,
+    # random generators, polynomials), which its full context refresh imports, stays unimported; the
+    # results are those of the other tests (same kernels, same code).
+    from beltdyn.transient import warm_up
+
+    warm_up()  # (the cache warm, as after `make`)
+    unused = ["numba.typed.typeddict", "numba.np.random.generator_methods", "numba.np.polynomial.polynomial_functions"]
+    code = ("import sys; from beltdyn.config import load_config; from beltdyn.pipeline import analyse; "
+            "from beltdyn.transient import run_transient; "
+            f"cfg = load_config({str(ROOT / 'configs' / 'examples' / 'fead_4cyl.toml')!r}, "
+            "['transient.duration=0.002', 'transient.spectrum.enabled=false']); run = analyse(cfg); "
+            "s = run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None); "
+            f"print(s.status, [m for m in {unused!r} if m in sys.modules])")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "complete []"
