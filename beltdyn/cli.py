@@ -19,7 +19,9 @@ from typing import List, Optional  # noqa: E402
 
 import typer  # noqa: E402
 
-from . import __version__  # noqa: E402
+from . import __version__, cliparams  # noqa: E402
+
+cliparams.install()  # command-line values coerced without importing pydantic (typer's common case)
 
 app = typer.Typer(
     add_completion=False,
