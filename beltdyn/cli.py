@@ -843,10 +843,16 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
 
 
 def _progress_bar(con, duration: float):
+    """(context manager, update(t)) of the transient's progress bar: rich's in a terminal, nothing
+    otherwise (piped or captured: not even its import)."""
+    if not con.is_terminal:
+        import contextlib
+
+        return contextlib.nullcontext(), None
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     progress = Progress(TextColumn("transient"), BarColumn(), TextColumn("t = {task.completed:.4f} / {task.total:g} s"),
-                        TimeRemainingColumn(), console=con, disable=not con.is_terminal, transient=True)
+                        TimeRemainingColumn(), console=con, transient=True)
     task = progress.add_task("transient", total=duration)
 
     def update(t: float) -> None:
