@@ -61,13 +61,20 @@ def install() -> None:
     if original is None or getattr(cls, "_beltdyn_plain", False):
         return
 
+    from typer._click.exceptions import BadParameter
+
     class Plain(RuntimeParam):
         def _coerce_value(self, value, param, ctx):
-            if isinstance(self.annotation, type):
-                got = self._one(self.annotation, value, param, ctx)
-            elif isinstance(value, (list, tuple)) and all(isinstance(v, str) for v in value):
-                got = list(value)  # list[str]
-            else:
+            try:
+                if isinstance(self.annotation, type):
+                    got = self._one(self.annotation, value, param, ctx)
+                elif isinstance(value, (list, tuple)) and all(isinstance(v, str) for v in value):
+                    got = list(value)  # list[str]
+                else:
+                    got = _TYPER
+            except BadParameter:
+                raise
+            except Exception:  # noqa: BLE001 - typer's internals differ from what this was written for
                 got = _TYPER
             if got is _TYPER:
                 return build_runtime_param(param.type_descriptor)._coerce_value(value, param=param, ctx=ctx)
@@ -85,9 +92,13 @@ def install() -> None:
             return _number(kind, value, self.parameter_info)
 
     def get_runtime_param(self):
-        if self._runtime_param is None and _plain(self.type_descriptor):
-            desc = self.type_descriptor
-            self._runtime_param = Plain(parameter_info=desc.parameter_info, annotation=desc.annotation)
+        if getattr(self, "_runtime_param", True) is None:
+            try:
+                desc = self.type_descriptor
+                if _plain(desc):
+                    self._runtime_param = Plain(parameter_info=desc.parameter_info, annotation=desc.annotation)
+            except Exception:  # noqa: BLE001 - typer's internals differ: its own coercion
+                pass
         return original(self)
 
     cls.get_runtime_param = get_runtime_param
