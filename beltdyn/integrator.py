@@ -262,7 +262,7 @@ def rotation_state(rot, t):
 def band_cholesky_solve(ab, perm, b, x, work):
     """Solve S x = b with S[perm][:, perm] = U^T U, U in upper band storage ab (u+1, n), column-major:
     U^T y = b by columns of U (dot products, 4 partial sums: no chain of dependent additions), U x = y
-    by column updates."""
+    by column updates (`band_upper_solve`)."""
     u = ab.shape[0] - 1
     n = ab.shape[1]
     for i in range(n):
@@ -285,15 +285,23 @@ def band_cholesky_solve(ab, perm, b, x, work):
             s0 += ab[off + i, j] * work[i]
             i += 1
         work[j] = (work[j] - ((s0 + s1) + (s2 + s3))) / ab[u, j]
-    for j in range(n - 1, -1, -1):  # U x = y: x_j, then its column leaves the rows above
+    band_upper_solve(ab, u, work)  # U x = y
+    for i in range(n):
+        x[perm[i]] = work[i]
+
+
+@njit(cache=True)
+def band_upper_solve(ab, u, work):
+    """U x = y in place (work (n,)), U upper with u superdiagonals, U[i, j] = ab[u + i - j, j]
+    (column-major): x_j, then its column leaves the rows above (column updates)."""
+    n = ab.shape[1]
+    for j in range(n - 1, -1, -1):
         xj = work[j] / ab[u, j]
         work[j] = xj
         lo = max(0, j - u)
         off = u - j
         for i in range(lo, j):
             work[i] -= ab[off + i, j] * xj
-    for i in range(n):
-        x[perm[i]] = work[i]
 
 
 @njit(cache=True)
@@ -334,13 +342,7 @@ def band_lu_nopivot_solve(ab, perm, b, x, work):
         lm = min(u, n - 1 - j)
         for i in range(1, lm + 1):
             work[j + i] -= ab[u + i, j] * wj
-    for j in range(n - 1, -1, -1):  # U x = y, by columns
-        xj = work[j] / ab[u, j]
-        work[j] = xj
-        lo = max(0, j - u)
-        off = u - j
-        for i in range(lo, j):
-            work[i] -= ab[off + i, j] * xj
+    band_upper_solve(ab, u, work)  # U x = y
     for i in range(n):
         x[perm[i]] = work[i]
 
