@@ -47,10 +47,12 @@ compiled functions do not check shapes; outputs are written (not accumulated) un
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
 
+from . import jitcache
 from .jitcache import configure
 
 configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
@@ -539,3 +541,6 @@ def reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI,
     f_out[:] = 0.0
     scatter_vector(fe, T, idx, tsel, f_out)
     reduce_blocks(Ke, T, tsel, blocks_out)
+
+
+jitcache.lean_loads(sys.modules[__name__])  # cache hits skip numba's full context refresh

@@ -19,7 +19,9 @@ from typing import List, Optional  # noqa: E402
 
 import typer  # noqa: E402
 
-from . import __version__  # noqa: E402
+from . import __version__, cliparams  # noqa: E402
+
+cliparams.install()  # command-line values coerced without importing pydantic (typer's common case)
 
 app = typer.Typer(
     add_completion=False,
@@ -841,10 +843,16 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
 
 
 def _progress_bar(con, duration: float):
+    """(context manager, update(t)) of the transient's progress bar: rich's in a terminal, nothing
+    otherwise (piped or captured: not even its import)."""
+    if not con.is_terminal:
+        import contextlib
+
+        return contextlib.nullcontext(), None
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
     progress = Progress(TextColumn("transient"), BarColumn(), TextColumn("t = {task.completed:.4f} / {task.total:g} s"),
-                        TimeRemainingColumn(), console=con, disable=not con.is_terminal, transient=True)
+                        TimeRemainingColumn(), console=con, transient=True)
     task = progress.add_task("transient", total=duration)
 
     def update(t: float) -> None:
@@ -1321,11 +1329,22 @@ def _print_paper(rows) -> None:
     con.print(t)
 
 
+GC_YOUNG = 200_000  # the console script's first-generation threshold of the garbage collector (`run`)
+
+
 def run() -> None:
     """The `beltdyn` console script: the app, then a quick exit. The interpreter's teardown (freeing
     every module numba, scipy and h5py loaded) takes ~0.2 s of a short command; it is skipped once the
     command is over: output flushed, the atexit handlers run (results-file locks released, h5py's
-    files closed), no other thread alive. The exit code is the app's."""
+    files closed), no other thread alive. The exit code is the app's.
+
+    The cyclic garbage collector runs once per GC_YOUNG net new container objects instead of Python's
+    700: a command's start-up (numpy, scipy, numba, h5py, rich and the model: ~10^6 long-lived objects)
+    otherwise triggers ~250 collections that traverse them, ~90 ms of a short `beltdyn transient`
+    (measured), while it makes almost no cyclic garbage; a long run still collects, every GC_YOUNG."""
+    import gc
+
+    gc.set_threshold(GC_YOUNG, *gc.get_threshold()[1:])
     code: int | str | None = 0
     try:
         app()

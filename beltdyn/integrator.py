@@ -18,8 +18,10 @@ Generalized-alpha with spectral radius rho_inf:
     q1 = q0 + h v0 + h^2 ((1/2 - beta) a0 + beta a1),  v1 = v0 + h ((1 - gamma) a0 + gamma a1).
 Newton on q1 with a reused factorization of the iteration matrix
     S = (1 - alpha_m)/(beta h^2) M + (1 - alpha_f) gamma/(beta h) C_t + (1 - alpha_f) K_t,
-given in band storage (RCM order): an upper Cholesky factor (symmetric S) or an LU factor with
-partial pivoting (LAPACK dgbtrf; a non-symmetric S, e.g. with transport terms). The stepper returns
+given in band storage (RCM order): an upper Cholesky factor (symmetric S) or, for a non-symmetric S
+(the running belt's transport terms), an LU factor without row exchanges (`band_lu_nopivot`: S's
+symmetric part is positive definite, dominated by the mass term), with partial pivoting (LAPACK
+dgbtrf) as the fallback when a pivot is not positive. The stepper returns
 to Python when the factor is stale (slow convergence) or the step must be halved, and after an
 accepted step once the factor has aged: the Newton iterations its steps took beyond what it took
 fresh (the mean of its first REF_STEPS steps) add up, and when they cost more than a new factor
@@ -68,10 +70,12 @@ index n, tsel, e0 (n_elem, 8), dS/d2S (n_elem, n_qp, 4), wEA/wEI (n_elem, n_qp),
 
 from __future__ import annotations
 
+import sys
 from collections import namedtuple
 
 import numpy as np
 
+from . import jitcache
 from .jitcache import configure
 
 configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
@@ -79,6 +83,10 @@ from numba import njit  # noqa: E402
 
 from . import belt_kernel as bk
 from . import spring_kernel as sk
+
+# tasks of `advance`, the stepper's one entry point from Python
+START = 0  # the forces and energies of the initial state (`start_forces`)
+STEP = 1  # integrate (`run_steps`)
 
 # return codes of run_steps
 DONE = 0  # reached t_stop
@@ -99,7 +107,8 @@ Constraints = namedtuple("Constraints", ["dof", "params"])  # dof (k,), params (
 Check = namedtuple("Check", ["group", "n_groups", "tol", "max_iter", "noise"])
 # refresh: the cost of a new factor in Newton iterations (0: refactorize only when convergence slows)
 StepOptions = namedtuple("StepOptions", ["am", "af", "beta", "gamma", "t_stop", "dt_out", "max_steps", "refresh"])
-Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind 0 band Cholesky, 1 band LU
+Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind 0 band Cholesky, 1 band LU (partial
+# pivoting, LAPACK), 2 band LU without row exchanges (`band_lu_nopivot`)
 State = namedtuple("State", ["q", "v", "a", "f0", "fd0", "F0", "R0", "scal"])
 Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n"])
 Events = namedtuple("Events", ["data", "n", "slack"])
@@ -135,6 +144,13 @@ REF_STEPS = 4  # a new factor's first steps: their mean iterations are what the 
 ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
 
 from .timestep import alpha_parameters  # noqa: E402,F401  (one definition, numba-free)
+
+
+def no_factor() -> Factor:
+    """A placeholder factor with the types of `transient.band_factor`'s (for `advance`'s START task,
+    which solves nothing: one compiled signature for both tasks)."""
+    return Factor(kind=0, ab=np.zeros((2, 2), order="F"), piv=np.zeros(1, dtype=np.int64),
+                  perm=np.zeros(2, dtype=np.int64), kl=0, ku=1)
 
 
 def empty_csr(n: int) -> Csr:
@@ -244,23 +260,89 @@ def rotation_state(rot, t):
 
 @njit(cache=True)
 def band_cholesky_solve(ab, perm, b, x, work):
-    """Solve S x = b with S[perm][:, perm] = U^T U, U in upper band storage ab (u+1, n)."""
+    """Solve S x = b with S[perm][:, perm] = U^T U, U in upper band storage ab (u+1, n), column-major:
+    U^T y = b by columns of U (dot products, 4 partial sums: no chain of dependent additions), U x = y
+    by column updates (`band_upper_solve`)."""
     u = ab.shape[0] - 1
     n = ab.shape[1]
     for i in range(n):
         work[i] = b[perm[i]]
-    for j in range(n):  # U^T y = b
-        s = work[j]
+    for j in range(n):  # U^T y = b: y_j = (b_j - sum_{i<j} U_ij y_i) / U_jj
         lo = max(0, j - u)
+        off = u - j
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        s3 = 0.0
+        i = lo
+        while i + 3 < j:
+            s0 += ab[off + i, j] * work[i]
+            s1 += ab[off + i + 1, j] * work[i + 1]
+            s2 += ab[off + i + 2, j] * work[i + 2]
+            s3 += ab[off + i + 3, j] * work[i + 3]
+            i += 4
+        while i < j:
+            s0 += ab[off + i, j] * work[i]
+            i += 1
+        work[j] = (work[j] - ((s0 + s1) + (s2 + s3))) / ab[u, j]
+    band_upper_solve(ab, u, work)  # U x = y
+    for i in range(n):
+        x[perm[i]] = work[i]
+
+
+@njit(cache=True)
+def band_upper_solve(ab, u, work):
+    """U x = y in place (work (n,)), U upper with u superdiagonals, U[i, j] = ab[u + i - j, j]
+    (column-major): x_j, then its column leaves the rows above (column updates)."""
+    n = ab.shape[1]
+    for j in range(n - 1, -1, -1):
+        xj = work[j] / ab[u, j]
+        work[j] = xj
+        lo = max(0, j - u)
+        off = u - j
         for i in range(lo, j):
-            s -= ab[u + i - j, j] * work[i]
-        work[j] = s / ab[u, j]
-    for i in range(n - 1, -1, -1):  # U x = y
-        s = work[i]
-        hi = min(n - 1, i + u)
-        for j in range(i + 1, hi + 1):
-            s -= ab[u + i - j, j] * work[j]
-        work[i] = s / ab[u, i]
+            work[i] -= ab[off + i, j] * xj
+
+
+@njit(cache=True)
+def band_lu_nopivot(ab, u):
+    """LU factor without row exchanges, in place, of the band matrix A (n, n) held in ab (2u + 1, n)
+    column-major, A[i, j] = ab[u + i - j, j] for |i - j| <= u: L unit lower (its multipliers below the
+    diagonal), U on and above (u superdiagonals: no fill beyond the band, as partial pivoting's 2u).
+    Exists and needs no exchanges when the symmetric part of A is positive definite (every pivot is
+    then positive): the iteration matrix c_m M + ... with the running belt's small skew terms. Returns
+    the number of columns eliminated: n, or the first column whose pivot is not positive (the caller
+    falls back to partial pivoting)."""
+    n = ab.shape[1]
+    for k in range(n):
+        p = ab[u, k]
+        if not p > 0.0:
+            return k
+        lm = min(u, n - 1 - k)
+        for i in range(1, lm + 1):
+            ab[u + i, k] /= p
+        for j in range(1, lm + 1):  # A[k+i, k+j] -= l_{k+i,k} u_{k,k+j}
+            ukj = ab[u - j, k + j]
+            if ukj != 0.0:
+                off = u - j
+                for i in range(1, lm + 1):
+                    ab[off + i, k + j] -= ab[u + i, k] * ukj
+    return n
+
+
+@njit(cache=True)
+def band_lu_nopivot_solve(ab, perm, b, x, work):
+    """Solve S x = b with the `band_lu_nopivot` factor of S[perm][:, perm] in ab (2u + 1, n)."""
+    u = (ab.shape[0] - 1) // 2
+    n = ab.shape[1]
+    for i in range(n):
+        work[i] = b[perm[i]]
+    for j in range(n - 1):  # L y = b (unit lower), by columns
+        wj = work[j]
+        lm = min(u, n - 1 - j)
+        for i in range(1, lm + 1):
+            work[j + i] -= ab[u + i, j] * wj
+    band_upper_solve(ab, u, work)  # U x = y
     for i in range(n):
         x[perm[i]] = work[i]
 
@@ -298,6 +380,8 @@ def band_lu_solve(ab, piv, perm, kl, ku, b, x, work):
 def factor_solve(fac, b, x, work):
     if fac.kind == 0:
         band_cholesky_solve(fac.ab, fac.perm, b, x, work)
+    elif fac.kind == 2:
+        band_lu_nopivot_solve(fac.ab, fac.perm, b, x, work)
     else:
         band_lu_solve(fac.ab, fac.piv, fac.perm, fac.kl, fac.ku, b, x, work)
 
@@ -499,6 +583,75 @@ def slide_anchors(arms, q):
 
 
 @njit(cache=True)
+def advance(task, state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr):
+    """The stepper's one entry point from Python: task START runs `start_forces` (returns DONE), STEP
+    `run_steps` (returns its code). One compiled function holds every kernel a transient calls from
+    Python, so a run loads one library from numba's cache instead of one per kernel (each load parses
+    its own copy of the callees' code: ~45 ms of a short command's start)."""
+    if task == START:
+        start_forces(state, belt, lin, F, cons, arms, tr)
+        return DONE
+    return run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr)
+
+
+@njit(cache=True)
+def start_forces(state, belt, lin, F, cons, arms, tr):
+    """The initial state's forces at t = 0 (`transient.initial_state` solves for the acceleration):
+    sets the prescribed DOFs' q, v, a and the arms' dependent entries (their angle accelerations 0 so
+    far: a holds the centripetal part), relaxes the arms' friction bristles (anchors at the angles),
+    and writes state.f0 = f(q, v) (belt elastic and damping, arm friction, K (q - q_ref), transport),
+    state.fd0 its damping part, state.F0 = F(0), and scal[E0, KIN0, POT0, TR_P0] (the energy
+    reference: kinetic + strain with the centripetal potential, and the transport power)."""
+    q, v, a = state.q, state.v, state.a
+    th = state.scal
+    n = q.shape[0]
+    n_elem = belt.T.shape[0]
+    for k in range(cons.dof.shape[0]):
+        g, gd, gdd = rotation_state(cons.params[k], 0.0)[3:]
+        d = cons.dof[k]
+        q[d] = cons.params[k, 7] + g
+        v[d] = gd
+        a[d] = gdd
+    complete(arms, q, v, a)
+    q_ext = np.zeros(n + 1)
+    v_ext = np.zeros(n + 1)
+    for i in range(n):
+        q_ext[i] = q[i]
+        v_ext[i] = v[i]
+    E = np.empty((n_elem, 8))
+    Ed = np.empty((n_elem, 8))
+    fe = np.empty((n_elem, 8))
+    fd = np.empty((n_elem, 8))
+    f_el = np.zeros(n + 1)
+    f_dmp = np.zeros(n + 1)
+    gross = np.zeros(n + 1)
+    belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, False)
+    for k in range(arms.dof.shape[0]):
+        arms.anchor[k] = q[arms.dof[k]]
+    arm_friction(arms, q, f_dmp)
+    dq = np.empty(n)
+    Kd = np.empty(n)
+    for i in range(n):
+        dq[i] = q[i] - lin.q_ref[i]
+    csr_matvec(lin.K, dq, Kd)
+    external_forces(F, cons, 0.0, state.F0, np.empty(F.sig_params.shape[0]))
+    c0, cd0 = transport_speed(tr, F, 0.0)
+    f_tr = np.zeros(n)
+    tmp = np.empty(n)
+    tmp2 = np.empty(n)
+    qbq, vaq = transport_forces(tr, c0, cd0, q, v, f_tr, tmp, tmp2)
+    for i in range(n):
+        state.f0[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
+        state.fd0[i] = f_dmp[i]
+    kin = kinetic_energy(lin, v, tmp)
+    pot = potential_energy(belt, lin, q, q_ext, E, np.empty(n_elem), tmp, tmp2) - 0.5 * c0 * c0 * qbq
+    th[E0] = kin + pot
+    th[KIN0] = kin
+    th[POT0] = pot
+    th[TR_P0] = -cd0 * (c0 * qbq + vaq)
+
+
+@njit(cache=True)
 def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr):
     """Advance the state until t_stop, a full buffer, a refactorization request or the step budget.
 
@@ -542,17 +695,31 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
     tmp = np.empty(n)
     tmp2 = np.empty(n)
     # the same terms projected on q (J^T at their own state): new (1) and old (0)
+    # (without arms q = p, J = I: the terms themselves, no copies)
+    with_arms = arms.dof.shape[0] > 0
     R = np.empty(nq)
-    Ma_q = np.empty(nq)
-    Cv_q = np.empty(nq)
-    fi_q = np.empty(nq)
-    F1_q = np.empty(nq)
-    Fc_q = np.empty(nq)
-    fl_q = np.empty(nq)
-    Ma0_q = np.empty(nq)
-    Cv0_q = np.empty(nq)
-    f0_q = np.empty(nq)
-    F0_q = np.empty(nq)
+    if with_arms:
+        Ma_q = np.empty(nq)
+        Cv_q = np.empty(nq)
+        fi_q = np.empty(nq)
+        F1_q = np.empty(nq)
+        Fc_q = np.empty(nq)
+        fl_q = np.empty(nq)
+        Ma0_q = np.empty(nq)
+        Cv0_q = np.empty(nq)
+        f0_q = np.empty(nq)
+        F0_q = np.empty(nq)
+    else:
+        Ma_q = Ma
+        Cv_q = Cv
+        fi_q = fi
+        F1_q = F1
+        Fc_q = F.constant
+        fl_q = fl
+        Ma0_q = Ma0
+        Cv0_q = Cv0
+        f0_q = state.f0
+        F0_q = state.F0
     dx = np.empty(nq)
     work = np.empty(nq)
     sig_val = np.empty(F.sig_params.shape[0])
@@ -570,10 +737,11 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
     p_tr = 0.0
     csr_matvec(lin.M, a, Ma0)
     csr_matvec(lin.C, v, Cv0)
-    project(arms, q, Ma0, Ma0_q)
-    project(arms, q, Cv0, Cv0_q)
-    project(arms, q, state.f0, f0_q)
-    project(arms, q, state.F0, F0_q)
+    if with_arms:
+        project(arms, q, Ma0, Ma0_q)
+        project(arms, q, Cv0, Cv0_q)
+        project(arms, q, state.f0, f0_q)
+        project(arms, q, state.F0, F0_q)
     eps = np.finfo(np.float64).eps
     steps = 0
     if fresh:  # a new factor: its age starts
@@ -632,12 +800,13 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             for i in range(n):
                 fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
                 fl[i] = gross[i] + abs(Kd[i]) + abs(F.constant[i]) + abs(f_tr[i])
-            project(arms, q1, Ma, Ma_q)
-            project(arms, q1, Cv, Cv_q)
-            project(arms, q1, fi, fi_q)
-            project(arms, q1, F1, F1_q)
-            project(arms, q1, F.constant, Fc_q)
-            project(arms, q1, fl, fl_q, True)
+            if with_arms:
+                project(arms, q1, Ma, Ma_q)
+                project(arms, q1, Cv, Cv_q)
+                project(arms, q1, fi, fi_q)
+                project(arms, q1, F1, F1_q)
+                project(arms, q1, F.constant, Fc_q)
+                project(arms, q1, fl, fl_q, True)
             for g in range(G):
                 res_g[g] = 0.0
                 scale_g[g] = 0.0
@@ -791,11 +960,12 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             state.F0[i] = F1[i]
             Ma0[i] = Ma[i]
             Cv0[i] = Cv[i]
-        for i in range(nq):
-            Ma0_q[i] = Ma_q[i]
-            Cv0_q[i] = Cv_q[i]
-            f0_q[i] = fi_q[i]
-            F0_q[i] = F1_q[i]
+        if with_arms:
+            for i in range(nq):
+                Ma0_q[i] = Ma_q[i]
+                Cv0_q[i] = Cv_q[i]
+                f0_q[i] = fi_q[i]
+                F0_q[i] = F1_q[i]
         for k in range(n_con):
             state.R0[k] = R1[k]
         th[TR_P0] = p_tr
@@ -816,3 +986,6 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             th[STALE] = max(0.0, th[STALE] + it - th[REF_SUM] / th[REF_N])
             if opts.refresh > 0.0 and th[STALE] > opts.refresh:
                 return REFACTOR
+
+
+jitcache.lean_loads(sys.modules[__name__])  # cache hits skip numba's full context refresh

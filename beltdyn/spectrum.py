@@ -29,7 +29,7 @@ A peak at bin k with amplitudes a[k-1], a[k], a[k+1] is refined by quadratic (pa
 interpolation of the *natural log* of the amplitude: d = (L- - L+) / (2 (L- - 2 L0 + L+)), the
 vertex offset in bins.  For a pure tone that estimate is biased, by an amount that depends only on
 the window and the true offset: up to 0.016 bin for hann, 0.17 bin for rect and 0.15 bin for
-flattop.  The bias is removed by inverting, with bisection, the same interpolation applied to the
+flattop.  The bias is removed by inverting (bracketed regula falsi) the same interpolation applied to the
 window's exact kernel (a closed-form sum of Dirichlet kernels): the offset delta in [-1/2, 1/2] whose
 noise-free bins give the measured d.  The amplitude is then a[k] divided by the window's normalized
 kernel magnitude at delta (scalloping correction).  Measured on noise-free real tones of any phase
@@ -49,6 +49,7 @@ altered by the mean removal, or is missing).  All functions raise ValueError nam
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -66,7 +67,8 @@ _COSINE_SUM = {
     "flattop": (1.0, 1.9575375, 1.4780705, 0.6367431, 0.1228389, 0.0066288),
 }
 _LOG_FLOOR = 1e-10  # neighbours below this fraction of the peak are taken as numerically zero
-_BISECT_STEPS = 48
+_TABLE_POINTS = 257  # vertex table per window and record length (`_refine`)
+_SECANT_STEPS = 8  # regula falsi steps from a 1/256-bin bracket (to round-off in 5-6)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -138,13 +140,17 @@ def _dirichlet(x: np.ndarray, n: int) -> np.ndarray:
 
 
 def _kernel(name: str, n: int, offset: np.ndarray) -> np.ndarray:
-    """|W(offset)| / W(0): normalized magnitude of the window's transform `offset` bins from a tone."""
+    """|W(offset)| / W(0): normalized magnitude of the window's transform `offset` bins from a tone.
+    The Dirichlet kernels at offset and offset -+ j (j = 1 .. terms - 1) are evaluated in one call
+    (the peak refinement calls this thousands of times: numpy's per-call cost, not the arithmetic)."""
     coef = _COSINE_SUM[name]
     offset = np.asarray(offset, dtype=float)
-    total = coef[0] * _dirichlet(offset, n)
-    for j in range(1, len(coef)):
-        c = (-1.0) ** j * coef[j] / 2.0
-        total = total + c * (_dirichlet(offset - j, n) + _dirichlet(offset + j, n))
+    j = np.arange(1, len(coef), dtype=float).reshape((-1,) + (1,) * offset.ndim)
+    d = _dirichlet(np.concatenate([offset[None], offset - j, offset + j]), n)  # (2 terms - 1, *offset.shape)
+    total = coef[0] * d[0]
+    for k in range(1, len(coef)):
+        c = (-1.0) ** k * coef[k] / 2.0
+        total = total + c * (d[k] + d[k + len(coef) - 1])
     return np.abs(total) / (n * coef[0])
 
 
@@ -160,24 +166,48 @@ def _log_vertex(lo: np.ndarray, mid: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.clip(d, -0.5, 0.5)
 
 
+def _model_vertex(name: str, n: int, delta: np.ndarray) -> np.ndarray:
+    """The log-parabola vertex of a noise-free tone `delta` bins from its bin: |W(delta + 1)|,
+    |W(delta)|, |W(delta - 1)| in bins k - 1, k, k + 1 (one kernel call for the three)."""
+    return _log_vertex(*_kernel(name, n, np.stack([delta + 1.0, delta, delta - 1.0])))
+
+
+@functools.lru_cache(maxsize=16)
+def _vertex_table(name: str, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(delta, vertex) on _TABLE_POINTS offsets over [-1/2, 1/2]: the brackets of `_refine`."""
+    delta = np.linspace(-0.5, 0.5, _TABLE_POINTS)
+    return delta, _model_vertex(name, n, delta)
+
+
 def _refine(name: str, n: int, lo: np.ndarray, mid: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Bias-free offset delta (bins) and scalloping-corrected amplitude for peaks at the `mid` bins.
 
     A tone at `delta` bins from bin k puts |W(delta + 1)|, |W(delta)|, |W(delta - 1)| in bins
     k - 1, k, k + 1; the log-parabola vertex of those values increases monotonically with delta
-    over [-1/2, 1/2], so the measured vertex is matched by bisection.
+    over [-1/2, 1/2], so the measured vertex is matched: bracketed in a table of the window's
+    vertices (cached per window and record length), then regula falsi (Illinois) on the exact
+    kernel to round-off (_SECANT_STEPS: the bracket starts 1/256 bin wide and converges
+    superlinearly; a vertex outside the table's range gives its end, -1/2 or 1/2).
     """
     measured = _log_vertex(lo, mid, hi)
-    a = np.full(measured.shape, -0.5)
-    b = np.full(measured.shape, 0.5)
-    for _ in range(_BISECT_STEPS):
-        c = 0.5 * (a + b)
-        model = _log_vertex(_kernel(name, n, c + 1.0), _kernel(name, n, c), _kernel(name, n, c - 1.0))
-        below = model < measured
-        a = np.where(below, c, a)
-        b = np.where(below, b, c)
-    delta = 0.5 * (a + b)
-    return delta, mid / _kernel(name, n, delta)
+    grid, table = _vertex_table(name, n)
+    k = np.clip(np.searchsorted(table, measured), 1, len(grid) - 1)
+    a, b = grid[k - 1], grid[k]
+    fa, fb = table[k - 1] - measured, table[k] - measured
+    x = np.where(fb <= 0.0, b, a)  # (outside the table: its end)
+    inside = (fa < 0.0) & (fb > 0.0)
+    side = np.zeros(measured.shape, dtype=int)  # the end moved last: -1 a, +1 b (Illinois)
+    for _ in range(_SECANT_STEPS if np.any(inside) else 0):
+        x = np.where(inside, np.clip(b - fb * (b - a) / np.where(inside, fb - fa, 1.0), a, b), x)
+        fx = _model_vertex(name, n, x) - measured
+        below = fx < 0.0
+        fb = np.where(below & (side == -1), 0.5 * fb, fb)
+        fa = np.where(~below & (side == 1), 0.5 * fa, fa)
+        a, fa = np.where(below, x, a), np.where(below, fx, fa)
+        b, fb = np.where(below, b, x), np.where(below, fb, fx)
+        side = np.where(below, -1, 1)
+        inside = inside & (fx != 0.0) & (b > a)
+    return x, mid / _kernel(name, n, x)
 
 
 def _refine_at(spec: Spectrum, amp2: np.ndarray, bins: np.ndarray, chans: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

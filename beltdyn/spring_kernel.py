@@ -11,10 +11,13 @@ numpy `SpringSpans` by tests/test_ladder.py.
 
 from __future__ import annotations
 
+import sys
 from collections import namedtuple
 
 import numpy as np
 from numba import njit
+
+from . import jitcache
 
 # D (k, 2, m) the chord d = x[2:4] - x[0:2] per joint coordinate, idx (k, m) (padding n), d0 (k, 2) the chord at
 # p = 0, L (k,), span (k,) span index, EA, eta (retardation time, s)
@@ -98,3 +101,6 @@ def spring_min_force(sp, q_ext, min_span):
         s = sp.span[k]
         if v < min_span[s]:
             min_span[s] = v
+
+
+jitcache.lean_loads(sys.modules[__name__])  # cache hits skip numba's full context refresh

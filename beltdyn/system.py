@@ -303,9 +303,13 @@ class BeltSpans:
         return self.e0 + np.matmul(self.T, qe[:, :, None])[:, :, 0]
 
     def element_coordinates_batch(self, q: np.ndarray, *, offset: bool = True) -> np.ndarray:
-        """(B, n_elem, 8) element coordinates (velocities with offset=False) of states q (B, n_dof)."""
-        qe = np.concatenate([q, np.zeros((q.shape[0], 1))], axis=1)[:, self.idx]
-        E = np.einsum("eim,bem->bei", self.T, qe)
+        """(B, n_elem, 8) element coordinates (velocities with offset=False) of states q (B, n_dof): the
+        interior elements' (T = [I8 | 0], tsel < 0) gathered, the joint elements' through T."""
+        q_ext = np.concatenate([q, np.zeros((q.shape[0], 1))], axis=1)
+        E = q_ext[:, self.idx[:, :8]]
+        joint = np.flatnonzero(self.tsel >= 0)
+        if len(joint):
+            E[:, joint] = np.einsum("eim,bem->bei", self.T[joint], q_ext[:, self.idx[joint]])
         return E + self.e0 if offset else E
 
     def reduce_vector(self, fe: np.ndarray) -> np.ndarray:

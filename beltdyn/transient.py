@@ -373,7 +373,10 @@ def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool, hold: np.ndarra
                 diagonal: np.ndarray | None = None):
     """Factor S (dense or sparse; + `diagonal` (n,) if given) in RCM order with the DOFs `hold` held
     (their rows and columns replaced by the identity): band Cholesky when symmetric positive definite,
-    else band LU with partial pivoting (LAPACK dgbtrf). Returns an integrator.Factor."""
+    else band LU without row exchanges (`integrator.band_lu_nopivot`: the running belt's S, whose
+    symmetric part is positive definite; its U has u superdiagonals, half of what partial pivoting
+    leaves, so each Newton solve costs a third less), and band LU with partial pivoting (LAPACK
+    dgbtrf) when a pivot is not positive. Returns an integrator.Factor."""
     from scipy.linalg import cholesky_banded
     from scipy.linalg.lapack import dgbtrf
     from scipy.sparse import issparse
@@ -412,7 +415,15 @@ def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool, hold: np.ndarra
                           piv=none, perm=perm, kl=0, ku=u)
         except np.linalg.LinAlgError:
             pass
-    ab = np.zeros((3 * u + 1, n))
+    from .integrator import band_lu_nopivot
+
+    ab = np.zeros((2 * u + 1, n), order="F")  # without row exchanges: U keeps the band (module docstring)
+    ab[u + r - c, c] = val
+    if d is not None:
+        ab[u, inv[d]] += diagonal[d]
+    if band_lu_nopivot(ab, u) == n:
+        return Factor(kind=2, ab=ab, piv=none, perm=perm, kl=u, ku=u)
+    ab = np.zeros((3 * u + 1, n))  # a pivot not positive: partial pivoting (its U has 2u superdiagonals)
     ab[2 * u + r - c, c] = val
     if d is not None:
         ab[2 * u, inv[d]] += diagonal[d]
@@ -471,6 +482,167 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
     return S, diagonal
 
 
+def stepper_system(system: System, opts: TransientOptions) -> System:
+    """The system the stepper evaluates: the compiled belt kernel (thousands of evaluations, see
+    system.BeltSpans) with the run's belt damping."""
+    return system.with_belt(damping_axial=float(opts.damping.belt_axial),
+                            damping_bending=float(opts.damping.belt_bending), compiled=True)
+
+
+def factorizer(system: System, setup: TransientSetup, rho_inf: float, arms, *, plan: bool = True) -> Callable:
+    """factor(q, h, v=None, t=0.0) -> integrator.Factor of the iteration matrix at the state q for the
+    step h at time t: by the run's `IterationPlan` where it applies (plan=True), else (or when its
+    factorization needs row exchanges) `band_factor` of `_iteration_matrix`. `system` as
+    `stepper_system` gives it."""
+    tr = setup.transport
+    symmetric = tr is None or not (tr.follow or tr.speed)  # the gyroscopic term makes S non-symmetric: band LU
+    fast = IterationPlan.build(system, setup, rho_inf, arms, symmetric=symmetric) if plan else None
+
+    def factor(q, h, v=None, t=0.0):
+        got = fast.factor(q, h, t) if fast is not None else None
+        if got is not None:
+            return got
+        S, diagonal = _iteration_matrix(system, setup, q, h, rho_inf, v, arms, t)
+        return band_factor(S, setup.perm, setup.bandwidth, symmetric=symmetric, hold=setup.constraints.dof,
+                           diagonal=diagonal)
+
+    factor.plan = fast
+    return factor
+
+
+class IterationPlan:
+    """`_iteration_matrix` + `band_factor` for one run, assembled straight into band storage.
+
+    Every term of S lives on the system's joint pattern (CSR slots, `system.Pattern`): the belt's
+    tangent (and damping) through their assembly, the constant matrices (mass, components' damping,
+    the running belt's A, G = A - A^T, B) mapped onto it once. Each pattern entry (i, j) has, once for
+    the run, its place in the band of S on q: the arms' offsets folded onto their angle, the order
+    `perm`, the held DOFs' rows and columns dropped. A factorization then sums the terms' data with
+    their weights, scales the arm rows and columns by dc/dphi, and scatters them into the band in
+    one pass (numpy), instead of summing, projecting and converting scipy matrices: ~0.15 instead of
+    ~0.55 ms on the FEAD example, so the refresh rule (`integrator.run_steps`) affords more factors
+    and the Newton iterations fewer. Same matrix (summed in another order: round-off).
+    `build` returns None where it does not apply (a dense system, a matrix off the pattern, an entry
+    outside the band): `band_factor(_iteration_matrix(...))` then."""
+
+    def __init__(self, **fields) -> None:
+        self.__dict__.update(fields)
+
+    @classmethod
+    def build(cls, system: System, setup: TransientSetup, rho_inf: float, arms, *, symmetric: bool):
+        from scipy.sparse import coo_matrix
+
+        pat = system.pattern
+        if system.dense or pat.indptr is None:
+            return None
+        n_p, n = system.n_p, system.n_dof
+        nnz = pat.nnz
+        rows_p = np.repeat(np.arange(n_p, dtype=np.int64), np.diff(pat.indptr))
+        cols_p = np.asarray(pat.indices, dtype=np.int64)
+        keys = rows_p * (n_p + 1) + cols_p
+
+        def on_pattern(A):
+            """A's entries as data on the pattern (None if one lies off it)."""
+            if A is None:
+                return np.zeros(nnz)
+            C = coo_matrix(A)
+            C.sum_duplicates()
+            live = C.data != 0.0
+            r, c, v = C.row[live].astype(np.int64), C.col[live].astype(np.int64), C.data[live]
+            where = pat.slots_of(r, c)
+            if np.any(where >= nnz) or not np.array_equal(keys[np.minimum(where, nnz - 1)], r * (n_p + 1) + c):
+                return None
+            out = np.zeros(nnz)
+            np.add.at(out, where, v)
+            return out
+
+        at_rest = system.with_speed(0.0) if system.belt_speed else system
+        const = {"M": on_pattern(system.mass), "C": on_pattern(setup.C)}
+        tr = setup.transport
+        moving = tr is not None and bool(tr.follow or tr.speed)
+        if moving:
+            A, B, _, _ = system.transport_matrices()
+            const.update(A=on_pattern(A), G=on_pattern(A - A.T), B=on_pattern(B))
+        if any(v is None for v in const.values()):
+            return None
+        to_q = p_to_q(system)
+        inv = np.empty(n, dtype=np.int64)
+        inv[setup.perm] = np.arange(n)
+        u = setup.bandwidth
+        held = np.zeros(n, dtype=bool)
+        held[setup.constraints.dof] = True
+        r, c = inv[to_q[rows_p]], inv[to_q[cols_p]]
+        keep = ~held[to_q[rows_p]] & ~held[to_q[cols_p]]
+        if np.abs(r - c)[keep].max(initial=0) > u:
+            return None
+        height = u + 1 if symmetric else 2 * u + 1  # upper Cholesky band, or LU without row exchanges
+        if symmetric:
+            keep &= r <= c
+        diag = inv * height + u  # the flat place of each q's diagonal
+        from .timestep import alpha_parameters
+
+        return cls(system=system, at_rest=at_rest, setup=setup, arms=arms, symmetric=symmetric, n=n, u=u,
+                   height=height, const=const, moving=moving, entries=np.flatnonzero(keep),
+                   flat=(c * height + u + r - c)[keep], rows_p=rows_p, cols_p=cols_p, diag=diag,
+                   held=np.asarray(setup.constraints.dof, dtype=np.int64), alpha=alpha_parameters(rho_inf))
+
+    def factor(self, q: np.ndarray, h: float, t: float = 0.0):
+        """The integrator.Factor of S at the state q (n_dof,) for the step h at time t."""
+        from . import belt_kernel as bk
+        from .integrator import Factor, band_lu_nopivot
+
+        am, af, beta, gamma = self.alpha
+        c_m = (1.0 - am) / (beta * h * h)
+        c_c = (1.0 - af) * gamma / (beta * h)
+        system, setup, k = self.system, self.setup, self.const
+        q = q[: self.n]
+        p = system.expand(q)
+        f, K = self.at_rest.belt_force_and_tangent(p)  # on the pattern (+ the components' constant stiffness)
+        if len(K.data) != len(k["M"]):
+            raise AssertionError("the belt's tangent is off the joint pattern")
+        data = (1.0 - af) * K.data + c_m * k["M"] + c_c * k["C"]
+        if self.moving:
+            c, cd = (float(x[0]) for x in transport_speed(setup, np.array([t])))
+            data += (c_c * c) * k["G"] + ((1.0 - af) * cd) * k["A"] - ((1.0 - af) * c * c) * k["B"]
+        b = setup.belt
+        if b.eta_a or b.eta_b:
+            E = system.belt.element_coordinates(p)
+            Ce = np.empty((E.shape[0], 8, 8))
+            bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce)
+            data += c_c * system.belt_damping_matrix(q, Ce).data
+        arms, a = self.arms, system.arms
+        if a is not None:  # J^T S J: the arm offsets' rows and columns scaled by dc/dphi, folded onto the angle
+            phi = a.phi(q)
+            w = np.ones(system.n_p)
+            dc = a.first(phi)
+            w[a.slot], w[a.slot + 1] = dc[:, 0], dc[:, 1]
+            data = data * w[self.rows_p] * w[self.cols_p]
+        ab = np.bincount(self.flat, weights=data[self.entries], minlength=self.height * self.n)
+        if a is not None:
+            f_loaded = f + system.linear_force(p) - system.external_force(1.0)
+            geo = np.einsum("kd,kd->k", a.second(phi), f_loaded[a.n_q:].reshape(len(a.dof), 2))
+            np.add.at(ab, self.diag[a.dof], (1.0 - af) * geo)  # the geometric term of the loaded force
+            if np.any(arms.friction):  # a sticking bristle is a spring k_b on the arm angle
+                e = q[arms.dof] - arms.anchor
+                np.add.at(ab, self.diag[arms.dof],
+                          (1.0 - af) * np.where(np.abs(arms.bristle * e) < arms.friction, arms.bristle, 0.0))
+        ab[self.diag[self.held]] = 1.0  # held DOFs: identity
+        ab = ab.reshape(self.n, self.height).T  # (height, n), column-major
+        perm, none, u = setup.perm, np.zeros(1, dtype=np.int64), self.u
+        if self.symmetric:
+            from scipy.linalg import cholesky_banded
+
+            try:
+                return Factor(kind=0, ab=np.asfortranarray(cholesky_banded(ab, lower=False, check_finite=False)),
+                              piv=none, perm=perm, kl=0, ku=u)
+            except np.linalg.LinAlgError:
+                return None
+        ab = np.asfortranarray(ab)
+        if band_lu_nopivot(ab, u) == self.n:
+            return Factor(kind=2, ab=ab, piv=none, perm=perm, kl=u, ku=u)
+        return None  # a pivot not positive: `band_factor` (partial pivoting)
+
+
 def _weighted_sum(terms):
     """sum_k w_k A_k of dense arrays or CSR matrices; CSR ones on one pattern (the same indptr and
     indices, as `System.assemble` gives) by adding their data, others by scipy."""
@@ -519,42 +691,27 @@ class StepProblem:
     transport: tuple | None = None  # integrator.Transport (None: the belt at rest)
 
 
-def initial_state(problem: StepProblem, rho_inf: float, step: float):
+def initial_state(problem: StepProblem, step: float, start: Callable):
     """Consistent initial acceleration M a0 = F(0) - C v0 - f(q0, v0) on the free DOFs, and the
-    energy reference."""
+    energy reference. start(state): the compiled forces at t = 0 (`integrator.start_forces`, through
+    the stepper's entry point `integrator.advance`)."""
     from . import integrator as itg
 
-    lin, F, cons, belt = problem.linear, problem.forcing, problem.constraints, problem.belt
+    lin, cons = problem.linear, problem.constraints
     n = len(problem.q0)
     arms = problem.arms if problem.arms is not None else itg.no_arms(n)
     nq = int(arms.n_q)
-    q, v = problem.q0.copy(), problem.v0.copy()
-    a = np.zeros(n)
-    for k, d in enumerate(cons.dof):
-        st = itg.rotation_state(cons.params[k], 0.0)
-        q[d], v[d], a[d] = cons.params[k, 7] + st[3], st[4], st[5]
-    itg.complete(arms, q, v, a)  # with the arm accelerations 0 so far: a holds the centripetal part h
-    n_elem = belt.T.shape[0]
-    E, Ed, fe, fd = (np.empty((n_elem, 8)) for _ in range(4))
-    f_el, f_dmp, gross = np.zeros(n + 1), np.zeros(n + 1), np.zeros(n + 1)
-    itg.belt_forces(belt, np.append(q, 0.0), np.append(v, 0.0), E, Ed, fe, fd, f_el, f_dmp, gross, False)
-    arms.anchor[:] = q[arms.dof]  # the friction's bristles relaxed at the start
-    itg.arm_friction(arms, q, f_dmp)
-    Kd, Cv, F0 = np.empty(n), np.empty(n), np.empty(n)
-    itg.csr_matvec(lin.K, q - lin.q_ref, Kd)
-    itg.csr_matvec(lin.C, v, Cv)
-    itg.external_forces(F, cons, 0.0, F0, np.empty(F.sig_params.shape[0]))
-    tr = problem.transport if problem.transport is not None else itg.no_transport(n)
-    c0, cd0 = itg.transport_speed(tr, F, 0.0)
-    f_tr = np.zeros(n)
-    qbq, vaq = itg.transport_forces(tr, c0, cd0, q, v, f_tr, np.empty(n), np.empty(n))
-    f0 = f_el[:n] + Kd + f_dmp[:n] + f_tr
-    from scipy.sparse import csr_matrix
+    scal = np.zeros(itg.N_SCAL)
+    scal[itg.H] = step
+    state = itg.State(q=problem.q0.copy(), v=problem.v0.copy(), a=np.zeros(n), f0=np.empty(n), fd0=np.empty(n),
+                      F0=np.empty(n), R0=np.zeros(max(len(cons.dof), 1)), scal=scal)  # (at least one slot)
+    start(state)  # q, v, a of the prescribed DOFs and arms (a: the centripetal part), f0, fd0, F0, energies
+    q, v, a, f0, F0 = state.q, state.v, state.a, state.f0, state.F0
+    from scipy.sparse import coo_matrix, csr_matrix
 
     Md = csr_matrix((lin.M.data, lin.M.indices, lin.M.indptr), shape=(n, n)).toarray()
+    Cv = csr_matrix((lin.C.data, lin.C.indices, lin.C.indptr), shape=(n, n)) @ v
     # J^T (M (J a_q + h) + C v + f - F) = 0 on the free independent DOFs (J = I without arms)
-    from scipy.sparse import coo_matrix
-
     phi = arms.angle + q[arms.dof]
     J = coo_matrix((np.r_[np.ones(nq), -arms.length * np.sin(phi), arms.length * np.cos(phi)],
                     (np.r_[np.arange(nq), arms.slot, arms.slot + 1], np.r_[np.arange(nq), arms.dof, arms.dof])),
@@ -565,17 +722,9 @@ def initial_state(problem: StepProblem, rho_inf: float, step: float):
     rhs = J.T @ (F0 - Cv - f0 - Md @ h) - Mq[:, cons.dof] @ a[cons.dof]
     free = np.setdiff1d(np.arange(nq), cons.dof)
     a[free] = np.linalg.solve(Mq[np.ix_(free, free)], rhs[free])
-    itg.complete(arms, q, v, a)
-    R0 = (J.T @ (Md @ a + Cv + f0 - F0))[cons.dof]
-    scal = np.zeros(itg.N_SCAL)
-    scal[itg.H] = step
-    tmp, tmp2 = np.empty(n), np.empty(n)
-    kin = itg.kinetic_energy(lin, v, tmp)
-    pot = itg.potential_energy(belt, lin, q, np.append(q, 0.0), E, np.empty(n_elem), tmp, tmp2) - 0.5 * c0 * c0 * qbq
-    scal[itg.E0], scal[itg.KIN0], scal[itg.POT0] = kin + pot, kin, pot
-    scal[itg.TR_P0] = -cd0 * (c0 * qbq + vaq)
-    R0 = np.pad(R0, (0, max(len(R0), 1) - len(R0)))  # the stepper needs at least one slot
-    return itg.State(q=q, v=v, a=a, f0=f0, fd0=f_dmp[:n].copy(), F0=F0, R0=R0, scal=scal)
+    itg.complete.py_func(arms, q, v, a)  # (plain Python: a few arms, no compiled entry point to load)
+    state.R0[: len(cons.dof)] = (J.T @ (Md @ a + Cv + f0 - F0))[cons.dof]
+    return state
 
 
 def residual_noise(belt) -> float:
@@ -618,8 +767,6 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     n = len(problem.q0)
     arms = problem.arms if problem.arms is not None else itg.no_arms(n)
     tr = problem.transport if problem.transport is not None else itg.no_transport(n)
-    state = initial_state(problem, rho_inf, step)
-    th = state.scal
     chk = itg.Check(group=problem.groups, n_groups=int(problem.groups.max(initial=0)) + 1, tol=float(tolerance),
                     max_iter=int(max_iterations), noise=residual_noise(problem.belt))
     n_con = max(len(problem.constraints.dof), 1)
@@ -633,6 +780,13 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     n_total_out = int(math.floor(duration / output_interval + 1e-9)) + 1
     opts = itg.StepOptions(am=am, af=af, beta=beta, gamma=gamma, t_stop=float(duration), dt_out=float(output_interval),
                            max_steps=2000, refresh=0.0)
+
+    def advance(task, st, fac, fresh):  # the compiled stepper (`integrator.advance`), opts as they are now
+        return itg.advance(task, st, problem.belt, problem.linear, problem.forcing, problem.constraints, chk, opts,
+                           fac, fresh, out, ev, info, arms, tr)
+
+    state = initial_state(problem, step, lambda st: advance(itg.START, st, itg.no_factor(), False))
+    th = state.scal
     clock = {"factor": 0.0, "factors": 0, "stepping": 0.0, "iterations": 0.0, "counted": 0.0, "calls": 0}
 
     def new_factor():
@@ -668,8 +822,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     try:
         while True:
             started, steps_before = time.perf_counter(), th[itg.STEPS]
-            code = itg.run_steps(state, problem.belt, problem.linear, problem.forcing, problem.constraints, chk, opts,
-                                 fac, fresh, out, ev, info, arms, tr)
+            code = advance(itg.STEP, state, fac, fresh)
             now = time.perf_counter()
             if th[itg.STEPS] > steps_before:  # the step budget of a call: about HANDOVER_SECONDS of wall time
                 per_step = (now - started) / (th[itg.STEPS] - steps_before)
@@ -747,17 +900,10 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
     if batch is None:  # samples per batch of outputs: ~1.5 MB of states (the observers' cost is per batch)
         batch = int(min(4096, max(256, 65536 // max(len(setup.q0), 1))))
     # the time stepper evaluates the belt thousands of times: the compiled kernel (system.BeltSpans)
-    system = system.with_belt(damping_axial=float(opts.damping.belt_axial),
-                              damping_bending=float(opts.damping.belt_bending), compiled=True)
+    system = stepper_system(system, opts)
     tr = setup.transport
-    symmetric = tr is None or not (tr.follow or tr.speed)  # the gyroscopic term makes S non-symmetric: band LU
     arms = stepper_arms(system)
-
-    def factor(q, h, v=None, t=0.0):
-        S, diagonal = _iteration_matrix(system, setup, q, h, opts.rho_inf, v, arms, t)
-        return band_factor(S, setup.perm, setup.bandwidth, symmetric=symmetric, hold=setup.constraints.dof,
-                           diagonal=diagonal)
-
+    factor = factorizer(system, setup, opts.rho_inf, arms)
     problem = StepProblem(
         belt=setup.belt, linear=setup.linear, forcing=setup.forcing, constraints=setup.constraints,
         groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels, factor=factor,

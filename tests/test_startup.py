@@ -98,3 +98,89 @@ def test_warm_up_compiles_every_signature_a_transient_uses():
         run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)
     after = {k.__name__: len(k.signatures) for k in kernels}
     assert after == before
+
+
+@pytest.mark.parametrize("example, loaded", [
+    ("bench_transient_small.toml", ["advance"]),  # band Cholesky (LAPACK): the stepper alone
+    ("fead_4cyl.toml", ["advance", "band_lu_nopivot"]),  # the running belt's factor without row exchanges
+])
+def test_a_transient_enters_the_stepper_through_one_kernel(example, loaded):
+    # In a fresh process a transient calls, of `integrator`'s compiled functions, only its entry point
+    # `advance` (and the factorization it needs): every other kernel runs inside it, so one library is
+    # loaded from numba's cache instead of one per kernel (each load parses its own copy of the
+    # callees' code).
+    code = ("from beltdyn.config import load_config; from beltdyn.pipeline import analyse; "
+            "from beltdyn.transient import run_transient; from beltdyn import integrator as i; "
+            f"cfg = load_config({str(ROOT / 'configs' / 'examples' / example)!r}, "
+            "['transient.duration=0.002', 'transient.spectrum.enabled=false']); run = analyse(cfg); "
+            "run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None); "
+            "print(' '.join(sorted(k.__name__ for k in vars(i).values() if getattr(k, 'signatures', None))))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == loaded
+
+
+def test_cache_hits_skip_the_full_context_refresh():
+    # A transient (FEAD: arms, running belt) in a fresh process with the kernels in the cache loads them
+    # the lean way (jitcache.lean_loads): numba's lowering of things the kernels never use (typed dicts,
+    # random generators, polynomials), which its full context refresh imports, stays unimported; the
+    # results are those of the other tests (same kernels, same code).
+    from beltdyn.transient import warm_up
+
+    warm_up()  # (the cache warm, as after `make`)
+    unused = ["numba.typed.typeddict", "numba.np.random.generator_methods", "numba.np.polynomial.polynomial_functions"]
+    code = ("import sys; from beltdyn.config import load_config; from beltdyn.pipeline import analyse; "
+            "from beltdyn.transient import run_transient; "
+            f"cfg = load_config({str(ROOT / 'configs' / 'examples' / 'fead_4cyl.toml')!r}, "
+            "['transient.duration=0.002', 'transient.spectrum.enabled=false']); run = analyse(cfg); "
+            "s = run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None); "
+            f"print(s.status, [m for m in {unused!r} if m in sys.modules])")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "complete []"
+
+
+def test_command_line_values_are_read_without_pydantic():
+    # typer coerces every value through a pydantic adapter (~70 ms to import and build); beltdyn's
+    # plain parameters are read by `cliparams` instead: parsing `beltdyn transient` with every kind of
+    # value (path argument and option, list of --set, floats with a bound, flags) imports no pydantic.
+    code = ("import sys; from beltdyn import cli; got = {}; "
+            "cli._run = lambda body: got.update(body.__code__.co_freevars and "
+            "{n: c.cell_contents for n, c in zip(body.__code__.co_freevars, body.__closure__)}); "
+            "sys.argv = ['beltdyn', 'transient', 'x.toml', '--set', 'a=1', '--set', 'b=2', '--duration', '0.5', "
+            "'--step', '1e-4', '-o', 'o.h5', '--force']; "
+            "exec('try:\\n cli.app()\\nexcept SystemExit:\\n pass'); "
+            "print('pydantic' in sys.modules, got['config'], got['output'], got['set_'], got['duration'], got['step'], "
+            "got['force'], got['fmax'])")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["False", "x.toml", "o.h5", "['a=1',", "'b=2']", "0.5", "0.0001", "True", "None"]
+
+
+@pytest.mark.parametrize("annotation, minimum, text", [
+    (float, 0.0, "1e-4"), (float, 0.0, "2"), (float, 0.0, ".5"), (float, 0.0, "abc"), (float, 0.0, "-1"),
+    (float, 0.0, "1e999"), (float, 0.0, "nan"), (float, 0.0, " 2"), (float, 0.0, "1_0"), (float, None, "-3.5"),
+    (int, 1, "4"), (int, 1, "0"), (int, 1, "2.0"), (int, 1, "x"), (str, None, "a=b"), (Path, None, "out.h5"),
+])
+def test_command_line_values_read_as_typer_reads_them(annotation, minimum, text):
+    # The same value or the same refusal (typer's message) as typer's own pydantic coercion, for
+    # well-formed and malformed numbers, bounds, strings and paths.
+    import typer
+    from typer._click.exceptions import BadParameter
+    from typer._coercion import build_runtime_param, resolve_type_descriptor
+    from typer.core import TyperOption
+
+    from beltdyn import cli  # noqa: F401 - installs cliparams
+
+    info = typer.models.OptionInfo(min=minimum)
+    desc = resolve_type_descriptor(annotation, info)
+    opt = TyperOption(param_decls=["--x"], type_descriptor=desc)
+
+    def outcome(runtime):
+        try:
+            return ("ok", runtime.coerce(text, param=opt, ctx=None))
+        except BadParameter as exc:
+            return ("refused", exc.format_message())
+
+    assert type(opt.get_runtime_param()).__name__ == "Plain"  # beltdyn's coercion is the one in use
+    assert outcome(opt.get_runtime_param()) == outcome(build_runtime_param(desc))
