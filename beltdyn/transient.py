@@ -510,6 +510,7 @@ def factorizer(system: System, setup: TransientSetup, rho_inf: float, arms, *, p
     return factor
 
 
+@dataclass(frozen=True, kw_only=True)
 class IterationPlan:
     """`_iteration_matrix` + `band_factor` for one run, assembled straight into band storage.
 
@@ -525,8 +526,23 @@ class IterationPlan:
     `build` returns None where it does not apply (a dense system, a matrix off the pattern, an entry
     outside the band): `band_factor(_iteration_matrix(...))` then."""
 
-    def __init__(self, **fields) -> None:
-        self.__dict__.update(fields)
+    system: System  # as `stepper_system` gives it
+    at_rest: System  # the same without the belt speed (the transport terms are added at their time)
+    setup: TransientSetup
+    arms: tuple  # integrator.Arms (their bristles' anchors: the state of the run)
+    symmetric: bool  # band Cholesky (upper, u + 1 rows), else LU without row exchanges (2 u + 1 rows)
+    n: int  # DOFs of q
+    u: int  # half-bandwidth
+    height: int  # rows of the band storage
+    const: dict  # name -> (nnz,) data on the joint pattern: M, C (and A, G, B when the belt runs)
+    moving: bool  # the transport terms are in
+    entries: np.ndarray  # (k,) the pattern entries that go into the band (held rows/columns out)
+    flat: np.ndarray  # (k,) their places in the band storage, column-major, flattened
+    rows_p: np.ndarray  # (nnz,) row of each pattern entry (joint coordinates)
+    cols_p: np.ndarray  # (nnz,) its column
+    diag: np.ndarray  # (n,) the flat place of each q's diagonal
+    held: np.ndarray  # (h,) the held (prescribed) DOFs: identity
+    alpha: tuple  # (alpha_m, alpha_f, beta, gamma)
 
     @classmethod
     def build(cls, system: System, setup: TransientSetup, rho_inf: float, arms, *, symmetric: bool):
