@@ -295,18 +295,27 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
                           excitation_frequency=f_exc, preload=preload, transport=transport)
 
 
+def nominal_rotation(setup: TransientSetup, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The nominal angle (rad), speed and acceleration of the prescribed rotation at the times t (B,),
+    times the belt-travel scale `nom_scale` (m, m/s, m/s^2 of belt): `integrator.rotation_state`'s
+    nominal part vectorized, a linear ramp of the speed to Omega over T_r."""
+    om, ramp_time = float(setup.forcing.nominal_rotation[0]), float(setup.forcing.nominal_rotation[1])
+    t = np.asarray(t, dtype=float)
+    ramp = (t < ramp_time) if ramp_time > 0.0 else np.zeros(t.shape, dtype=bool)
+    per = 1.0 / ramp_time if ramp_time > 0.0 else 0.0
+    th = np.where(ramp, 0.5 * om * t * t * per, om * (t - 0.5 * ramp_time))
+    thd = np.where(ramp, om * t * per, om)
+    thdd = np.where(ramp, om * per, 0.0)
+    return th * setup.nom_scale, thd * setup.nom_scale, thdd * setup.nom_scale
+
+
 def transport_speed(setup: TransientSetup, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The belt speed c (m/s) and its rate c' (m/s^2) at the times t (B,) of a run (`integrator.Transport`)."""
     tr = setup.transport
     t = np.asarray(t, dtype=float)
     if tr is None or not tr.follow:
         return np.full(t.shape, 0.0 if tr is None else float(tr.speed)), np.zeros(t.shape)
-    om, tr_ = float(setup.forcing.nominal_rotation[0]), float(setup.forcing.nominal_rotation[1])
-    # the nominal speed and its rate of `integrator.rotation_state`, vectorized: a linear ramp to om over tr_
-    ramp = (t < tr_) if tr_ > 0.0 else np.zeros(t.shape, dtype=bool)
-    thd = np.where(ramp, om * t / (tr_ if tr_ > 0.0 else 1.0), om)
-    thdd = np.where(ramp, om / (tr_ if tr_ > 0.0 else 1.0), 0.0)
-    return thd * setup.nom_scale, thdd * setup.nom_scale
+    return nominal_rotation(setup, t)[1:]
 
 
 def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
@@ -1021,12 +1030,8 @@ class Observers:
         if "pulley_angle" in names or "pulley_speed" in names:
             s_nom = np.zeros(len(t))
             sd_nom = np.zeros(len(t))
-            if setup.nom_scale:  # the nominal angle and speed of `integrator.rotation_state`, vectorized
-                om, tr = setup.forcing.nominal_rotation[0], setup.forcing.nominal_rotation[1]
-                ramp = (t < tr) if tr > 0.0 else np.zeros(len(t), dtype=bool)
-                th = np.where(ramp, 0.5 * om * t * t / (tr if tr > 0.0 else 1.0), om * (t - 0.5 * tr))
-                thd = np.where(ramp, om * t / (tr if tr > 0.0 else 1.0), om)
-                s_nom, sd_nom = th * setup.nom_scale, thd * setup.nom_scale
+            if setup.nom_scale:
+                s_nom, sd_nom = nominal_rotation(setup, t)[:2]
             ur = setup.u_nom[sysm.rot_dof]
             if "pulley_angle" in names:
                 out["pulley_angle"] = q[:, sysm.rot_dof] + s_nom[:, None] * ur
