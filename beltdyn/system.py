@@ -216,6 +216,15 @@ class BearingSprings(LinearComponent):
 
 
 # ------------------------------------------------------------------------------------ the belt
+def _transposed(spans) -> np.ndarray:
+    """spans.T (k, r, m) transposed to (k, m, r), contiguous, cached on the (frozen) spans object."""
+    tt = spans.__dict__.get("_Tt")
+    if tt is None:
+        tt = np.ascontiguousarray(spans.T.transpose(0, 2, 1))
+        object.__setattr__(spans, "_Tt", tt)
+    return tt
+
+
 @dataclass(frozen=True, kw_only=True)
 class BeltSpans:
     """The belt's free spans: ANCF elements joined to the pulleys by constant-Jacobian joints.
@@ -270,11 +279,7 @@ class BeltSpans:
     @property
     def Tt(self) -> np.ndarray:
         """(n_elem, m, 8) transposed element transformation (cached)."""
-        tt = self.__dict__.get("_Tt")
-        if tt is None:
-            tt = np.ascontiguousarray(self.T.transpose(0, 2, 1))
-            object.__setattr__(self, "_Tt", tt)
-        return tt
+        return _transposed(self)
 
     @property
     def kernel_tables(self):
@@ -561,11 +566,8 @@ class SpringSpans:
 
     @property
     def Tt(self) -> np.ndarray:
-        tt = self.__dict__.get("_Tt")
-        if tt is None:
-            tt = np.ascontiguousarray(self.T.transpose(0, 2, 1))
-            object.__setattr__(self, "_Tt", tt)
-        return tt
+        """(k, m, 4) transposed end transformation (cached)."""
+        return _transposed(self)
 
     def positions(self, p: np.ndarray) -> np.ndarray:
         """x (k, 4) at the joint coordinates p (n_dof,)."""
