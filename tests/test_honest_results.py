@@ -21,6 +21,8 @@ import h5py
 import numpy as np
 import pytest
 
+import processes  # tests/processes.py
+
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "configs" / "smoke" / "two_pulley.toml"
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
@@ -104,15 +106,8 @@ def test_help_lists_debug_and_exit_codes(tmp_path):
 
 
 # ----------------------------------------------------------------------------------- 2. sweeps
-def _default_sigint() -> None:
-    # a runner started in the background (or with nohup) passes SIGINT ignored; the CLI under test
-    # must see Ctrl-C as a user would
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-
-
 def _popen(args, cwd) -> subprocess.Popen:
-    return subprocess.Popen([*BELTDYN, *map(str, args)], cwd=cwd, env=_env(), text=True, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, preexec_fn=_default_sigint)
+    return processes.popen([*BELTDYN, *map(str, args)], cwd=cwd, env=_env())
 
 
 def _children(pid: int) -> list[int]:
@@ -137,14 +132,7 @@ def _alive(pid: int) -> bool:
     return text[text.rindex(")") + 2] != "Z"
 
 
-def _wait_for(predicate, timeout=60.0, step=0.02):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(step)
-    return predicate()
+_wait_for = processes.wait_for
 
 
 # 80 elements per span: each case ~10 ms and its result (mode shapes) larger than a pipe buffer

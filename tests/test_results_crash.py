@@ -9,6 +9,7 @@ with the holder's pid while readers go on; adding a group next to a large one wr
 
 from __future__ import annotations
 
+import functools
 import importlib.util
 import os
 import signal
@@ -35,6 +36,8 @@ from beltdyn.results_io import (
 )
 from beltdyn.results_journal import JournalLayout, JournalWriter, read_journal
 
+import processes  # tests/processes.py
+
 ROOT = Path(__file__).resolve().parents[1]
 TRANSIENT = ROOT / "configs" / "examples" / "bench_transient_small.toml"
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
@@ -59,18 +62,10 @@ def run(*args, cwd, timeout=180) -> subprocess.CompletedProcess:
 
 
 def popen(*args, cwd) -> subprocess.Popen:
-    return subprocess.Popen([*BELTDYN, *map(str, args)], cwd=cwd, env=_env(), text=True, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    return processes.popen([*BELTDYN, *map(str, args)], cwd=cwd, env=_env())
 
 
-def wait_for(predicate, timeout=90.0, step=0.05):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        value = predicate()
-        if value:
-            return value
-        time.sleep(step)
-    return predicate()
+wait_for = functools.partial(processes.wait_for, timeout=90.0)  # (a long transient's start under load)
 
 
 def samples(path: Path) -> int:
