@@ -709,11 +709,12 @@ def _announce_cost(cfg, transient=None) -> None:
 
 def _check_output_volume(job: "_Job", force_large: bool) -> None:
     """Before any work: histories above transient.max_output_mb need --force-large (exit 2)."""
-    from .system import DeferredSystem
+    from .system import DeferredSystem, build_system
     from .transient import output_volume
 
     opts = job.cfg.transient
-    facts = DeferredSystem(job.cfg, job.layout, build=None)  # the DOF map and pulleys' components: no belt built
+    # the DOF map and the pulleys' components answer it without a belt built (anything else would build)
+    facts = DeferredSystem(job.cfg, job.layout, build=lambda lay: build_system(job.cfg, lay))
     n_samples, volume = output_volume(facts, opts)
     if volume > opts.max_output_mb * 1e6 and not force_large:
         from .errors import ConfigError
