@@ -92,11 +92,14 @@ def _predictor(system: System, stretch: float | np.ndarray, adjust_dof: int, dri
             coef = sign * np.einsum("sdk,sd->sk", sp.T[:, rows, :], t[sp.span])
             np.add.at(A_p, (span, sp.idx.ravel()), coef.ravel())
     A_p = A_p[:, : system.n_p]
-    A_q = A_p if system.arms is None else np.asarray(A_p @ system.arms.jacobian(np.zeros(system.n_dof)).toarray())
+    A_q = A_p if system.arms is None else system.arms.project(np.zeros(system.n_dof), A_p)  # A_p J
     A = A_q[:, unknowns]
     lam0 = model.span_stretch if model.span_stretch is not None else model.prestrain_stretch
     target = (stretch - lam0) * model.reference_length  # elongation still needed from the stretch at q = 0
-    x = np.linalg.lstsq(A, target, rcond=None)[0]
+    try:  # the normal equations: a few unknowns, a start for Newton (SVD least squares if singular)
+        x = np.linalg.solve(A.T @ A, A.T @ target)
+    except np.linalg.LinAlgError:
+        x = np.linalg.lstsq(A, target, rcond=None)[0]
     q = np.zeros(system.n_dof)
     q[unknowns] = x
     return _straight_spans(system, q)
