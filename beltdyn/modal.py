@@ -100,13 +100,14 @@ def ordinal(n: int) -> str:
     return f"{n}{suffix}"
 
 
-def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "auto") -> ModalResult:
+def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "auto", tangent=None) -> ModalResult:
     """The lowest `n_modes` elastic modes about the equilibrium q (tangent of the loaded residual:
     with tensioner arms the loads' geometric term and the mass J^T M J at q); at a belt speed the
-    gyroscopic modes (module docstring)."""
+    gyroscopic modes (module docstring). tangent: that tangent, if the static solve evaluated it at q
+    (`SolvedDrive.tangent`), else it is evaluated here."""
     if model.belt_speed:
         return _solve_running(model, q, n_modes=n_modes, solver=solver)
-    _, K = model.equilibrium(q)
+    K = model.equilibrium(q)[1] if tangent is None else tangent
     M = model.mass_matrix(q)
     n = model.n_dof
     use_dense = model.dense if solver == "auto" else solver == "dense"

@@ -285,7 +285,8 @@ class _Problem:
         self.accept = 1.0  # Newton stops at err <= accept (a continuation's intermediate stages: looser)
         self.EA = system.EA
         self.scales = ResidualScales(system)
-        self.last: tuple = (None, 0.0, 0.0, None)  # (q, load factor, driver residual, mean tension) evaluated last
+        self.last: tuple = (None, 0.0, 0.0, None, None)  # (q, load factor, driver residual, mean tension, tangent)
+        self.keep_tangent = False  # keep the unpinned tangent of the last evaluation (what the modal analysis reuses)
 
     def tension_tolerance(self) -> float:
         """Allowed error of the mean tension: relative tolerance + round-off of EA eps (~EA * eps)."""
@@ -299,12 +300,13 @@ class _Problem:
         m = self.model
         R, K = m.equilibrium(q, lam)  # J^T (f - lam F), F the weight and the accessory torques
         R = R - self.preload
-        self.last = (q, lam, float(R[self.driver]), None)  # what the outputs reuse at the solution
+        # what the outputs reuse at the solution (the tangent before bordering and pinning change it in place)
+        self.last = (q, lam, float(R[self.driver]), None, K.copy() if self.keep_tangent else None)
         scaled = np.abs(R) / self.allowed(q, lam)
         rank1 = None
         if bordered:  # the slide equation of the adjustable pulley becomes T(q) = target
             T, dT = m.mean_tension_and_gradient(q)
-            self.last = (q, lam, self.last[2], T)
+            self.last = (q, lam, self.last[2], T, self.last[4])
             R[self.a] = T - self.target
             scaled[self.a] = abs(R[self.a]) / self.tension_tolerance()
             if m.dense:
@@ -520,11 +522,13 @@ def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray 
     """The equilibrium of `solve_static` without its outputs: (q (n_dof,), spring preloads (n_dof,),
     Newton history (n_iter, 2) of (scaled residual, load factor)). For the re-lay passes, whose
     outputs only the last one needs. known: also what the solve evaluated at q that the outputs reuse
-    ({"driver_torque", "mean_tension"}, each present only if evaluated at q at full load)."""
+    ({"driver_torque", "mean_tension", "tangent"}, each present only if evaluated at q at full load; the
+    tangent dr/dq of `System.equilibrium`, unpinned, which the modal analysis reuses)."""
     model = system
     prob = _Problem(system, options)
     n = model.n_dof
     pinned = np.array([prob.driver])
+    prob.keep_tangent = known
     try:
         q = None
         sagging = prob.adjust and prob.has_weight  # the continuation in the tension target may be needed
@@ -569,11 +573,13 @@ def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray 
     if not known:
         return q, prob.preload, hist
     seen: dict = {}
-    q_l, lam_l, r_driver, T = prob.last
+    q_l, lam_l, r_driver, T, K = prob.last
     if q_l is q and lam_l == 1.0:
         seen["driver_torque"] = r_driver + float(prob.preload[prob.driver])
         if T is not None:
             seen["mean_tension"] = T
+        if K is not None:
+            seen["tangent"] = K
     return q, prob.preload, hist, seen
 
 
@@ -705,6 +711,7 @@ class SolvedDrive:
     solves: int  # static solves (prestrain iterations included)
     movement: np.ndarray  # (passes,) largest pulley displacement from its laid centre after each pass, m
     newton_iterations: int = 0  # Newton iterations of all passes and solves (failed attempts included)
+    tangent: object = None  # dr/dq of `system.equilibrium` at static.q at full load, if the solve evaluated it there
 
 
 def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
@@ -1052,7 +1059,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                              known=known)
             _check_slack(system, st)
             return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement),
-                               newton_iterations=iterations)
+                               newton_iterations=iterations, tangent=None if prestrain else known.get("tangent"))
         # the next layout: at the solved centres, extrapolated (Aitken) where the passes contract steadily
         centers = solved_centers
         if prev_step is not None:
