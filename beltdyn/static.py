@@ -719,18 +719,17 @@ def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
     layout `old`, the wraps unstretched: where a tangent point moves along its pulley by an arc
     R dpsi in the direction of belt travel, that much belt passes from the span onto the wrap (or
     back). The total, sum(reference lengths) + sum(arc lengths), is kept. Pulley rotations stay
-    coordinates of the system (the joints slide the span ends along the tangent lines)."""
+    coordinates of the system (the joints slide the span ends along the tangent lines).
+
+    Both tangent points of span s turn with its tangent line: their normals are +-(sin a_s, -cos a_s),
+    so dpsi = a_s(new) - a_s(old) (wrapped to [-pi, pi)) at both ends, and with the signed radii
+    rho = orientation x side x R the span leaves rho_s dpsi onto pulley s and takes rho_(s+1) dpsi
+    from pulley s+1: reference_s - dpsi_s (rho_s - rho_(s+1))."""
     from .geometry import TWO_PI
 
-    def turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        d = np.arctan2(b[:, 1], b[:, 0]) - np.arctan2(a[:, 1], a[:, 0])
-        return (d + np.pi) % TWO_PI - np.pi
-
-    sigma = new.orientation * new.side_sign  # sense in which the belt travels around each pulley
-    nxt = (np.arange(new.n) + 1) % new.n
-    onto_start = new.radius * sigma * turn(old.start_normal, new.start_normal)  # span s leaving pulley s
-    onto_end = -new.radius[nxt] * sigma[nxt] * turn(old.end_normal, new.end_normal)  # span s reaching pulley s+1
-    out = reference_length - onto_start - onto_end
+    turn = (new.span_angle - old.span_angle + np.pi) % TWO_PI - np.pi
+    rho = new.orientation * new.side_sign * new.radius
+    out = reference_length - turn * (rho - np.concatenate((rho[1:], rho[:1])))
     if not np.all(out > 0.0):
         s = int(np.argmin(out))
         raise SolverError(f"span {new.span_name(s)} has no belt left at the solved pulley positions (reference "
@@ -800,17 +799,20 @@ def _conserved_tension(layout, split: np.ndarray, reference: np.ndarray, EA: flo
     neighbouring spans and keeps their sum, so sum_s lambda(T_s) reference_s = sum_s L_s (Newton on T_ref)."""
     from .system import stretch_for_tension as _stretch
 
+    # a handful of spans: plain Python floats (numpy calls on 2-12 numbers cost more than the arithmetic)
     L = float(layout.span_length.sum())
-    total = float(reference.sum())
-    T_ref = EA * (L / total - 1.0) - float(reference @ split) / total
-    lam = _stretch(T_ref + split, EA)
+    ref, sp = reference.tolist(), split.tolist()
+    total = sum(ref)
+    T_ref = EA * (L / total - 1.0) - sum(r * s for r, s in zip(ref, sp)) / total
+    lam = [_stretch(T_ref + s, EA) for s in sp]
+    half = 0.5 * EA
     for _ in range(50):  # Newton on T_ref and lambda together: one stretch step per tension step
-        dT = 0.5 * EA * (3.0 * lam**2 - 1.0)  # dT/dlambda
-        step = (float(lam @ reference) - L) / float((reference / dT).sum())
+        slope = [half * (3.0 * x * x - 1.0) for x in lam]  # dT/dlambda
+        step = (sum(x * r for x, r in zip(lam, ref)) - L) / sum(r / d for r, d in zip(ref, slope))
         T_ref -= step
-        d_lam = (0.5 * EA * (lam**3 - lam) - (T_ref + split)) / dT
-        lam = lam - d_lam
-        if abs(step) <= 1e-12 * EA and float(np.abs(d_lam).max()) <= 1e-15:
+        d_lam = [(half * (x * x * x - x) - (T_ref + s)) / d for x, s, d in zip(lam, sp, slope)]
+        lam = [x - d for x, d in zip(lam, d_lam)]
+        if abs(step) <= 1e-12 * EA and max(map(abs, d_lam)) <= 1e-15:
             break
     return T_ref + split
 

@@ -1690,18 +1690,25 @@ def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
 
 def stretch_for_tension(tension, EA: float):
     """lambda with EA * eps * lambda = N, eps = (lambda^2 - 1)/2 (St. Venant-Kirchhoff bar); elementwise
-    for an array of tensions (a float for a float)."""
-    T = np.asarray(tension, dtype=float)
-    x = T / EA
+    for an array of tensions (a float for a float: plain Python arithmetic, no numpy call)."""
     # start: the series lambda = 1 + x - 3/2 x^2 + 4 x^3 + O(x^4) where the strain is small (one Newton
     # step then reaches round-off for |x| < 1e-2), 1 + x beyond
-    lam = np.where(np.abs(x) < 0.05, 1.0 + x * (1.0 - x * (1.5 - 4.0 * x)), 1.0 + x)
+    if isinstance(tension, (float, int)):
+        x = float(tension) / EA
+        lam = 1.0 + x * (1.0 - x * (1.5 - 4.0 * x)) if abs(x) < 0.05 else 1.0 + x
+        largest = abs
+    else:
+        x = np.asarray(tension, dtype=float) / EA
+        lam = np.where(np.abs(x) < 0.05, 1.0 + x * (1.0 - x * (1.5 - 4.0 * x)), 1.0 + x)
+
+        def largest(step):
+            return float(np.max(np.abs(step), initial=0.0))
     for _ in range(50):
         step = (lam**3 - lam - 2.0 * x) / (3.0 * lam**2 - 1.0)
         lam = lam - step
-        if float(np.max(np.abs(step), initial=0.0)) <= 1e-15:  # lambda ~ 1: a few ulp; Newton is quadratic well before
+        if largest(step) <= 1e-15:  # lambda ~ 1: a few ulp; Newton is quadratic well before
             break
-    return float(lam) if lam.ndim == 0 else lam
+    return float(lam) if np.ndim(lam) == 0 else lam
 
 
 def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
