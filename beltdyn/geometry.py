@@ -59,7 +59,10 @@ class Layout:
     @property
     def span_direction(self) -> np.ndarray:
         """(n, 2) unit vectors of travel along each span."""
-        return np.column_stack([np.cos(self.span_angle), np.sin(self.span_angle)])
+        out = np.empty((len(self.span_angle), 2))
+        out[:, 0] = np.cos(self.span_angle)
+        out[:, 1] = np.sin(self.span_angle)
+        return out
 
     @property
     def signed_wrap(self) -> np.ndarray:

@@ -842,6 +842,14 @@ class TensionSetting:
     adjust_name: str = ""  # name of the adjustable pulley
 
 
+def _last_pair(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """x and y (same shape) stacked on a new last axis of 2: np.stack(..., axis=-1) without its overhead."""
+    out = np.empty(np.shape(x) + (2,))
+    out[..., 0] = x
+    out[..., 1] = y
+    return out
+
+
 @dataclass(frozen=True, kw_only=True)
 class ArmJoints:
     """Exact kinematics of the tensioner arms: joint coordinates p = P(q) from the independent q.
@@ -873,17 +881,16 @@ class ArmJoints:
 
     def first(self, phi: np.ndarray) -> np.ndarray:
         """dc/dphi (..., a, 2)."""
-        return self.length[:, None] * np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+        return self.length[:, None] * _last_pair(-np.sin(phi), np.cos(phi))
 
     def second(self, phi: np.ndarray) -> np.ndarray:
         """d2c/dphi2 (..., a, 2)."""
-        return -self.length[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+        return -self.length[:, None] * _last_pair(np.cos(phi), np.sin(phi))
 
     def expand(self, q: np.ndarray) -> np.ndarray:
         """p (..., n_p) from q (..., n_q)."""
         phi = self.phi(q)
-        u = self.length[:, None] * (np.stack([np.cos(phi), np.sin(phi)], axis=-1)
-                                    - np.stack([np.cos(self.angle), np.sin(self.angle)], axis=-1))
+        u = self.length[:, None] * _last_pair(np.cos(phi) - np.cos(self.angle), np.sin(phi) - np.sin(self.angle))
         return np.concatenate([q, u.reshape(*q.shape[:-1], -1)], axis=-1)
 
     def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
