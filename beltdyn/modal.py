@@ -469,7 +469,8 @@ def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray 
     arm coupled with the transverse motion of an adjacent span)."""
     shares, span_long, span_trans, b = energy_shares(model, shapes, q, motion=motion)
     n_modes = shapes.shape[0]
-    wsamp = np.matmul(model.belt.sampling_table(8)[None], b[..., None])[..., 0]  # (k, n_elem, 8) samples
+    wsamp = (np.matmul(model.belt.sampling_table(8)[None], b[..., None])[..., 0]  # (k, n_elem, 8) samples
+             if model.belt.elements.n_elem else None)
     kinds, orders, spans, labels = [], np.zeros(n_modes, dtype=int), np.zeros(n_modes, dtype=int), []
     rank: dict[str, int] = {}
     names = model.layout

@@ -405,6 +405,8 @@ class BeltSpans:
         """(B, n_span) the first-order change of `midspan_displacement` at the state E (n_elem, 8) for
         element motions dE (B, n_elem, 8) (mode shapes). With the chord c = r1 - r0, n = J c / |c|:
         d(delta) = (dp - dr0) . n + (p - r0) . dn,  dn = J dc / |c| - J c (c . dc) / |c|^3."""
+        if self.elements.n_elem == 0:  # every span a spring: no transverse motion anywhere
+            return np.zeros((dE.shape[0], self.n_span))
         p, r0, c = self._midspan_terms(E[None])
         dp, dr0, dc = self._midspan_terms(dE, offset=False)
         cx, cy = c[..., 0], c[..., 1]
@@ -1432,13 +1434,13 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
         live = (s_rows < n) & (s_cols < n)
         rows.append(s_rows[live])
         cols.append(s_cols[live])
-    for c in components:
+    for c in components if not use_dense else ():  # (a dense pattern holds every entry)
         for mat in (c.stiffness, c.damping, c.mass):
             if mat is not None:
                 r, cc = np.nonzero(mat)
                 rows.append(c.dofs[r])
                 cols.append(c.dofs[cc])
-    extra = (np.concatenate(rows), np.concatenate(cols)) if rows else None
+    extra = (np.concatenate(rows), np.concatenate(cols)) if rows and not use_dense else None
     pattern = make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
 
     def summed(attr: str):
@@ -1450,7 +1452,7 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
         if use_dense:
             A = np.zeros((n, n))
             for d, mat in mats:
-                A[np.ix_(d, d)] += mat
+                A[d[:, None], d] += mat
             return A
         r = np.concatenate([np.repeat(d, len(d)) for d, _ in mats])
         c = np.concatenate([np.tile(d, len(d)) for d, _ in mats])
@@ -1518,6 +1520,16 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     t_dir = layout.span_direction
     normals = np.column_stack([-t_dir[:, 1], t_dir[:, 0]])
     n_elem = int(counts.sum())
+    uniform = bool(np.all(lam_s == lam_s[0]))
+    lam = float(lam_s[0]) if uniform else float(layout.span_length.sum() / L_ref.sum())
+    if n_elem == 0:  # every span a spring (`build_springs`): no elements, no joints of the belt's own
+        el = span_element_set(cfg, np.zeros(0), np.zeros(0))
+        T, idx = np.zeros((0, 8, 8)), np.zeros((0, 8), dtype=np.int64)
+        empty = tuple(np.zeros(0, dtype=np.int64) for _ in range(n_p))
+        return BeltSpans(elements=el, elem_span=np.zeros(0, dtype=np.int64), span_elements=empty, T=T, idx=idx,
+                         tsel=joint_selection(T, idx, n_dof), e0=np.zeros((0, 8)), n_dof=n_dof, reference_length=L_ref,
+                         reference_direction=t_dir, reference_normal=normals, prestrain_stretch=lam,
+                         span_stretch=lam_s)
     # Per element, columns 0-3 / 4-7 carry the coordinates of its first / second node, 8-10 / 11-13
     # the joint DOFs of a span end; padding columns are squeezed out afterwards.
     T = np.zeros((n_elem, 8, 14))
@@ -1558,8 +1570,6 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     T, idx = np.ascontiguousarray(T[:, :, :used]), np.ascontiguousarray(idx[:, :used]).astype(np.int64)
     el = span_element_set(cfg, np.repeat(L_ref / np.maximum(counts, 1), counts),
                           np.repeat([cfg.belt.EI if m == "ancf" else 0.0 for m in cfg.span_models], counts))
-    uniform = bool(np.all(lam_s == lam_s[0]))
-    lam = float(lam_s[0]) if uniform else float(layout.span_length.sum() / L_ref.sum())
     return BeltSpans(elements=el, elem_span=elem_span, span_elements=span_elements, T=T, idx=idx,
                      tsel=joint_selection(T, idx, n_dof), e0=e0, n_dof=n_dof, reference_length=L_ref,
                      reference_direction=t_dir, reference_normal=normals, prestrain_stretch=lam, span_stretch=lam_s)
