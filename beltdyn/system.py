@@ -1604,10 +1604,11 @@ def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> an
     b = cfg.belt
     if len(length) == 0:
         return _no_elements(float(b.EA), float(b.mass_per_length), curvature, cfg.model.gauss_points)
-    uniq, inverse = np.unique(np.column_stack([length, EI]), axis=0, return_inverse=True)
+    # the distinct (length, EI) pairs: one complex key each (exact; np.unique's 1-D path, not its slow axis=0)
+    uniq, inverse = np.unique(np.asarray(length, dtype=float) + 1j * np.asarray(EI, dtype=float), return_inverse=True)
     if len(uniq) == len(length):  # every element distinct: no gathering
-        uniq, inverse = np.column_stack([length, EI]), None
-    base = ancf.make_elements(uniq[:, 0], b.EA, uniq[:, 1], b.mass_per_length, curvature=curvature,
+        uniq, inverse = np.asarray(length, dtype=float) + 1j * np.asarray(EI, dtype=float), None
+    base = ancf.make_elements(uniq.real.copy(), b.EA, uniq.imag.copy(), b.mass_per_length, curvature=curvature,
                               n_gauss=cfg.model.gauss_points)
     return base if inverse is None else ancf.subset(base, inverse.ravel())
 
