@@ -35,6 +35,8 @@ import functools
 import os
 from dataclasses import dataclass, field
 
+import math
+
 import numpy as np
 
 from . import ancf
@@ -1721,11 +1723,14 @@ def stretch_for_tension(tension, EA: float):
 
         def largest(step):
             return float(np.max(np.abs(step), initial=0.0))
-    for _ in range(50):
-        step = (lam**3 - lam - 2.0 * x) / (3.0 * lam**2 - 1.0)
-        lam = lam - step
-        if largest(step) <= 1e-15:  # lambda ~ 1: a few ulp; Newton is quadratic well before
-            break
+    try:
+        for _ in range(50):
+            step = (lam * lam * lam - lam - 2.0 * x) / (3.0 * lam * lam - 1.0)  # (a float's ** raises on overflow)
+            lam = lam - step
+            if largest(step) <= 1e-15:  # lambda ~ 1: a few ulp; Newton is quadratic well before
+                break
+    except ZeroDivisionError:  # a float's 0 / 0 or x / 0 where numpy's would give nan or inf
+        return math.nan
     return float(lam) if np.ndim(lam) == 0 else lam
 
 
