@@ -37,9 +37,10 @@ copy made beside the original (`cp OUT.h5 COPY.h5`) shares the original's parts:
 replaces a large group of either removes that part for both. Small results (geometry, static,
 modal, short transients) stay entirely in the root.
 
-Why: the root is small whatever the file holds, so every change is a copy of the root (a few kB to a
-few MB) plus what the change itself writes: adding `/modal` next to a 1 GB `/transient` writes
-/modal and copies the root only (`make bench` measures it; it was a copy of the whole 1 GB file).
+Why: the root is small whatever the file holds, so every change is a copy of the root's live content
+(a few kB to a few MB) plus what the change itself writes: adding `/modal` next to a 1 GB
+`/transient` writes /modal and copies the root only (`make bench` measures it; it was a copy of the
+whole 1 GB file).
 Rejected: modifying one HDF5 file in place (not crash safe: a kill -9 during a metadata flush can
 leave the whole file unreadable, destroying earlier results; and readers with the file open see
 a moving structure); HDF5 SWMR (a file being written, or whose writer died, cannot be opened by
@@ -48,11 +49,15 @@ per-group files (xarray/h5netcdf resolve dimension-scale references in the wrong
 
 Writes: one transaction per change (`results_write.Transaction`)
 ----------------------------------------------------------------
-Under the results-file lock: (1) the root is copied to `OUT.h5.tmp-<pid>-<file id>-<token>` beside
-it, (2) the groups are replaced in the copy, large datasets written to a new part file, (3) the new
-parts are fsync'ed, then the copy, (4) the copy is renamed over `OUT.h5` (the commit) and the folder
+Under the results-file lock: (1) a new root `OUT.h5.tmp-<pid>-<file id>-<token>` is started beside
+it with the old root's attributes, (2) the new groups are written into it, large datasets to a new
+part file, and the groups of the old root that the change does not replace are copied in (HDF5
+H5Ocopy; virtual datasets keep naming their parts, dimension scales are attached again), (3) the new
+parts are fsync'ed, then the new root, (4) it is renamed over `OUT.h5` (the commit) and the folder
 fsync'ed, (5) parts no longer referenced (those of replaced groups) are removed. A part is never
-modified after its commit. Writing results of a different configuration (other `config_sha256`, or
+modified after its commit (nor opened for writing). The new root holds only live objects: HDF5 does
+not reclaim the space of a deleted object, so editing a byte copy of the old root would carry every
+replaced group along as garbage, growing the root (and the cost of every later change) on each rerun. Writing results of a different configuration (other `config_sha256`, or
 another schema version) into an existing file raises `OutputError` unless `force=True`, in which
 case the file is started afresh (its old parts removed after the commit); so is a file that is not
 a beltdyn results file (not HDF5, unreadable, or another program's HDF5), which is refused without

@@ -397,7 +397,7 @@ class StreamWriter:
     def _finish(self, status: str, error: str) -> None:
         tx = Transaction(self._path, config_sha256=self._sha)
         try:
-            g = tx.f.get(self._name)
+            g = tx.group(self._name)
             if g is None or str(decode_attr(g.attrs.get("stream_journal", ""))) != self._journal_rel:
                 raise OutputError(f"{self._path}: the file was replaced while /{self._name} was being written; its "
                                   f"samples are in {self.journal_path}")
@@ -500,7 +500,7 @@ def recover(path: Path) -> list[str]:
 
 
 def _recover_group(tx: Transaction, path: Path, name: str, attrs: dict) -> str:
-    g = tx.f[name]
+    g = tx.group(name)
     who = f"pid {attrs.get('writer_pid', '?')} on {attrs.get('writer_host', '?')}"
     journal = path.parent / str(attrs.get("stream_journal", ""))
     got = "no stream journal, so no samples"
