@@ -25,6 +25,7 @@ import numpy as np
 
 from . import SCHEMA_VERSION, __version__
 from .errors import OutputError
+from .results_copy import copy_attrs, copy_group
 from .results_files import (
     fsync_dir,
     fsync_file,
@@ -98,53 +99,6 @@ def _old_identity(path: Path) -> tuple[str, str] | None:
         return None
 
 
-def _attr_value(aid):
-    """(value, memory type) of the open attribute `aid` as stored (vlen strings as bytes, references as
-    h5py References); value None for an empty (null dataspace) attribute. h5py's low-level API: its
-    `attrs` costs ~0.1 ms an attribute, which every transaction would pay on every copied one."""
-    h5py = h5py_module()
-    dtype = aid.dtype
-    htype = h5py.h5t.py_create(dtype)
-    if aid.shape is None:
-        return None, htype
-    shape = aid.shape
-    if dtype.subdtype is not None:  # an HDF5 array type: numpy wants its dims in the shape
-        dtype, sub = dtype.subdtype
-        shape = shape + sub
-    value = np.zeros(shape, dtype=dtype)
-    aid.read(value, mtype=htype)
-    return value, htype
-
-
-def _copy_attrs(src, dst) -> None:
-    """Every attribute of the HDF5 object `src` created on `dst` with its stored type and dataspace."""
-    h5py = h5py_module()
-    for index in range(h5py.h5a.get_num_attrs(src.id)):
-        aid = h5py.h5a.open(src.id, index=index)
-        value, htype = _attr_value(aid)
-        new = h5py.h5a.create(dst.id, aid.name, aid.get_type(), aid.get_space())
-        if value is not None:
-            new.write(value, mtype=htype)
-
-
-def _datasets(obj) -> list:
-    """`obj` if it is a dataset, else every dataset below the group `obj`."""
-    h5py = h5py_module()
-    if isinstance(obj, h5py.Dataset):
-        return [obj]
-    out: list = []
-    obj.visititems(lambda _name, o: out.append(o) if isinstance(o, h5py.Dataset) else None)
-    return out
-
-
-_SCALE_REFS = ("DIMENSION_LIST", "REFERENCE_LIST")  # the object references of dimension scales (H5DS)
-
-
-def _scale_references(obj) -> list[tuple[str, str]]:
-    """(dataset path, attribute) of the dimension-scale references held by the datasets in `obj`."""
-    return [(ds.name, key) for ds in _datasets(obj) for key in _SCALE_REFS if key in ds.attrs]
-
-
 class Transaction:
     """One atomic change of the results file at `path` (the caller holds its lock).
 
@@ -168,8 +122,6 @@ class Transaction:
         self._dropped = None if update or not path.exists() else _old_identity(path)  # force replaces it
         self.folder, self.file_id = _identity(attrs) or (parts_folder(path), new_file_id())
         self._parts: dict[str, tuple[Path, object]] = {}
-        self._copied: set[str] = set()  # top-level names copied from the old root
-        self._pending: list[tuple[str, int, str]] = []  # scale attachments whose scale is not copied yet
         self.committed = False
         self.old = None  # the old root, open read-only until the commit
         self.tmp = temp_name(path, self.file_id)
@@ -183,7 +135,7 @@ class Transaction:
                     pass
                 self.old = h5py.File(path, "r")
                 self.old_refs = references(self.old)
-                _copy_attrs(self.old, self.f)
+                copy_attrs(self.old, self.f)
             else:
                 self.old_refs = set()
             self.f.attrs["parts_folder"] = self.folder
@@ -201,7 +153,7 @@ class Transaction:
         """The top-level group `name` of the old root, copied into `f` to be changed (the copy made
         before, if any); None if the old root has none and the transaction has not created it."""
         if name not in self.f and self.old is not None and name in self.old:
-            self._copy(name)
+            copy_group(self.old, self.f, name)
         return self.f.get(name)
 
     def carry_over(self) -> None:
@@ -210,48 +162,7 @@ class Transaction:
         if self.old is not None:
             for name in self.old:
                 if name not in self.f:
-                    self._copy(name)
-
-    def _copy(self, name: str) -> None:
-        """Copy top-level `name` of the old root into `f` (HDF5 H5Ocopy: data, attributes, subgroups and
-        virtual datasets, whose part files stay named relative to the root's folder)."""
-        h5py = h5py_module()
-        key = name.encode()
-        h5py.h5o.copy(self.old.id, key, self.f.id, key)
-        self._copied.add(name)
-        self._pending += _scale_references(self.old[name])
-        self._pending = [ref for ref in self._pending if not self._relink(*ref)]
-
-    def _relink(self, path: str, key: str) -> bool:
-        """Rewrite the copy of `path`'s dimension-scale attribute `key` (DIMENSION_LIST: the scales of
-        each axis; REFERENCE_LIST: the datasets a scale labels) with references into `f`: H5Ocopy leaves
-        them pointing at addresses in the old file. Done by hand, not with `attach_scale`, which would
-        ask a virtual dataset for its extent and so open its part files for writing (changing their
-        mtime). False (the stale copy removed meanwhile) while an object it names lies in a group not
-        copied yet; a reference into a group that the transaction replaced is dropped."""
-        h5py = h5py_module()
-        name = key.encode()
-        aid = h5py.h5a.open(self.old.id, name, obj_name=path.encode())
-        value, htype = _attr_value(aid)
-        rows = [list(refs) for refs in value] if key == "DIMENSION_LIST" else [list(value["dataset"])]
-        targets = [[h5py.h5i.get_name(h5py.h5r.dereference(r, self.old.id)) for r in row] for row in rows]
-        tops = {t.split(b"/")[1].decode() for row in targets for t in row}
-        if any(top not in self._copied and top not in self.f for top in tops):
-            h5py.h5a.delete(self.f.id, name, obj_name=path.encode())
-            return False
-        new = [[h5py.h5r.create(self.f.id, t, h5py.h5r.OBJECT) if t.split(b"/")[1].decode() in self._copied else None
-                for t in row] for row in targets]
-        if key == "DIMENSION_LIST":  # one array of scale references per axis
-            for axis, row in enumerate(new):
-                value[axis] = np.array([r for r in row if r is not None], dtype=object)
-        else:  # records (dataset reference, axis)
-            value = value[np.array([r is not None for r in new[0]], dtype=bool)]
-            value["dataset"] = [r for r in new[0] if r is not None]
-        h5py.h5a.delete(self.f.id, name, obj_name=path.encode())
-        out = h5py.h5a.create(h5py.h5o.open(self.f.id, path.encode()), name, aid.get_type(),
-                              h5py.h5s.create_simple(value.shape))
-        out.write(value, mtype=htype)
-        return True
+                    copy_group(self.old, self.f, name)
 
     # -- parts ---------------------------------------------------------------------------------
 
