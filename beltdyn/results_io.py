@@ -2,7 +2,8 @@
 h5py (lazily, so that the CLI starts fast). The seams: `results_schema` (what a group holds),
 `results_write` (transactions, whole groups), `results_stream` (growing groups, recovery),
 `results_journal` (the stream journal format), `results_read` (readers), `results_files` (the lock,
-writer liveness, names, durability, target checks, leftovers).
+writer liveness, names, durability, target checks, leftovers), `results_copy` (copying groups from
+one root into another).
 
 Layout (schema version `beltdyn.SCHEMA_VERSION`)
 ------------------------------------------------
@@ -37,10 +38,9 @@ copy made beside the original (`cp OUT.h5 COPY.h5`) shares the original's parts:
 replaces a large group of either removes that part for both. Small results (geometry, static,
 modal, short transients) stay entirely in the root.
 
-Why: the root is small whatever the file holds, so every change is a copy of the root's live content
-(a few kB to a few MB) plus what the change itself writes: adding `/modal` next to a 1 GB
-`/transient` writes /modal and copies the root only (`make bench` measures it; it was a copy of the
-whole 1 GB file).
+Why: the root is small whatever the file holds, so every change is a copy of the root (a few kB to a
+few MB) plus what the change itself writes: adding `/modal` next to a 1 GB `/transient` writes
+/modal and copies the root only (`make bench` measures it; it was a copy of the whole 1 GB file).
 Rejected: modifying one HDF5 file in place (not crash safe: a kill -9 during a metadata flush can
 leave the whole file unreadable, destroying earlier results; and readers with the file open see
 a moving structure); HDF5 SWMR (a file being written, or whose writer died, cannot be opened by
@@ -50,18 +50,21 @@ per-group files (xarray/h5netcdf resolve dimension-scale references in the wrong
 Writes: one transaction per change (`results_write.Transaction`)
 ----------------------------------------------------------------
 Under the results-file lock: (1) a new root `OUT.h5.tmp-<pid>-<file id>-<token>` is started beside
-it with the old root's attributes, (2) the new groups are written into it, large datasets to a new
-part file, and the groups of the old root that the change does not replace are copied in (HDF5
-H5Ocopy; virtual datasets keep naming their parts, dimension scales are attached again), (3) the new
-parts are fsync'ed, then the new root, (4) it is renamed over `OUT.h5` (the commit) and the folder
-fsync'ed, (5) parts no longer referenced (those of replaced groups) are removed. A part is never
-modified after its commit (nor opened for writing). The new root holds only live objects: HDF5 does
-not reclaim the space of a deleted object, so editing a byte copy of the old root would carry every
-replaced group along as garbage, growing the root (and the cost of every later change) on each rerun. Writing results of a different configuration (other `config_sha256`, or
-another schema version) into an existing file raises `OutputError` unless `force=True`, in which
-case the file is started afresh (its old parts removed after the commit); so is a file that is not
-a beltdyn results file (not HDF5, unreadable, or another program's HDF5), which is refused without
-`force`. A read-only file is refused even with `force` ("permission denied"). `base_config_sha256`
+it, (2) the groups are written into it, large datasets to a new part file, (3) the new parts are
+fsync'ed, then the new root, (4) it is renamed over `OUT.h5` (the commit) and the folder fsync'ed,
+(5) parts no longer referenced (those of replaced groups) are removed. A part is never modified
+after its commit (nor opened for writing). A change that replaces groups of the file starts the new
+root empty, with the old root's attributes, and copies in the old root's other groups (HDF5 H5Ocopy;
+virtual datasets keep naming their parts, dimension scales are attached again: `results_copy`); a
+change that only adds to it (a streamed group's close, a recovery, a group of a new name) starts
+from a byte copy. Never a byte copy with groups deleted: HDF5 does not reclaim the space of a
+deleted object, so each replaced group would stay in the root as garbage, copied by every later
+write (the root grew by the size of /transient on every rerun of `beltdyn transient`).
+
+Writing results of a different configuration (other `config_sha256`, or another schema version)
+into an existing file raises `OutputError` unless `force=True`, in which case the file is started
+afresh (its old parts removed after the commit); so is a file that is not a beltdyn results file
+(not HDF5, unreadable, or another program's HDF5), which is refused without `force`. A read-only file is refused even with `force` ("permission denied"). `base_config_sha256`
 records the configuration as given when the results are of a configuration derived from it
 (`modal --rtol` records the chosen mesh as `config_sha256`).
 

@@ -176,7 +176,8 @@ class StreamWriter:
     def _start(self, prepared, user_attrs, *, config_toml: str, force: bool) -> list[str]:
         """The journal created and the group committed with status running."""
         self._journal = None
-        tx = Transaction(self._path, config_sha256=self._sha, force=force)
+        tx = Transaction(self._path, config_sha256=self._sha, force=force, replaces=[self._name],
+                         config_toml=config_toml)
         try:
             write_root(tx.f, config_toml=config_toml, config_sha256=self._sha, fresh=tx.fresh)
             self._journal_rel, journal_path = tx.new_part_path(self._name, ".stream")

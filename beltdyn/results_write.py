@@ -1,16 +1,19 @@
 """Writing results files: one atomic transaction per change, costing what the change writes.
 
-`Transaction` starts a fresh temporary root beside the root file, lets the caller write new groups
-in it (datasets above `INLINE_BYTES` go to a new part file of their group; the root gets a virtual
-dataset mapping onto it), copies in the groups of the old root that it did not replace (`carry_over`:
-only live objects; small, as the root holds no dataset above `INLINE_BYTES`), then makes the parts
-durable, renames the new root over the old one (the commit) and removes the parts no longer
-referenced. See `results_io` for the layout and for what a reader sees at every moment.
+`Transaction` writes a new root beside the root file, lets the caller write groups in it (datasets
+above `INLINE_BYTES` go to a new part file of their group; the root gets a virtual dataset mapping
+onto it), then makes the parts durable, renames the new root over the old one (the commit) and
+removes the parts no longer referenced. See `results_io` for the layout and for what a reader sees
+at every moment.
 
-Why a fresh root and not a byte copy of the old one that the transaction then edits: HDF5 never
-reclaims the space of a deleted object, so a replaced group would stay in the copy as garbage, and
-every later transaction would copy it again (the root grew by the size of /transient on every rerun
-of `beltdyn transient`). A fresh root holds what the file holds, whatever its history.
+The new root holds the old root's live content and the change, never the old root's garbage: HDF5
+never reclaims the space of a deleted object, so a group replaced in a byte copy of the old root
+would stay in it, and every later transaction would copy it again (the root grew by the size of
+/transient on every rerun of `beltdyn transient`). So a transaction that replaces groups of the old
+root (the caller declares which: `replaces`) starts a fresh root and copies in the groups it does not
+replace (`carry_over`; `group(name)` copies one in to be changed). One that only adds (new groups,
+datasets, attributes: a stream's close, a recovery) edits a byte copy, cheaper, as it frees nothing
+but the attribute values it overwrites (a few bytes; the next replacing transaction drops them).
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ import os
 import shutil
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Collection
 
 import numpy as np
 
@@ -89,6 +92,15 @@ def _identity(attrs: dict | None) -> tuple[str, str] | None:
     return str(attrs["parts_folder"]), str(attrs["file_id"])
 
 
+def _replaced(old, replaces: Collection[str], config_toml: str | None) -> bool:
+    """The open root `old` holds a top-level group in `replaces`, or a configuration text other than
+    `config_toml` (when given)."""
+    if any(name in old for name in replaces):
+        return True
+    stored = old.get(f"{PROVENANCE}/config_toml")
+    return config_toml is not None and stored is not None and stored.asstr()[()] != config_toml
+
+
 def _old_identity(path: Path) -> tuple[str, str] | None:
     """(parts folder, file id) of the beltdyn root at `path` that `force` replaces, if readable."""
     h5py = h5py_module()
@@ -102,15 +114,19 @@ def _old_identity(path: Path) -> tuple[str, str] | None:
 class Transaction:
     """One atomic change of the results file at `path` (the caller holds its lock).
 
-    `f` is the open temporary root: a fresh file holding the old root's attributes (none when there is
-    no file or `force` replaces it: another configuration, not a beltdyn file). A group the caller
-    creates in `f` replaces the old one of that name; `group(name)` copies the old one in to be
-    changed; at `commit` every other group of the old root is copied in unchanged (`carry_over`).
-    `part(group)` opens the group's new part file. `commit()` makes everything durable and visible at
-    once; `abort()` removes what was written. Either way the root at `path` is never modified in
-    place."""
+    `f` is the open temporary root. When the change replaces a top-level group of the old root (one
+    named in `replaces`) or its configuration text (`config_toml`, if given and not the one stored),
+    `f` is a fresh file holding the old root's attributes (`rebuilt`): a group the caller creates
+    replaces the old one of that name, `group(name)` copies the old one in to be changed, and at
+    `commit` every other group of the old root is copied in unchanged (`carry_over`). Otherwise `f` is
+    a byte copy of the old root, to be added to (a top-level group created in it must be new). With no
+    old root (or when `force` replaces it: another configuration, not a beltdyn file) `f` is a fresh,
+    empty file. `part(group)` opens the group's new part file. `commit()` makes everything durable and
+    visible at once; `abort()` removes what was written. Either way the root at `path` is never
+    modified in place."""
 
-    def __init__(self, path: Path, *, config_sha256: str, force: bool = False) -> None:
+    def __init__(self, path: Path, *, config_sha256: str, force: bool = False, replaces: Collection[str] = (),
+                 config_toml: str | None = None) -> None:
         h5py = h5py_module()
         self.path = path = resolve_target(path)
         attrs = inspect_target(path, config_sha256=config_sha256, force=force)
@@ -123,21 +139,28 @@ class Transaction:
         self.folder, self.file_id = _identity(attrs) or (parts_folder(path), new_file_id())
         self._parts: dict[str, tuple[Path, object]] = {}
         self.committed = False
-        self.old = None  # the old root, open read-only until the commit
+        self.old = None  # a rebuilt root's old root, open read-only until the commit
+        self.rebuilt = False
         self.tmp = temp_name(path, self.file_id)
         try:
-            # Default (earliest) file format for the widest reader compatibility.
-            self.f = h5py.File(self.tmp, "w-")
+            if update:
+                self.old = h5py.File(path, "r")
+                self.rebuilt = _replaced(self.old, replaces, config_toml)
+                self.old_refs = references(self.old)
+                if not self.rebuilt:
+                    self._close_old()
+                    shutil.copyfile(path, self.tmp)
+            else:
+                self.old_refs = set()
+            # a fresh file: the default (earliest) file format, for the widest reader compatibility
+            self.f = h5py.File(self.tmp, "r+" if update and not self.rebuilt else "w-")
             if update:
                 try:
                     shutil.copymode(path, self.tmp)
                 except OSError:
                     pass
-                self.old = h5py.File(path, "r")
-                self.old_refs = references(self.old)
+            if self.rebuilt:
                 copy_attrs(self.old, self.f)
-            else:
-                self.old_refs = set()
             self.f.attrs["parts_folder"] = self.folder
             self.f.attrs["file_id"] = self.file_id
         except BaseException as exc:
@@ -150,15 +173,15 @@ class Transaction:
     # -- the old root's groups -------------------------------------------------------------------
 
     def group(self, name: str):
-        """The top-level group `name` of the old root, copied into `f` to be changed (the copy made
-        before, if any); None if the old root has none and the transaction has not created it."""
-        if name not in self.f and self.old is not None and name in self.old:
+        """Top-level group `name` to be changed: the old root's (in a rebuilt root, copied in first unless
+        the transaction created one of that name), None if there is none."""
+        if self.old is not None and name not in self.f and name in self.old:
             copy_group(self.old, self.f, name)
         return self.f.get(name)
 
     def carry_over(self) -> None:
-        """Copy into `f` every top-level object of the old root that the transaction neither replaced
-        nor copied (run by `commit`)."""
+        """In a rebuilt root: copy in every top-level object of the old root that the transaction
+        neither replaced nor copied (run by `commit`)."""
         if self.old is not None:
             for name in self.old:
                 if name not in self.f:
@@ -365,6 +388,8 @@ def write_root(f, *, config_toml: str, config_sha256: str, fresh: bool) -> None:
     f.attrs["config_sha256"] = config_sha256
     prov = f.require_group(PROVENANCE)
     if "config_toml" in prov:
+        if prov["config_toml"].asstr()[()] == config_toml:
+            return  # (a byte copy of the root: rewriting it would leave the old text as garbage)
         del prov["config_toml"]
     ds = prov.create_dataset("config_toml", data=config_toml, dtype=h5py.string_dtype())
     ds.attrs["units"] = "1"
@@ -420,7 +445,8 @@ def write_groups(
 
     names = ", ".join(f"/{g.name}" for g in groups)
     with writing(path):
-        tx = Transaction(path, config_sha256=config_sha256, force=force)
+        tx = Transaction(path, config_sha256=config_sha256, force=force, replaces=[g.name for g in groups],
+                         config_toml=config_toml)
         try:
             write_root(tx.f, config_toml=config_toml, config_sha256=config_sha256, fresh=tx.fresh)
             if base_config_sha256 is not None:

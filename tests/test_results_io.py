@@ -678,19 +678,25 @@ def test_a_file_rewritten_20_times_reads_back_identical_to_a_fresh_one(tmp_path,
 
 
 @pytest.mark.parametrize("inline", [1 << 20, 1024], ids=["in-root", "in-parts"])
-def test_replacing_groups_20_times_keeps_the_root_the_size_of_a_fresh_one(tmp_path, monkeypatch, inline):
-    """The root after each of 20 rewrites of every group (and then of /modal alone 20 times) is the size of a
-    fresh file with the same content within 1 % (both hold the same live objects; HDF5 may place their
-    metadata in another order. Measured: equal to 8 bytes). Before, every replaced group stayed in the root
-    as garbage that each later write copied again: the first rewrite already added 24 kB (in parts, 6 % of the
-    file) and 78 kB (in the root, 42 %), and the root kept growing with every one."""
+def test_replacing_groups_20_times_keeps_the_root_no_larger_than_a_fresh_one(tmp_path, monkeypatch, inline):
+    """The root after each of 20 rewrites of every group (then of /modal alone, 20 times) is at most the size
+    of a fresh file with the same content (written once) + 1 %, and the same after every rewrite within 1 %:
+    a transaction that replaces a group copies only the live objects into a fresh root, so nothing of a
+    replaced group stays. (The fresh file is the larger: its additions were made in byte copies, which keep
+    HDF5's allocation slack, 10 % in the root and 45 % in parts here; a rebuilt root drops it. Measured:
+    every rewrite to the byte.) Before, every replaced group stayed in the root as garbage that each later
+    write copied again: the first rewrite added 24 kB (in parts) and 78 kB (in the root), and the root grew
+    with every one."""
     monkeypatch.setattr(rwrite, "INLINE_BYTES", inline)
     fresh, rewritten = tmp_path / "a" / "r.h5", tmp_path / "b" / "r.h5"
     write_drive(fresh, 7.0)
-    bound = 0.01 * fresh.stat().st_size
+    write_drive(rewritten, -1.0)
+    sizes = []
     for value in range(20):
         write_drive(rewritten, float(value))
-        assert abs(rewritten.stat().st_size - fresh.stat().st_size) <= bound, value
+        sizes.append(rewritten.stat().st_size)
     for value in range(20):
         write_group(rewritten, modal_group(float(value)), config_toml=TOML, config_sha256=SHA)
-        assert abs(rewritten.stat().st_size - fresh.stat().st_size) <= bound, value
+        sizes.append(rewritten.stat().st_size)
+    assert max(sizes) <= 1.01 * fresh.stat().st_size, (sizes, fresh.stat().st_size)
+    assert max(sizes) - min(sizes) <= 0.01 * min(sizes), sizes
