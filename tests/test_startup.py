@@ -115,6 +115,13 @@ _RUN_ALL = ("from beltdyn.config import load_config; from beltdyn.pipeline impor
             "    run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)\n")
 
 
+def _python(code: str, env: dict | None = None) -> list[str]:
+    """The lines `code` prints, run by this Python in a fresh process (which must succeed)."""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    return r.stdout.splitlines()
+
+
 def test_entry_kernels_are_the_kernels_transients_call_from_python():
     # In a fresh process with the cache warm, the compiled functions that transients of every kind of drive
     # dispatch (a cache hit each; the kernels they call run inside them and are never dispatched) are
@@ -122,15 +129,14 @@ def test_entry_kernels_are_the_kernels_transients_call_from_python():
     from beltdyn.transient import warm_up
 
     warm_up()
-    code = (_RUN_ALL.format(cases=TRANSIENTS, root=str(ROOT)) +
-            "from beltdyn import jitcache, integrator, belt_kernel, spring_kernel\n"
-            "from beltdyn.transient import entry_kernels\n"
-            "got = [k for m in (integrator, belt_kernel, spring_kernel) for k in jitcache._kernels(m) if k.signatures]\n"
-            "print(sorted(k.__name__ for k in got)); print(sorted(k.__name__ for k in entry_kernels()))\n"
-            "print(all(k.stats.cache_hits and not k.stats.cache_misses for k in got))")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
-    dispatched, entries, all_hits = r.stdout.splitlines()
+    dispatched, entries, all_hits = _python(_RUN_ALL.format(cases=TRANSIENTS, root=str(ROOT)) + textwrap.dedent("""
+        from beltdyn import jitcache, integrator, belt_kernel, spring_kernel
+        from beltdyn.transient import entry_kernels
+        got = [k for m in (integrator, belt_kernel, spring_kernel) for k in jitcache._kernels(m) if k.signatures]
+        print(sorted(k.__name__ for k in got))
+        print(sorted(k.__name__ for k in entry_kernels()))
+        print(all(k.stats.cache_hits and not k.stats.cache_misses for k in got))
+    """))
     assert dispatched == entries and all_hits == "True"
 
 
@@ -182,10 +188,8 @@ def test_a_stale_helper_kernel_does_not_make_the_cache_cold(tmp_path):
         stale(integrator.advance)
         print(jitcache.is_warm(integrator.advance))
     """)
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
-    assert r.returncode == 0, r.stderr
-    assert r.stdout.splitlines() == ["True True", "True False", "True", "False", "False"]
+    got = _python(code, env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba")))
+    assert got == ["True True", "True False", "True", "False", "False"]
 
 
 @pytest.mark.parametrize("example, loaded", [
