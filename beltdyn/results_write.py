@@ -12,8 +12,9 @@ would stay in it, and every later transaction would copy it again (the root grew
 /transient on every rerun of `beltdyn transient`). So a transaction that replaces groups of the old
 root (the caller declares which: `replaces`) starts a fresh root and copies in the groups it does not
 replace (`carry_over`; `group(name)` copies one in to be changed). One that only adds (new groups,
-datasets, attributes: a stream's close, a recovery) edits a byte copy, cheaper, as it frees nothing
-but the attribute values it overwrites (a few bytes; the next replacing transaction drops them).
+datasets, attributes: a stream's close, a recovery) edits a byte copy, cheaper: it deletes no group,
+so what it leaves unreclaimed is only HDF5's slack of its own writes (overwritten attribute values,
+grown object headers: a fraction of what it adds), and the next replacing transaction drops that.
 """
 
 from __future__ import annotations
@@ -143,17 +144,17 @@ class Transaction:
         self.rebuilt = False
         self.tmp = temp_name(path, self.file_id)
         try:
+            self.old_refs: set[str] = set()
             if update:
                 self.old = h5py.File(path, "r")
                 self.rebuilt = _replaced(self.old, replaces, config_toml)
                 self.old_refs = references(self.old)
-                if not self.rebuilt:
-                    self._close_old()
-                    shutil.copyfile(path, self.tmp)
-            else:
-                self.old_refs = set()
-            # a fresh file: the default (earliest) file format, for the widest reader compatibility
-            self.f = h5py.File(self.tmp, "r+" if update and not self.rebuilt else "w-")
+            if update and not self.rebuilt:
+                self._close_old()
+                shutil.copyfile(path, self.tmp)
+                self.f = h5py.File(self.tmp, "r+")
+            else:  # the default (earliest) file format, for the widest reader compatibility
+                self.f = h5py.File(self.tmp, "w-")
             if update:
                 try:
                     shutil.copymode(path, self.tmp)
