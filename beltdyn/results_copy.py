@@ -123,7 +123,8 @@ def copy_group(old, new, name: str) -> None:
     for scale, obj in scales:  # REFERENCE_LIST: read (from the copy: the old addresses) and written as stored
         aid = h5py.h5a.open(obj, _LABELS)
         ftype = aid.get_type()
-        raw = raw or _raw_labels_dtype(ftype)  # (the same type for every scale)
+        if raw is None:  # (the same type for every scale)
+            raw = _raw_labels_dtype(ftype)
         records = np.zeros(aid.shape, dtype=raw)
         aid.read(records, mtype=ftype)
         del aid
@@ -139,7 +140,8 @@ def copy_group(old, new, name: str) -> None:
     for dataset, obj in labelled:  # DIMENSION_LIST: rebuilt from the scales' records (one per axis in the schema)
         aid = h5py.h5a.open(obj, _SCALES)
         ftype, rank = aid.get_type(), aid.shape[0]
-        mtype = mtype or h5py.h5t.py_create(aid.dtype)  # (the same type for every dataset)
+        if mtype is None:  # (the same type for every dataset)
+            mtype = h5py.h5t.py_create(aid.dtype)
         del aid
         value = np.empty(rank, dtype=object)
         for axis in range(rank):
