@@ -48,6 +48,7 @@ compiled functions do not check shapes; outputs are written (not accumulated) un
 from __future__ import annotations
 
 import sys
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,6 +65,8 @@ from .system import joint_selection  # noqa: F401  (set-up helper, pure numpy, l
 __all__ = [
     "CURVATURE_CODE",
     "KernelTables",
+    "Scratch",
+    "scratch",
     "tables_from_elements",
     "element_forces",
     "element_forces_tangent",
@@ -121,11 +124,24 @@ def tables_from_elements(el: ancf.ElementSet) -> KernelTables:
                         curvature=int(CURVATURE_CODE[el.curvature]))
 
 
+# The functions allocate nothing: a cached numba library whose code allocates (np.empty) makes numba
+# import its array modules when it is loaded (~30 ms of a short command's start); the callers hand
+# in this scratch. E, fe (n_elem, 8), Ke (n_elem, 8, 8): element states, forces, matrices; cf (5, n_gauss),
+# ce (6, n_gauss), h (n_gauss, 8): per-element Gauss-point coefficients; W (8, m): T^T Ke T's product.
+Scratch = namedtuple("Scratch", ["E", "fe", "Ke", "cf", "ce", "h", "W"])
+
+
+def scratch(n_elem: int, n_gauss: int, m: int = 8) -> Scratch:
+    """The kernels' `Scratch` for n_elem elements of n_gauss Gauss points and m reduced coordinates each."""
+    return Scratch(E=np.empty((n_elem, 8)), fe=np.empty((n_elem, 8)), Ke=np.empty((n_elem, 8, 8)),
+                   cf=np.empty((5, n_gauss)), ce=np.empty((6, n_gauss)), h=np.empty((n_gauss, 8)), W=np.empty((8, m)))
+
+
 # ------------------------------------------------------------------------------------ element sets
 # Implementation note (measured with numba 0.68): helpers that take arrays and contain loops or
 # branches kept reference-count operations inside the element loop (inlined or not), 2-6x slower
 # than flat code; so the loops are written out flat and only the branch- and loop-free `_slope`
-# is shared.  Scratch arrays are allocated once per call, never per element.
+# is shared.  Scratch arrays come from the caller (`Scratch`), never allocated here.
 @njit(cache=True, inline="always")
 def _slope(E, r, tab, k, g):
     """sum_a tab[k, g, a] e_a for e = E[r]: r' (tab = dS) or r'' (tab = d2S) at Gauss point g."""
@@ -170,9 +186,9 @@ def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f):
 
 
 @njit(cache=True)
-def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K):
+def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K, work):
     """f (n, 8) = dU/de and K (n, 8, 8) = df/de (exactly symmetric) at E (n, 8), as
-    `ancf.internal_forces_and_tangent`.
+    `ancf.internal_forces_and_tangent` (work: `Scratch`, its cf, ce, h).
 
     Per element, a first pass over the Gauss points stores their coefficients; then every entry is
     one sum over the Gauss points.  The axial part has Kronecker structure: the (i, j) component
@@ -180,9 +196,9 @@ def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K):
     """
     n, nq, _ = dS.shape
     exact = curvature == _EXACT
-    cf = np.empty((5, nq))  # s r'_x, s r'_y, cG r'_x r'_x + s, cG r'_x r'_y, cG r'_y r'_y + s
-    ce = np.empty((6, nq))  # "exact": u_c, a = wEI/A^3, u_c r''_y, u_c r'_y, u_c r'_x, u_c r''_x
-    h = np.empty((nq, 8))  # "exact": h = gc - 6 c/A G
+    cf = work.cf  # s r'_x, s r'_y, cG r'_x r'_x + s, cG r'_x r'_y, cG r'_y r'_y + s
+    ce = work.ce  # "exact": u_c, a = wEI/A^3, u_c r''_y, u_c r'_y, u_c r'_x, u_c r''_x
+    h = work.h  # "exact": h = gc - 6 c/A G
     for k in range(n):
         for g in range(nq):
             rx, ry = _slope(E, k, dS, k, g)
@@ -324,17 +340,17 @@ def element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd):
 
 
 @njit(cache=True)
-def element_damping_matrix(E, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C):
+def element_damping_matrix(E, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C, work):
     """C (n, 8, 8) = d fd / d Ed at E (n, 8): eta_a sum_q wEA G G^T + eta_b B (module docstring),
     exactly symmetric, positive semi-definite for eta_a, eta_b >= 0 (same scheme as
-    `element_forces_tangent`)."""
+    `element_forces_tangent`; work: `Scratch`, its cf and h)."""
     n, nq, _ = dS.shape
     if eta_a == 0.0 and eta_b == 0.0:
         C[:, :, :] = 0.0
         return
     bend = eta_b != 0.0 and curvature == _EXACT
-    cf = np.empty((4, nq))  # eta_a wEA r'_x r'_x, .. r'_x r'_y, .. r'_y r'_y; eta_b wEI/A^3
-    gc = np.empty((nq, 8))
+    cf = work.cf  # eta_a wEA r'_x r'_x, .. r'_x r'_y, .. r'_y r'_y; eta_b wEI/A^3 (rows 0-3)
+    gc = work.h
     for k in range(n):
         for g in range(nq):
             rx, ry = _slope(E, k, dS, k, g)
@@ -479,11 +495,10 @@ def scatter_vector(fe, T, idx, tsel, out):
 
 
 @njit(cache=True)
-def reduce_blocks(Ke, T, tsel, out):
-    """out (n, m, m) = T^T Ke T per element for symmetric Ke (n, 8, 8), exactly symmetric.
-    Identity path: Ke in the leading 8 x 8 block, zeros elsewhere."""
+def reduce_blocks(Ke, T, tsel, out, W):
+    """out (n, m, m) = T^T Ke T per element for symmetric Ke (n, 8, 8), exactly symmetric (W (8, m):
+    scratch). Identity path: Ke in the leading 8 x 8 block, zeros elsewhere."""
     n, _, m = T.shape
-    W = np.empty((8, m))
     for k in range(n):
         if tsel[k] < 0:
             for p in range(8):
@@ -514,12 +529,11 @@ def reduce_blocks(Ke, T, tsel, out):
 
 
 @njit(cache=True)
-def reduced_force(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out):
+def reduced_force(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out, work):
     """f_out (n_dof + 1,) = sum_e T^T f_e(e0 + T q_ext[idx]), the reduced elastic force
-    (overwritten; f_out[n_dof] is padding).  Allocates its (n, 8) scratch once per call."""
-    n = T.shape[0]
-    E = np.empty((n, 8))
-    fe = np.empty((n, 8))
+    (overwritten; f_out[n_dof] is padding); work: `Scratch`, its E and fe."""
+    E = work.E
+    fe = work.fe
     gather(q_ext, e0, T, idx, tsel, E)
     element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe)
     f_out[:] = 0.0
@@ -528,19 +542,18 @@ def reduced_force(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_o
 
 @njit(cache=True)
 def reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out,
-                                     blocks_out):
+                                     blocks_out, work):
     """The reduced elastic force f_out (n_dof + 1,) (overwritten, as `reduced_force`) and the
-    tangent blocks blocks_out (n, m, m) = T^T K_e T of the Newton solvers, in one call.
-    Allocates its (n, 8) and (n, 8, 8) scratch once per call."""
-    n = T.shape[0]
-    E = np.empty((n, 8))
-    fe = np.empty((n, 8))
-    Ke = np.empty((n, 8, 8))
+    tangent blocks blocks_out (n, m, m) = T^T K_e T of the Newton solvers, in one call (work:
+    `Scratch`)."""
+    E = work.E
+    fe = work.fe
+    Ke = work.Ke
     gather(q_ext, e0, T, idx, tsel, E)
-    element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, fe, Ke)
+    element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, fe, Ke, work)
     f_out[:] = 0.0
     scatter_vector(fe, T, idx, tsel, f_out)
-    reduce_blocks(Ke, T, tsel, blocks_out)
+    reduce_blocks(Ke, T, tsel, blocks_out, work.W)
 
 
 jitcache.lean_loads(sys.modules[__name__])  # cache hits skip numba's full context refresh

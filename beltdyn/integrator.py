@@ -124,6 +124,20 @@ Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction", "bristl
 ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry friction (bristle stiffness T_f / this);
 # 1e-4 rad gave the same hysteresis (0.1 %) and cost 20 % more Newton work on the FEAD example
 
+# The stepper's scratch, allocated once per run by `workspace` and cleared at every call of `advance`:
+# the compiled kernels allocate nothing, so that the cached library names no numba array module (a
+# cache hit imports the modules its functions' environments name: np.empty, np.zeros, np.interp and
+# np.finfo would bring numba's array modules, ~30 ms of a short command's start). Rows of:
+# ext (5, n + 1): q_ext, v_ext, f_el, f_dmp, gross (the padded vectors of `belt_kernel`);
+# vec (17, n): F1, q1, v1, a1, dq, Ma, Ma0, Cv, Cv0, Kd, fi, fl, tmp, tmp2, f_tr, tr_Bq, tr_Aq;
+# proj (13, nq): R, dx, work and, with arms, the terms projected on q (`run_steps`);
+# elem (4, n_elem, 8): E, Ed, fe, fd; elem1 (2, n_elem): U, min_elem; group (3, n_groups): res_g,
+# scale_g, floor_g; worst (n_groups,) int64; sig (n_signals,); react (max(n_con, 1),) R1; span
+# (max(n_span, 1),) min_span.
+Work = namedtuple("Work", ["ext", "vec", "proj", "elem", "elem1", "group", "worst", "sig", "react", "span"])
+EPS = float(np.finfo(np.float64).eps)  # a constant to the compiled code (np.finfo there is numba's array module)
+
+
 
 def no_arms(n: int) -> Arms:
     return Arms(dof=np.zeros(0, dtype=np.int64), slot=np.zeros(0, dtype=np.int64), length=np.zeros(0),
@@ -151,6 +165,15 @@ def no_factor() -> Factor:
     which solves nothing: one compiled signature for both tasks)."""
     return Factor(kind=0, ab=np.zeros((2, 2), order="F"), piv=np.zeros(1, dtype=np.int64),
                   perm=np.zeros(2, dtype=np.int64), kl=0, ku=1)
+
+
+def workspace(n: int, belt, forcing, cons, n_groups: int, arms) -> Work:
+    """The stepper's scratch (`Work`) for n joint coordinates."""
+    n_elem = belt.T.shape[0]
+    return Work(ext=np.zeros((5, n + 1)), vec=np.zeros((17, n)), proj=np.zeros((13, int(arms.n_q))),
+                elem=np.zeros((4, n_elem, 8)), elem1=np.zeros((2, n_elem)), group=np.zeros((3, n_groups)),
+                worst=np.zeros(n_groups, dtype=np.int64), sig=np.zeros(forcing.sig_params.shape[0]),
+                react=np.zeros(max(cons.dof.shape[0], 1)), span=np.zeros(max(belt.n_span, 1)))
 
 
 def empty_csr(n: int) -> Csr:
@@ -196,13 +219,40 @@ def csr_matvec(A, x, out):
 
 
 @njit(cache=True)
+def table_value(xp, fp, a, b, x):
+    """np.interp(x, xp[a:b], fp[a:b]) for one x, xp increasing (as numpy computes it: the end values
+    outside, fp at a sample time, else the slope times the distance from the sample below; np.interp
+    itself would make the cached stepper load numba's array modules, see `Work`)."""
+    if b - a == 1 or x < xp[a]:
+        return fp[a]
+    if x >= xp[b - 1]:
+        return fp[b - 1]
+    lo, hi = a, b - 1  # xp[lo] <= x < xp[hi]
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if xp[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    if xp[lo] == x:
+        return fp[lo]
+    slope = (fp[lo + 1] - fp[lo]) / (xp[lo + 1] - xp[lo])
+    val = slope * (x - xp[lo]) + fp[lo]
+    if val != val:  # NaN one way: the other (numpy's rule)
+        val = slope * (x - xp[lo + 1]) + fp[lo + 1]
+        if val != val and fp[lo] == fp[lo + 1]:
+            val = fp[lo]
+    return val
+
+
+@njit(cache=True)
 def signal_values(F, t, out):
     """out[i] = ramp_i(t) * (c + A sin(2 pi f t + phi)) or table interpolation; params (n, 5) = c, A, f, phi, T_ramp."""
     params = F.sig_params
     for i in range(params.shape[0]):
         a, b = F.tab_ptr[i], F.tab_ptr[i + 1]
         if b > a:
-            val = np.interp(t, F.tab_t[a:b], F.tab_v[a:b])
+            val = table_value(F.tab_t, F.tab_v, a, b, t)
         else:
             val = params[i, 0] + params[i, 1] * np.sin(2.0 * np.pi * params[i, 2] * t + params[i, 3])
         tr = params[i, 4]
@@ -583,19 +633,36 @@ def slide_anchors(arms, q):
 
 
 @njit(cache=True)
-def advance(task, state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr):
+def advance(task, state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr, work):
     """The stepper's one entry point from Python: task START runs `start_forces` (returns DONE), STEP
     `run_steps` (returns its code). One compiled function holds every kernel a transient calls from
     Python, so a run loads one library from numba's cache instead of one per kernel (each load parses
-    its own copy of the callees' code: ~45 ms of a short command's start)."""
+    its own copy of the callees' code: ~45 ms of a short command's start). work: the scratch
+    (`workspace`), cleared here."""
+    clear(work)
     if task == START:
-        start_forces(state, belt, lin, F, cons, arms, tr)
+        start_forces(state, belt, lin, F, cons, arms, tr, work)
         return DONE
-    return run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr)
+    return run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr, work)
 
 
 @njit(cache=True)
-def start_forces(state, belt, lin, F, cons, arms, tr):
+def clear(work):
+    """Zero the scratch (`Work`): each call starts from zeros, as from freshly allocated arrays."""
+    work.ext[:, :] = 0.0
+    work.vec[:, :] = 0.0
+    work.proj[:, :] = 0.0
+    work.elem[:, :, :] = 0.0
+    work.elem1[:, :] = 0.0
+    work.group[:, :] = 0.0
+    work.worst[:] = 0
+    work.sig[:] = 0.0
+    work.react[:] = 0.0
+    work.span[:] = 0.0
+
+
+@njit(cache=True)
+def start_forces(state, belt, lin, F, cons, arms, tr, work):
     """The initial state's forces at t = 0 (`transient.initial_state` solves for the acceleration):
     sets the prescribed DOFs' q, v, a and the arms' dependent entries (their angle accelerations 0 so
     far: a holds the centripetal part), relaxes the arms' friction bristles (anchors at the angles),
@@ -613,38 +680,27 @@ def start_forces(state, belt, lin, F, cons, arms, tr):
         v[d] = gd
         a[d] = gdd
     complete(arms, q, v, a)
-    q_ext = np.zeros(n + 1)
-    v_ext = np.zeros(n + 1)
+    q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
+    E, Ed, fe, fd = work.elem[0], work.elem[1], work.elem[2], work.elem[3]
+    dq, Kd, f_tr, tmp, tmp2 = work.vec[0], work.vec[1], work.vec[2], work.vec[3], work.vec[4]
     for i in range(n):
         q_ext[i] = q[i]
         v_ext[i] = v[i]
-    E = np.empty((n_elem, 8))
-    Ed = np.empty((n_elem, 8))
-    fe = np.empty((n_elem, 8))
-    fd = np.empty((n_elem, 8))
-    f_el = np.zeros(n + 1)
-    f_dmp = np.zeros(n + 1)
-    gross = np.zeros(n + 1)
     belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, False)
     for k in range(arms.dof.shape[0]):
         arms.anchor[k] = q[arms.dof[k]]
     arm_friction(arms, q, f_dmp)
-    dq = np.empty(n)
-    Kd = np.empty(n)
     for i in range(n):
         dq[i] = q[i] - lin.q_ref[i]
     csr_matvec(lin.K, dq, Kd)
-    external_forces(F, cons, 0.0, state.F0, np.empty(F.sig_params.shape[0]))
+    external_forces(F, cons, 0.0, state.F0, work.sig)
     c0, cd0 = transport_speed(tr, F, 0.0)
-    f_tr = np.zeros(n)
-    tmp = np.empty(n)
-    tmp2 = np.empty(n)
     qbq, vaq = transport_forces(tr, c0, cd0, q, v, f_tr, tmp, tmp2)
     for i in range(n):
         state.f0[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
         state.fd0[i] = f_dmp[i]
     kin = kinetic_energy(lin, v, tmp)
-    pot = potential_energy(belt, lin, q, q_ext, E, np.empty(n_elem), tmp, tmp2) - 0.5 * c0 * c0 * qbq
+    pot = potential_energy(belt, lin, q, q_ext, E, work.elem1[0], tmp, tmp2) - 0.5 * c0 * c0 * qbq
     th[E0] = kin + pot
     th[KIN0] = kin
     th[POT0] = pot
@@ -652,7 +708,7 @@ def start_forces(state, belt, lin, F, cons, arms, tr):
 
 
 @njit(cache=True)
-def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr):
+def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr, work):
     """Advance the state until t_stop, a full buffer, a refactorization request or the step budget.
 
     Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
@@ -669,46 +725,20 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
     n_con = cons.dof.shape[0]
     B = out.t.shape[0]
     G = chk.n_groups
-    q_ext = np.zeros(n + 1)
-    v_ext = np.zeros(n + 1)
-    E = np.empty((n_elem, 8))
-    Ed = np.empty((n_elem, 8))
-    fe = np.empty((n_elem, 8))
-    fd = np.empty((n_elem, 8))
-    U = np.empty(n_elem)
-    min_elem = np.empty(n_elem)
-    f_el = np.zeros(n + 1)
-    f_dmp = np.zeros(n + 1)
-    gross = np.zeros(n + 1)
-    F1 = np.zeros(n)
-    q1 = np.empty(n)
-    v1 = np.empty(n)
-    a1 = np.empty(n)
-    dq = np.empty(n)
-    Ma = np.empty(n)
-    Ma0 = np.empty(n)
-    Cv = np.empty(n)
-    Cv0 = np.empty(n)
-    Kd = np.empty(n)
-    fi = np.empty(n)
-    fl = np.empty(n)
-    tmp = np.empty(n)
-    tmp2 = np.empty(n)
+    q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
+    E, Ed, fe, fd = work.elem[0], work.elem[1], work.elem[2], work.elem[3]
+    U, min_elem = work.elem1[0], work.elem1[1]
+    wv = work.vec
+    F1, q1, v1, a1, dq, Ma, Ma0, Cv, Cv0 = wv[0], wv[1], wv[2], wv[3], wv[4], wv[5], wv[6], wv[7], wv[8]
+    Kd, fi, fl, tmp, tmp2, f_tr, tr_Bq, tr_Aq = wv[9], wv[10], wv[11], wv[12], wv[13], wv[14], wv[15], wv[16]
     # the same terms projected on q (J^T at their own state): new (1) and old (0)
     # (without arms q = p, J = I: the terms themselves, no copies)
     with_arms = arms.dof.shape[0] > 0
-    R = np.empty(nq)
+    wp = work.proj
+    R, dx, work_q = wp[0], wp[1], wp[2]
     if with_arms:
-        Ma_q = np.empty(nq)
-        Cv_q = np.empty(nq)
-        fi_q = np.empty(nq)
-        F1_q = np.empty(nq)
-        Fc_q = np.empty(nq)
-        fl_q = np.empty(nq)
-        Ma0_q = np.empty(nq)
-        Cv0_q = np.empty(nq)
-        f0_q = np.empty(nq)
-        F0_q = np.empty(nq)
+        Ma_q, Cv_q, fi_q, F1_q, Fc_q = wp[3], wp[4], wp[5], wp[6], wp[7]
+        fl_q, Ma0_q, Cv0_q, f0_q, F0_q = wp[8], wp[9], wp[10], wp[11], wp[12]
     else:
         Ma_q = Ma
         Cv_q = Cv
@@ -720,18 +750,11 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
         Cv0_q = Cv0
         f0_q = state.f0
         F0_q = state.F0
-    dx = np.empty(nq)
-    work = np.empty(nq)
-    sig_val = np.empty(F.sig_params.shape[0])
-    res_g = np.empty(G)
-    scale_g = np.empty(G)
-    floor_g = np.empty(G)
-    worst_g = np.zeros(G, dtype=np.int64)
-    R1 = np.zeros(max(n_con, 1))
-    min_span = np.empty(max(belt.n_span, 1))
-    f_tr = np.zeros(n)
-    tr_Bq = np.empty(n)
-    tr_Aq = np.empty(n)
+    sig_val = work.sig
+    res_g, scale_g, floor_g = work.group[0], work.group[1], work.group[2]
+    worst_g = work.worst
+    R1 = work.react
+    min_span = work.span
     moving = tr.follow != 0 or tr.speed != 0.0
     qbq = 0.0
     p_tr = 0.0
@@ -742,7 +765,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
         project(arms, q, Cv0, Cv0_q)
         project(arms, q, state.f0, f0_q)
         project(arms, q, state.F0, F0_q)
-    eps = np.finfo(np.float64).eps
+    eps = EPS
     steps = 0
     if fresh:  # a new factor: its age starts
         th[STALE] = 0.0
@@ -849,7 +872,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
                 break
             if it >= chk.max_iter:
                 break
-            factor_solve(fac, R, dx, work)
+            factor_solve(fac, R, dx, work_q)
             for k in range(n_con):
                 dx[cons.dof[k]] = 0.0
             norm = 0.0

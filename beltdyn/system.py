@@ -292,6 +292,12 @@ class BeltSpans:
             object.__setattr__(self, "_tables", tab)
         return tab
 
+    def kernel_scratch(self):
+        """New scratch arrays for the compiled kernel's functions on these elements (`belt_kernel.Scratch`)."""
+        from .belt_kernel import scratch
+
+        return scratch(self.T.shape[0], self.elements.dS.shape[1], self.T.shape[2])
+
     def sampling_table(self, n_pts: int) -> np.ndarray:
         """(n_elem, n_pts, 4) shape functions s1..s4 at xi = 0, 1/n_pts, ... (cached)."""
         key = f"_samp{n_pts}"
@@ -340,7 +346,7 @@ class BeltSpans:
         tab = self.kernel_tables
         out = np.zeros(self.n_dof + 1)
         bk.reduced_force(np.append(q, 0.0), self.e0, self.T, self.idx, self.tsel, tab.dS, tab.d2S, tab.wEA, tab.wEI,
-                         tab.Kb, tab.curvature, out)
+                         tab.Kb, tab.curvature, out, self.kernel_scratch())
         return out[: self.n_dof]
 
     def force_and_blocks(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -354,7 +360,7 @@ class BeltSpans:
         out = np.zeros(self.n_dof + 1)
         blocks = np.empty((self.T.shape[0], self.T.shape[2], self.T.shape[2]))
         bk.reduced_force_and_tangent_blocks(np.append(q, 0.0), self.e0, self.T, self.idx, self.tsel, tab.dS, tab.d2S,
-                                            tab.wEA, tab.wEI, tab.Kb, tab.curvature, out, blocks)
+                                            tab.wEA, tab.wEI, tab.Kb, tab.curvature, out, blocks, self.kernel_scratch())
         return out[: self.n_dof], blocks
 
     def mean_tension_and_gradient(self, q: np.ndarray) -> tuple[float, np.ndarray]:

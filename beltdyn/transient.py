@@ -475,7 +475,8 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
     if b.eta_a or b.eta_b:
         E = system.belt.element_coordinates(p)
         Ce = np.empty((E.shape[0], 8, 8))
-        bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce)
+        bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce,
+                                  system.belt.kernel_scratch())
         terms.append((c_c, system.belt_damping_matrix(q, Ce)))
     if setup.C is not None:
         terms.append((c_c, setup.C))
@@ -633,7 +634,8 @@ class IterationPlan:
         if b.eta_a or b.eta_b:
             E = system.belt.element_coordinates(p)
             Ce = np.empty((E.shape[0], 8, 8))
-            bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce)
+            bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce,
+                                      system.belt.kernel_scratch())
             data += c_c * system.belt_damping_matrix(q, Ce).data
         arms, a = self.arms, system.arms
         if a is not None:  # J^T S J: the arm offsets' rows and columns scaled by dc/dphi, folded onto the angle
@@ -806,9 +808,11 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     opts = itg.StepOptions(am=am, af=af, beta=beta, gamma=gamma, t_stop=float(duration), dt_out=float(output_interval),
                            max_steps=2000, refresh=0.0)
 
+    work = itg.workspace(n, problem.belt, problem.forcing, problem.constraints, chk.n_groups, arms)
+
     def advance(task, st, fac, fresh):  # the compiled stepper (`integrator.advance`), opts as they are now
         return itg.advance(task, st, problem.belt, problem.linear, problem.forcing, problem.constraints, chk, opts,
-                           fac, fresh, out, ev, info, arms, tr)
+                           fac, fresh, out, ev, info, arms, tr, work)
 
     state = initial_state(problem, step, lambda st: advance(itg.START, st, itg.no_factor(), False))
     th = state.scal

@@ -353,6 +353,22 @@ def test_torque_table_content_is_part_of_the_configuration(tmp_path):
     assert out["pulley_speed"][-1, 0] != 0.0 and np.all(np.isfinite(out["pulley_speed"]))
 
 
+@pytest.mark.parametrize("n_points", [1, 2, 7])
+def test_table_value_is_numpys_interp(n_points):
+    # The stepper's table interpolation (integrator.table_value, compiled) against np.interp, exactly
+    # (tolerance 0: the same formula): before, at, between and after the sample times of a table
+    # stored after another one in the shared arrays (the offsets a:b).
+    from beltdyn.integrator import table_value
+
+    rng = np.random.default_rng(n_points)
+    xp = np.cumsum(rng.uniform(0.1, 1.0, n_points))
+    fp = rng.standard_normal(n_points)
+    tab_t, tab_v = np.r_[-5.0, -4.0, xp], np.r_[9.0, 8.0, fp]  # another table first: this one is [2:]
+    x = np.r_[xp[0] - 1.0, xp, rng.uniform(xp[0], xp[-1], 50), xp[-1] + 1.0]
+    got = np.array([table_value(tab_t, tab_v, 2, 2 + n_points, float(t)) for t in x])
+    np.testing.assert_array_equal(got, np.interp(x, xp, fp))
+
+
 def test_spectrum_window_after_the_end_is_a_config_error():
     from beltdyn.errors import ConfigError
 
