@@ -14,7 +14,9 @@ flexible multibody method"):
 * ``D = dS[k, q]`` (4,) ds/dx and ``D2 = d2S[k, q]`` (4,) d2s/dx2 at Gauss point q of element k,
   so r' = sum_a D_a e_a and r'' = sum_a D2_a e_a with e_a = (e[2a], e[2a+1]).
 * ``wEA[k, q]`` = Gauss weight * L * EA, ``wEI[k, q]`` = Gauss weight * L * EI (integration weights
-  in x), ``Kb[k]`` the constant bending matrix EI int S''^T S'' dx of Eq. 17 (zeros unless "linear").
+  in x), ``Kb[k]`` the constant bending matrix EI int S''^T S'' dx of Eq. 17 (zeros unless "linear"),
+  kb (x) I2 like every matrix of the planar element: the force and energy loops read only its entries
+  (2a + c, 2b + c) (`tables_from_elements` checks the others are zeros).
 * Eq. 12    eps = (A - 1)/2 with A = r'.r' (Green-Lagrange axial strain).
 * Eq. 13-14 U_l = sum_q wEA eps^2 / 2,  f_l = sum_q wEA eps G_q,  G_q = S'^T r' = D (x) r' (8,),
             K_l = sum_q wEA [G_q G_q^T + eps P_q],  P_q = (D D^T) (x) I2.
@@ -119,6 +121,8 @@ def _plain(a: np.ndarray) -> np.ndarray:
 
 def tables_from_elements(el: ancf.ElementSet) -> KernelTables:
     """The `KernelTables` of ``el`` (same Gauss rule and curvature model)."""
+    if np.any(el.K_bend[:, 0::2, 1::2]) or np.any(el.K_bend[:, 1::2, 0::2]):
+        raise ValueError("the bending matrix couples x and y components: not kb (x) I2")
     return KernelTables(dS=_plain(el.dS), d2S=_plain(el.d2S), wEA=_plain(el.wL * el.EA[:, None]),
                         wEI=_plain(el.wL * el.EI[:, None]), EA=_plain(el.EA), Kb=_plain(el.K_bend),
                         curvature=int(CURVATURE_CODE[el.curvature]))
@@ -180,7 +184,7 @@ def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f):
         if curvature == _LINEAR:
             for i in range(8):
                 acc = 0.0
-                for j in range(8):
+                for j in range(i % 2, 8, 2):  # Kb = kb (x) I2: the other parity is zeros
                     acc += Kb[k, i, j] * E[k, j]
                 f[k, i] += acc
 
@@ -334,7 +338,7 @@ def element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd):
         for k in range(n):
             for i in range(8):
                 acc = 0.0
-                for j in range(8):
+                for j in range(i % 2, 8, 2):  # Kb = kb (x) I2
                     acc += Kb[k, i, j] * Ed[k, j]
                 fd[k, i] += eta_b * acc
 
@@ -423,7 +427,7 @@ def element_strain_energy(E, dS, d2S, wEA, wEI, Kb, curvature, U):
             ub = 0.0
             for i in range(8):
                 acc = 0.0
-                for j in range(8):
+                for j in range(i % 2, 8, 2):  # Kb = kb (x) I2
                     acc += Kb[k, i, j] * E[k, j]
                 ub += E[k, i] * acc
             u += 0.5 * ub
