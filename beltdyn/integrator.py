@@ -390,20 +390,22 @@ def band_cholesky_solve(ab, perm, b, x, work):
         work[i] = b[perm[i]]
     for j in range(n):  # U^T y = b: y_j = (b_j - sum_{i<j} U_ij y_i) / U_jj
         lo = max(0, j - u)
-        off = u - j
+        m = j - lo
+        col = ab[u - m:u, j]  # U[lo:j, j], and y[lo:j]: views from 0 (indices provably >= 0)
+        ys = work[lo:j]
         s0 = 0.0
         s1 = 0.0
         s2 = 0.0
         s3 = 0.0
-        i = lo
-        while i + 3 < j:
-            s0 += ab[off + i, j] * work[i]
-            s1 += ab[off + i + 1, j] * work[i + 1]
-            s2 += ab[off + i + 2, j] * work[i + 2]
-            s3 += ab[off + i + 3, j] * work[i + 3]
+        i = 0
+        while i + 3 < m:
+            s0 += col[i] * ys[i]
+            s1 += col[i + 1] * ys[i + 1]
+            s2 += col[i + 2] * ys[i + 2]
+            s3 += col[i + 3] * ys[i + 3]
             i += 4
-        while i < j:
-            s0 += ab[off + i, j] * work[i]
+        while i < m:
+            s0 += col[i] * ys[i]
             i += 1
         work[j] = (work[j] - ((s0 + s1) + (s2 + s3))) / ab[u, j]
     band_upper_solve(ab, u, work)  # U x = y
@@ -420,9 +422,11 @@ def band_upper_solve(ab, u, work):
         xj = work[j] / ab[u, j]
         work[j] = xj
         lo = max(0, j - u)
-        off = u - j
-        for i in range(lo, j):
-            work[i] -= ab[off + i, j] * xj
+        m = j - lo
+        col = ab[u - m:u, j]  # U[lo:j, j], x[lo:j]: views from 0 (the update vectorizes)
+        xs = work[lo:j]
+        for i in range(m):
+            xs[i] -= col[i] * xj
 
 
 @njit(cache=True)
