@@ -4,7 +4,7 @@ reduced-coordinate gather/scatter of the drive model.
 `ancf` is the reference implementation (vectorized numpy); this module computes the same quantities
 with plain loops, one element at a time, without allocating in the element loop, so that Newton
 solvers and the compiled time stepper (`integrator`) can call it.  Every function is
-``@njit(cache=True)`` except the set-up helpers `tables_from_elements` and `joint_selection`.
+``@njit(**KERNEL)`` except the set-up helpers `tables_from_elements` and `joint_selection`.
 
 Nomenclature (as `ancf`, paper "Modelling and dynamic analysis of belt drive system by hybrid
 flexible multibody method"):
@@ -56,7 +56,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import jitcache
-from .jitcache import configure
+from .jitcache import KERNEL, configure
 
 configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
 from numba import njit  # noqa: E402
@@ -146,7 +146,7 @@ def scratch(n_elem: int, n_gauss: int, m: int = 8) -> Scratch:
 # branches kept reference-count operations inside the element loop (inlined or not), 2-6x slower
 # than flat code; so the loops are written out flat and only the branch- and loop-free `_slope`
 # is shared.  Scratch arrays come from the caller (`Scratch`), never allocated here.
-@njit(cache=True, inline="always")
+@njit(inline="always", **KERNEL)
 def _slope(E, r, tab, k, g):
     """sum_a tab[k, g, a] e_a for e = E[r]: r' (tab = dS) or r'' (tab = d2S) at Gauss point g."""
     x = tab[k, g, 0] * E[r, 0] + tab[k, g, 1] * E[r, 2] + tab[k, g, 2] * E[r, 4] + tab[k, g, 3] * E[r, 6]
@@ -154,7 +154,7 @@ def _slope(E, r, tab, k, g):
     return x, y
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f):
     """f (n, 8) = dU/de at E (n, 8), as `ancf.internal_forces` (Eq. 14 + Eq. 17 or Eq. 16)."""
     n, nq, _ = dS.shape
@@ -189,7 +189,7 @@ def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f):
                 f[k, i] += acc
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K, work):
     """f (n, 8) = dU/de and K (n, 8, 8) = df/de (exactly symmetric) at E (n, 8), as
     `ancf.internal_forces_and_tangent` (work: `Scratch`, its cf, ce, h).
@@ -303,7 +303,7 @@ def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K, work):
                     K[k, 2 * b, 2 * a + 1] -= qq
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd):
     """fd (n, 8) Kelvin-Voigt belt damping force at E, Ed (n, 8) (module docstring); zeros when
     eta_a == eta_b == 0."""
@@ -343,7 +343,7 @@ def element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd):
                 fd[k, i] += eta_b * acc
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def element_damping_matrix(E, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C, work):
     """C (n, 8, 8) = d fd / d Ed at E (n, 8): eta_a sum_q wEA G G^T + eta_b B (module docstring),
     exactly symmetric, positive semi-definite for eta_a, eta_b >= 0 (same scheme as
@@ -408,7 +408,7 @@ def element_damping_matrix(E, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C,
                         C[k, j, i] += v
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def element_strain_energy(E, dS, d2S, wEA, wEI, Kb, curvature, U):
     """U (n,) element strain energy at E (n, 8), as `ancf.strain_energy` (Eq. 13 + Eq. 16/17)."""
     n, nq, _ = dS.shape
@@ -434,7 +434,7 @@ def element_strain_energy(E, dS, d2S, wEA, wEI, Kb, curvature, U):
         U[k] = u
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def element_min_axial_force(E, dS, EA, out):
     """out (n,) smallest second Piola-Kirchhoff axial force EA eps over each element's Gauss points
     at E (n, 8) (slack detection: < 0 means compression somewhere in the element)."""
@@ -450,7 +450,7 @@ def element_min_axial_force(E, dS, EA, out):
 
 
 # ------------------------------------------------------------------------------------ reduced coordinates
-@njit(cache=True)
+@njit(**KERNEL)
 def gather(q_ext, e0, T, idx, tsel, E):
     """E (n, 8) = e0 + T q_ext[idx] per element (q_ext (n_dof + 1,), q_ext[n_dof] = 0)."""
     n, _, m = T.shape
@@ -466,7 +466,7 @@ def gather(q_ext, e0, T, idx, tsel, E):
                 E[k, i] = e0[k, i] + acc
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def gather_velocity(v_ext, T, idx, tsel, Ed):
     """Ed (n, 8) = T v_ext[idx] per element (element velocities: `gather` without the offset)."""
     n, _, m = T.shape
@@ -482,7 +482,7 @@ def gather_velocity(v_ext, T, idx, tsel, Ed):
                 Ed[k, i] = acc
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def scatter_vector(fe, T, idx, tsel, out):
     """out (n_dof + 1,) += T^T fe per element, fe (n, 8) (accumulates; out[n_dof] is padding)."""
     n, _, m = T.shape
@@ -498,7 +498,7 @@ def scatter_vector(fe, T, idx, tsel, out):
                 out[idx[k, j]] += acc
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def reduce_blocks(Ke, T, tsel, out, W):
     """out (n, m, m) = T^T Ke T per element for symmetric Ke (n, 8, 8), exactly symmetric (W (8, m):
     scratch). Identity path: Ke in the leading 8 x 8 block, zeros elsewhere."""
@@ -532,7 +532,7 @@ def reduce_blocks(Ke, T, tsel, out, W):
                 out[k, j, p] = acc
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def reduced_force(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out, work):
     """f_out (n_dof + 1,) = sum_e T^T f_e(e0 + T q_ext[idx]), the reduced elastic force
     (overwritten; f_out[n_dof] is padding); work: `Scratch`, its E and fe."""
@@ -544,7 +544,7 @@ def reduced_force(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_o
     scatter_vector(fe, T, idx, tsel, f_out)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out,
                                      blocks_out, work):
     """The reduced elastic force f_out (n_dof + 1,) (overwritten, as `reduced_force`) and the

@@ -76,7 +76,7 @@ from collections import namedtuple
 import numpy as np
 
 from . import jitcache
-from .jitcache import configure
+from .jitcache import KERNEL, configure
 
 configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
 from numba import njit  # noqa: E402
@@ -254,7 +254,7 @@ def fused(*mats) -> Fused:
     return Fused(np.cumsum(indptr), (union % n_col).astype(np.int64), data)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def csr_matvec(A, x, out):
     n = A.indptr.shape[0] - 1
     for i in range(n):
@@ -264,7 +264,7 @@ def csr_matvec(A, x, out):
         out[i] = s
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def table_value(xp, fp, a, b, x):
     """np.interp(x, xp[a:b], fp[a:b]) for one x, xp increasing (as numpy computes it: the end values
     outside, fp at a sample time, else the slope times the distance from the sample below; np.interp
@@ -291,7 +291,7 @@ def table_value(xp, fp, a, b, x):
     return val
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def split_matvec(S, x, out):
     """out = A x for A a `Split`: per row the left entries, the band, the right entries, in ascending
     column order (the floating-point result of `csr_matvec` on A's CSR)."""
@@ -316,7 +316,7 @@ def split_matvec(S, x, out):
         out[R.row[e]] += R.val[e] * x[R.col[e]]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def signal_values(F, t, out):
     """out[i] = ramp_i(t) * (c + A sin(2 pi f t + phi)) or table interpolation; params (n, 5) = c, A, f, phi, T_ramp."""
     params = F.sig_params
@@ -332,7 +332,7 @@ def signal_values(F, t, out):
         out[i] = val
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def smoothstep(t, tr):
     """C1 fade-in 3x^2 - 2x^3 over [0, tr] and its first two derivatives."""
     if tr <= 0.0 or t >= tr:
@@ -343,7 +343,7 @@ def smoothstep(t, tr):
     return x * x * (3.0 - 2.0 * x), 6.0 * x * (1.0 - x) / tr, (6.0 - 12.0 * x) / (tr * tr)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def rotation_state(rot, t):
     """Prescribed rotation: (nominal angle, speed, acceleration), (fluctuation angle, speed, acceleration).
 
@@ -379,7 +379,7 @@ def rotation_state(rot, t):
     return th, thd, thdd, s * g, sd * g + s * gd, sdd * g + 2.0 * sd * gd + s * gdd
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def band_cholesky_solve(ab, perm, b, x, work):
     """Solve S x = b with S[perm][:, perm] = U^T U, U in upper band storage ab (u+1, n), column-major:
     U^T y = b by columns of U (dot products, 4 partial sums: no chain of dependent additions), U x = y
@@ -413,7 +413,7 @@ def band_cholesky_solve(ab, perm, b, x, work):
         x[perm[i]] = work[i]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def band_upper_solve(ab, u, work):
     """U x = y in place (work (n,)), U upper with u superdiagonals, U[i, j] = ab[u + i - j, j]
     (column-major): x_j, then its column leaves the rows above (column updates)."""
@@ -429,7 +429,7 @@ def band_upper_solve(ab, u, work):
             xs[i] -= col[i] * xj
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def band_lu_nopivot(ab, u):
     """LU factor without row exchanges, in place, of the band matrix A (n, n) held in ab (2u + 1, n)
     column-major, A[i, j] = ab[u + i - j, j] for |i - j| <= u: L unit lower (its multipliers below the
@@ -455,7 +455,7 @@ def band_lu_nopivot(ab, u):
     return n
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def band_lu_nopivot_solve(ab, perm, b, x, work):
     """Solve S x = b with the `band_lu_nopivot` factor of S[perm][:, perm] in ab (2u + 1, n)."""
     u = (ab.shape[0] - 1) // 2
@@ -472,7 +472,7 @@ def band_lu_nopivot_solve(ab, perm, b, x, work):
         x[perm[i]] = work[i]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def band_lu_solve(ab, piv, perm, kl, ku, b, x, work):
     """Solve S x = b with the LAPACK dgbtrf factor of S[perm][:, perm] (band storage ab
     (2 kl + ku + 1, n), 0-based pivots piv): the dgbtrs algorithm for no transpose."""
@@ -501,7 +501,7 @@ def band_lu_solve(ab, piv, perm, kl, ku, b, x, work):
         x[perm[i]] = work[i]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def factor_solve(fac, b, x, work):
     if fac.kind == 0:
         band_cholesky_solve(fac.ab, fac.perm, b, x, work)
@@ -511,7 +511,7 @@ def factor_solve(fac, b, x, work):
         band_lu_solve(fac.ab, fac.piv, fac.perm, fac.kl, fac.ku, b, x, work)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross):
     """Reduced belt elastic (f_el) and damping (f_dmp) forces (n + 1,) at (q, v); with_gross: also
     gross (n + 1,), the sum of |T^T f_e| over elements (the round-off scale)."""
@@ -541,7 +541,7 @@ def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gros
     sk.spring_forces(belt.springs, q_ext, v_ext, f_el, f_dmp, gross, with_gross)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def external_forces(F, cons, t, out, sig_val):
     """F(t) (n,): constant part + loads + inertia of the nominal belt travel."""
     n = out.shape[0]
@@ -557,7 +557,7 @@ def external_forces(F, cons, t, out, sig_val):
             out[F.load_dof[j]] += F.load_coef[j] * sig_val[F.load_sig[j]]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def transport_speed(tr, F, t):
     """(c, c') the belt speed (m/s) and its rate at time t."""
     if tr.follow:
@@ -566,7 +566,7 @@ def transport_speed(tr, F, t):
     return tr.speed, 0.0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def transport_forces(tr, c, cd, q, v, out, Bq, Aq):
     """out (n,) = c G v - c^2 (B q + b0) + c' (A q + a0); Bq, Aq (n,) receive B q + b0 and A q + a0.
     Returns (q.B q + 2 b0.q, v.(A q + a0)) for the energy and the transport power."""
@@ -585,7 +585,7 @@ def transport_forces(tr, c, cd, q, v, out, Bq, Aq):
     return qbq, vaq
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def fused_matvec(F, a, q, v, Ma, Aq, Bq, Gv):
     """Ma = M a, Aq = A q, Bq = B q, Gv = G v in one pass over the union pattern F (data rows M, A, G, B)."""
     n = F.indptr.shape[0] - 1
@@ -607,7 +607,7 @@ def fused_matvec(F, a, q, v, Ma, Aq, Bq, Gv):
         Bq[i] = sb
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def transport_from(tr, c, cd, q, v, out, Bq, Aq):
     """As `transport_forces` with the products B q, A q and G v (in out) already made (`fused_matvec`)."""
     n = q.shape[0]
@@ -622,7 +622,7 @@ def transport_from(tr, c, cd, q, v, out, Bq, Aq):
     return qbq, vaq
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def potential_energy(belt, lin, q, q_ext, E, U, dq, Kdq):
     """Belt strain energy (elements and spring spans) + 1/2 (q - q_ref)^T K_lin (q - q_ref)."""
     bk.gather(q_ext, belt.e0, belt.T, belt.idx, belt.tsel, E)
@@ -639,7 +639,7 @@ def potential_energy(belt, lin, q, q_ext, E, U, dq, Kdq):
     return total
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def kinetic_energy(lin, v, Mv):
     split_matvec(lin.M, v, Mv)
     s = 0.0
@@ -648,7 +648,7 @@ def kinetic_energy(lin, v, Mv):
     return s
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def complete(arms, q, v, a):
     """The arm pulleys' centre offsets (p entries after n_q) from the arm angles, exactly."""
     for k in range(arms.dof.shape[0]):
@@ -664,7 +664,7 @@ def complete(arms, q, v, a):
         a[s + 1] = L * c * a[d] - L * sn * w * w
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def project(arms, q, x, out, absolute=False):
     """out (n_q,) = J(q)^T x for x (n_p,) on the joint coordinates (|J|^T x with absolute: round-off
     scales)."""
@@ -679,7 +679,7 @@ def project(arms, q, x, out, absolute=False):
         out[d] += a * x[s] + b * x[s + 1]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def arm_friction(arms, q, f):
     """Add the arms' dry friction torques clip(k_b (phi - z), -T_f, T_f) to f (on the angles); returns
     the bristles' stored energy sum tau^2 / (2 k_b)."""
@@ -693,7 +693,7 @@ def arm_friction(arms, q, f):
     return stored
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def slide_anchors(arms, q):
     """Return mapping after an accepted step: an anchor whose bristle torque exceeds T_f slides along."""
     for k in range(arms.dof.shape[0]):
@@ -707,7 +707,7 @@ def slide_anchors(arms, q):
                 arms.anchor[k] = q[d] + lim
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def advance(task, state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr, work):
     """The stepper's one entry point from Python: task START runs `start_forces` (returns DONE), STEP
     `run_steps` (returns its code). One compiled function holds every kernel a transient calls from
@@ -721,7 +721,7 @@ def advance(task, state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, inf
     return run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr, work)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def clear(work):
     """Zero the scratch (`Work`): each call starts from zeros, as from freshly allocated arrays."""
     work.ext[:, :] = 0.0
@@ -736,7 +736,7 @@ def clear(work):
     work.span[:] = 0.0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def start_forces(state, belt, lin, F, cons, arms, tr, work):
     """The initial state's forces at t = 0 (`transient.initial_state` solves for the acceleration):
     sets the prescribed DOFs' q, v, a and the arms' dependent entries (their angle accelerations 0 so
@@ -782,7 +782,7 @@ def start_forces(state, belt, lin, F, cons, arms, tr, work):
     th[TR_P0] = -cd0 * (c0 * qbq + vaq)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr, work):
     """Advance the state until t_stop, a full buffer, a refactorization request or the step budget.
 

