@@ -142,8 +142,8 @@ ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry frict
 # proj (13, nq): R, dx, work and, with arms, the terms projected on q (`run_steps`);
 # elem (4, n_elem, 8): E, Ed, fe, fd; elem1 (2, n_elem): U, min_elem; group (3, n_groups): res_g,
 # scale_g, floor_g; worst (n_groups,) int64; sig (n_signals,); react (max(n_con, 1),) R1; span
-# (max(n_span, 1),) min_span.
-Work = namedtuple("Work", ["ext", "vec", "proj", "elem", "elem1", "group", "worst", "sig", "react", "span"])
+# (max(n_span, 1),) min_span; held (nq,) int64: 1 on the prescribed DOFs (set by `run_steps`).
+Work = namedtuple("Work", ["ext", "vec", "proj", "elem", "elem1", "group", "worst", "sig", "react", "span", "held"])
 EPS = float(np.finfo(np.float64).eps)  # a constant to the compiled code (np.finfo there is numba's array module)
 
 
@@ -182,7 +182,8 @@ def workspace(n: int, belt, forcing, cons, n_groups: int, arms) -> Work:
     return Work(ext=np.zeros((5, n + 1)), vec=np.zeros((17, n)), proj=np.zeros((13, int(arms.n_q))),
                 elem=np.zeros((4, n_elem, 8)), elem1=np.zeros((2, n_elem)), group=np.zeros((3, n_groups)),
                 worst=np.zeros(n_groups, dtype=np.int64), sig=np.zeros(forcing.sig_params.shape[0]),
-                react=np.zeros(max(cons.dof.shape[0], 1)), span=np.zeros(max(belt.n_span, 1)))
+                react=np.zeros(max(cons.dof.shape[0], 1)), span=np.zeros(max(belt.n_span, 1)),
+                held=np.zeros(int(arms.n_q), dtype=np.int64))
 
 
 def empty_csr(n: int) -> Csr:
@@ -734,6 +735,7 @@ def clear(work):
     work.sig[:] = 0.0
     work.react[:] = 0.0
     work.span[:] = 0.0
+    work.held[:] = 0
 
 
 @njit(**KERNEL)
@@ -830,6 +832,9 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
     worst_g = work.worst
     R1 = work.react
     min_span = work.span
+    held = work.held
+    for k in range(n_con):
+        held[cons.dof[k]] = 1
     moving = tr.follow != 0 or tr.speed != 0.0
     qbq = 0.0
     p_tr = 0.0
@@ -882,11 +887,10 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             for i in range(n):
                 q_ext[i] = q1[i]
                 v_ext[i] = v1[i]
+                dq[i] = q1[i] - lin.q_ref[i]
             # the round-off scale at the step's first evaluation: a floor, not a force
             belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, it == 0)
             bristle1 = arm_friction(arms, q1, f_dmp)
-            for i in range(n):
-                dq[i] = q1[i] - lin.q_ref[i]
             split_matvec(lin.K, dq, Kd)
             split_matvec(lin.C, v1, Cv)
             if moving:  # M a, A q, G v, B q in one pass
@@ -910,25 +914,24 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
                 scale_g[g] = 0.0
                 floor_g[g] = 0.0
             finite = True
-            for i in range(nq):
-                R[i] = ((1.0 - am) * Ma_q[i] + am * Ma0_q[i]
-                        + (1.0 - af) * (Cv_q[i] + fi_q[i] - F1_q[i]) + af * (Cv0_q[i] + f0_q[i] - F0_q[i]))
+            res = 0.0
+            for i in range(nq):  # residual, scales and floors (every row), checked (the free rows)
+                Ri = ((1.0 - am) * Ma_q[i] + am * Ma0_q[i]
+                      + (1.0 - af) * (Cv_q[i] + fi_q[i] - F1_q[i]) + af * (Cv0_q[i] + f0_q[i] - F0_q[i]))
                 g = chk.group[i]
                 sc = abs(Ma_q[i]) + abs(Cv_q[i]) + abs(fi_q[i] - Fc_q[i]) + abs(F1_q[i] - Fc_q[i])
                 if sc > scale_g[g]:
                     scale_g[g] = sc
                 if fl_q[i] > floor_g[g]:
                     floor_g[g] = fl_q[i]
-            for k in range(n_con):
-                R[cons.dof[k]] = 0.0
-            res = 0.0
-            for i in range(nq):
-                r = abs(R[i])
+                if held[i]:  # a prescribed row: no residual
+                    Ri = 0.0
+                R[i] = Ri
+                r = abs(Ri)
                 if not np.isfinite(r):
                     finite = False
                     worst = i
                     break
-                g = chk.group[i]
                 if r > res_g[g]:
                     res_g[g] = r
                     worst_g[g] = i
