@@ -736,11 +736,11 @@ def _warm_kernels(con) -> None:
     left a half-written cache entry). Cached kernels are loaded as the run first calls them."""
     import signal
 
-    from . import belt_kernel, integrator, jitcache
+    from . import jitcache
+    from .transient import entry_kernels, warm_up
 
-    if jitcache.is_warm(belt_kernel, integrator):
+    if jitcache.is_warm(*entry_kernels()):
         return  # in numba's cache: loaded as the run first calls them (~0.2 s)
-    from .transient import warm_up
 
     got: list = []
     olds = {}

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -59,7 +59,10 @@ class Layout:
     @property
     def span_direction(self) -> np.ndarray:
         """(n, 2) unit vectors of travel along each span."""
-        return np.column_stack([np.cos(self.span_angle), np.sin(self.span_angle)])
+        out = np.empty((len(self.span_angle), 2))
+        out[:, 0] = np.cos(self.span_angle)
+        out[:, 1] = np.sin(self.span_angle)
+        return out
 
     @property
     def signed_wrap(self) -> np.ndarray:
@@ -96,6 +99,15 @@ def _pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
     return i_, j_
 
 
+@functools.lru_cache(maxsize=16)
+def _neighbours(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """(next, previous) pulley of each of n pulleys around the loop (read-only, cached)."""
+    nxt, prv = np.roll(np.arange(n), -1), np.roll(np.arange(n), 1)
+    nxt.setflags(write=False)
+    prv.setflags(write=False)
+    return nxt, prv
+
+
 def compute_layout(
     center: np.ndarray,
     radius: np.ndarray,
@@ -104,28 +116,26 @@ def compute_layout(
     *,
     orientation: int | None = None,
     check: bool = True,
+    adjust_offset: float = 0.0,
+    adjust_index: int | None = None,
+    adjust_kind: str = "slide",
 ) -> Layout:
-    """Tangent points, spans, wraps and belt length for pulleys in belt order.
+    """Tangent points, spans, wraps and belt length for pulleys in belt order (the adjust_* fields
+    are carried into the Layout as given).
 
-    Raises GeometryError (with the key path) for overlapping pulleys, a missing tangent, a span that
-    cuts through another pulley, a pulley the belt does not touch, or a path that winds wrongly.
+    check: raise GeometryError (with the key path) for overlapping pulleys, a missing tangent, a span
+    that cuts through another pulley, a pulley the belt does not touch, or a path that winds wrongly
+    (`check_layout`); False for an iterate whose answer is checked later.
     """
     center = np.asarray(center, dtype=float)
     radius = np.asarray(radius, dtype=float)
     side_sign = np.asarray(side_sign, dtype=float)
     n = len(radius)
     o = loop_orientation(center) if orientation is None else orientation
-    if check:  # every pair (i < j) of pulleys apart
-        i_, j_ = _pairs(n)
-        gaps = np.hypot(*(center[i_] - center[j_]).T) - radius[i_] - radius[j_]
-        if np.any(gaps < 0):
-            k = int(np.argmax(gaps < 0))  # the first pair in (i, j) order
-            i, j = int(i_[k]), int(j_[k])
-            raise GeometryError(f"pulleys '{names[i]}' and '{names[j]}' overlap by {-gaps[k]:.6g} m",
-                                f"pulleys[{j}].center")
+    if check:
+        _check_apart(center, radius, names)
+    nxt, prv = _neighbours(n)
     rho = o * side_sign * radius
-    nxt = np.arange(1, n + 1) % n
-    prv = np.arange(-1, n - 1) % n
     d = center[nxt] - center
     dist = np.hypot(d[:, 0], d[:, 1])
     drho = rho - rho[nxt]
@@ -135,47 +145,92 @@ def compute_layout(
         raise GeometryError(
             f"no tangent line from pulley '{names[i]}' to '{names[(i + 1) % n]}' "
             f"(pulleys too close for these radii and sides)", f"pulleys[{(i + 1) % n}].center")
-    beta = np.arctan2(d[:, 1], d[:, 0])
-    alpha = beta + np.arcsin(np.clip(q, -1.0, 1.0))
-    m = np.column_stack([np.sin(alpha), -np.cos(alpha)])
-    start = center + rho[:, None] * m
-    end = center[nxt] + rho[nxt][:, None] * m
-    length = np.sqrt(np.maximum(dist**2 - drho**2, 0.0))
-    turn_sign = o * side_sign
-    alpha_in = alpha[prv]
-    wrap = np.mod(turn_sign * (alpha - alpha_in), TWO_PI)
-    if check:
-        bad = (wrap < 1e-9) | (wrap > TWO_PI - 1e-9)
-        if bad.any():
-            j = int(np.argmax(bad))
-            raise GeometryError(
-                f"the belt does not wrap pulley '{names[j]}' (wrap angle {math.degrees(wrap[j]):.3g} deg);"
-                f" check its side and position", f"pulleys[{j}].side")
-        total = float(np.sum(turn_sign * wrap))
-        if abs(total - o * TWO_PI) > 1e-6:
-            raise GeometryError(
-                f"the belt path winds {total / TWO_PI:.3g} times instead of once: "
-                "check the pulley order and sides", "pulleys")
-        if n > 2:  # distance of every other pulley's centre (k) from every span's segment (i), (n, n)
-            ab = end - start
-            rel = center[None, :, :] - start[:, None, :]
-            s_ = np.clip(np.einsum("ikd,id->ik", rel, ab) / np.maximum(np.einsum("id,id->i", ab, ab), 1e-300)[:, None],
-                         0.0, 1.0)
-            foot = start[:, None, :] + s_[..., None] * ab[:, None, :]
-            gap = np.hypot(foot[..., 0] - center[None, :, 0], foot[..., 1] - center[None, :, 1]) - radius[None, :]
-            gap[np.arange(n), np.arange(n)] = np.inf  # a span touches its own two pulleys
-            gap[np.arange(n), nxt] = np.inf
-            if np.any(gap < -1e-12):
-                i, k = (int(x) for x in np.argwhere(gap < -1e-12)[0])
-                raise GeometryError(
-                    f"span {names[i]}-{names[(i + 1) % n]} cuts through pulley '{names[k]}'",
-                    f"pulleys[{k}].center")
-    return Layout(
+    alpha = np.arctan2(d[:, 1], d[:, 0]) + np.arcsin(np.minimum(np.maximum(q, -1.0), 1.0))
+    m = np.empty((n, 2))
+    m[:, 0] = np.sin(alpha)
+    m[:, 1] = -np.cos(alpha)
+    side_m = rho[:, None] * m
+    length = np.sqrt(np.maximum(dist * dist - drho * drho, 0.0))
+    wrap = np.mod((o * side_sign) * (alpha - alpha[prv]), TWO_PI)
+    arc = radius * wrap
+    lay = Layout(
         names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
-        span_start=start, span_end=end, span_length=length, span_angle=alpha,
-        start_normal=np.sign(rho)[:, None] * m, end_normal=np.sign(rho[nxt])[:, None] * m,
-        wrap_angle=wrap, arc_length=radius * wrap, belt_length=float(length.sum() + (radius * wrap).sum()),
+        span_start=center + side_m, span_end=center[nxt] + rho[nxt][:, None] * m, span_length=length,
+        span_angle=alpha, start_normal=np.sign(rho)[:, None] * m, end_normal=np.sign(rho[nxt])[:, None] * m,
+        wrap_angle=wrap, arc_length=arc, belt_length=float(length.sum() + arc.sum()),
+        adjust_offset=adjust_offset, adjust_index=adjust_index, adjust_kind=adjust_kind,
     )
+    if check:
+        _check_path(lay)
+    return lay
+
+
+def _check_apart(center: np.ndarray, radius: np.ndarray, names: tuple[str, ...]) -> None:
+    """Every pair (i < j) of pulleys apart (GeometryError naming the first overlapping pair)."""
+    i_, j_ = _pairs(len(radius))
+    gaps = np.hypot(*(center[i_] - center[j_]).T) - radius[i_] - radius[j_]
+    if np.any(gaps < 0):
+        k = int(np.argmax(gaps < 0))  # the first pair in (i, j) order
+        i, j = int(i_[k]), int(j_[k])
+        raise GeometryError(f"pulleys '{names[i]}' and '{names[j]}' overlap by {-gaps[k]:.6g} m",
+                            f"pulleys[{j}].center")
+
+
+def check_layout(lay: Layout) -> None:
+    """The checks of `compute_layout` on a layout computed without them: pulleys apart, a tangent for
+    every span, every pulley wrapped, the path winding once, no span through another pulley."""
+    center, radius, names, n = lay.center, lay.radius, lay.names, lay.n
+    _check_apart(center, radius, names)
+    nxt, _ = _neighbours(n)
+    rho = lay.orientation * lay.side_sign * radius
+    d = center[nxt] - center
+    q = (rho - rho[nxt]) / np.hypot(d[:, 0], d[:, 1])
+    if np.any(np.abs(q) >= 1.0):
+        i = int(np.argmax(np.abs(q)))
+        raise GeometryError(
+            f"no tangent line from pulley '{names[i]}' to '{names[(i + 1) % n]}' "
+            f"(pulleys too close for these radii and sides)", f"pulleys[{(i + 1) % n}].center")
+    _check_path(lay)
+
+
+def _check_path(lay: Layout) -> None:
+    """Every pulley wrapped, the path winding once, no span through another pulley."""
+    center, radius, names, n, o = lay.center, lay.radius, lay.names, lay.n, lay.orientation
+    nxt, _ = _neighbours(n)
+    wrap = lay.wrap_angle
+    bad = (wrap < 1e-9) | (wrap > TWO_PI - 1e-9)
+    if bad.any():
+        j = int(np.argmax(bad))
+        raise GeometryError(
+            f"the belt does not wrap pulley '{names[j]}' (wrap angle {math.degrees(wrap[j]):.3g} deg);"
+            f" check its side and position", f"pulleys[{j}].side")
+    total = float(np.sum(o * lay.side_sign * wrap))
+    if abs(total - o * TWO_PI) > 1e-6:
+        raise GeometryError(
+            f"the belt path winds {total / TWO_PI:.3g} times instead of once: "
+            "check the pulley order and sides", "pulleys")
+    if n > 2:  # distance of every other pulley's centre (k) from every span's segment (i), (n, n)
+        start, ab = lay.span_start, lay.span_end - lay.span_start
+        rx = center[None, :, 0] - start[:, 0, None]
+        ry = center[None, :, 1] - start[:, 1, None]
+        ax, ay = ab[:, 0, None], ab[:, 1, None]
+        t = np.minimum(np.maximum((rx * ax + ry * ay) / np.maximum(ax * ax + ay * ay, 1e-300), 0.0), 1.0)
+        cut = (np.hypot(rx - t * ax, ry - t * ay) - radius < -1e-12) & _not_own(n)  # a span touches its own two
+        if cut.any():
+            i, k = (int(x) for x in np.argwhere(cut)[0])
+            raise GeometryError(
+                f"span {names[i]}-{names[(i + 1) % n]} cuts through pulley '{names[k]}'",
+                f"pulleys[{k}].center")
+
+
+@functools.lru_cache(maxsize=16)
+def _not_own(n: int) -> np.ndarray:
+    """(n, n) bool: pulley k is not one of span i's two pulleys (i, i + 1) (read-only, cached)."""
+    out = np.ones((n, n), dtype=bool)
+    out[np.arange(n), np.arange(n)] = False
+    out[np.arange(n), (np.arange(n) + 1) % n] = False
+    out.setflags(write=False)
+    return out
 
 
 def belt_length_gradient(layout: Layout, j: int) -> np.ndarray:
@@ -277,7 +332,8 @@ def fit_adjustable(
 
     try:  # the iterates unchecked (a third of the cost), the answer checked; on any doubt the checked way
         s, lay = newton(False)
-        lay = lay if lay is base else layout_at(s, True)
+        if lay is not base:
+            check_layout(lay)
     except GeometryError:
         s, lay = newton(True)
     if slide_range is not None and not (slide_range[0] <= s <= slide_range[1]):
@@ -292,8 +348,7 @@ def fit_adjustable(
             f"the stops exclude the fitted arm angle: L0 = {target_length:.6g} m needs the arm of pulley "
             f"'{name}' at {phi0 + s:.6g} rad, its stops are [{phi0 + slide_range[0]:g}, {phi0 + slide_range[1]:g}] "
             f"rad (move the stops or change L0)", f"pulleys[{index}].arm_range")
-    return Layout(**{**lay.__dict__, "adjust_offset": s, "adjust_index": index,
-                     "adjust_kind": "slide" if arm is None else "arm"})
+    return replace(lay, adjust_offset=s, adjust_index=index, adjust_kind="slide" if arm is None else "arm")
 
 
 def relay(layout: Layout, center: np.ndarray, *, adjust_offset: float | None = None, check: bool = True) -> Layout:
@@ -301,10 +356,9 @@ def relay(layout: Layout, center: np.ndarray, *, adjust_offset: float | None = N
     wraps and belt length recomputed, the loop's orientation kept. adjust_offset: the adjustable
     pulley's travel from its given centre at `center` (default: unchanged). check: as `compute_layout`
     (False: an iterate whose answer is checked later)."""
-    lay = compute_layout(center, layout.radius, layout.side_sign, layout.names, orientation=layout.orientation,
-                         check=check)
-    return Layout(**{**lay.__dict__, "adjust_index": layout.adjust_index, "adjust_kind": layout.adjust_kind,
-                     "adjust_offset": layout.adjust_offset if adjust_offset is None else float(adjust_offset)})
+    return compute_layout(center, layout.radius, layout.side_sign, layout.names, orientation=layout.orientation,
+                          check=check, adjust_index=layout.adjust_index, adjust_kind=layout.adjust_kind,
+                          adjust_offset=layout.adjust_offset if adjust_offset is None else float(adjust_offset))
 
 
 def layout_from_config(cfg: DriveConfig) -> Layout:

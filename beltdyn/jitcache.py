@@ -9,8 +9,10 @@ user's NUMBA_CACHE_DIR is left as it is. Call it before ``import numba`` (`belt_
 `integrator` do); numba reads the variable when it is first imported, so a numba imported earlier
 gets its ``config.CACHE_DIR`` set too.
 
-`is_warm` tells whether every kernel of a module is in the cache for this source, so the CLI can say
-"compiling ..., once" only when it compiles.
+`is_warm` tells whether the kernels a run calls from Python (its entry points, `transient.entry_kernels`)
+are in the cache for this source, so the CLI can say "compiling ..., once" only when it compiles. Only
+those: a kernel called inside another is compiled into its caller's library, so a cache hit of the
+caller never loads (nor compiles) it, and its own cache entry, stale or missing, does not matter.
 
 `lean_loads` makes loading a kernel from the cache initialize only what cached machine code needs.
 Before its first load numba refreshes its whole target context, importing and registering every
@@ -89,12 +91,12 @@ def _kernels(module):
             yield obj
 
 
-def is_warm(*modules) -> bool | None:
-    """True if every cached numba function of `modules` has an entry in the cache for its current
+def is_warm(*kernels) -> bool | None:
+    """True if each of the cached numba functions `kernels` has an entry in the cache for its current
     source (numba's index file, stamped with the source's hash), False if one has none, None if this
     cannot be told (numba's internals differ)."""
     try:
-        return all(k._cache._cache_file._load_index() for m in modules for k in _kernels(m))
+        return all(k._cache._cache_file._load_index() for k in kernels)
     except Exception:  # noqa: BLE001 - private numba API: unknown is not an error
         return None
 

@@ -100,13 +100,14 @@ def ordinal(n: int) -> str:
     return f"{n}{suffix}"
 
 
-def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "auto") -> ModalResult:
+def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "auto", tangent=None) -> ModalResult:
     """The lowest `n_modes` elastic modes about the equilibrium q (tangent of the loaded residual:
     with tensioner arms the loads' geometric term and the mass J^T M J at q); at a belt speed the
-    gyroscopic modes (module docstring)."""
+    gyroscopic modes (module docstring). tangent: that tangent, if the static solve evaluated it at q
+    (`SolvedDrive.tangent`), else it is evaluated here."""
     if model.belt_speed:
         return _solve_running(model, q, n_modes=n_modes, solver=solver)
-    _, K = model.equilibrium(q)
+    K = model.equilibrium(q)[1] if tangent is None else tangent
     M = model.mass_matrix(q)
     n = model.n_dof
     use_dense = model.dense if solver == "auto" else solver == "dense"
@@ -457,9 +458,18 @@ def half_waves(w: np.ndarray, threshold: float = 0.05) -> int:
             else:
                 low = min(low, x)
         return humps
-    big = np.abs(w) > threshold * np.abs(w).max()
-    s = np.sign(w[big])
-    return int(np.count_nonzero(s[1:] != s[:-1])) + 1
+    return int(half_waves_real(w[None], threshold)[0])
+
+
+def half_waves_real(W: np.ndarray, threshold: float = 0.05) -> np.ndarray:
+    """`half_waves` of each row of real samples W (m, P), vectorized: (m,) sign changes between the
+    significant samples (|w| above threshold x the row's largest) + 1. The sign of the last significant
+    sample is carried over the insignificant ones, so a change is counted once, where it shows."""
+    A = np.abs(W)
+    big = A > threshold * A.max(axis=1, keepdims=True)
+    last = np.maximum.accumulate(np.where(big, np.arange(W.shape[1]), 0), axis=1)  # last significant index
+    s = np.take_along_axis(np.where(big, np.sign(W), 0.0), last, axis=1)  # 0 before the first significant one
+    return np.count_nonzero((s[:, 1:] != s[:, :-1]) & (s[:, :-1] != 0.0), axis=1) + 1
 
 
 def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray | None = None, *, motion=None):
@@ -468,20 +478,29 @@ def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray 
     arm coupled with the transverse motion of an adjacent span)."""
     shares, span_long, span_trans, b = energy_shares(model, shapes, q, motion=motion)
     n_modes = shapes.shape[0]
-    wsamp = np.matmul(model.belt.sampling_table(8)[None], b[..., None])[..., 0]  # (k, n_elem, 8) samples
+    wsamp = (np.matmul(model.belt.sampling_table(8)[None], b[..., None])[..., 0]  # (k, n_elem, 8) samples
+             if model.belt.elements.n_elem else None)
     kinds, orders, spans, labels = [], np.zeros(n_modes, dtype=int), np.zeros(n_modes, dtype=int), []
     rank: dict[str, int] = {}
     names = model.layout
+    best_of = np.argmax(shares, axis=1)
+    kind_of = [KINDS[b] if shares[k, b] >= 0.5 else "mixed" for k, b in enumerate(best_of.tolist())]
+    trans_span = np.argmax(span_trans, axis=1) if n_modes else np.zeros(0, dtype=int)
+    waves = np.ones(n_modes, dtype=int)  # a spring span has no transverse shape of its own: its lumped
+    is_trans = np.array([k == "transverse" for k in kind_of], dtype=bool)  # end masses swing with the pulleys
+    for s in np.unique(trans_span[is_trans]).tolist():  # each span's transverse modes at once
+        els = model.belt.span_elements[s]
+        ks = np.flatnonzero(is_trans & (trans_span == s))
+        if not len(els):
+            continue
+        W = wsamp[ks][:, els].reshape(len(ks), -1)
+        waves[ks] = [half_waves(w) for w in W] if np.iscomplexobj(W) else half_waves_real(W)  # travelling: envelopes
     for k in range(n_modes):
-        best = int(np.argmax(shares[k]))
-        kind = KINDS[best] if shares[k, best] >= 0.5 else "mixed"
+        kind = kind_of[k]
         span = 0
         if kind == "transverse":
-            s = int(np.argmax(span_trans[k]))
-            span = s + 1
-            els = model.belt.span_elements[s]
-            # a spring span has no transverse shape of its own: its lumped end masses swing with the pulleys
-            order = half_waves(wsamp[k, els].ravel()) if len(els) else 1
+            span = int(trans_span[k]) + 1
+            order = int(waves[k])
         else:
             rank[kind] = rank.get(kind, 0) + 1
             order = rank[kind]

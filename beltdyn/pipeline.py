@@ -81,7 +81,7 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
             from .modal import solve_modes
 
             out = replace(out, modal=solve_modes(out.system, out.static.q, n_modes=n_modes or cfg.modal.modes,
-                                                 solver=cfg.modal.solver))
+                                                 solver=cfg.modal.solver, tangent=solved.tangent))
     except SolverError as exc:
         exc.partial = out  # type: ignore[attr-defined]
         raise

@@ -2,7 +2,8 @@
 h5py (lazily, so that the CLI starts fast). The seams: `results_schema` (what a group holds),
 `results_write` (transactions, whole groups), `results_stream` (growing groups, recovery),
 `results_journal` (the stream journal format), `results_read` (readers), `results_files` (the lock,
-writer liveness, names, durability, target checks, leftovers).
+writer liveness, names, durability, target checks, leftovers), `results_copy` (copying groups from
+one root into another).
 
 Layout (schema version `beltdyn.SCHEMA_VERSION`)
 ------------------------------------------------
@@ -48,15 +49,22 @@ per-group files (xarray/h5netcdf resolve dimension-scale references in the wrong
 
 Writes: one transaction per change (`results_write.Transaction`)
 ----------------------------------------------------------------
-Under the results-file lock: (1) the root is copied to `OUT.h5.tmp-<pid>-<file id>-<token>` beside
-it, (2) the groups are replaced in the copy, large datasets written to a new part file, (3) the new
-parts are fsync'ed, then the copy, (4) the copy is renamed over `OUT.h5` (the commit) and the folder
-fsync'ed, (5) parts no longer referenced (those of replaced groups) are removed. A part is never
-modified after its commit. Writing results of a different configuration (other `config_sha256`, or
-another schema version) into an existing file raises `OutputError` unless `force=True`, in which
-case the file is started afresh (its old parts removed after the commit); so is a file that is not
-a beltdyn results file (not HDF5, unreadable, or another program's HDF5), which is refused without
-`force`. A read-only file is refused even with `force` ("permission denied"). `base_config_sha256`
+Under the results-file lock: (1) a new root `OUT.h5.tmp-<pid>-<file id>-<token>` is started beside
+it, (2) the groups are written into it, large datasets to a new part file, (3) the new parts are
+fsync'ed, then the new root, (4) it is renamed over `OUT.h5` (the commit) and the folder fsync'ed,
+(5) parts no longer referenced (those of replaced groups) are removed. A part is never modified
+after its commit (nor opened for writing). A change that replaces groups of the file starts the new
+root empty, with the old root's attributes, and copies in the old root's other groups (HDF5 H5Ocopy;
+virtual datasets keep naming their parts, dimension scales are attached again: `results_copy`); a
+change that only adds to it (a streamed group's close, a recovery, a group of a new name) starts
+from a byte copy. Never a byte copy with groups deleted: HDF5 does not reclaim the space of a
+deleted object, so each replaced group would stay in the root as garbage, copied by every later
+write (the root grew by the size of /transient on every rerun of `beltdyn transient`).
+
+Writing results of a different configuration (other `config_sha256`, or another schema version)
+into an existing file raises `OutputError` unless `force=True`, in which case the file is started
+afresh (its old parts removed after the commit); so is a file that is not a beltdyn results file
+(not HDF5, unreadable, or another program's HDF5), which is refused without `force`. A read-only file is refused even with `force` ("permission denied"). `base_config_sha256`
 records the configuration as given when the results are of a configuration derived from it
 (`modal --rtol` records the chosen mesh as `config_sha256`).
 

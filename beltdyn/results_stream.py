@@ -176,7 +176,8 @@ class StreamWriter:
     def _start(self, prepared, user_attrs, *, config_toml: str, force: bool) -> list[str]:
         """The journal created and the group committed with status running."""
         self._journal = None
-        tx = Transaction(self._path, config_sha256=self._sha, force=force)
+        tx = Transaction(self._path, config_sha256=self._sha, force=force, replaces=[self._name],
+                         config_toml=config_toml)
         try:
             write_root(tx.f, config_toml=config_toml, config_sha256=self._sha, fresh=tx.fresh)
             self._journal_rel, journal_path = tx.new_part_path(self._name, ".stream")
@@ -397,7 +398,7 @@ class StreamWriter:
     def _finish(self, status: str, error: str) -> None:
         tx = Transaction(self._path, config_sha256=self._sha)
         try:
-            g = tx.f.get(self._name)
+            g = tx.group(self._name)
             if g is None or str(decode_attr(g.attrs.get("stream_journal", ""))) != self._journal_rel:
                 raise OutputError(f"{self._path}: the file was replaced while /{self._name} was being written; its "
                                   f"samples are in {self.journal_path}")
@@ -500,7 +501,7 @@ def recover(path: Path) -> list[str]:
 
 
 def _recover_group(tx: Transaction, path: Path, name: str, attrs: dict) -> str:
-    g = tx.f[name]
+    g = tx.group(name)
     who = f"pid {attrs.get('writer_pid', '?')} on {attrs.get('writer_host', '?')}"
     journal = path.parent / str(attrs.get("stream_journal", ""))
     got = "no stream journal, so no samples"

@@ -1,10 +1,20 @@
 """Writing results files: one atomic transaction per change, costing what the change writes.
 
-`Transaction` opens a temporary copy of the root file (small: it holds no dataset above
-`INLINE_BYTES`), lets the caller replace groups in it, writes datasets above `INLINE_BYTES` to a new
-part file of their group (the root gets a virtual dataset mapping onto it), then makes the parts
-durable, renames the root copy over the root (the commit) and removes the parts no longer referenced.
-See `results_io` for the layout and for what a reader sees at every moment.
+`Transaction` writes a new root beside the root file, lets the caller write groups in it (datasets
+above `INLINE_BYTES` go to a new part file of their group; the root gets a virtual dataset mapping
+onto it), then makes the parts durable, renames the new root over the old one (the commit) and
+removes the parts no longer referenced. See `results_io` for the layout and for what a reader sees
+at every moment.
+
+The new root holds the old root's live content and the change, never the old root's garbage: HDF5
+never reclaims the space of a deleted object, so a group replaced in a byte copy of the old root
+would stay in it, and every later transaction would copy it again (the root grew by the size of
+/transient on every rerun of `beltdyn transient`). So a transaction that replaces groups of the old
+root (the caller declares which: `replaces`) starts a fresh root and copies in the groups it does not
+replace (`carry_over`; `group(name)` copies one in to be changed). One that only adds (new groups,
+datasets, attributes: a stream's close, a recovery) edits a byte copy, cheaper: it deletes no group,
+so what it leaves unreclaimed is only HDF5's slack of its own writes (overwritten attribute values,
+grown object headers: a fraction of what it adds), and the next replacing transaction drops that.
 """
 
 from __future__ import annotations
@@ -13,12 +23,13 @@ import os
 import shutil
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Collection
 
 import numpy as np
 
 from . import SCHEMA_VERSION, __version__
 from .errors import OutputError
+from .results_copy import copy_attrs, copy_group
 from .results_files import (
     fsync_dir,
     fsync_file,
@@ -82,6 +93,15 @@ def _identity(attrs: dict | None) -> tuple[str, str] | None:
     return str(attrs["parts_folder"]), str(attrs["file_id"])
 
 
+def _replaced(old, replaces: Collection[str], config_toml: str | None) -> bool:
+    """The open root `old` holds a top-level group in `replaces`, or a configuration text other than
+    `config_toml` (when given)."""
+    if any(name in old for name in replaces):
+        return True
+    stored = old.get(f"{PROVENANCE}/config_toml")
+    return config_toml is not None and stored is not None and stored.asstr()[()] != config_toml
+
+
 def _old_identity(path: Path) -> tuple[str, str] | None:
     """(parts folder, file id) of the beltdyn root at `path` that `force` replaces, if readable."""
     h5py = h5py_module()
@@ -95,12 +115,19 @@ def _old_identity(path: Path) -> tuple[str, str] | None:
 class Transaction:
     """One atomic change of the results file at `path` (the caller holds its lock).
 
-    `f` is the open temporary root (a copy of the existing one, or a fresh file when there is none or
-    `force` replaces it: another configuration, not a beltdyn file). `part(group)` opens the group's
-    new part file. `commit()` makes everything durable and visible at once; `abort()` removes what
-    was written. Either way the root at `path` is never modified in place."""
+    `f` is the open temporary root. When the change replaces a top-level group of the old root (one
+    named in `replaces`) or its configuration text (`config_toml`, if given and not the one stored),
+    `f` is a fresh file holding the old root's attributes (`rebuilt`): a group the caller creates
+    replaces the old one of that name, `group(name)` copies the old one in to be changed, and at
+    `commit` every other group of the old root is copied in unchanged (`carry_over`). Otherwise `f` is
+    a byte copy of the old root, to be added to (a top-level group created in it must be new). With no
+    old root (or when `force` replaces it: another configuration, not a beltdyn file) `f` is a fresh,
+    empty file. `part(group)` opens the group's new part file. `commit()` makes everything durable and
+    visible at once; `abort()` removes what was written. Either way the root at `path` is never
+    modified in place."""
 
-    def __init__(self, path: Path, *, config_sha256: str, force: bool = False) -> None:
+    def __init__(self, path: Path, *, config_sha256: str, force: bool = False, replaces: Collection[str] = (),
+                 config_toml: str | None = None) -> None:
         h5py = h5py_module()
         self.path = path = resolve_target(path)
         attrs = inspect_target(path, config_sha256=config_sha256, force=force)
@@ -113,20 +140,28 @@ class Transaction:
         self.folder, self.file_id = _identity(attrs) or (parts_folder(path), new_file_id())
         self._parts: dict[str, tuple[Path, object]] = {}
         self.committed = False
+        self.old = None  # a rebuilt root's old root, open read-only until the commit
+        self.rebuilt = False
         self.tmp = temp_name(path, self.file_id)
         try:
+            self.old_refs: set[str] = set()
             if update:
+                self.old = h5py.File(path, "r")
+                self.rebuilt = _replaced(self.old, replaces, config_toml)
+                self.old_refs = references(self.old)
+            if update and not self.rebuilt:
+                self._close_old()
                 shutil.copyfile(path, self.tmp)
+                self.f = h5py.File(self.tmp, "r+")
+            else:  # the default (earliest) file format, for the widest reader compatibility
+                self.f = h5py.File(self.tmp, "w-")
+            if update:
                 try:
                     shutil.copymode(path, self.tmp)
                 except OSError:
                     pass
-                self.f = h5py.File(self.tmp, "r+")
-                self.old_refs = references(self.f)
-            else:
-                # Default (earliest) file format for the widest reader compatibility.
-                self.f = h5py.File(self.tmp, "w-")
-                self.old_refs = set()
+            if self.rebuilt:
+                copy_attrs(self.old, self.f)
             self.f.attrs["parts_folder"] = self.folder
             self.f.attrs["file_id"] = self.file_id
         except BaseException as exc:
@@ -135,6 +170,23 @@ class Transaction:
                 raise OutputError(f"{path}: cannot create a temporary file next to it: {exc}") from exc
             raise
         self.fresh = not update
+
+    # -- the old root's groups -------------------------------------------------------------------
+
+    def group(self, name: str):
+        """Top-level group `name` to be changed: the old root's (in a rebuilt root, copied in first unless
+        the transaction created one of that name), None if there is none."""
+        if self.old is not None and name not in self.f and name in self.old:
+            copy_group(self.old, self.f, name)
+        return self.f.get(name)
+
+    def carry_over(self) -> None:
+        """In a rebuilt root: copy in every top-level object of the old root that the transaction
+        neither replaced nor copied (run by `commit`)."""
+        if self.old is not None:
+            for name in self.old:
+                if name not in self.f:
+                    copy_group(self.old, self.f, name)
 
     # -- parts ---------------------------------------------------------------------------------
 
@@ -153,6 +205,14 @@ class Transaction:
             attrs["parts"] = [*(str(x) for x in decode_attr(attrs.get("parts", np.array([], dtype=object)))), rel]
         return self._parts[group][0], self._parts[group][1]
 
+    def _close_old(self) -> None:
+        if getattr(self, "old", None) is not None:
+            try:
+                self.old.close()
+            except Exception:  # noqa: BLE001 - read-only: nothing to lose
+                pass
+            self.old = None
+
     # -- end -----------------------------------------------------------------------------------
 
     def commit(self) -> list[str]:
@@ -166,6 +226,8 @@ class Transaction:
                 fsync_file(self.path.parent / rel)
             if self._parts:
                 fsync_dir(self.path.parent / self.folder)
+            self.carry_over()
+            self._close_old()
             self.f.attrs["modified_utc"] = now_utc()
             self.f.flush()
             refs = references(self.f)
@@ -197,6 +259,7 @@ class Transaction:
         for rel, _part in self._parts.values():
             unlink_quietly(self.path.parent / rel)
         self._parts.clear()
+        self._close_old()
         f = getattr(self, "f", None)
         if f is not None:
             try:
@@ -326,6 +389,8 @@ def write_root(f, *, config_toml: str, config_sha256: str, fresh: bool) -> None:
     f.attrs["config_sha256"] = config_sha256
     prov = f.require_group(PROVENANCE)
     if "config_toml" in prov:
+        if prov["config_toml"].asstr()[()] == config_toml:
+            return  # (a byte copy of the root: rewriting it would leave the old text as garbage)
         del prov["config_toml"]
     ds = prov.create_dataset("config_toml", data=config_toml, dtype=h5py.string_dtype())
     ds.attrs["units"] = "1"
@@ -381,7 +446,8 @@ def write_groups(
 
     names = ", ".join(f"/{g.name}" for g in groups)
     with writing(path):
-        tx = Transaction(path, config_sha256=config_sha256, force=force)
+        tx = Transaction(path, config_sha256=config_sha256, force=force, replaces=[g.name for g in groups],
+                         config_toml=config_toml)
         try:
             write_root(tx.f, config_toml=config_toml, config_sha256=config_sha256, fresh=tx.fresh)
             if base_config_sha256 is not None:

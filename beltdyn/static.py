@@ -92,11 +92,14 @@ def _predictor(system: System, stretch: float | np.ndarray, adjust_dof: int, dri
             coef = sign * np.einsum("sdk,sd->sk", sp.T[:, rows, :], t[sp.span])
             np.add.at(A_p, (span, sp.idx.ravel()), coef.ravel())
     A_p = A_p[:, : system.n_p]
-    A_q = A_p if system.arms is None else np.asarray(A_p @ system.arms.jacobian(np.zeros(system.n_dof)).toarray())
+    A_q = A_p if system.arms is None else system.arms.project(np.zeros(system.n_dof), A_p)  # A_p J
     A = A_q[:, unknowns]
     lam0 = model.span_stretch if model.span_stretch is not None else model.prestrain_stretch
     target = (stretch - lam0) * model.reference_length  # elongation still needed from the stretch at q = 0
-    x = np.linalg.lstsq(A, target, rcond=None)[0]
+    try:  # the normal equations: a few unknowns, a start for Newton (SVD least squares if singular)
+        x = np.linalg.solve(A.T @ A, A.T @ target)
+    except np.linalg.LinAlgError:
+        x = np.linalg.lstsq(A, target, rcond=None)[0]
     q = np.zeros(system.n_dof)
     q[unknowns] = x
     return _straight_spans(system, q)
@@ -255,6 +258,40 @@ class _Fail(Exception):
         self.err, self.dof = err, dof
 
 
+class _Exhausted(_Fail):
+    """The static analysis spent its budget of residual evaluations (`Budget`): no fallback retries."""
+
+
+EVALUATIONS_PER_ITERATION = 100  # the budget of a static analysis: this many x static.max_iterations
+
+
+@dataclass(kw_only=True)
+class Budget:
+    """Residual evaluations a static analysis may spend, over all its solves (Newton iterations, line
+    searches, load steps, continuations, tension and prestrain loops, re-lay passes): a drive with no
+    equilibrium within reach fails by name within a bounded time instead of multiplying its nested
+    retries (measured: a fuzzed drive on 100 N/m bearings under 3 kN spent 40 000 evaluations, 22 s,
+    in one of its 40 prestrain solves). `limit`: EVALUATIONS_PER_ITERATION x static.max_iterations."""
+
+    limit: int
+    used: int = 0
+    err: float = float("inf")  # the scaled residual and the DOF at fault of the last evaluation
+    dof: str = ""
+
+    @classmethod
+    def of(cls, options: StaticOptions) -> "Budget":
+        return cls(limit=EVALUATIONS_PER_ITERATION * int(options.max_iterations))
+
+    def spend(self) -> None:
+        """Count one evaluation; _Exhausted once the limit is reached."""
+        if self.used >= self.limit:
+            raise _Exhausted(f"no equilibrium within {self.limit} residual evaluations (the static analysis's "
+                             f"budget, {EVALUATIONS_PER_ITERATION} x static.max_iterations): the drive finds no "
+                             f"equilibrium near its layout (supports too soft for the tension, or a mechanism)",
+                             self.err, self.dof)
+        self.used += 1
+
+
 class _Problem:
     """The static equations of one drive: residual, Jacobian and Newton with line search.
 
@@ -263,8 +300,9 @@ class _Problem:
     so that err = max |R_i| / allowed_i <= 1 means converged.
     """
 
-    def __init__(self, system: System, opts: StaticOptions) -> None:
+    def __init__(self, system: System, opts: StaticOptions, budget: Budget | None = None) -> None:
         self.model, self.opts = system, opts
+        self.budget = budget if budget is not None else Budget.of(opts)
         self.target = system.tension.target
         self.a = system.tension.adjust_dof
         self.adjust = self.target is not None and self.a >= 0
@@ -282,7 +320,8 @@ class _Problem:
         self.accept = 1.0  # Newton stops at err <= accept (a continuation's intermediate stages: looser)
         self.EA = system.EA
         self.scales = ResidualScales(system)
-        self.last: tuple = (None, 0.0, 0.0, None)  # (q, load factor, driver residual, mean tension) evaluated last
+        self.last: tuple = (None, 0.0, 0.0, None, None)  # (q, load factor, driver residual, mean tension, tangent)
+        self.keep_tangent = False  # keep the unpinned tangent of the last evaluation (what the modal analysis reuses)
 
     def tension_tolerance(self) -> float:
         """Allowed error of the mean tension: relative tolerance + round-off of EA eps (~EA * eps)."""
@@ -294,14 +333,16 @@ class _Problem:
     def evaluate(self, q: np.ndarray, lam: float, pinned: np.ndarray, bordered: bool):
         """Residual (pinned rows zero), Jacobian, err = max scaled |R|, and the bordered rank-1 term."""
         m = self.model
+        self.budget.spend()
         R, K = m.equilibrium(q, lam)  # J^T (f - lam F), F the weight and the accessory torques
         R = R - self.preload
-        self.last = (q, lam, float(R[self.driver]), None)  # what the outputs reuse at the solution
+        # what the outputs reuse at the solution (the tangent before bordering and pinning change it in place)
+        self.last = (q, lam, float(R[self.driver]), None, K.copy() if self.keep_tangent else None)
         scaled = np.abs(R) / self.allowed(q, lam)
         rank1 = None
         if bordered:  # the slide equation of the adjustable pulley becomes T(q) = target
             T, dT = m.mean_tension_and_gradient(q)
-            self.last = (q, lam, self.last[2], T)
+            self.last = (q, lam, self.last[2], T, self.last[4])
             R[self.a] = T - self.target
             scaled[self.a] = abs(R[self.a]) / self.tension_tolerance()
             if m.dense:
@@ -315,7 +356,9 @@ class _Problem:
         if rank1 is not None:
             rank1[1][pinned] = 0.0
             # the pinned identity row of `a` (if any) is untouched by pinning only other DOFs
-        return R, K, float(scaled.max(initial=0.0)), rank1
+        worst = int(np.argmax(scaled))  # what a spent budget reports
+        self.budget.err, self.budget.dof = float(scaled[worst]), m.dof_labels[worst]
+        return R, K, float(scaled[worst]), rank1
 
     def newton(self, q: np.ndarray, lam: float, pinned: np.ndarray, *, bordered: bool = False,
                max_iterations: int | None = None, line_search: bool = True, stall: bool = False) -> np.ndarray:
@@ -366,6 +409,8 @@ class _Problem:
             lam = min(1.0, lam_done + dlam)
             try:
                 q = self.newton(q, lam, pinned, bordered=bordered)
+            except _Exhausted:
+                raise
             except _Fail as fail:
                 if dlam < 1.0 / 1024:
                     fail.lam = lam  # type: ignore[attr-defined]
@@ -430,6 +475,8 @@ class _Problem:
                     try:
                         q_new = self.newton(q + dq_du * du + curvature * du**2, 1.0, pinned, bordered=True,
                                             max_iterations=8, line_search=False)
+                    except _Exhausted:
+                        raise
                     except _Fail:
                         ratio = float(np.sqrt(ratio))
                         if ratio < 1.01:
@@ -478,6 +525,8 @@ class _Problem:
                 q_try += step * dqf
                 try:
                     q_new = self.newton(q_try, 1.0, pinned)
+                except _Exhausted:
+                    raise
                 except _Fail:
                     step *= 0.5
                     continue
@@ -494,7 +543,8 @@ class _Problem:
                     abs(g) / tol_T, m.dof_labels[a])
 
 
-def solve_static(system: System, options: StaticOptions, *, q0: np.ndarray | None = None) -> StaticResult:
+def solve_static(system: System, options: StaticOptions, *, q0: np.ndarray | None = None,
+                 budget: Budget | None = None) -> StaticResult:
     """Static equilibrium of the drive (raises SolverError naming step, residual and DOF).
 
     Tension mode "adjust": a bordered Newton on (equilibrium, T = target) from the linear axial
@@ -509,19 +559,23 @@ def solve_static(system: System, options: StaticOptions, *, q0: np.ndarray | Non
     moves far meets its spans off tangent; `solve_static_on_solved_geometry` (what
     `pipeline.analyse` calls) lays the belt out again at the solved positions.
     """
-    q, preload, hist, known = solve_equilibrium(system, options, q0=q0, known=True)
+    q, preload, hist, known = solve_equilibrium(system, options, q0=q0, known=True, budget=budget)
     return _result(system, q, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof, known=known)
 
 
-def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray | None = None, known: bool = False):
+def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray | None = None, known: bool = False,
+                      budget: Budget | None = None):
     """The equilibrium of `solve_static` without its outputs: (q (n_dof,), spring preloads (n_dof,),
     Newton history (n_iter, 2) of (scaled residual, load factor)). For the re-lay passes, whose
     outputs only the last one needs. known: also what the solve evaluated at q that the outputs reuse
-    ({"driver_torque", "mean_tension"}, each present only if evaluated at q at full load)."""
+    ({"driver_torque", "mean_tension", "tangent"}, each present only if evaluated at q at full load; the
+    tangent dr/dq of `System.equilibrium`, unpinned, which the modal analysis reuses). budget: the
+    residual evaluations the analysis may still spend (`Budget`; default: a fresh one for this solve)."""
     model = system
-    prob = _Problem(system, options)
+    prob = _Problem(system, options, budget)
     n = model.n_dof
     pinned = np.array([prob.driver])
+    prob.keep_tangent = known
     try:
         q = None
         sagging = prob.adjust and prob.has_weight  # the continuation in the tension target may be needed
@@ -529,6 +583,8 @@ def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray 
             q0 = np.array(q0, dtype=float)
             try:
                 q = prob.newton(q0, 1.0, pinned, bordered=prob.adjust, stall=sagging)
+            except _Exhausted:
+                raise
             except _Fail:
                 pass
         if q is not None:
@@ -542,11 +598,15 @@ def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray 
             if tried is None or not np.array_equal(tried, q0):  # (a re-lay pass's first start is this one)
                 try:
                     q = prob.newton(q0, 1.0, pinned, bordered=True, max_iterations=8, stall=sagging)
+                except _Exhausted:
+                    raise
                 except _Fail:
                     q = None
             if q is None and sagging:
                 try:  # sagging spans: continuation in the tension target
                     q = prob.tension_continuation(straight, pinned)
+                except _Exhausted:
+                    raise
                 except _Fail:
                     q = None
             if q is None:
@@ -555,8 +615,9 @@ def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray 
             q = prob.continuation(np.zeros(n), pinned)
     except _Fail as fail:
         lam = getattr(fail, "lam", 1.0)
+        step = f"residual evaluation {prob.budget.used + 1}" if isinstance(fail, _Exhausted) else f"load factor {lam:.4g}"
         raise SolverError(f"{fail} (residual scaled so that 1 means converged)", analysis="static",
-                          step=f"load factor {lam:.4g}", residual=fail.err, item=fail.dof) from None
+                          step=step, residual=fail.err, item=fail.dof) from None
     _check_stops(model, q)
     if prob.adjust:  # the bearing spring's preload follows from the adjustable pulley's slide equation
         _check_travel(model, q)
@@ -566,11 +627,13 @@ def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray 
     if not known:
         return q, prob.preload, hist
     seen: dict = {}
-    q_l, lam_l, r_driver, T = prob.last
+    q_l, lam_l, r_driver, T, K = prob.last
     if q_l is q and lam_l == 1.0:
         seen["driver_torque"] = r_driver + float(prob.preload[prob.driver])
         if T is not None:
             seen["mean_tension"] = T
+        if K is not None:
+            seen["tangent"] = K
     return q, prob.preload, hist, seen
 
 
@@ -702,6 +765,7 @@ class SolvedDrive:
     solves: int  # static solves (prestrain iterations included)
     movement: np.ndarray  # (passes,) largest pulley displacement from its laid centre after each pass, m
     newton_iterations: int = 0  # Newton iterations of all passes and solves (failed attempts included)
+    tangent: object = None  # dr/dq of `system.equilibrium` at static.q at full load, if the solve evaluated it there
 
 
 def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
@@ -709,18 +773,17 @@ def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
     layout `old`, the wraps unstretched: where a tangent point moves along its pulley by an arc
     R dpsi in the direction of belt travel, that much belt passes from the span onto the wrap (or
     back). The total, sum(reference lengths) + sum(arc lengths), is kept. Pulley rotations stay
-    coordinates of the system (the joints slide the span ends along the tangent lines)."""
+    coordinates of the system (the joints slide the span ends along the tangent lines).
+
+    Both tangent points of span s turn with its tangent line: their normals are +-(sin a_s, -cos a_s),
+    so dpsi = a_s(new) - a_s(old) (wrapped to [-pi, pi)) at both ends, and with the signed radii
+    rho = orientation x side x R the span leaves rho_s dpsi onto pulley s and takes rho_(s+1) dpsi
+    from pulley s+1: reference_s - dpsi_s (rho_s - rho_(s+1))."""
     from .geometry import TWO_PI
 
-    def turn(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        d = np.arctan2(b[:, 1], b[:, 0]) - np.arctan2(a[:, 1], a[:, 0])
-        return (d + np.pi) % TWO_PI - np.pi
-
-    sigma = new.orientation * new.side_sign  # sense in which the belt travels around each pulley
-    nxt = (np.arange(new.n) + 1) % new.n
-    onto_start = new.radius * sigma * turn(old.start_normal, new.start_normal)  # span s leaving pulley s
-    onto_end = -new.radius[nxt] * sigma[nxt] * turn(old.end_normal, new.end_normal)  # span s reaching pulley s+1
-    out = reference_length - onto_start - onto_end
+    turn = (new.span_angle - old.span_angle + np.pi) % TWO_PI - np.pi
+    rho = new.orientation * new.side_sign * new.radius
+    out = reference_length - turn * (rho - np.concatenate((rho[1:], rho[:1])))
     if not np.all(out > 0.0):
         s = int(np.argmin(out))
         raise SolverError(f"span {new.span_name(s)} has no belt left at the solved pulley positions (reference "
@@ -728,7 +791,8 @@ def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
     return out
 
 
-def _meet_prestrain(build, layout, lam: float, free: np.ndarray, options: StaticOptions, slope: float | None):
+def _meet_prestrain(build, layout, lam: float, free: np.ndarray, options: StaticOptions, slope: float | None,
+                    budget: Budget | None = None):
     """Secant on the spans' uniform prestrain stretch lam until the static mean tension equals the
     target (the pulleys free on their bearings). Returns (system, static, lam, slope, solves)."""
     system = build(layout, lam, free)
@@ -741,7 +805,7 @@ def _meet_prestrain(build, layout, lam: float, free: np.ndarray, options: Static
     for it in range(options.max_iterations):
         if it:
             system = build(layout, lam, free)
-        st = solve_static(system, options)
+        st = solve_static(system, options, budget=budget)
         g = st.mean_tension - target
         if abs(g) <= tol_T:
             return system, st, lam, slope, it + 1
@@ -790,17 +854,20 @@ def _conserved_tension(layout, split: np.ndarray, reference: np.ndarray, EA: flo
     neighbouring spans and keeps their sum, so sum_s lambda(T_s) reference_s = sum_s L_s (Newton on T_ref)."""
     from .system import stretch_for_tension as _stretch
 
+    # a handful of spans: plain Python floats (numpy calls on 2-12 numbers cost more than the arithmetic)
     L = float(layout.span_length.sum())
-    total = float(reference.sum())
-    T_ref = EA * (L / total - 1.0) - float(reference @ split) / total
-    lam = _stretch(T_ref + split, EA)
+    ref, sp = reference.tolist(), split.tolist()
+    total = sum(ref)
+    T_ref = EA * (L / total - 1.0) - sum(r * s for r, s in zip(ref, sp)) / total
+    lam = [_stretch(T_ref + s, EA) for s in sp]
+    half = 0.5 * EA
     for _ in range(50):  # Newton on T_ref and lambda together: one stretch step per tension step
-        dT = 0.5 * EA * (3.0 * lam**2 - 1.0)  # dT/dlambda
-        step = (float(lam @ reference) - L) / float((reference / dT).sum())
+        slope = [half * (3.0 * x * x - 1.0) for x in lam]  # dT/dlambda
+        step = (sum(x * r for x, r in zip(lam, ref)) - L) / sum(r / d for r, d in zip(ref, slope))
         T_ref -= step
-        d_lam = (0.5 * EA * (lam**3 - lam) - (T_ref + split)) / dT
-        lam = lam - d_lam
-        if abs(step) <= 1e-12 * EA and float(np.abs(d_lam).max()) <= 1e-15:
+        d_lam = [(half * (x * x * x - x) - (T_ref + s)) / d for x, s, d in zip(lam, sp, slope)]
+        lam = [x - d for x, d in zip(lam, d_lam)]
+        if abs(step) <= 1e-12 * EA and max(map(abs, d_lam)) <= 1e-15:
             break
     return T_ref + split
 
@@ -1023,21 +1090,22 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                 # started with the pulleys turned to the predicted span tensions
                 warm = _predictor(built, _stretch(span_tension(lay), EA), ts.adjust_dof, built.driver_dof)
                 system = built
-        except (GeometryError, SolverError, FloatingPointError, ValueError, np.linalg.LinAlgError):
+        except (GeometryError, SolverError, ArithmeticError, ValueError, np.linalg.LinAlgError):
             lay, free, warm = lay0, np.zeros(n_dof), None  # no prediction: start from the L0 fit
     if hasattr(system, "full"):  # a deferred build (pipeline.analyse): solved on the L0 fit after all
         system = system.full()
     prev_step = None
     movement: list[float] = []
     solves = iterations = 0
+    budget = Budget.of(options)  # over all passes and solves
     for p in range(1, max_passes + 1):
         if prestrain:
-            system, st, lam_p, slope, k = _meet_prestrain(build, lay, lam_p, free, options, slope)
+            system, st, lam_p, slope, k = _meet_prestrain(build, lay, lam_p, free, options, slope, budget)
             solves += k
             q_p = st.q
             iterations += st.iterations  # (the last prestrain solve's)
         else:
-            q_p, preload, hist, known = solve_equilibrium(system, options, q0=warm, known=True)
+            q_p, preload, hist, known = solve_equilibrium(system, options, q0=warm, known=True, budget=budget)
             solves += 1
             iterations += len(hist)
         solved_centers = system.pulley_centers(q_p)
@@ -1049,7 +1117,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                              known=known)
             _check_slack(system, st)
             return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement),
-                               newton_iterations=iterations)
+                               newton_iterations=iterations, tangent=None if prestrain else known.get("tangent"))
         # the next layout: at the solved centres, extrapolated (Aitken) where the passes contract steadily
         centers = solved_centers
         if prev_step is not None:

@@ -35,6 +35,8 @@ import functools
 import os
 from dataclasses import dataclass, field
 
+import math
+
 import numpy as np
 
 from . import ancf
@@ -413,6 +415,8 @@ class BeltSpans:
         """(B, n_span) the first-order change of `midspan_displacement` at the state E (n_elem, 8) for
         element motions dE (B, n_elem, 8) (mode shapes). With the chord c = r1 - r0, n = J c / |c|:
         d(delta) = (dp - dr0) . n + (p - r0) . dn,  dn = J dc / |c| - J c (c . dc) / |c|^3."""
+        if self.elements.n_elem == 0:  # every span a spring: no transverse motion anywhere
+            return np.zeros((dE.shape[0], self.n_span))
         p, r0, c = self._midspan_terms(E[None])
         dp, dr0, dc = self._midspan_terms(dE, offset=False)
         cx, cy = c[..., 0], c[..., 1]
@@ -850,6 +854,14 @@ class TensionSetting:
     adjust_name: str = ""  # name of the adjustable pulley
 
 
+def _last_pair(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """x and y (same shape) stacked on a new last axis of 2: np.stack(..., axis=-1) without its overhead."""
+    out = np.empty(np.shape(x) + (2,))
+    out[..., 0] = x
+    out[..., 1] = y
+    return out
+
+
 @dataclass(frozen=True, kw_only=True)
 class ArmJoints:
     """Exact kinematics of the tensioner arms: joint coordinates p = P(q) from the independent q.
@@ -881,17 +893,16 @@ class ArmJoints:
 
     def first(self, phi: np.ndarray) -> np.ndarray:
         """dc/dphi (..., a, 2)."""
-        return self.length[:, None] * np.stack([-np.sin(phi), np.cos(phi)], axis=-1)
+        return self.length[:, None] * _last_pair(-np.sin(phi), np.cos(phi))
 
     def second(self, phi: np.ndarray) -> np.ndarray:
         """d2c/dphi2 (..., a, 2)."""
-        return -self.length[:, None] * np.stack([np.cos(phi), np.sin(phi)], axis=-1)
+        return -self.length[:, None] * _last_pair(np.cos(phi), np.sin(phi))
 
     def expand(self, q: np.ndarray) -> np.ndarray:
         """p (..., n_p) from q (..., n_q)."""
         phi = self.phi(q)
-        u = self.length[:, None] * (np.stack([np.cos(phi), np.sin(phi)], axis=-1)
-                                    - np.stack([np.cos(self.angle), np.sin(self.angle)], axis=-1))
+        u = self.length[:, None] * _last_pair(np.cos(phi) - np.cos(self.angle), np.sin(phi) - np.sin(self.angle))
         return np.concatenate([q, u.reshape(*q.shape[:-1], -1)], axis=-1)
 
     def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -1433,13 +1444,13 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
         live = (s_rows < n) & (s_cols < n)
         rows.append(s_rows[live])
         cols.append(s_cols[live])
-    for c in components:
+    for c in components if not use_dense else ():  # (a dense pattern holds every entry)
         for mat in (c.stiffness, c.damping, c.mass):
             if mat is not None:
                 r, cc = np.nonzero(mat)
                 rows.append(c.dofs[r])
                 cols.append(c.dofs[cc])
-    extra = (np.concatenate(rows), np.concatenate(cols)) if rows else None
+    extra = (np.concatenate(rows), np.concatenate(cols)) if rows and not use_dense else None
     pattern = make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
 
     def summed(attr: str):
@@ -1451,7 +1462,7 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
         if use_dense:
             A = np.zeros((n, n))
             for d, mat in mats:
-                A[np.ix_(d, d)] += mat
+                A[d[:, None], d] += mat
             return A
         r = np.concatenate([np.repeat(d, len(d)) for d, _ in mats])
         c = np.concatenate([np.tile(d, len(d)) for d, _ in mats])
@@ -1519,6 +1530,16 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     t_dir = layout.span_direction
     normals = np.column_stack([-t_dir[:, 1], t_dir[:, 0]])
     n_elem = int(counts.sum())
+    uniform = bool(np.all(lam_s == lam_s[0]))
+    lam = float(lam_s[0]) if uniform else float(layout.span_length.sum() / L_ref.sum())
+    if n_elem == 0:  # every span a spring (`build_springs`): no elements, no joints of the belt's own
+        el = span_element_set(cfg, np.zeros(0), np.zeros(0))
+        T, idx = np.zeros((0, 8, 8)), np.zeros((0, 8), dtype=np.int64)
+        empty = tuple(np.zeros(0, dtype=np.int64) for _ in range(n_p))
+        return BeltSpans(elements=el, elem_span=np.zeros(0, dtype=np.int64), span_elements=empty, T=T, idx=idx,
+                         tsel=joint_selection(T, idx, n_dof), e0=np.zeros((0, 8)), n_dof=n_dof, reference_length=L_ref,
+                         reference_direction=t_dir, reference_normal=normals, prestrain_stretch=lam,
+                         span_stretch=lam_s)
     # Per element, columns 0-3 / 4-7 carry the coordinates of its first / second node, 8-10 / 11-13
     # the joint DOFs of a span end; padding columns are squeezed out afterwards.
     T = np.zeros((n_elem, 8, 14))
@@ -1559,8 +1580,6 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     T, idx = np.ascontiguousarray(T[:, :, :used]), np.ascontiguousarray(idx[:, :used]).astype(np.int64)
     el = span_element_set(cfg, np.repeat(L_ref / np.maximum(counts, 1), counts),
                           np.repeat([cfg.belt.EI if m == "ancf" else 0.0 for m in cfg.span_models], counts))
-    uniform = bool(np.all(lam_s == lam_s[0]))
-    lam = float(lam_s[0]) if uniform else float(layout.span_length.sum() / L_ref.sum())
     return BeltSpans(elements=el, elem_span=elem_span, span_elements=span_elements, T=T, idx=idx,
                      tsel=joint_selection(T, idx, n_dof), e0=e0, n_dof=n_dof, reference_length=L_ref,
                      reference_direction=t_dir, reference_normal=normals, prestrain_stretch=lam, span_stretch=lam_s)
@@ -1595,10 +1614,11 @@ def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> an
     b = cfg.belt
     if len(length) == 0:
         return _no_elements(float(b.EA), float(b.mass_per_length), curvature, cfg.model.gauss_points)
-    uniq, inverse = np.unique(np.column_stack([length, EI]), axis=0, return_inverse=True)
+    # the distinct (length, EI) pairs: one complex key each (exact; np.unique's 1-D path, not its slow axis=0)
+    uniq, inverse = np.unique(np.asarray(length, dtype=float) + 1j * np.asarray(EI, dtype=float), return_inverse=True)
     if len(uniq) == len(length):  # every element distinct: no gathering
-        uniq, inverse = np.column_stack([length, EI]), None
-    base = ancf.make_elements(uniq[:, 0], b.EA, uniq[:, 1], b.mass_per_length, curvature=curvature,
+        uniq, inverse = np.asarray(length, dtype=float) + 1j * np.asarray(EI, dtype=float), None
+    base = ancf.make_elements(uniq.real.copy(), b.EA, uniq.imag.copy(), b.mass_per_length, curvature=curvature,
                               n_gauss=cfg.model.gauss_points)
     return base if inverse is None else ancf.subset(base, inverse.ravel())
 
@@ -1698,18 +1718,28 @@ def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
 
 def stretch_for_tension(tension, EA: float):
     """lambda with EA * eps * lambda = N, eps = (lambda^2 - 1)/2 (St. Venant-Kirchhoff bar); elementwise
-    for an array of tensions (a float for a float)."""
-    T = np.asarray(tension, dtype=float)
-    x = T / EA
+    for an array of tensions (a float for a float: plain Python arithmetic, no numpy call)."""
     # start: the series lambda = 1 + x - 3/2 x^2 + 4 x^3 + O(x^4) where the strain is small (one Newton
     # step then reaches round-off for |x| < 1e-2), 1 + x beyond
-    lam = np.where(np.abs(x) < 0.05, 1.0 + x * (1.0 - x * (1.5 - 4.0 * x)), 1.0 + x)
-    for _ in range(50):
-        step = (lam**3 - lam - 2.0 * x) / (3.0 * lam**2 - 1.0)
-        lam = lam - step
-        if float(np.max(np.abs(step), initial=0.0)) <= 1e-15:  # lambda ~ 1: a few ulp; Newton is quadratic well before
-            break
-    return float(lam) if lam.ndim == 0 else lam
+    if isinstance(tension, (float, int)):
+        x = float(tension) / EA
+        lam = 1.0 + x * (1.0 - x * (1.5 - 4.0 * x)) if abs(x) < 0.05 else 1.0 + x
+        largest = abs
+    else:
+        x = np.asarray(tension, dtype=float) / EA
+        lam = np.where(np.abs(x) < 0.05, 1.0 + x * (1.0 - x * (1.5 - 4.0 * x)), 1.0 + x)
+
+        def largest(step):
+            return float(np.max(np.abs(step), initial=0.0))
+    try:
+        for _ in range(50):
+            step = (lam * lam * lam - lam - 2.0 * x) / (3.0 * lam * lam - 1.0)  # (a float's ** raises on overflow)
+            lam = lam - step
+            if largest(step) <= 1e-15:  # lambda ~ 1: a few ulp; Newton is quadratic well before
+                break
+    except ZeroDivisionError:  # a float's 0 / 0 or x / 0 where numpy's would give nan or inf
+        return math.nan
+    return float(lam) if np.ndim(lam) == 0 else lam
 
 
 def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:

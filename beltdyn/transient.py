@@ -1157,6 +1157,18 @@ WARM_DRIVE = {  # the smallest drive that takes every compiled path of a transie
 }
 
 
+def entry_kernels() -> tuple:
+    """The compiled functions a transient calls from Python (some only for some drives: the LU factor of
+    a running belt, the belt damping's), each loaded from numba's cache on its own; every other kernel
+    runs inside them, compiled into their libraries. What `jitcache.is_warm` checks before a run and
+    `warm_up` compiles; `tests/test_startup.py` checks the list against what transients dispatch."""
+    from . import belt_kernel as bk
+    from . import integrator as itg
+
+    return (itg.advance, itg.band_lu_nopivot, bk.element_forces, bk.element_damping, bk.element_damping_matrix,
+            bk.reduced_force_and_tangent_blocks)
+
+
 def warm_up() -> None:
     """Compile (or load from numba's cache) every kernel a transient runs, with the signatures it
     runs them with: a few steps of a small drive (slide, backside arm with friction, belt and Rayleigh

@@ -405,3 +405,26 @@ def test_modal_midspan_displacement_matches_the_pinned_string_closed_form():
             assert mid[1 - s] < 1e-3 * ref
         elif md.kind[k] == "rotational":
             assert mid.max() < 1e-3 * ref, (md.label[k], mid)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_vectorized_half_waves_count_as_the_definition(seed):
+    # The classification counts half-waves of all of a span's transverse modes at once
+    # (`half_waves_real`); reference: the definition, row by row (sign changes between the samples
+    # above 5 % of the row's largest, + 1), on sine shapes with noise, random rows and rows with zeros.
+    from beltdyn.modal import half_waves_real
+
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0.0, 1.0, 80)
+    rows = [np.sin(np.pi * k * x) + 0.03 * rng.standard_normal(80) for k in range(1, 9)]
+    rows += [rng.standard_normal(80) for _ in range(20)]
+    rows += [np.where(rng.random(80) < 0.6, 0.0, rng.standard_normal(80)) for _ in range(20)]
+    W = np.vstack(rows)
+
+    def definition(w):
+        s = np.sign(w[np.abs(w) > 0.05 * np.abs(w).max()])
+        return int(np.count_nonzero(s[1:] != s[:-1])) + 1
+
+    assert half_waves_real(W).tolist() == [definition(w) for w in W]
+    clean = np.vstack([np.sin(np.pi * k * x) + 0.005 * rng.standard_normal(80) for k in range(1, 9)])
+    assert half_waves_real(clean).tolist() == list(range(1, 9))  # the k-th sine (noise under 5 %): k half-waves

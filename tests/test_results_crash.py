@@ -409,6 +409,35 @@ def test_adding_a_group_next_to_a_1_gb_transient(tmp_path):
     print(f"\nadd /modal next to a 1.07 GB /transient: {wall * 1e3:.1f} ms, {written / 1e6:.2f} MB written")
 
 
+RERUNS = {
+    # the issue's case, small: transient (with /geometry, /static, /modal and /transient/spectrum) rerun
+    "transient": [["transient", TRANSIENT, "--set", "mesh.elements_per_span=10", "--duration", "0.05", "--step",
+                   "1e-4", "--set", "transient.output_interval=1e-3", "--set", "transient.spectrum.start=0.02",
+                   "--force"]],
+    # two commands taking turns on one file
+    "static+modal": [["static", BENCH], ["modal", BENCH]],
+}
+
+
+@pytest.mark.parametrize("case", sorted(RERUNS))
+def test_rerunning_commands_on_their_output_keeps_the_root_size(tmp_path, case):
+    # The same commands run 3 times on one output: the file holds the same content each time, so its size
+    # after each round is the first round's within 2 % (what may differ: HDF5's allocation slack of the
+    # transactions that only added to a byte copy of the root, and attributes such as refactorization
+    # counts; measured: reruns 1.0 % below the first run, within 0.2 % of each other). Before, each rerun
+    # left the replaced groups in the root as garbage: +147 kB (+70 %, transient) and +67 kB (+59 %,
+    # static + modal) per round, and every later write copied them again.
+    path = tmp_path / "e.h5"
+    sizes = []
+    for _ in range(3):
+        for command in RERUNS[case]:
+            r = run(*command, "-o", path, cwd=tmp_path)
+            assert r.returncode == 0, r.stderr
+        sizes.append(path.stat().st_size)
+    assert all(abs(size - sizes[0]) <= 0.02 * sizes[0] for size in sizes), sizes
+    assert_nothing_unexplained(path)
+
+
 # ------------------------------------------------------------------------------ parts, journal
 
 

@@ -117,6 +117,30 @@ def test_rigid_belt_prediction_is_the_taut_equilibrium(springs):
                                             rel=1e-13)
 
 
+@pytest.mark.parametrize("path,sets", [(BENCH, []), (THREE, []), (FEAD, []), (FEAD, ["spring"])],
+                         ids=["bench", "three", "fead", "fead-all-spring"])
+def test_modal_reuses_the_static_tangent(path, sets):
+    # The static solve hands the tangent it evaluated at its solution to the modal analysis (no second
+    # evaluation): it must be the tangent of the final system at the solved q, exactly (same arithmetic),
+    # unpinned and unbordered (the bench and the three-pulley drive solve a bordered Newton in tension
+    # mode "adjust"; the FEAD's arm adds the geometric term); and the modes equal those of a fresh one.
+    cfg = load_config(path)
+    if sets:
+        cfg = load_config(path, [f'spans.{n}.model="spring"' for n in cfg.span_names])
+    from beltdyn.static import solve_static_on_solved_geometry
+    from beltdyn.system import build_system as _build
+
+    solved = solve_static_on_solved_geometry(build_system(cfg), lambda lay, s=None, f=None: _build(
+        cfg, lay, prestrain_stretch=s, spring_free=f), cfg.static)
+    assert solved.tangent is not None
+    fresh = solved.system.equilibrium(solved.static.q)[1]
+    dense = lambda K: K.toarray() if hasattr(K, "toarray") else np.asarray(K)  # noqa: E731
+    np.testing.assert_array_equal(dense(solved.tangent), dense(fresh))
+    reused = solve_modes(solved.system, solved.static.q, n_modes=6, tangent=solved.tangent)
+    again = solve_modes(solved.system, solved.static.q, n_modes=6)
+    np.testing.assert_array_equal(reused.frequency, again.frequency)
+
+
 @pytest.mark.parametrize("path,sets", [(BENCH, []), (THREE, ["model.gravity=[0.0, 0.0]"])], ids=["bench", "three"])
 def test_belt_carried_between_span_and_wrap(path, sets):
     # Where a tangent point moves along its pulley, that arc of belt passes between the span and the

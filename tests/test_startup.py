@@ -8,6 +8,7 @@ import os
 import shutil
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -67,8 +68,8 @@ def test_a_fresh_cache_is_cold():
 
     with tempfile.TemporaryDirectory() as empty:
         env = dict(os.environ, NUMBA_CACHE_DIR=empty)
-        r = subprocess.run([sys.executable, "-c", "from beltdyn import jitcache, integrator, belt_kernel; "
-                            "print(jitcache.is_warm(integrator, belt_kernel))"], capture_output=True, text=True,
+        r = subprocess.run([sys.executable, "-c", "from beltdyn import jitcache; from beltdyn.transient import "
+                            "entry_kernels; print(jitcache.is_warm(*entry_kernels()))"], capture_output=True, text=True,
                            env=env, timeout=120)
         assert r.returncode == 0 and r.stdout.strip() == "False", r.stderr
 
@@ -81,10 +82,10 @@ def test_warm_up_compiles_every_signature_a_transient_uses():
     from beltdyn import belt_kernel, integrator, spring_kernel
     from beltdyn.config import load_config
     from beltdyn.pipeline import analyse
-    from beltdyn.transient import run_transient, warm_up
+    from beltdyn.transient import entry_kernels, run_transient, warm_up
 
     warm_up()
-    assert jitcache.is_warm(integrator, belt_kernel)
+    assert jitcache.is_warm(*entry_kernels())
     kernels = [o for m in (integrator, belt_kernel, spring_kernel) for o in vars(m).values()
                if hasattr(o, "signatures") and getattr(o, "__module__", "") == m.__name__]
     before = {k.__name__: len(k.signatures) for k in kernels}
@@ -98,6 +99,97 @@ def test_warm_up_compiles_every_signature_a_transient_uses():
         run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)
     after = {k.__name__: len(k.signatures) for k in kernels}
     assert after == before
+
+
+TRANSIENTS = [  # (example, overrides): every kind of drive the stepper knows
+    ("bench_transient_small.toml", []),  # slide, band Cholesky
+    ("fead_4cyl.toml", []),  # arm with friction, running belt: band LU without row exchanges
+    ("three_pulley_tensioner.toml", ["transient.damping.belt_axial=1e-5"]),  # belt damping
+    ("fead_4cyl.toml", ['spans.ALT-TEN.model="spring"']),  # a spring span
+]
+_RUN_ALL = ("from beltdyn.config import load_config; from beltdyn.pipeline import analyse; "
+            "from beltdyn.transient import run_transient\n"
+            "for name, sets in {cases!r}:\n"
+            "    cfg = load_config({root!r} + '/configs/examples/' + name, ['transient.duration=0.002', "
+            "'transient.spectrum.enabled=false', *sets]); run = analyse(cfg)\n"
+            "    run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)\n")
+
+
+def _python(code: str, env: dict | None = None) -> list[str]:
+    """The lines `code` prints, run by this Python in a fresh process (which must succeed)."""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    return r.stdout.splitlines()
+
+
+def test_entry_kernels_are_the_kernels_transients_call_from_python():
+    # In a fresh process with the cache warm, the compiled functions that transients of every kind of drive
+    # dispatch (a cache hit each; the kernels they call run inside them and are never dispatched) are
+    # exactly `entry_kernels`, the list `is_warm` checks.
+    from beltdyn.transient import warm_up
+
+    warm_up()
+    dispatched, entries, all_hits = _python(_RUN_ALL.format(cases=TRANSIENTS, root=str(ROOT)) + textwrap.dedent("""
+        from beltdyn import jitcache, integrator, belt_kernel, spring_kernel
+        from beltdyn.transient import entry_kernels
+        got = [k for m in (integrator, belt_kernel, spring_kernel) for k in jitcache._kernels(m) if k.signatures]
+        print(sorted(k.__name__ for k in got))
+        print(sorted(k.__name__ for k in entry_kernels()))
+        print(all(k.stats.cache_hits and not k.stats.cache_misses for k in got))
+    """))
+    assert dispatched == entries and all_hits == "True"
+
+
+def test_a_stale_helper_kernel_does_not_make_the_cache_cold(tmp_path):
+    # A copy of the warm cache (NUMBA_CACHE_DIR) in which the index files of kernels that only run inside
+    # the entry points (integrator.run_steps, belt_kernel.gather) are stale (written for another source, as
+    # numba sees an index after an edit) or missing: `is_warm` says warm, and a transient indeed compiles
+    # nothing (every dispatched kernel a cache hit). Checking every kernel of the modules, as before, said
+    # cold: every run announced "compiling the transient kernels" and ran warm_up for nothing. A stale
+    # `advance` or a missing `band_lu_nopivot` is cold.
+    from beltdyn.transient import warm_up
+
+    warm_up()
+    code = textwrap.dedent(f"""
+        import pickle, shutil
+        from pathlib import Path
+        from beltdyn import jitcache, integrator, belt_kernel, spring_kernel
+        from beltdyn.transient import entry_kernels
+        modules = (integrator, belt_kernel, spring_kernel)
+        cache = Path(integrator.advance._cache._cache_path)
+        cache.mkdir(parents=True, exist_ok=True)
+        assert not any(cache.iterdir())
+        for f in Path({str(PACKAGE / "__pycache__")!r}).iterdir():
+            if f.suffix in (".nbi", ".nbc"):
+                shutil.copy(f, cache)
+
+        def index(k):
+            return Path(k._cache._cache_file._index_path)
+
+        def stale(k):
+            with open(index(k), "rb") as fh:
+                version = pickle.load(fh)
+            with open(index(k), "wb") as fh:
+                pickle.dump(version, fh)
+                fh.write(pickle.dumps(((0.0, 0), {{}})))
+
+        def every_kernel():  # the old check
+            return all(k._cache._cache_file._load_index() for m in modules for k in jitcache._kernels(m))
+
+        print(jitcache.is_warm(*entry_kernels()), every_kernel())
+        stale(integrator.run_steps)
+        index(belt_kernel.gather).unlink()
+        print(jitcache.is_warm(*entry_kernels()), every_kernel())
+    """) + _RUN_ALL.format(cases=TRANSIENTS[:2], root=str(ROOT)) + textwrap.dedent("""
+        got = [k for m in modules for k in jitcache._kernels(m) if k.signatures]
+        print(all(k.stats.cache_hits and not k.stats.cache_misses for k in got))
+        index(integrator.band_lu_nopivot).unlink()
+        print(jitcache.is_warm(*entry_kernels()))
+        stale(integrator.advance)
+        print(jitcache.is_warm(integrator.advance))
+    """)
+    got = _python(code, env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba")))
+    assert got == ["True True", "True False", "True", "False", "False"]
 
 
 @pytest.mark.parametrize("example, loaded", [
