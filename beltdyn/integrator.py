@@ -195,14 +195,14 @@ BAND_COST = 0.2  # the cost of a band entry in `split_matvec` relative to a list
 
 def split(A, n: int) -> Split:
     """A (scipy, dense or None: zero) as a `Split`, its half-width w the cheapest for `split_matvec`
-    (BAND_COST; w = -1: no band)."""
+    (BAND_COST; w = -1: no band), the band holding at most about 4 x A's entries (memory)."""
     C = to_csr(A) if A is not None else empty_csr(n)
     rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(C.indptr))
     off = C.indices - rows
     nnz = len(off)
     inside = np.cumsum(np.bincount(np.abs(off), minlength=n))  # entries with |offset| <= w
-    widths = np.arange(n)
-    cost = BAND_COST * (2 * widths + 1) * n + (nnz - inside)
+    widths = np.arange(min(n, 2 * nnz // n + 1))  # (2 w + 1) n <= 4 nnz + n
+    cost = BAND_COST * (2 * widths + 1) * n + (nnz - inside[widths])
     w = int(np.argmin(cost)) if nnz and cost.min() < nnz else -1
     band = np.zeros((max(2 * w + 1, 0), n))
     near = np.abs(off) <= w
