@@ -7,9 +7,9 @@ the joints and of the spring spans (`spring_kernel`, `BeltData.springs`), Kelvin
 reference state q_ref, usually the static equilibrium), F(t) = F_const + loads(t) - M u_nom s''(t)
 with F_const = preload + weight - K_lin q_ref (the constant part; it balances f at the static
 equilibrium, so no force of the size of a bearing preload ever enters a tolerance), C the constant
-damping (Rayleigh + components, CSR). Any number of DOFs may be prescribed (constraint objects:
-the rotation law `rotation_state` per DOF); their residual rows are dropped and their reactions
-recorded.
+damping (Rayleigh + components; M, C and K_lin as `Split`: a band and the entries off it). Any number
+of DOFs may be prescribed (constraint objects: the rotation law `rotation_state` per DOF); their
+residual rows are dropped and their reactions recorded.
 
 Generalized-alpha with spectral radius rho_inf:
     alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1), gamma = 1/2 - alpha_m + alpha_f,
