@@ -4,7 +4,7 @@ reduced-coordinate gather/scatter of the drive model.
 `ancf` is the reference implementation (vectorized numpy); this module computes the same quantities
 with plain loops, one element at a time, without allocating in the element loop, so that Newton
 solvers and the compiled time stepper (`integrator`) can call it.  Every function is
-``@njit(cache=True)`` except the set-up helpers `tables_from_elements` and `joint_selection`.
+``@njit(**KERNEL)`` except the set-up helpers `tables_from_elements` and `joint_selection`.
 
 Nomenclature (as `ancf`, paper "Modelling and dynamic analysis of belt drive system by hybrid
 flexible multibody method"):
@@ -14,7 +14,9 @@ flexible multibody method"):
 * ``D = dS[k, q]`` (4,) ds/dx and ``D2 = d2S[k, q]`` (4,) d2s/dx2 at Gauss point q of element k,
   so r' = sum_a D_a e_a and r'' = sum_a D2_a e_a with e_a = (e[2a], e[2a+1]).
 * ``wEA[k, q]`` = Gauss weight * L * EA, ``wEI[k, q]`` = Gauss weight * L * EI (integration weights
-  in x), ``Kb[k]`` the constant bending matrix EI int S''^T S'' dx of Eq. 17 (zeros unless "linear").
+  in x), ``Kb[k]`` the constant bending matrix EI int S''^T S'' dx of Eq. 17 (zeros unless "linear"),
+  kb (x) I2 like every matrix of the planar element: the force and energy loops read only its entries
+  (2a + c, 2b + c) (`tables_from_elements` checks the others are zeros).
 * Eq. 12    eps = (A - 1)/2 with A = r'.r' (Green-Lagrange axial strain).
 * Eq. 13-14 U_l = sum_q wEA eps^2 / 2,  f_l = sum_q wEA eps G_q,  G_q = S'^T r' = D (x) r' (8,),
             K_l = sum_q wEA [G_q G_q^T + eps P_q],  P_q = (D D^T) (x) I2.
@@ -48,12 +50,13 @@ compiled functions do not check shapes; outputs are written (not accumulated) un
 from __future__ import annotations
 
 import sys
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import jitcache
-from .jitcache import configure
+from .jitcache import KERNEL, configure
 
 configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
 from numba import njit  # noqa: E402
@@ -64,6 +67,8 @@ from .system import joint_selection  # noqa: F401  (set-up helper, pure numpy, l
 __all__ = [
     "CURVATURE_CODE",
     "KernelTables",
+    "Scratch",
+    "scratch",
     "tables_from_elements",
     "element_forces",
     "element_forces_tangent",
@@ -116,17 +121,32 @@ def _plain(a: np.ndarray) -> np.ndarray:
 
 def tables_from_elements(el: ancf.ElementSet) -> KernelTables:
     """The `KernelTables` of ``el`` (same Gauss rule and curvature model)."""
+    if np.any(el.K_bend[:, 0::2, 1::2]) or np.any(el.K_bend[:, 1::2, 0::2]):
+        raise ValueError("the bending matrix couples x and y components: not kb (x) I2")
     return KernelTables(dS=_plain(el.dS), d2S=_plain(el.d2S), wEA=_plain(el.wL * el.EA[:, None]),
                         wEI=_plain(el.wL * el.EI[:, None]), EA=_plain(el.EA), Kb=_plain(el.K_bend),
                         curvature=int(CURVATURE_CODE[el.curvature]))
+
+
+# The functions allocate nothing: a cached numba library whose code allocates (np.empty) makes numba
+# import its array modules when it is loaded (~30 ms of a short command's start); the callers hand
+# in this scratch. E, fe (n_elem, 8), Ke (n_elem, 8, 8): element states, forces, matrices; cf (5, n_gauss),
+# ce (6, n_gauss), h (n_gauss, 8): per-element Gauss-point coefficients; W (8, m): T^T Ke T's product.
+Scratch = namedtuple("Scratch", ["E", "fe", "Ke", "cf", "ce", "h", "W"])
+
+
+def scratch(n_elem: int, n_gauss: int, m: int = 8) -> Scratch:
+    """The kernels' `Scratch` for n_elem elements of n_gauss Gauss points and m reduced coordinates each."""
+    return Scratch(E=np.empty((n_elem, 8)), fe=np.empty((n_elem, 8)), Ke=np.empty((n_elem, 8, 8)),
+                   cf=np.empty((5, n_gauss)), ce=np.empty((6, n_gauss)), h=np.empty((n_gauss, 8)), W=np.empty((8, m)))
 
 
 # ------------------------------------------------------------------------------------ element sets
 # Implementation note (measured with numba 0.68): helpers that take arrays and contain loops or
 # branches kept reference-count operations inside the element loop (inlined or not), 2-6x slower
 # than flat code; so the loops are written out flat and only the branch- and loop-free `_slope`
-# is shared.  Scratch arrays are allocated once per call, never per element.
-@njit(cache=True, inline="always")
+# is shared.  Scratch arrays come from the caller (`Scratch`), never allocated here.
+@njit(inline="always", **KERNEL)
 def _slope(E, r, tab, k, g):
     """sum_a tab[k, g, a] e_a for e = E[r]: r' (tab = dS) or r'' (tab = d2S) at Gauss point g."""
     x = tab[k, g, 0] * E[r, 0] + tab[k, g, 1] * E[r, 2] + tab[k, g, 2] * E[r, 4] + tab[k, g, 3] * E[r, 6]
@@ -134,7 +154,7 @@ def _slope(E, r, tab, k, g):
     return x, y
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f):
     """f (n, 8) = dU/de at E (n, 8), as `ancf.internal_forces` (Eq. 14 + Eq. 17 or Eq. 16)."""
     n, nq, _ = dS.shape
@@ -164,15 +184,15 @@ def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f):
         if curvature == _LINEAR:
             for i in range(8):
                 acc = 0.0
-                for j in range(8):
+                for j in range(i % 2, 8, 2):  # Kb = kb (x) I2: the other parity is zeros
                     acc += Kb[k, i, j] * E[k, j]
                 f[k, i] += acc
 
 
-@njit(cache=True)
-def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K):
+@njit(**KERNEL)
+def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K, work):
     """f (n, 8) = dU/de and K (n, 8, 8) = df/de (exactly symmetric) at E (n, 8), as
-    `ancf.internal_forces_and_tangent`.
+    `ancf.internal_forces_and_tangent` (work: `Scratch`, its cf, ce, h).
 
     Per element, a first pass over the Gauss points stores their coefficients; then every entry is
     one sum over the Gauss points.  The axial part has Kronecker structure: the (i, j) component
@@ -180,9 +200,9 @@ def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K):
     """
     n, nq, _ = dS.shape
     exact = curvature == _EXACT
-    cf = np.empty((5, nq))  # s r'_x, s r'_y, cG r'_x r'_x + s, cG r'_x r'_y, cG r'_y r'_y + s
-    ce = np.empty((6, nq))  # "exact": u_c, a = wEI/A^3, u_c r''_y, u_c r'_y, u_c r'_x, u_c r''_x
-    h = np.empty((nq, 8))  # "exact": h = gc - 6 c/A G
+    cf = work.cf  # s r'_x, s r'_y, cG r'_x r'_x + s, cG r'_x r'_y, cG r'_y r'_y + s
+    ce = work.ce  # "exact": u_c, a = wEI/A^3, u_c r''_y, u_c r'_y, u_c r'_x, u_c r''_x
+    h = work.h  # "exact": h = gc - 6 c/A G
     for k in range(n):
         for g in range(nq):
             rx, ry = _slope(E, k, dS, k, g)
@@ -283,7 +303,7 @@ def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K):
                     K[k, 2 * b, 2 * a + 1] -= qq
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd):
     """fd (n, 8) Kelvin-Voigt belt damping force at E, Ed (n, 8) (module docstring); zeros when
     eta_a == eta_b == 0."""
@@ -318,23 +338,23 @@ def element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd):
         for k in range(n):
             for i in range(8):
                 acc = 0.0
-                for j in range(8):
+                for j in range(i % 2, 8, 2):  # Kb = kb (x) I2
                     acc += Kb[k, i, j] * Ed[k, j]
                 fd[k, i] += eta_b * acc
 
 
-@njit(cache=True)
-def element_damping_matrix(E, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C):
+@njit(**KERNEL)
+def element_damping_matrix(E, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C, work):
     """C (n, 8, 8) = d fd / d Ed at E (n, 8): eta_a sum_q wEA G G^T + eta_b B (module docstring),
     exactly symmetric, positive semi-definite for eta_a, eta_b >= 0 (same scheme as
-    `element_forces_tangent`)."""
+    `element_forces_tangent`; work: `Scratch`, its cf and h)."""
     n, nq, _ = dS.shape
     if eta_a == 0.0 and eta_b == 0.0:
         C[:, :, :] = 0.0
         return
     bend = eta_b != 0.0 and curvature == _EXACT
-    cf = np.empty((4, nq))  # eta_a wEA r'_x r'_x, .. r'_x r'_y, .. r'_y r'_y; eta_b wEI/A^3
-    gc = np.empty((nq, 8))
+    cf = work.cf  # eta_a wEA r'_x r'_x, .. r'_x r'_y, .. r'_y r'_y; eta_b wEI/A^3 (rows 0-3)
+    gc = work.h
     for k in range(n):
         for g in range(nq):
             rx, ry = _slope(E, k, dS, k, g)
@@ -388,7 +408,7 @@ def element_damping_matrix(E, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C)
                         C[k, j, i] += v
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def element_strain_energy(E, dS, d2S, wEA, wEI, Kb, curvature, U):
     """U (n,) element strain energy at E (n, 8), as `ancf.strain_energy` (Eq. 13 + Eq. 16/17)."""
     n, nq, _ = dS.shape
@@ -407,14 +427,14 @@ def element_strain_energy(E, dS, d2S, wEA, wEI, Kb, curvature, U):
             ub = 0.0
             for i in range(8):
                 acc = 0.0
-                for j in range(8):
+                for j in range(i % 2, 8, 2):  # Kb = kb (x) I2
                     acc += Kb[k, i, j] * E[k, j]
                 ub += E[k, i] * acc
             u += 0.5 * ub
         U[k] = u
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def element_min_axial_force(E, dS, EA, out):
     """out (n,) smallest second Piola-Kirchhoff axial force EA eps over each element's Gauss points
     at E (n, 8) (slack detection: < 0 means compression somewhere in the element)."""
@@ -430,7 +450,7 @@ def element_min_axial_force(E, dS, EA, out):
 
 
 # ------------------------------------------------------------------------------------ reduced coordinates
-@njit(cache=True)
+@njit(**KERNEL)
 def gather(q_ext, e0, T, idx, tsel, E):
     """E (n, 8) = e0 + T q_ext[idx] per element (q_ext (n_dof + 1,), q_ext[n_dof] = 0)."""
     n, _, m = T.shape
@@ -446,7 +466,7 @@ def gather(q_ext, e0, T, idx, tsel, E):
                 E[k, i] = e0[k, i] + acc
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def gather_velocity(v_ext, T, idx, tsel, Ed):
     """Ed (n, 8) = T v_ext[idx] per element (element velocities: `gather` without the offset)."""
     n, _, m = T.shape
@@ -462,7 +482,7 @@ def gather_velocity(v_ext, T, idx, tsel, Ed):
                 Ed[k, i] = acc
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def scatter_vector(fe, T, idx, tsel, out):
     """out (n_dof + 1,) += T^T fe per element, fe (n, 8) (accumulates; out[n_dof] is padding)."""
     n, _, m = T.shape
@@ -478,12 +498,11 @@ def scatter_vector(fe, T, idx, tsel, out):
                 out[idx[k, j]] += acc
 
 
-@njit(cache=True)
-def reduce_blocks(Ke, T, tsel, out):
-    """out (n, m, m) = T^T Ke T per element for symmetric Ke (n, 8, 8), exactly symmetric.
-    Identity path: Ke in the leading 8 x 8 block, zeros elsewhere."""
+@njit(**KERNEL)
+def reduce_blocks(Ke, T, tsel, out, W):
+    """out (n, m, m) = T^T Ke T per element for symmetric Ke (n, 8, 8), exactly symmetric (W (8, m):
+    scratch). Identity path: Ke in the leading 8 x 8 block, zeros elsewhere."""
     n, _, m = T.shape
-    W = np.empty((8, m))
     for k in range(n):
         if tsel[k] < 0:
             for p in range(8):
@@ -513,34 +532,32 @@ def reduce_blocks(Ke, T, tsel, out):
                 out[k, j, p] = acc
 
 
-@njit(cache=True)
-def reduced_force(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out):
+@njit(**KERNEL)
+def reduced_force(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out, work):
     """f_out (n_dof + 1,) = sum_e T^T f_e(e0 + T q_ext[idx]), the reduced elastic force
-    (overwritten; f_out[n_dof] is padding).  Allocates its (n, 8) scratch once per call."""
-    n = T.shape[0]
-    E = np.empty((n, 8))
-    fe = np.empty((n, 8))
+    (overwritten; f_out[n_dof] is padding); work: `Scratch`, its E and fe."""
+    E = work.E
+    fe = work.fe
     gather(q_ext, e0, T, idx, tsel, E)
     element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe)
     f_out[:] = 0.0
     scatter_vector(fe, T, idx, tsel, f_out)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out,
-                                     blocks_out):
+                                     blocks_out, work):
     """The reduced elastic force f_out (n_dof + 1,) (overwritten, as `reduced_force`) and the
-    tangent blocks blocks_out (n, m, m) = T^T K_e T of the Newton solvers, in one call.
-    Allocates its (n, 8) and (n, 8, 8) scratch once per call."""
-    n = T.shape[0]
-    E = np.empty((n, 8))
-    fe = np.empty((n, 8))
-    Ke = np.empty((n, 8, 8))
+    tangent blocks blocks_out (n, m, m) = T^T K_e T of the Newton solvers, in one call (work:
+    `Scratch`)."""
+    E = work.E
+    fe = work.fe
+    Ke = work.Ke
     gather(q_ext, e0, T, idx, tsel, E)
-    element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, fe, Ke)
+    element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, fe, Ke, work)
     f_out[:] = 0.0
     scatter_vector(fe, T, idx, tsel, f_out)
-    reduce_blocks(Ke, T, tsel, blocks_out)
+    reduce_blocks(Ke, T, tsel, blocks_out, work.W)
 
 
 jitcache.lean_loads(sys.modules[__name__])  # cache hits skip numba's full context refresh

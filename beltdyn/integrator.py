@@ -7,9 +7,9 @@ the joints and of the spring spans (`spring_kernel`, `BeltData.springs`), Kelvin
 reference state q_ref, usually the static equilibrium), F(t) = F_const + loads(t) - M u_nom s''(t)
 with F_const = preload + weight - K_lin q_ref (the constant part; it balances f at the static
 equilibrium, so no force of the size of a bearing preload ever enters a tolerance), C the constant
-damping (Rayleigh + components, CSR). Any number of DOFs may be prescribed (constraint objects:
-the rotation law `rotation_state` per DOF); their residual rows are dropped and their reactions
-recorded.
+damping (Rayleigh + components; M, C and K_lin as `Split`: a band and the entries off it). Any number
+of DOFs may be prescribed (constraint objects: the rotation law `rotation_state` per DOF); their
+residual rows are dropped and their reactions recorded.
 
 Generalized-alpha with spectral radius rho_inf:
     alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1), gamma = 1/2 - alpha_m + alpha_f,
@@ -76,7 +76,7 @@ from collections import namedtuple
 import numpy as np
 
 from . import jitcache
-from .jitcache import configure
+from .jitcache import KERNEL, configure
 
 configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
 from numba import njit  # noqa: E402
@@ -100,7 +100,16 @@ MAX_STEPS = 4  # step budget of this call used up (keeps Ctrl-C responsive)
 BeltData = namedtuple("BeltData", ["e0", "T", "idx", "tsel", "dS", "d2S", "wEA", "wEI", "EA", "Kb", "curvature",
                                    "eta_a", "eta_b", "elem_span", "n_span", "springs"])  # springs: spring_kernel.SpringData
 Csr = namedtuple("Csr", ["indptr", "indices", "data"])
+# A constant matrix A (n, n) of the stepper (`split`): its entries within w of the diagonal as a band (band
+# (2 w + 1, n), band[k, i] = A[i, i - w + k], zeros where A has none), the others as lists in row-major
+# order, left of the band (columns < i - w) and right of it (> i + w). `split_matvec` adds each row's
+# products in ascending column order, as a CSR product does: the same floating-point result (the band's
+# zeros add nothing), with the band vectorized across rows. The belt's M and C are banded in the system's
+# DOF order (half-width 6-7) but for the few entries that close the belt loop: M a + C v 3x faster.
+Coo = namedtuple("Coo", ["row", "col", "val"])
+Split = namedtuple("Split", ["w", "band", "left", "right"])
 Linear = namedtuple("Linear", ["K", "q_ref", "C", "M"])  # constant stiffness, its reference state, damping, mass
+# (K, C, M: Split)
 Forcing = namedtuple("Forcing", ["constant", "load_dof", "load_coef", "load_sig", "sig_params", "tab_ptr", "tab_t",
                                  "tab_v", "nominal_mass", "nominal_rotation", "nominal_scale"])
 Constraints = namedtuple("Constraints", ["dof", "params"])  # dof (k,), params (k, 9): rotation law (rotation_state)
@@ -123,6 +132,20 @@ Fused = namedtuple("Fused", ["indptr", "indices", "data"])  # data (k, nnz): k m
 Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction", "bristle", "anchor", "n_q"])
 ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry friction (bristle stiffness T_f / this);
 # 1e-4 rad gave the same hysteresis (0.1 %) and cost 20 % more Newton work on the FEAD example
+
+# The stepper's scratch, allocated once per run by `workspace` and cleared at every call of `advance`:
+# the compiled kernels allocate nothing, so that the cached library names no numba array module (a
+# cache hit imports the modules its functions' environments name: np.empty, np.zeros, np.interp and
+# np.finfo would bring numba's array modules, ~30 ms of a short command's start). Rows of:
+# ext (5, n + 1): q_ext, v_ext, f_el, f_dmp, gross (the padded vectors of `belt_kernel`);
+# vec (17, n): F1, q1, v1, a1, dq, Ma, Ma0, Cv, Cv0, Kd, fi, fl, tmp, tmp2, f_tr, tr_Bq, tr_Aq;
+# proj (13, nq): R, dx, work and, with arms, the terms projected on q (`run_steps`);
+# elem (4, n_elem, 8): E, Ed, fe, fd; elem1 (2, n_elem): U, min_elem; group (3, n_groups): res_g,
+# scale_g, floor_g; worst (n_groups,) int64; sig (n_signals,); react (max(n_con, 1),) R1; span
+# (max(n_span, 1),) min_span; held (nq,) int64: 1 on the prescribed DOFs (set by `run_steps`).
+Work = namedtuple("Work", ["ext", "vec", "proj", "elem", "elem1", "group", "worst", "sig", "react", "span", "held"])
+EPS = float(np.finfo(np.float64).eps)  # a constant to the compiled code (np.finfo there is numba's array module)
+
 
 
 def no_arms(n: int) -> Arms:
@@ -153,8 +176,55 @@ def no_factor() -> Factor:
                   perm=np.zeros(2, dtype=np.int64), kl=0, ku=1)
 
 
+def workspace(n: int, belt, forcing, cons, n_groups: int, arms) -> Work:
+    """The stepper's scratch (`Work`) for n joint coordinates."""
+    n_elem = belt.T.shape[0]
+    return Work(ext=np.zeros((5, n + 1)), vec=np.zeros((17, n)), proj=np.zeros((13, int(arms.n_q))),
+                elem=np.zeros((4, n_elem, 8)), elem1=np.zeros((2, n_elem)), group=np.zeros((3, n_groups)),
+                worst=np.zeros(n_groups, dtype=np.int64), sig=np.zeros(forcing.sig_params.shape[0]),
+                react=np.zeros(max(cons.dof.shape[0], 1)), span=np.zeros(max(belt.n_span, 1)),
+                held=np.zeros(int(arms.n_q), dtype=np.int64))
+
+
 def empty_csr(n: int) -> Csr:
     return Csr(np.zeros(n + 1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0))
+
+
+BAND_COST = 0.2  # the cost of a band entry in `split_matvec` relative to a listed one (measured: 0.17 ns vs ~1 ns)
+
+
+def split(A, n: int) -> Split:
+    """A (scipy, dense or None: zero) as a `Split`, its half-width w the cheapest for `split_matvec`
+    (BAND_COST; w = -1: no band), the band holding at most about 4 x A's entries (memory)."""
+    C = to_csr(A) if A is not None else empty_csr(n)
+    rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(C.indptr))
+    off = C.indices - rows
+    nnz = len(off)
+    inside = np.cumsum(np.bincount(np.abs(off), minlength=n))  # entries with |offset| <= w
+    widths = np.arange(min(n, 2 * nnz // n + 1))  # (2 w + 1) n <= 4 nnz + n
+    cost = BAND_COST * (2 * widths + 1) * n + (nnz - inside[widths])
+    w = int(np.argmin(cost)) if nnz and cost.min() < nnz else -1
+    band = np.zeros((max(2 * w + 1, 0), n))
+    near = np.abs(off) <= w
+    band[off[near] + w, rows[near]] = C.data[near]
+
+    def listed(mask):
+        return Coo(row=rows[mask], col=C.indices[mask], val=C.data[mask])
+
+    return Split(w=w, band=band, left=listed(off < -max(w, 0)), right=listed(off > w))  # (w = -1: all listed)
+
+
+def split_matrix(S: Split, n: int):
+    """The scipy CSR matrix (sorted indices) of a `Split`."""
+    from scipy.sparse import csr_matrix
+
+    k, i = np.nonzero(S.band)
+    rows = np.concatenate([S.left.row, i, S.right.row])
+    cols = np.concatenate([S.left.col, i + k - S.w, S.right.col])
+    vals = np.concatenate([S.left.val, S.band[k, i], S.right.val])
+    A = csr_matrix((vals, (rows, cols)), shape=(n, n))
+    A.sort_indices()
+    return A
 
 
 def to_csr(A) -> Csr:
@@ -185,7 +255,7 @@ def fused(*mats) -> Fused:
     return Fused(np.cumsum(indptr), (union % n_col).astype(np.int64), data)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def csr_matvec(A, x, out):
     n = A.indptr.shape[0] - 1
     for i in range(n):
@@ -195,14 +265,66 @@ def csr_matvec(A, x, out):
         out[i] = s
 
 
-@njit(cache=True)
+@njit(**KERNEL)
+def table_value(xp, fp, a, b, x):
+    """np.interp(x, xp[a:b], fp[a:b]) for one x, xp increasing (as numpy computes it: the end values
+    outside, fp at a sample time, else the slope times the distance from the sample below; np.interp
+    itself would make the cached stepper load numba's array modules, see `Work`)."""
+    if b - a == 1 or x < xp[a]:
+        return fp[a]
+    if x >= xp[b - 1]:
+        return fp[b - 1]
+    lo, hi = a, b - 1  # xp[lo] <= x < xp[hi]
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if xp[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    if xp[lo] == x:
+        return fp[lo]
+    slope = (fp[lo + 1] - fp[lo]) / (xp[lo + 1] - xp[lo])
+    val = slope * (x - xp[lo]) + fp[lo]
+    if val != val:  # NaN one way: the other (numpy's rule)
+        val = slope * (x - xp[lo + 1]) + fp[lo + 1]
+        if val != val and fp[lo] == fp[lo + 1]:
+            val = fp[lo]
+    return val
+
+
+@njit(**KERNEL)
+def split_matvec(S, x, out):
+    """out = A x for A a `Split`: per row the left entries, the band, the right entries, in ascending
+    column order (the floating-point result of `csr_matvec` on A's CSR)."""
+    n = out.shape[0]
+    for i in range(n):
+        out[i] = 0.0
+    L = S.left
+    for e in range(L.row.shape[0]):
+        out[L.row[e]] += L.val[e] * x[L.col[e]]
+    w = S.w
+    for k in range(2 * w + 1):
+        off = k - w
+        lo = max(0, -off)
+        hi = min(n, n - off)
+        ys = out[lo:hi]  # views from 0: the indices are provably >= 0 and the loop vectorizes
+        xs = x[lo + off:hi + off]
+        bs = S.band[k, lo:hi]
+        for i in range(hi - lo):
+            ys[i] += bs[i] * xs[i]
+    R = S.right
+    for e in range(R.row.shape[0]):
+        out[R.row[e]] += R.val[e] * x[R.col[e]]
+
+
+@njit(**KERNEL)
 def signal_values(F, t, out):
     """out[i] = ramp_i(t) * (c + A sin(2 pi f t + phi)) or table interpolation; params (n, 5) = c, A, f, phi, T_ramp."""
     params = F.sig_params
     for i in range(params.shape[0]):
         a, b = F.tab_ptr[i], F.tab_ptr[i + 1]
         if b > a:
-            val = np.interp(t, F.tab_t[a:b], F.tab_v[a:b])
+            val = table_value(F.tab_t, F.tab_v, a, b, t)
         else:
             val = params[i, 0] + params[i, 1] * np.sin(2.0 * np.pi * params[i, 2] * t + params[i, 3])
         tr = params[i, 4]
@@ -211,7 +333,7 @@ def signal_values(F, t, out):
         out[i] = val
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def smoothstep(t, tr):
     """C1 fade-in 3x^2 - 2x^3 over [0, tr] and its first two derivatives."""
     if tr <= 0.0 or t >= tr:
@@ -222,7 +344,7 @@ def smoothstep(t, tr):
     return x * x * (3.0 - 2.0 * x), 6.0 * x * (1.0 - x) / tr, (6.0 - 12.0 * x) / (tr * tr)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def rotation_state(rot, t):
     """Prescribed rotation: (nominal angle, speed, acceleration), (fluctuation angle, speed, acceleration).
 
@@ -258,7 +380,7 @@ def rotation_state(rot, t):
     return th, thd, thdd, s * g, sd * g + s * gd, sdd * g + 2.0 * sd * gd + s * gdd
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def band_cholesky_solve(ab, perm, b, x, work):
     """Solve S x = b with S[perm][:, perm] = U^T U, U in upper band storage ab (u+1, n), column-major:
     U^T y = b by columns of U (dot products, 4 partial sums: no chain of dependent additions), U x = y
@@ -269,20 +391,22 @@ def band_cholesky_solve(ab, perm, b, x, work):
         work[i] = b[perm[i]]
     for j in range(n):  # U^T y = b: y_j = (b_j - sum_{i<j} U_ij y_i) / U_jj
         lo = max(0, j - u)
-        off = u - j
+        m = j - lo
+        col = ab[u - m:u, j]  # U[lo:j, j], and y[lo:j]: views from 0 (indices provably >= 0)
+        ys = work[lo:j]
         s0 = 0.0
         s1 = 0.0
         s2 = 0.0
         s3 = 0.0
-        i = lo
-        while i + 3 < j:
-            s0 += ab[off + i, j] * work[i]
-            s1 += ab[off + i + 1, j] * work[i + 1]
-            s2 += ab[off + i + 2, j] * work[i + 2]
-            s3 += ab[off + i + 3, j] * work[i + 3]
+        i = 0
+        while i + 3 < m:
+            s0 += col[i] * ys[i]
+            s1 += col[i + 1] * ys[i + 1]
+            s2 += col[i + 2] * ys[i + 2]
+            s3 += col[i + 3] * ys[i + 3]
             i += 4
-        while i < j:
-            s0 += ab[off + i, j] * work[i]
+        while i < m:
+            s0 += col[i] * ys[i]
             i += 1
         work[j] = (work[j] - ((s0 + s1) + (s2 + s3))) / ab[u, j]
     band_upper_solve(ab, u, work)  # U x = y
@@ -290,7 +414,7 @@ def band_cholesky_solve(ab, perm, b, x, work):
         x[perm[i]] = work[i]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def band_upper_solve(ab, u, work):
     """U x = y in place (work (n,)), U upper with u superdiagonals, U[i, j] = ab[u + i - j, j]
     (column-major): x_j, then its column leaves the rows above (column updates)."""
@@ -299,12 +423,14 @@ def band_upper_solve(ab, u, work):
         xj = work[j] / ab[u, j]
         work[j] = xj
         lo = max(0, j - u)
-        off = u - j
-        for i in range(lo, j):
-            work[i] -= ab[off + i, j] * xj
+        m = j - lo
+        col = ab[u - m:u, j]  # U[lo:j, j], x[lo:j]: views from 0 (the update vectorizes)
+        xs = work[lo:j]
+        for i in range(m):
+            xs[i] -= col[i] * xj
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def band_lu_nopivot(ab, u):
     """LU factor without row exchanges, in place, of the band matrix A (n, n) held in ab (2u + 1, n)
     column-major, A[i, j] = ab[u + i - j, j] for |i - j| <= u: L unit lower (its multipliers below the
@@ -330,7 +456,7 @@ def band_lu_nopivot(ab, u):
     return n
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def band_lu_nopivot_solve(ab, perm, b, x, work):
     """Solve S x = b with the `band_lu_nopivot` factor of S[perm][:, perm] in ab (2u + 1, n)."""
     u = (ab.shape[0] - 1) // 2
@@ -347,7 +473,7 @@ def band_lu_nopivot_solve(ab, perm, b, x, work):
         x[perm[i]] = work[i]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def band_lu_solve(ab, piv, perm, kl, ku, b, x, work):
     """Solve S x = b with the LAPACK dgbtrf factor of S[perm][:, perm] (band storage ab
     (2 kl + ku + 1, n), 0-based pivots piv): the dgbtrs algorithm for no transpose."""
@@ -376,7 +502,7 @@ def band_lu_solve(ab, piv, perm, kl, ku, b, x, work):
         x[perm[i]] = work[i]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def factor_solve(fac, b, x, work):
     if fac.kind == 0:
         band_cholesky_solve(fac.ab, fac.perm, b, x, work)
@@ -386,7 +512,7 @@ def factor_solve(fac, b, x, work):
         band_lu_solve(fac.ab, fac.piv, fac.perm, fac.kl, fac.ku, b, x, work)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross):
     """Reduced belt elastic (f_el) and damping (f_dmp) forces (n + 1,) at (q, v); with_gross: also
     gross (n + 1,), the sum of |T^T f_e| over elements (the round-off scale)."""
@@ -416,7 +542,7 @@ def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gros
     sk.spring_forces(belt.springs, q_ext, v_ext, f_el, f_dmp, gross, with_gross)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def external_forces(F, cons, t, out, sig_val):
     """F(t) (n,): constant part + loads + inertia of the nominal belt travel."""
     n = out.shape[0]
@@ -432,7 +558,7 @@ def external_forces(F, cons, t, out, sig_val):
             out[F.load_dof[j]] += F.load_coef[j] * sig_val[F.load_sig[j]]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def transport_speed(tr, F, t):
     """(c, c') the belt speed (m/s) and its rate at time t."""
     if tr.follow:
@@ -441,7 +567,7 @@ def transport_speed(tr, F, t):
     return tr.speed, 0.0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def transport_forces(tr, c, cd, q, v, out, Bq, Aq):
     """out (n,) = c G v - c^2 (B q + b0) + c' (A q + a0); Bq, Aq (n,) receive B q + b0 and A q + a0.
     Returns (q.B q + 2 b0.q, v.(A q + a0)) for the energy and the transport power."""
@@ -460,7 +586,7 @@ def transport_forces(tr, c, cd, q, v, out, Bq, Aq):
     return qbq, vaq
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def fused_matvec(F, a, q, v, Ma, Aq, Bq, Gv):
     """Ma = M a, Aq = A q, Bq = B q, Gv = G v in one pass over the union pattern F (data rows M, A, G, B)."""
     n = F.indptr.shape[0] - 1
@@ -482,7 +608,7 @@ def fused_matvec(F, a, q, v, Ma, Aq, Bq, Gv):
         Bq[i] = sb
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def transport_from(tr, c, cd, q, v, out, Bq, Aq):
     """As `transport_forces` with the products B q, A q and G v (in out) already made (`fused_matvec`)."""
     n = q.shape[0]
@@ -497,7 +623,7 @@ def transport_from(tr, c, cd, q, v, out, Bq, Aq):
     return qbq, vaq
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def potential_energy(belt, lin, q, q_ext, E, U, dq, Kdq):
     """Belt strain energy (elements and spring spans) + 1/2 (q - q_ref)^T K_lin (q - q_ref)."""
     bk.gather(q_ext, belt.e0, belt.T, belt.idx, belt.tsel, E)
@@ -508,22 +634,22 @@ def potential_energy(belt, lin, q, q_ext, E, U, dq, Kdq):
     n = q.shape[0]
     for i in range(n):
         dq[i] = q[i] - lin.q_ref[i]
-    csr_matvec(lin.K, dq, Kdq)
+    split_matvec(lin.K, dq, Kdq)
     for i in range(n):
         total += 0.5 * dq[i] * Kdq[i]
     return total
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def kinetic_energy(lin, v, Mv):
-    csr_matvec(lin.M, v, Mv)
+    split_matvec(lin.M, v, Mv)
     s = 0.0
     for i in range(v.shape[0]):
         s += 0.5 * v[i] * Mv[i]
     return s
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def complete(arms, q, v, a):
     """The arm pulleys' centre offsets (p entries after n_q) from the arm angles, exactly."""
     for k in range(arms.dof.shape[0]):
@@ -539,7 +665,7 @@ def complete(arms, q, v, a):
         a[s + 1] = L * c * a[d] - L * sn * w * w
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def project(arms, q, x, out, absolute=False):
     """out (n_q,) = J(q)^T x for x (n_p,) on the joint coordinates (|J|^T x with absolute: round-off
     scales)."""
@@ -554,7 +680,7 @@ def project(arms, q, x, out, absolute=False):
         out[d] += a * x[s] + b * x[s + 1]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def arm_friction(arms, q, f):
     """Add the arms' dry friction torques clip(k_b (phi - z), -T_f, T_f) to f (on the angles); returns
     the bristles' stored energy sum tau^2 / (2 k_b)."""
@@ -568,7 +694,7 @@ def arm_friction(arms, q, f):
     return stored
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def slide_anchors(arms, q):
     """Return mapping after an accepted step: an anchor whose bristle torque exceeds T_f slides along."""
     for k in range(arms.dof.shape[0]):
@@ -582,20 +708,38 @@ def slide_anchors(arms, q):
                 arms.anchor[k] = q[d] + lim
 
 
-@njit(cache=True)
-def advance(task, state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr):
+@njit(**KERNEL)
+def advance(task, state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr, work):
     """The stepper's one entry point from Python: task START runs `start_forces` (returns DONE), STEP
     `run_steps` (returns its code). One compiled function holds every kernel a transient calls from
     Python, so a run loads one library from numba's cache instead of one per kernel (each load parses
-    its own copy of the callees' code: ~45 ms of a short command's start)."""
+    its own copy of the callees' code: ~45 ms of a short command's start). work: the scratch
+    (`workspace`), cleared here."""
+    clear(work)
     if task == START:
-        start_forces(state, belt, lin, F, cons, arms, tr)
+        start_forces(state, belt, lin, F, cons, arms, tr, work)
         return DONE
-    return run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr)
+    return run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr, work)
 
 
-@njit(cache=True)
-def start_forces(state, belt, lin, F, cons, arms, tr):
+@njit(**KERNEL)
+def clear(work):
+    """Zero the scratch (`Work`): each call starts from zeros, as from freshly allocated arrays."""
+    work.ext[:, :] = 0.0
+    work.vec[:, :] = 0.0
+    work.proj[:, :] = 0.0
+    work.elem[:, :, :] = 0.0
+    work.elem1[:, :] = 0.0
+    work.group[:, :] = 0.0
+    work.worst[:] = 0
+    work.sig[:] = 0.0
+    work.react[:] = 0.0
+    work.span[:] = 0.0
+    work.held[:] = 0
+
+
+@njit(**KERNEL)
+def start_forces(state, belt, lin, F, cons, arms, tr, work):
     """The initial state's forces at t = 0 (`transient.initial_state` solves for the acceleration):
     sets the prescribed DOFs' q, v, a and the arms' dependent entries (their angle accelerations 0 so
     far: a holds the centripetal part), relaxes the arms' friction bristles (anchors at the angles),
@@ -613,46 +757,35 @@ def start_forces(state, belt, lin, F, cons, arms, tr):
         v[d] = gd
         a[d] = gdd
     complete(arms, q, v, a)
-    q_ext = np.zeros(n + 1)
-    v_ext = np.zeros(n + 1)
+    q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
+    E, Ed, fe, fd = work.elem[0], work.elem[1], work.elem[2], work.elem[3]
+    dq, Kd, f_tr, tmp, tmp2 = work.vec[0], work.vec[1], work.vec[2], work.vec[3], work.vec[4]
     for i in range(n):
         q_ext[i] = q[i]
         v_ext[i] = v[i]
-    E = np.empty((n_elem, 8))
-    Ed = np.empty((n_elem, 8))
-    fe = np.empty((n_elem, 8))
-    fd = np.empty((n_elem, 8))
-    f_el = np.zeros(n + 1)
-    f_dmp = np.zeros(n + 1)
-    gross = np.zeros(n + 1)
     belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, False)
     for k in range(arms.dof.shape[0]):
         arms.anchor[k] = q[arms.dof[k]]
     arm_friction(arms, q, f_dmp)
-    dq = np.empty(n)
-    Kd = np.empty(n)
     for i in range(n):
         dq[i] = q[i] - lin.q_ref[i]
-    csr_matvec(lin.K, dq, Kd)
-    external_forces(F, cons, 0.0, state.F0, np.empty(F.sig_params.shape[0]))
+    split_matvec(lin.K, dq, Kd)
+    external_forces(F, cons, 0.0, state.F0, work.sig)
     c0, cd0 = transport_speed(tr, F, 0.0)
-    f_tr = np.zeros(n)
-    tmp = np.empty(n)
-    tmp2 = np.empty(n)
     qbq, vaq = transport_forces(tr, c0, cd0, q, v, f_tr, tmp, tmp2)
     for i in range(n):
         state.f0[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
         state.fd0[i] = f_dmp[i]
     kin = kinetic_energy(lin, v, tmp)
-    pot = potential_energy(belt, lin, q, q_ext, E, np.empty(n_elem), tmp, tmp2) - 0.5 * c0 * c0 * qbq
+    pot = potential_energy(belt, lin, q, q_ext, E, work.elem1[0], tmp, tmp2) - 0.5 * c0 * c0 * qbq
     th[E0] = kin + pot
     th[KIN0] = kin
     th[POT0] = pot
     th[TR_P0] = -cd0 * (c0 * qbq + vaq)
 
 
-@njit(cache=True)
-def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr):
+@njit(**KERNEL)
+def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr, work):
     """Advance the state until t_stop, a full buffer, a refactorization request or the step budget.
 
     Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
@@ -669,46 +802,20 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
     n_con = cons.dof.shape[0]
     B = out.t.shape[0]
     G = chk.n_groups
-    q_ext = np.zeros(n + 1)
-    v_ext = np.zeros(n + 1)
-    E = np.empty((n_elem, 8))
-    Ed = np.empty((n_elem, 8))
-    fe = np.empty((n_elem, 8))
-    fd = np.empty((n_elem, 8))
-    U = np.empty(n_elem)
-    min_elem = np.empty(n_elem)
-    f_el = np.zeros(n + 1)
-    f_dmp = np.zeros(n + 1)
-    gross = np.zeros(n + 1)
-    F1 = np.zeros(n)
-    q1 = np.empty(n)
-    v1 = np.empty(n)
-    a1 = np.empty(n)
-    dq = np.empty(n)
-    Ma = np.empty(n)
-    Ma0 = np.empty(n)
-    Cv = np.empty(n)
-    Cv0 = np.empty(n)
-    Kd = np.empty(n)
-    fi = np.empty(n)
-    fl = np.empty(n)
-    tmp = np.empty(n)
-    tmp2 = np.empty(n)
+    q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
+    E, Ed, fe, fd = work.elem[0], work.elem[1], work.elem[2], work.elem[3]
+    U, min_elem = work.elem1[0], work.elem1[1]
+    wv = work.vec
+    F1, q1, v1, a1, dq, Ma, Ma0, Cv, Cv0 = wv[0], wv[1], wv[2], wv[3], wv[4], wv[5], wv[6], wv[7], wv[8]
+    Kd, fi, fl, tmp, tmp2, f_tr, tr_Bq, tr_Aq = wv[9], wv[10], wv[11], wv[12], wv[13], wv[14], wv[15], wv[16]
     # the same terms projected on q (J^T at their own state): new (1) and old (0)
     # (without arms q = p, J = I: the terms themselves, no copies)
     with_arms = arms.dof.shape[0] > 0
-    R = np.empty(nq)
+    wp = work.proj
+    R, dx, work_q = wp[0], wp[1], wp[2]
     if with_arms:
-        Ma_q = np.empty(nq)
-        Cv_q = np.empty(nq)
-        fi_q = np.empty(nq)
-        F1_q = np.empty(nq)
-        Fc_q = np.empty(nq)
-        fl_q = np.empty(nq)
-        Ma0_q = np.empty(nq)
-        Cv0_q = np.empty(nq)
-        f0_q = np.empty(nq)
-        F0_q = np.empty(nq)
+        Ma_q, Cv_q, fi_q, F1_q, Fc_q = wp[3], wp[4], wp[5], wp[6], wp[7]
+        fl_q, Ma0_q, Cv0_q, f0_q, F0_q = wp[8], wp[9], wp[10], wp[11], wp[12]
     else:
         Ma_q = Ma
         Cv_q = Cv
@@ -720,29 +827,25 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
         Cv0_q = Cv0
         f0_q = state.f0
         F0_q = state.F0
-    dx = np.empty(nq)
-    work = np.empty(nq)
-    sig_val = np.empty(F.sig_params.shape[0])
-    res_g = np.empty(G)
-    scale_g = np.empty(G)
-    floor_g = np.empty(G)
-    worst_g = np.zeros(G, dtype=np.int64)
-    R1 = np.zeros(max(n_con, 1))
-    min_span = np.empty(max(belt.n_span, 1))
-    f_tr = np.zeros(n)
-    tr_Bq = np.empty(n)
-    tr_Aq = np.empty(n)
+    sig_val = work.sig
+    res_g, scale_g, floor_g = work.group[0], work.group[1], work.group[2]
+    worst_g = work.worst
+    R1 = work.react
+    min_span = work.span
+    held = work.held
+    for k in range(n_con):
+        held[cons.dof[k]] = 1
     moving = tr.follow != 0 or tr.speed != 0.0
     qbq = 0.0
     p_tr = 0.0
-    csr_matvec(lin.M, a, Ma0)
-    csr_matvec(lin.C, v, Cv0)
+    split_matvec(lin.M, a, Ma0)
+    split_matvec(lin.C, v, Cv0)
     if with_arms:
         project(arms, q, Ma0, Ma0_q)
         project(arms, q, Cv0, Cv0_q)
         project(arms, q, state.f0, f0_q)
         project(arms, q, state.F0, F0_q)
-    eps = np.finfo(np.float64).eps
+    eps = EPS
     steps = 0
     if fresh:  # a new factor: its age starts
         th[STALE] = 0.0
@@ -784,19 +887,18 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
             for i in range(n):
                 q_ext[i] = q1[i]
                 v_ext[i] = v1[i]
+                dq[i] = q1[i] - lin.q_ref[i]
             # the round-off scale at the step's first evaluation: a floor, not a force
             belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, it == 0)
             bristle1 = arm_friction(arms, q1, f_dmp)
-            for i in range(n):
-                dq[i] = q1[i] - lin.q_ref[i]
-            csr_matvec(lin.K, dq, Kd)
-            csr_matvec(lin.C, v1, Cv)
+            split_matvec(lin.K, dq, Kd)
+            split_matvec(lin.C, v1, Cv)
             if moving:  # M a, A q, G v, B q in one pass
                 fused_matvec(tr.mag, a1, q1, v1, Ma, tr_Aq, tr_Bq, f_tr)
                 qbq, vaq = transport_from(tr, c1, cd1, q1, v1, f_tr, tr_Bq, tr_Aq)
                 p_tr = -cd1 * (c1 * qbq + vaq)
             else:
-                csr_matvec(lin.M, a1, Ma)
+                split_matvec(lin.M, a1, Ma)
             for i in range(n):
                 fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
                 fl[i] = gross[i] + abs(Kd[i]) + abs(F.constant[i]) + abs(f_tr[i])
@@ -812,25 +914,24 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
                 scale_g[g] = 0.0
                 floor_g[g] = 0.0
             finite = True
-            for i in range(nq):
-                R[i] = ((1.0 - am) * Ma_q[i] + am * Ma0_q[i]
-                        + (1.0 - af) * (Cv_q[i] + fi_q[i] - F1_q[i]) + af * (Cv0_q[i] + f0_q[i] - F0_q[i]))
+            res = 0.0
+            for i in range(nq):  # residual, scales and floors (every row), checked (the free rows)
+                Ri = ((1.0 - am) * Ma_q[i] + am * Ma0_q[i]
+                      + (1.0 - af) * (Cv_q[i] + fi_q[i] - F1_q[i]) + af * (Cv0_q[i] + f0_q[i] - F0_q[i]))
                 g = chk.group[i]
                 sc = abs(Ma_q[i]) + abs(Cv_q[i]) + abs(fi_q[i] - Fc_q[i]) + abs(F1_q[i] - Fc_q[i])
                 if sc > scale_g[g]:
                     scale_g[g] = sc
                 if fl_q[i] > floor_g[g]:
                     floor_g[g] = fl_q[i]
-            for k in range(n_con):
-                R[cons.dof[k]] = 0.0
-            res = 0.0
-            for i in range(nq):
-                r = abs(R[i])
+                if held[i]:  # a prescribed row: no residual
+                    Ri = 0.0
+                R[i] = Ri
+                r = abs(Ri)
                 if not np.isfinite(r):
                     finite = False
                     worst = i
                     break
-                g = chk.group[i]
                 if r > res_g[g]:
                     res_g[g] = r
                     worst_g[g] = i
@@ -849,7 +950,7 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
                 break
             if it >= chk.max_iter:
                 break
-            factor_solve(fac, R, dx, work)
+            factor_solve(fac, R, dx, work_q)
             for k in range(n_con):
                 dx[cons.dof[k]] = 0.0
             norm = 0.0

@@ -1,6 +1,6 @@
 """Where numba caches the compiled kernels, and whether they are cached already (issue 10, item 5).
 
-numba caches each ``@njit(cache=True)`` function next to its source (``beltdyn/__pycache__``). In a
+numba caches each ``@njit(**KERNEL)`` function (cache=True) next to its source (``beltdyn/__pycache__``). In a
 read-only installation (a system site-packages, a container image) numba falls back to its own user
 cache folder, and fails at import when that is not writable either. `configure` decides before
 numba compiles anything: the package folder when writable, else ``$XDG_CACHE_HOME/beltdyn/numba``
@@ -18,10 +18,11 @@ caller never loads (nor compiles) it, and its own cache entry, stale or missing,
 Before its first load numba refreshes its whole target context, importing and registering every
 lowering it knows (strings, lists, sets, dicts, random generators, polynomials, jitclasses, ...):
 ~120 ms of a short `beltdyn transient`, spent on a code generator that a cache hit does not run. A
-cached library needs numba's runtime (NRT, `rtsys.initialize`; its C helpers and math functions are
-registered when the context is made) and the modules its environments name, which unpickling imports
-itself. A compile still refreshes in full (numba's compiler does so before every compile), and a load
-that fails the lean way is retried numba's way.
+cached library needs the modules its environments name, which unpickling imports itself, and numba's
+runtime (NRT, `rtsys.initialize`, which compiles the runtime's functions: ~20 ms) when its machine code
+calls it: the object code then names NRT_/nrt_ symbols (undefined ones), a kernel compiled with
+`KERNEL` (no runtime) names none and loads without it. A compile still refreshes in full (numba's
+compiler does so before every compile), and a load that fails the lean way is retried numba's way.
 """
 
 from __future__ import annotations
@@ -33,6 +34,11 @@ from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
 _CHOSEN: list[str | None] = []  # configure's answer, once per process
+# The njit options of beltdyn's kernels (`@njit(**KERNEL)`): cached, and without numba's runtime (NRT): the
+# kernels allocate nothing (their callers hand in the scratch), so their code keeps no reference counts
+# of the arrays and views it handles (a transient step ~11 % faster); a kernel that allocated would not
+# compile.
+KERNEL = {"cache": True, "_nrt": False}
 
 
 def _writable(folder: Path) -> bool:
@@ -96,15 +102,33 @@ def is_warm(*kernels) -> bool | None:
         return None
 
 
-def _lean_load_overload(cache, sig, target_context):
-    """numba's `Cache.load_overload` with the runtime initialized instead of the whole target context
-    refreshed (see the module docstring); numba's own on any failure."""
+def _uses_runtime(data) -> bool:
+    """Whether a cached overload's machine code calls numba's runtime (NRT): its object code names an NRT_
+    or nrt_ symbol (every runtime symbol is so named; an undefined one is named in the object's string
+    table). True when this cannot be told."""
     try:
-        from numba.core.runtime import rtsys
+        _name, kind, (object_code, _bitcode) = data[0]  # CompileResult._reduce: the library's serialization
+        return kind != "object" or b"NRT_" in object_code or b"nrt_" in object_code
+    except Exception:  # noqa: BLE001 - private numba API: assume it does
+        return True
 
-        rtsys.initialize(target_context)
+
+def _lean_load_overload(cache, sig, target_context):
+    """numba's `Cache.load_overload` with the runtime initialized (when the machine code calls it)
+    instead of the whole target context refreshed (see the module docstring); numba's own on any
+    failure."""
+    try:
         with cache._guard_against_spurious_io_errors():
-            return cache._load_overload(sig, target_context)
+            if not cache._enabled:
+                return None
+            data = cache._cache_file.load(cache._index_key(sig, target_context.codegen()))  # (as _load_overload)
+            if data is None:
+                return None
+            if _uses_runtime(data):
+                from numba.core.runtime import rtsys
+
+                rtsys.initialize(target_context)
+            return cache._impl.rebuild(target_context, data)
     except Exception:  # noqa: BLE001 - private numba API: numba's own way then
         return type(cache).load_overload(cache, sig, target_context)
 
@@ -116,5 +140,6 @@ def lean_loads(module) -> None:
 
     for k in _kernels(module):
         cache = k._cache
-        if hasattr(cache, "_load_overload") and hasattr(cache, "_guard_against_spurious_io_errors"):
+        if all(hasattr(cache, a) for a in ("_guard_against_spurious_io_errors", "_cache_file", "_index_key", "_impl",
+                                           "_enabled")):
             cache.load_overload = types.MethodType(_lean_load_overload, cache)

@@ -124,7 +124,7 @@ def linearized_matrices(system: "System", q0: np.ndarray, damping: "Damping | No
         E = belt.element_coordinates(system.expand(q0))
         Ce = np.empty((E.shape[0], 8, 8))
         bk.element_damping_matrix(E, tab.dS, tab.d2S, tab.wEA, tab.wEI, tab.Kb, tab.curvature,
-                                  float(damping.belt_axial), float(damping.belt_bending), Ce)
+                                  float(damping.belt_axial), float(damping.belt_bending), Ce, belt.kernel_scratch())
         Cb = system.with_belt(damping_axial=float(damping.belt_axial)).belt_damping_matrix(q0, Ce)  # + spring spans
         C_p = Cb if C_p is None else C_p + Cb
     C = system.project_matrix(q0, C_p) if C_p is not None else 0.0 * M

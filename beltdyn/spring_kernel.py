@@ -18,6 +18,7 @@ import numpy as np
 from numba import njit
 
 from . import jitcache
+from .jitcache import KERNEL
 
 # D (k, 2, m) the chord d = x[2:4] - x[0:2] per joint coordinate, idx (k, m) (padding n), d0 (k, 2) the chord at
 # p = 0, L (k,), span (k,) span index, EA, eta (retardation time, s)
@@ -40,7 +41,7 @@ def spring_data(springs, eta: float) -> SpringData:
                       span=np.ascontiguousarray(springs.span, dtype=np.int64), EA=float(springs.EA), eta=float(eta))
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _chord(sp, k, q_ext):
     """The chord (dx, dy) = d0 + D q_ext[idx] of spring k."""
     dx, dy = sp.d0[k, 0], sp.d0[k, 1]
@@ -51,7 +52,7 @@ def _chord(sp, k, q_ext):
     return dx, dy
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def spring_forces(sp, q_ext, v_ext, f_el, f_dmp, gross, with_gross):
     """Add the spring spans' elastic (f_el) and damping (f_dmp) forces (n + 1,) at (q, v); with_gross:
     also |T^T f| per entry to gross (the round-off scale)."""
@@ -78,7 +79,7 @@ def spring_forces(sp, q_ext, v_ext, f_el, f_dmp, gross, with_gross):
                 gross[sp.idx[k, j]] += abs(N * c)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def spring_energy(sp, q_ext):
     """Strain energy of the spring spans, sum EA L eps^2 / 2."""
     total = 0.0
@@ -90,7 +91,7 @@ def spring_energy(sp, q_ext):
     return total
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def spring_min_force(sp, q_ext, min_span):
     """min_span[span] = min(min_span[span], EA eps) of each spring span (slack detection, the second
     Piola-Kirchhoff force as the belt's)."""

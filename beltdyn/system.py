@@ -294,6 +294,12 @@ class BeltSpans:
             object.__setattr__(self, "_tables", tab)
         return tab
 
+    def kernel_scratch(self):
+        """New scratch arrays for the compiled kernel's functions on these elements (`belt_kernel.Scratch`)."""
+        from .belt_kernel import scratch
+
+        return scratch(self.T.shape[0], self.elements.dS.shape[1], self.T.shape[2])
+
     def sampling_table(self, n_pts: int) -> np.ndarray:
         """(n_elem, n_pts, 4) shape functions s1..s4 at xi = 0, 1/n_pts, ... (cached)."""
         key = f"_samp{n_pts}"
@@ -317,7 +323,9 @@ class BeltSpans:
         joint = np.flatnonzero(self.tsel >= 0)
         if len(joint):
             E[:, joint] = np.einsum("eim,bem->bei", self.T[joint], q_ext[:, self.idx[joint]])
-        return E + self.e0 if offset else E
+        if offset:
+            E += self.e0  # (in place: a new batch-sized array costs its page faults again, ~5x the addition)
+        return E
 
     def reduce_vector(self, fe: np.ndarray) -> np.ndarray:
         """sum_e T^T fe (n_elem, 8) -> (n_dof,)."""
@@ -342,7 +350,7 @@ class BeltSpans:
         tab = self.kernel_tables
         out = np.zeros(self.n_dof + 1)
         bk.reduced_force(np.append(q, 0.0), self.e0, self.T, self.idx, self.tsel, tab.dS, tab.d2S, tab.wEA, tab.wEI,
-                         tab.Kb, tab.curvature, out)
+                         tab.Kb, tab.curvature, out, self.kernel_scratch())
         return out[: self.n_dof]
 
     def force_and_blocks(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -356,7 +364,7 @@ class BeltSpans:
         out = np.zeros(self.n_dof + 1)
         blocks = np.empty((self.T.shape[0], self.T.shape[2], self.T.shape[2]))
         bk.reduced_force_and_tangent_blocks(np.append(q, 0.0), self.e0, self.T, self.idx, self.tsel, tab.dS, tab.d2S,
-                                            tab.wEA, tab.wEI, tab.Kb, tab.curvature, out, blocks)
+                                            tab.wEA, tab.wEI, tab.Kb, tab.curvature, out, blocks, self.kernel_scratch())
         return out[: self.n_dof], blocks
 
     def mean_tension_and_gradient(self, q: np.ndarray) -> tuple[float, np.ndarray]:
@@ -1326,9 +1334,9 @@ class System:
             F = np.zeros((p.shape[0], b.n_span, 2, 2))
         else:
             E = b.element_coordinates_batch(p) if E is None else E
-            if vp is not None and Ed is None:
+            if vp is not None and Ed is None and (b.damping_axial > 0.0 or b.damping_bending > 0.0):
                 Ed = b.element_coordinates_batch(vp, offset=False)
-            F = b.end_forces(E, Ed, self.gravity)
+            F = b.end_forces(E, Ed, self.gravity)  # (Ed is read with belt damping only)
         if self.springs is not None:
             sp = self.springs
             F = F + sp.end_forces(sp.positions_batch(p), None if vp is None else sp.positions_batch(vp, offset=False),

@@ -265,8 +265,7 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
         elem_span=belt.elem_span.astype(np.int64), n_span=int(belt.n_span),
         springs=spring_data(system.springs, d.belt_axial))
     assert CURVATURE_CODE[belt.elements.curvature] == tab.curvature
-    linear = itg.Linear(K=itg.to_csr(K_lin), q_ref=q_ref, C=itg.to_csr(C) if C is not None else itg.empty_csr(n),
-                        M=itg.to_csr(M))
+    linear = itg.Linear(K=itg.split(K_lin, n), q_ref=q_ref, C=itg.split(C, n), M=itg.split(M, n))
     forcing = itg.Forcing(
         constant=constant, load_dof=np.array(load_dof, dtype=np.int64), load_coef=np.array(load_coef, dtype=float),
         load_sig=np.array(load_sig, dtype=np.int64), sig_params=np.array(params, dtype=float).reshape(-1, 5),
@@ -475,7 +474,8 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
     if b.eta_a or b.eta_b:
         E = system.belt.element_coordinates(p)
         Ce = np.empty((E.shape[0], 8, 8))
-        bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce)
+        bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce,
+                                  system.belt.kernel_scratch())
         terms.append((c_c, system.belt_damping_matrix(q, Ce)))
     if setup.C is not None:
         terms.append((c_c, setup.C))
@@ -633,7 +633,8 @@ class IterationPlan:
         if b.eta_a or b.eta_b:
             E = system.belt.element_coordinates(p)
             Ce = np.empty((E.shape[0], 8, 8))
-            bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce)
+            bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce,
+                                      system.belt.kernel_scratch())
             data += c_c * system.belt_damping_matrix(q, Ce).data
         arms, a = self.arms, system.arms
         if a is not None:  # J^T S J: the arm offsets' rows and columns scaled by dc/dphi, folded onto the angle
@@ -732,10 +733,10 @@ def initial_state(problem: StepProblem, step: float, start: Callable):
                       F0=np.empty(n), R0=np.zeros(max(len(cons.dof), 1)), scal=scal)  # (at least one slot)
     start(state)  # q, v, a of the prescribed DOFs and arms (a: the centripetal part), f0, fd0, F0, energies
     q, v, a, f0, F0 = state.q, state.v, state.a, state.f0, state.F0
-    from scipy.sparse import coo_matrix, csr_matrix
+    from scipy.sparse import coo_matrix
 
-    Md = csr_matrix((lin.M.data, lin.M.indices, lin.M.indptr), shape=(n, n)).toarray()
-    Cv = csr_matrix((lin.C.data, lin.C.indices, lin.C.indptr), shape=(n, n)) @ v
+    Md = itg.split_matrix(lin.M, n).toarray()
+    Cv = itg.split_matrix(lin.C, n) @ v
     # J^T (M (J a_q + h) + C v + f - F) = 0 on the free independent DOFs (J = I without arms)
     phi = arms.angle + q[arms.dof]
     J = coo_matrix((np.r_[np.ones(nq), -arms.length * np.sin(phi), arms.length * np.cos(phi)],
@@ -806,9 +807,11 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     opts = itg.StepOptions(am=am, af=af, beta=beta, gamma=gamma, t_stop=float(duration), dt_out=float(output_interval),
                            max_steps=2000, refresh=0.0)
 
+    work = itg.workspace(n, problem.belt, problem.forcing, problem.constraints, chk.n_groups, arms)
+
     def advance(task, st, fac, fresh):  # the compiled stepper (`integrator.advance`), opts as they are now
         return itg.advance(task, st, problem.belt, problem.linear, problem.forcing, problem.constraints, chk, opts,
-                           fac, fresh, out, ev, info, arms, tr)
+                           fac, fresh, out, ev, info, arms, tr, work)
 
     state = initial_state(problem, step, lambda st: advance(itg.START, st, itg.no_factor(), False))
     th = state.scal
@@ -1111,8 +1114,7 @@ def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.
                         curvature=1, eta_a=0.0, eta_b=0.0, elem_span=np.zeros(0, dtype=np.int64), n_span=0,
                         springs=no_springs())
     Cm = np.zeros((n, n)) if C is None else np.asarray(C, dtype=float)
-    lin = itg.Linear(K=itg.to_csr(K), q_ref=np.zeros(n), C=itg.to_csr(Cm) if C is not None else itg.empty_csr(n),
-                     M=itg.to_csr(M))
+    lin = itg.Linear(K=itg.split(K, n), q_ref=np.zeros(n), C=itg.split(None if C is None else Cm, n), M=itg.split(M, n))
     forcing = itg.Forcing(constant=np.zeros(n), load_dof=np.zeros(0, dtype=np.int64), load_coef=np.zeros(0),
                           load_sig=np.zeros(0, dtype=np.int64), sig_params=np.zeros((0, 5)),
                           tab_ptr=np.zeros(1, dtype=np.int64), tab_t=np.zeros(0), tab_v=np.zeros(0),

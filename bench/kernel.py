@@ -103,6 +103,7 @@ def row(n_per_span: int, curvature: str) -> list[float]:
     K = np.empty((n, 8, 8))
     f_red = np.empty(n_dof + 1)
     blocks = np.empty((n, T.shape[2], T.shape[2]))
+    work = bk.scratch(n, tab.dS.shape[1], T.shape[2])
 
     def np_reduced():
         Ee = e0 + np.matmul(T, q_ext[idx][:, :, None])[:, :, 0]
@@ -113,12 +114,12 @@ def row(n_per_span: int, curvature: str) -> list[float]:
 
     return [
         median_us(lambda: ancf.internal_forces_and_tangent(el, E)),
-        median_us(lambda: bk.element_forces_tangent(E, *tab.args, f, K)),
+        median_us(lambda: bk.element_forces_tangent(E, *tab.args, f, K, work)),
         median_us(np_reduced),
-        median_us(lambda: bk.reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, *tab.args, f_red, blocks)),
+        median_us(lambda: bk.reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, *tab.args, f_red, blocks, work)),
         median_us(lambda: ancf.internal_forces(el, E)),
         median_us(lambda: bk.element_forces(E, *tab.args, f)),
-        median_us(lambda: bk.reduced_force(q_ext, e0, T, idx, tsel, *tab.args, f_red)),
+        median_us(lambda: bk.reduced_force(q_ext, e0, T, idx, tsel, *tab.args, f_red, work)),
     ]
 
 

@@ -149,7 +149,7 @@ def test_forces_and_tangent_match_ancf(curvature, n_gauss, state, mesh):
     el, tab, E = _setup(mesh, curvature, n_gauss, state)
     f = np.empty_like(E)
     K = np.empty((E.shape[0], 8, 8))
-    bk.element_forces_tangent(E, *tab.args, f, K)
+    bk.element_forces_tangent(E, *tab.args, f, K, bk.scratch(E.shape[0], tab.dS.shape[1]))
     f_ref, K_ref = ancf.internal_forces_and_tangent(el, E)
     assert _rel_err(f, f_ref) <= 1e-12
     assert _rel_err(K, K_ref) <= 1e-12
@@ -219,7 +219,7 @@ def test_tangent_is_the_force_jacobian(curvature, state):
     el, tab, E = _setup("uneven", curvature, 3, state)
     f = np.empty_like(E)
     K = np.empty((E.shape[0], 8, 8))
-    bk.element_forces_tangent(E, *tab.args, f, K)
+    bk.element_forces_tangent(E, *tab.args, f, K, bk.scratch(E.shape[0], tab.dS.shape[1]))
 
     def forces(e):
         out = np.empty_like(e)
@@ -243,7 +243,7 @@ def _damping(E, Ed, tab, eta_a, eta_b):
 
 def _damping_matrix(E, tab, eta_a, eta_b):
     C = np.empty((E.shape[0], 8, 8))
-    bk.element_damping_matrix(E, *tab.args, eta_a, eta_b, C)
+    bk.element_damping_matrix(E, *tab.args, eta_a, eta_b, C, bk.scratch(E.shape[0], tab.dS.shape[1]))
     return C
 
 
@@ -323,7 +323,7 @@ def test_damping_is_zero_without_retardation(curvature):
     fd = np.full_like(E, np.nan)
     C = np.full((E.shape[0], 8, 8), np.nan)
     bk.element_damping(E, _velocities(E, 3), *tab.args, 0.0, 0.0, fd)
-    bk.element_damping_matrix(E, *tab.args, 0.0, 0.0, C)
+    bk.element_damping_matrix(E, *tab.args, 0.0, 0.0, C, bk.scratch(E.shape[0], tab.dS.shape[1]))
     assert not fd.any() and not C.any()
 
 
@@ -426,7 +426,7 @@ def test_reduce_blocks_matches_dense():
     a = rng.standard_normal((T.shape[0], 8, 8))
     Ke = a + np.swapaxes(a, 1, 2)
     out = np.full((T.shape[0], T.shape[2], T.shape[2]), np.nan)
-    bk.reduce_blocks(Ke, T, tsel, out)
+    bk.reduce_blocks(Ke, T, tsel, out, np.empty((8, T.shape[2])))
     ref = np.einsum("kip,kij,kjq->kpq", T, Ke, T)
     assert _rel(out, ref) <= 1e-14
     np.testing.assert_array_equal(out, np.swapaxes(out, 1, 2))
@@ -452,9 +452,10 @@ def test_reduced_force_and_blocks_match_ancf_through_the_layout(curvature, state
 
     f_out = np.full(n_dof + 1, np.nan)
     blocks = np.full((n, T.shape[2], T.shape[2]), np.nan)
-    bk.reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, *tab.args, f_out, blocks)
+    work = bk.scratch(n, tab.dS.shape[1], T.shape[2])
+    bk.reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, *tab.args, f_out, blocks, work)
     assert _rel(f_out[:n_dof], fr_ref[:n_dof]) <= 1e-12
     assert _rel_err(blocks, blocks_ref) <= 1e-12
     f_only = np.full(n_dof + 1, np.nan)
-    bk.reduced_force(q_ext, e0, T, idx, tsel, *tab.args, f_only)
+    bk.reduced_force(q_ext, e0, T, idx, tsel, *tab.args, f_only, work)
     assert _rel(f_only[:n_dof], fr_ref[:n_dof]) <= 1e-12

@@ -219,17 +219,43 @@ def test_cache_hits_skip_the_full_context_refresh():
     # results are those of the other tests (same kernels, same code).
     from beltdyn.transient import warm_up
 
+    # Nor does it import numba's array modules (the kernels allocate nothing, so no function environment
+    # names them) or start numba's runtime (NRT: kernels compiled with jitcache.KERNEL never call it).
     warm_up()  # (the cache warm, as after `make`)
-    unused = ["numba.typed.typeddict", "numba.np.random.generator_methods", "numba.np.polynomial.polynomial_functions"]
+    unused = ["numba.typed.typeddict", "numba.np.random.generator_methods", "numba.np.polynomial.polynomial_functions",
+              "numba.np.arrayobj", "numba.np.arraymath"]
     code = ("import sys; from beltdyn.config import load_config; from beltdyn.pipeline import analyse; "
-            "from beltdyn.transient import run_transient; "
+            "from beltdyn.transient import run_transient; from numba.core.runtime import rtsys; "
             f"cfg = load_config({str(ROOT / 'configs' / 'examples' / 'fead_4cyl.toml')!r}, "
             "['transient.duration=0.002', 'transient.spectrum.enabled=false']); run = analyse(cfg); "
             "s = run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None); "
-            f"print(s.status, [m for m in {unused!r} if m in sys.modules])")
+            f"print(s.status, [m for m in {unused!r} if m in sys.modules], rtsys._init)")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
-    assert r.stdout.strip() == "complete []"
+    assert r.stdout.strip() == "complete [] False"
+
+
+def test_runtime_use_is_told_from_the_object_code():
+    # jitcache._uses_runtime reads a cached overload's object code: a function that allocates calls numba's
+    # runtime (its object code names NRT_ symbols), one compiled with jitcache.KERNEL's options does not.
+    import numpy as np
+    from numba import njit
+
+    def zeros(n):
+        return np.zeros(n)
+
+    def add(a, b):
+        a[0] += b[0]
+
+    options = {k: v for k, v in jitcache.KERNEL.items() if k != "cache"}  # (not cached: no files)
+    allocating, plain = njit(zeros), njit(**options)(add)
+    allocating(3)
+    plain(np.zeros(1), np.ones(1))
+    for f, uses in ((allocating, True), (plain, False)):
+        lib = f.overloads[f.signatures[0]].library
+        obj = lib._codegen._tm.emit_object(lib._final_module)  # its machine code, as the cache holds it
+        assert jitcache._uses_runtime(((lib.name, "object", (obj, b"")),)) is uses
+    assert jitcache._uses_runtime(((lib.name, "bitcode", b""),)) is True  # no object code: assume it does
 
 
 def test_command_line_values_are_read_without_pydantic():

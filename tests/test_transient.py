@@ -353,6 +353,58 @@ def test_torque_table_content_is_part_of_the_configuration(tmp_path):
     assert out["pulley_speed"][-1, 0] != 0.0 and np.all(np.isfinite(out["pulley_speed"]))
 
 
+@pytest.mark.parametrize("n_points", [1, 2, 7])
+def test_table_value_is_numpys_interp(n_points):
+    # The stepper's table interpolation (integrator.table_value, compiled) against np.interp, exactly
+    # (tolerance 0: the same formula): before, at, between and after the sample times of a table
+    # stored after another one in the shared arrays (the offsets a:b).
+    from beltdyn.integrator import table_value
+
+    rng = np.random.default_rng(n_points)
+    xp = np.cumsum(rng.uniform(0.1, 1.0, n_points))
+    fp = rng.standard_normal(n_points)
+    tab_t, tab_v = np.r_[-5.0, -4.0, xp], np.r_[9.0, 8.0, fp]  # another table first: this one is [2:]
+    x = np.r_[xp[0] - 1.0, xp, rng.uniform(xp[0], xp[-1], 50), xp[-1] + 1.0]
+    got = np.array([table_value(tab_t, tab_v, 2, 2 + n_points, float(t)) for t in x])
+    np.testing.assert_array_equal(got, np.interp(x, xp, fp))
+
+
+@pytest.mark.parametrize("shape", ["loop", "scattered", "diagonal", "one", "empty", "dense"])
+def test_split_product_is_the_csr_product(shape):
+    # The stepper's band + listed form of a constant matrix (integrator.split / split_matvec) against
+    # integrator.csr_matvec on the same matrix, exactly (tolerance 0: each row summed in the same
+    # column order), and split_matrix gives the matrix back exactly: a periodic band (a belt loop
+    # closing on itself), scattered entries, the diagonal, one entry, none, a dense matrix.
+    import scipy.sparse as sp
+
+    from beltdyn import integrator as itg
+
+    n = 41
+    rng = np.random.default_rng(len(shape))
+    if shape == "loop":
+        i, j = np.nonzero(np.abs(np.subtract.outer(np.arange(n), np.arange(n))) % (n - 3) <= 5)
+        A = sp.csr_matrix((rng.standard_normal(len(i)), (i, j)), shape=(n, n))
+    elif shape == "scattered":
+        A = sp.random(n, n, density=0.2, random_state=1, format="csr")
+    elif shape == "diagonal":
+        A = sp.diags(rng.standard_normal(n), format="csr")
+    elif shape == "one":
+        A = sp.csr_matrix(([2.5], ([7], [30])), shape=(n, n))
+    elif shape == "empty":
+        A = None
+    else:
+        A = rng.standard_normal((n, n))
+    S = itg.split(A, n)
+    ref = itg.to_csr(A) if A is not None else itg.empty_csr(n)
+    x = rng.standard_normal(n)
+    want, got = np.empty(n), np.full(n, np.nan)
+    itg.csr_matvec(ref, x, want)
+    itg.split_matvec(S, x, got)
+    np.testing.assert_array_equal(got, want)
+    np.testing.assert_array_equal(itg.split_matrix(S, n).toarray(), np.zeros((n, n)) if A is None else
+                                  (A.toarray() if sp.issparse(A) else A))
+
+
 def test_spectrum_window_after_the_end_is_a_config_error():
     from beltdyn.errors import ConfigError
 
