@@ -76,13 +76,16 @@ from collections import namedtuple
 import numpy as np
 
 from . import jitcache
-from .jitcache import KERNEL, configure
+from .jitcache import configure, kernel_options
+
 
 configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
 from numba import njit  # noqa: E402
 
 from . import belt_kernel as bk
 from . import spring_kernel as sk
+
+KERNEL = kernel_options()  # the njit options of this module's kernels (numba loaded)
 
 # tasks of `advance`, the stepper's one entry point from Python
 START = 0  # the forces and energies of the initial state (`start_forces`)

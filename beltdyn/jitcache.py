@@ -41,6 +41,20 @@ _CHOSEN: list[str | None] = []  # configure's answer, once per process
 KERNEL = {"cache": True, "_nrt": False}
 
 
+def kernel_options() -> dict:
+    """`KERNEL` as the installed numba takes it (for the modules that define kernels; they import numba
+    anyway). `_nrt` is a private option, checked at the first compile, not at decoration: a numba that
+    no longer knows it would refuse every kernel on first use, so without it the kernels compile with
+    the runtime (the same results, ~11 % slower steps)."""
+    try:
+        from numba.core.cpu import CPUTargetOptions
+
+        known = isinstance(getattr(CPUTargetOptions, "_nrt", None), CPUTargetOptions.Mapping)
+    except (ImportError, AttributeError):
+        known = False
+    return dict(KERNEL) if known else {k: v for k, v in KERNEL.items() if k != "_nrt"}
+
+
 def _writable(folder: Path) -> bool:
     """True if files can be created in `folder` (made if missing), tried as numba tries it."""
     try:

@@ -18,7 +18,10 @@ import numpy as np
 from numba import njit
 
 from . import jitcache
-from .jitcache import KERNEL
+from .jitcache import kernel_options
+
+KERNEL = kernel_options()  # the njit options of this module's kernels (numba loaded)
+
 
 # D (k, 2, m) the chord d = x[2:4] - x[0:2] per joint coordinate, idx (k, m) (padding n), d0 (k, 2) the chord at
 # p = 0, L (k,), span (k,) span index, EA, eta (retardation time, s)

@@ -302,3 +302,16 @@ def test_command_line_values_read_as_typer_reads_them(annotation, minimum, text)
 
     assert type(opt.get_runtime_param()).__name__ == "Plain"  # beltdyn's coercion is the one in use
     assert outcome(opt.get_runtime_param()) == outcome(build_runtime_param(desc))
+
+
+def test_kernel_options_drop_a_private_option_the_installed_numba_does_not_know(monkeypatch):
+    # `_nrt` (no runtime in the kernels) is a private numba option that numba checks only at a kernel's
+    # first compile; a numba without it must get the kernels' options without it (they then compile with
+    # the runtime) rather than refuse every kernel. Reference: numba's own option table.
+    from numba.core.cpu import CPUTargetOptions
+
+    from beltdyn import jitcache
+
+    assert jitcache.kernel_options() == jitcache.KERNEL  # this numba knows it
+    monkeypatch.setattr(CPUTargetOptions, "_nrt", None)  # (inherited: shadowed, as if gone)
+    assert jitcache.kernel_options() == {k: v for k, v in jitcache.KERNEL.items() if k != "_nrt"}
