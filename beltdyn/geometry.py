@@ -140,11 +140,8 @@ def compute_layout(
     dist = np.hypot(d[:, 0], d[:, 1])
     drho = rho - rho[nxt]
     q = drho / dist
-    if check and np.any(np.abs(q) >= 1.0):
-        i = int(np.argmax(np.abs(q)))
-        raise GeometryError(
-            f"no tangent line from pulley '{names[i]}' to '{names[(i + 1) % n]}' "
-            f"(pulleys too close for these radii and sides)", f"pulleys[{(i + 1) % n}].center")
+    if check:
+        _check_tangents(q, names)
     alpha = np.arctan2(d[:, 1], d[:, 0]) + np.arcsin(np.minimum(np.maximum(q, -1.0), 1.0))
     m = np.empty((n, 2))
     m[:, 0] = np.sin(alpha)
@@ -184,13 +181,18 @@ def check_layout(lay: Layout) -> None:
     nxt, _ = _neighbours(n)
     rho = lay.orientation * lay.side_sign * radius
     d = center[nxt] - center
-    q = (rho - rho[nxt]) / np.hypot(d[:, 0], d[:, 1])
+    _check_tangents((rho - rho[nxt]) / np.hypot(d[:, 0], d[:, 1]), names)
+    _check_path(lay)
+
+
+def _check_tangents(q: np.ndarray, names: tuple[str, ...]) -> None:
+    """A tangent line for every span: |q| < 1, q (n,) = (rho_i - rho_(i+1)) / D (the module docstring)."""
     if np.any(np.abs(q) >= 1.0):
+        n = len(names)
         i = int(np.argmax(np.abs(q)))
         raise GeometryError(
             f"no tangent line from pulley '{names[i]}' to '{names[(i + 1) % n]}' "
             f"(pulleys too close for these radii and sides)", f"pulleys[{(i + 1) % n}].center")
-    _check_path(lay)
 
 
 def _check_path(lay: Layout) -> None:
