@@ -1547,30 +1547,32 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     elem_span = np.repeat(np.arange(n_p), counts)
     offsets = np.concatenate([[0], np.cumsum(counts)])
     span_elements = tuple(np.arange(offsets[s], offsets[s + 1]) for s in range(n_p))
-    e0 = np.zeros((n_elem, 8))
-    eye4 = np.eye(4)
-    for s in range(n_p):
-        els, n_e = span_elements[s], int(counts[s])
-        if n_e == 0:
+    # every element at once: its span, its place k in the span (nodes k and k + 1 of n_e + 1)
+    k = np.arange(n_elem) - offsets[elem_span]
+    n_of = counts[elem_span]
+    a, ab = layout.span_start[elem_span], (layout.span_end - layout.span_start)[elem_span]
+    e0 = np.empty((n_elem, 8))
+    e0[:, 0:2] = a + (k / n_of)[:, None] * ab  # the nodes evenly along the chord
+    e0[:, 4:6] = a + ((k + 1) / n_of)[:, None] * ab
+    e0[:, 2:4] = e0[:, 6:8] = (lam_s[:, None] * t_dir)[elem_span]
+    # first DOF of node j of a span whose DOFs start at `base`: base - 2 + 4 j (the first node owns only its
+    # gradient, at +2, +3; the interior nodes four each), the last node base - 4 + 4 n_e (its gradient after them)
+    base = np.array([sl.start for sl in dofs.span_slices], dtype=np.int64)[elem_span]
+    first_dof = base - 2 + 4 * k
+    second_dof = np.where(k + 1 == n_of, base - 4 + 4 * n_of, base + 2 + 4 * k)
+    rows = np.arange(n_elem)
+    for side, node in ((0, first_dof), (1, second_dof)):
+        T[rows, 4 * side: 4 * side + 4, 4 * side: 4 * side + 4] = np.eye(4)
+        idx[:, 4 * side: 4 * side + 4] = node[:, None] + np.arange(4)
+    for s in range(n_p):  # end nodes: positions dependent (the joints), gradients independent
+        els = span_elements[s]
+        if not len(els):
             continue
-        frac = np.arange(n_e + 1) / n_e
-        a, b = layout.span_start[s], layout.span_end[s]
-        nodes = a + np.outer(frac, b - a)
-        e0[els, 0:2], e0[els, 4:6] = nodes[:-1], nodes[1:]
-        e0[els, 2:4] = e0[els, 6:8] = lam_s[s] * t_dir[s]
-        base = dofs.span_slices[s].start
-        node_dof = base + 2 + 4 * (np.arange(n_e + 1) - 1)  # first DOF of each node (interior nodes)
-        node_dof[0], node_dof[-1] = base - 2, base + 2 + 4 * (n_e - 1) - 2  # so that +2, +3 are gradients
-        for side, nodes_of in ((0, np.arange(n_e)), (1, np.arange(1, n_e + 1))):
-            cols = slice(4 * side, 4 * side + 4)
-            T[els, 4 * side: 4 * side + 4, cols] = eye4
-            idx[els, cols] = node_dof[nodes_of, None] + np.arange(4)
-        # End nodes: positions are dependent (joints), gradients stay independent.
         for el, side in ((els[0], 0), (els[-1], 1)):
             T[el, 4 * side: 4 * side + 2, 4 * side: 4 * side + 2] = 0.0
             idx[el, 4 * side: 4 * side + 2] = pad
-            for k, (dof, v) in enumerate(joint_pairs(layout, dofs, s, side)):
-                c = 8 + 3 * side + k
+            for j, (dof, v) in enumerate(joint_pairs(layout, dofs, s, side)):
+                c = 8 + 3 * side + j
                 idx[el, c] = dof
                 T[el, 4 * side: 4 * side + 2, c] = v
     order = np.argsort(idx == pad, axis=1, kind="stable")
