@@ -94,17 +94,18 @@ def continuum_frequencies(*, length: float, stretch: float, EA: float, EI: float
     return f_t, f_a
 
 
-def element_blocks(lengths: np.ndarray, *, stretch: float, EA: float, EI: float, rho: float, curvature: str,
-                   n_gauss: int) -> tuple[np.ndarray, np.ndarray]:
+def element_blocks(lengths: np.ndarray, *, stretch: float | np.ndarray, EA: float, EI: float, rho: float,
+                   curvature: str, n_gauss: int) -> tuple[np.ndarray, np.ndarray]:
     """Tangent and mass matrices (k, 8, 8) of ANCF elements of the given lengths (k,), straight along x and
-    stretched by `stretch`: one element build for any number of meshes."""
+    stretched by `stretch` (one, or one per element): one element build for any number of meshes and spans."""
     from . import ancf
 
     h = np.asarray(lengths, dtype=float)
+    lam = np.broadcast_to(np.asarray(stretch, dtype=float), h.shape)
     el = ancf.make_elements(h, EA, np.full(len(h), EI), rho, curvature=curvature, n_gauss=n_gauss)
     e = np.zeros((len(h), 8))
-    e[:, 2] = e[:, 6] = stretch
-    e[:, 4] = stretch * h
+    e[:, 2] = e[:, 6] = lam
+    e[:, 4] = lam * h
     return ancf.internal_forces_and_tangent(el, e)[1], el.mass
 
 
@@ -250,21 +251,30 @@ def with_spans(cfg: DriveConfig, models: dict[int, tuple[str, int]]) -> DriveCon
     return replace(cfg, spans=spans)
 
 
-def _mesh_choice(cfg: DriveConfig, s: int, *, fmax: float, budget: float, L_ref, lam,
-                 max_elements: int) -> tuple[str, int, float]:
+def _mesh_blocks(cfg: DriveConfig, spans: list[int], *, L_ref, lam, meshes: list[int]) -> dict:
+    """{span: {model: (tangent, mass) (n_meshes, 8, 8)}}: the element of every candidate mesh of the given
+    spans, for the string (no bending) and the ANCF rung, one element build per rung for all of them."""
+    b = cfg.belt
+    ref_curv = cfg.model.curvature if cfg.model.curvature != "none" else "linear"
+    n_m = len(meshes)
+    lengths = (np.asarray(L_ref, dtype=float)[spans][:, None] / np.array(meshes, dtype=float)[None, :]).ravel()
+    stretch = np.repeat(np.asarray(lam, dtype=float)[spans], n_m)
+    built = {model: element_blocks(lengths, stretch=stretch, EA=b.EA, EI=0.0 if model == "string" else b.EI,
+                                   rho=b.mass_per_length, curvature="none" if model == "string" else ref_curv,
+                                   n_gauss=cfg.model.gauss_points) for model in ("string", "ancf")}
+    return {s: {model: (K[i * n_m:(i + 1) * n_m], M[i * n_m:(i + 1) * n_m]) for model, (K, M) in built.items()}
+            for i, s in enumerate(spans)}
+
+
+def _mesh_choice(cfg: DriveConfig, s: int, *, fmax: float, budget: float, L_ref, lam, meshes: list[int],
+                 blocks: dict) -> tuple[str, int, float]:
     """(model, elements, estimate) of flexible span s: the fewest elements, a string where it is good
-    enough; the finest ANCF mesh tried when none meets the budget."""
+    enough; the finest ANCF mesh tried when none meets the budget. blocks: the span's candidate elements
+    {model: (tangent, mass) (len(meshes), 8, 8)} (`_mesh_blocks`)."""
     b = cfg.belt
     common = dict(fmax=fmax, length=float(L_ref[s]), stretch=float(lam[s]), EA=b.EA, EI=b.EI,
                   rho=b.mass_per_length, curvature=cfg.model.curvature, n_gauss=cfg.model.gauss_points)
     best = ("ancf", MESHES[0], np.inf)
-    meshes = [n for n in MESHES if n <= max_elements]
-    ref_curv = cfg.model.curvature if cfg.model.curvature != "none" else "linear"
-    lengths = float(L_ref[s]) / np.array(meshes, dtype=float)
-    blocks = {model: element_blocks(lengths, stretch=float(lam[s]), EA=b.EA, EI=0.0 if model == "string" else b.EI,
-                                    rho=b.mass_per_length, curvature="none" if model == "string" else ref_curv,
-                                    n_gauss=cfg.model.gauss_points)
-              for model in ("string", "ancf")}  # every mesh's element at once (one build per model)
     for i, n_e in enumerate(meshes):
         for model in ("string", "ancf"):
             err = local_error(model=model, elements=n_e, blocks=(blocks[model][0][i], blocks[model][1][i]), **common)
@@ -315,14 +325,19 @@ def choose_models(cfg: DriveConfig, *, fmax: float, rtol: float, max_elements: i
     if len(springs) < n:
         springs = springs_within(0.5 * rtol)
     solves = 1
+    meshes = [m for m in MESHES if m <= max_elements]
+    blocks: dict = {}  # span -> its candidate meshes' elements (`_mesh_blocks`)
     while True:
         flexible = [s for s in range(n) if s not in springs]
         budget = 0.5 * rtol if springs and flexible else rtol
         models: dict[int, tuple[str, int]] = {s: ("spring", 0) for s in springs}
         est: dict[int, float] = {}
+        missing = [s for s in flexible if s not in blocks]
+        if missing:  # the candidate meshes' elements of the spans not built yet, in one build per rung
+            blocks.update(_mesh_blocks(cfg, missing, L_ref=L_ref, lam=lam, meshes=meshes))
         for s in flexible:
-            m, n_e, err = _mesh_choice(cfg, s, fmax=fmax, budget=budget, L_ref=L_ref, lam=lam,
-                                       max_elements=max_elements)
+            m, n_e, err = _mesh_choice(cfg, s, fmax=fmax, budget=budget, L_ref=L_ref, lam=lam, meshes=meshes,
+                                       blocks=blocks[s])
             models[s], est[s] = (m, n_e), err
         chosen_cfg = with_spans(cfg, models)
         n_local = sum(int(np.searchsorted(f_t, fmax, side="right")) + int(np.searchsorted(f_a, fmax, side="right"))
