@@ -5,7 +5,12 @@ from __future__ import annotations
 
 import signal
 import subprocess
+import sys
 import time
+from pathlib import Path
+
+_SCRIPT = Path(sys.executable).parent / "beltdyn"
+BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]  # the command, as installed
 
 
 def _default_sigint() -> None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import subprocess
-import sys
 from pathlib import Path
 
 import h5py
@@ -11,10 +10,9 @@ import numpy as np
 import pytest
 
 from beltdyn.results_io import read_group
+from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
-_SCRIPT = Path(sys.executable).parent / "beltdyn"
-BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
 
 
 def beltdyn(*args, cwd):

@@ -14,7 +14,6 @@ import math
 import os
 import shutil
 import subprocess
-import sys
 import tomllib
 from dataclasses import replace
 from pathlib import Path
@@ -28,14 +27,13 @@ from beltdyn.config import config_from_dict, config_hash, load_config, resolved_
 from beltdyn.errors import ConfigError
 from beltdyn.geometry import layout_from_config
 from beltdyn.results_io import read_root_attrs
+from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
 BAD = Path(__file__).resolve().parent / "data" / "bad"
 SMOKE = ROOT / "configs" / "smoke" / "two_pulley.toml"
 ALL_CONFIGS = sorted((ROOT / "configs").glob("*/*.toml"))
 
-_SCRIPT = Path(sys.executable).parent / "beltdyn"
-BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
 
 # file stem -> (key path named in the message (None: a TOML syntax error has no key), fragments the
 # message must also contain). Key paths are as the user sees them (a line break shown as "\n").

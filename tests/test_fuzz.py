@@ -17,7 +17,6 @@ import math
 import re
 import subprocess
 import tomllib
-import sys
 from pathlib import Path
 
 import h5py
@@ -26,9 +25,8 @@ import pytest
 import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from processes import BELTDYN  # tests/processes.py
 
-_SCRIPT = Path(sys.executable).parent / "beltdyn"
-BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
 NAN_ALLOWED = {"arm_angle", "arm_torque", "arm_free_angle", "pivot_reaction", "required_friction", "slip_margin"}
 # (NaN there means "no arm" / "no friction given", documented in the variables' descriptions)
 

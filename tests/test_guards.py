@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import h5py
@@ -20,12 +19,11 @@ from beltdyn.config import load_config
 from beltdyn.guards import cost_note, estimate_cost
 from beltdyn.system import build_system, model_dofs
 from beltdyn.timestep import step_warnings
+from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "configs" / "examples" / "bench_transient_small.toml"
 LARGE = ROOT / "configs" / "examples" / "bench_transient_large.toml"
-_SCRIPT = Path(sys.executable).parent / "beltdyn"
-BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
 
 
 def run(*args, cwd: Path) -> subprocess.CompletedProcess:

@@ -22,13 +22,12 @@ import numpy as np
 import pytest
 
 import processes  # tests/processes.py
+from processes import BELTDYN
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "configs" / "smoke" / "two_pulley.toml"
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
 TRANSIENT = ROOT / "configs" / "examples" / "bench_transient_small.toml"
-_SCRIPT = Path(sys.executable).parent / "beltdyn"
-BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
 
 
 def _env(**extra) -> dict[str, str]:

@@ -8,7 +8,6 @@ finite differences, the all-ANCF drive, a uniform mesh, a 64 el/span reference.
 from __future__ import annotations
 
 import subprocess
-import sys
 import tomllib
 from pathlib import Path
 
@@ -18,13 +17,12 @@ import pytest
 from beltdyn.config import config_from_dict, config_hash, load_config, resolved_toml
 from beltdyn.pipeline import analyse
 from beltdyn.system import build_system, stretch_for_tension
+from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
 FEAD = ROOT / "configs" / "examples" / "fead_4cyl.toml"
 FEAD_SPANS = ("CRK-AC", "AC-ALT", "ALT-TEN", "TEN-WP", "WP-PS", "PS-IDL", "IDL-CRK")
-_SCRIPT = Path(sys.executable).parent / "beltdyn"
-BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
 
 
 def springs(*names: str) -> list[str]:

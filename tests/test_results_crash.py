@@ -37,13 +37,12 @@ from beltdyn.results_io import (
 from beltdyn.results_journal import JournalLayout, JournalWriter, read_journal
 
 import processes  # tests/processes.py
+from processes import BELTDYN
 
 ROOT = Path(__file__).resolve().parents[1]
 TRANSIENT = ROOT / "configs" / "examples" / "bench_transient_small.toml"
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
 FEAD = ROOT / "configs" / "examples" / "fead_4cyl.toml"
-_SCRIPT = Path(sys.executable).parent / "beltdyn"
-BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
 SHA = "c" * 64
 TOML = 'title = "crash test"\n'
 # a long transient (never finishes within a test): the overrides as the transient command writes them

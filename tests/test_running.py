@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 import subprocess
-import sys
 import tomllib
 from pathlib import Path
 
@@ -21,11 +20,10 @@ from beltdyn.pipeline import analyse, transient_start
 from beltdyn.running import linearized_matrices
 from beltdyn.system import build_system, stretch_for_tension
 from beltdyn.transient import prepare, run_transient
+from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
-_SCRIPT = Path(sys.executable).parent / "beltdyn"
-BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
 RHO, EA = 0.11915, 120000.0
 
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 import os
 import re
 import subprocess
-import sys
 from pathlib import Path
 
 import h5py
@@ -25,12 +24,11 @@ from beltdyn.paper import CASES, compare
 from beltdyn.pipeline import analyse
 from beltdyn.static import ResidualScales, solve_static
 from beltdyn.system import build_system
+from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
 THREE = ROOT / "configs" / "smoke" / "three_pulley.toml"
-_SCRIPT = Path(sys.executable).parent / "beltdyn"
-BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
 EPS = np.finfo(float).eps
 
 # the serpentine case at a high tension: 10 kN, EA = 2e6 N (0.5 % strain), a stiff accessory bearing;

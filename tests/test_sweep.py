@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -18,11 +17,10 @@ from beltdyn.errors import ConfigError
 from beltdyn.modal import solve_modes
 from beltdyn.pipeline import analyse
 from beltdyn.sweep import Journal, _keys, assemble, make_spec, parse_values, refine_mesh, richardson, run_sweep
+from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
-_SCRIPT = Path(sys.executable).parent / "beltdyn"
-BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
 
 
 @pytest.mark.parametrize("key,spec,expect", [

@@ -7,7 +7,6 @@ import dataclasses
 import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -23,11 +22,10 @@ from beltdyn.modal import solve_modes
 from beltdyn.pipeline import analyse
 from beltdyn.spectrum import amplitude_spectrum, harmonic_content
 from beltdyn.transient import integrate_linear, prepare, run_transient
+from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
-_SCRIPT = Path(sys.executable).parent / "beltdyn"
-BELTDYN = [str(_SCRIPT)] if _SCRIPT.is_file() else [sys.executable, "-m", "beltdyn.cli"]
 
 
 # ------------------------------------------------------------------------------ analytic oscillators
