@@ -574,19 +574,10 @@ def transport_speed(tr, F, t):
 def transport_forces(tr, c, cd, q, v, out, Bq, Aq):
     """out (n,) = c G v - c^2 (B q + b0) + c' (A q + a0); Bq, Aq (n,) receive B q + b0 and A q + a0.
     Returns (q.B q + 2 b0.q, v.(A q + a0)) for the energy and the transport power."""
-    n = q.shape[0]
     csr_matvec(tr.B, q, Bq)
     csr_matvec(tr.A, q, Aq)
     csr_matvec(tr.G, v, out)
-    qbq = 0.0
-    vaq = 0.0
-    for i in range(n):
-        qbq += q[i] * (Bq[i] + 2.0 * tr.b0[i])  # q.B q + 2 b0.q
-        Bq[i] += tr.b0[i]
-        Aq[i] += tr.a0[i]
-        vaq += v[i] * Aq[i]
-        out[i] = c * out[i] - c * c * Bq[i] + cd * Aq[i]
-    return qbq, vaq
+    return transport_from(tr, c, cd, q, v, out, Bq, Aq)
 
 
 @njit(**KERNEL)
@@ -618,7 +609,7 @@ def transport_from(tr, c, cd, q, v, out, Bq, Aq):
     qbq = 0.0
     vaq = 0.0
     for i in range(n):
-        qbq += q[i] * (Bq[i] + 2.0 * tr.b0[i])
+        qbq += q[i] * (Bq[i] + 2.0 * tr.b0[i])  # q.B q + 2 b0.q
         Bq[i] += tr.b0[i]
         Aq[i] += tr.a0[i]
         vaq += v[i] * Aq[i]

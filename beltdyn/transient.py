@@ -442,6 +442,21 @@ def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool, hold: np.ndarra
     return Factor(kind=1, ab=np.asfortranarray(lu), piv=piv.astype(np.int64), perm=perm, kl=u, ku=u)
 
 
+def _belt_damping_matrix(system: System, setup: TransientSetup, q: np.ndarray, p: np.ndarray):
+    """The belt's Kelvin-Voigt damping matrix dN_d/dq' at q (p = system.expand(q)) on the system's pattern,
+    from the compiled element kernel; None without belt damping."""
+    from . import belt_kernel as bk
+
+    b = setup.belt
+    if not (b.eta_a or b.eta_b):
+        return None
+    E = system.belt.element_coordinates(p)
+    Ce = np.empty((E.shape[0], 8, 8))
+    bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce,
+                              system.belt.kernel_scratch())
+    return system.belt_damping_matrix(q, Ce)
+
+
 def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: float, rho_inf: float,
                       v: np.ndarray | None = None, arms=None, t: float = 0.0):
     """S = c_m M + c_c (C + C_belt(q) + c G) + (1 - alpha_f) (K_t(q) - c^2 B + c' A) on q (prescribed DOFs
@@ -450,7 +465,6 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
     added), and projected once: J^T S_p J with the arms' geometric term of (1 - alpha_f) times the loaded
     internal force (as `System.equilibrium`). Returns (S, diagonal): the arms' sticking bristles k_b as a
     diagonal (n_dof,) to add, or None."""
-    from . import belt_kernel as bk
     from .integrator import alpha_parameters
 
     am, af, beta, gamma = alpha_parameters(rho_inf)
@@ -470,13 +484,9 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
             G = A - A.T
             object.__setattr__(system, "_gyroscopic_unit", G)
         terms += [(c_c * c, G), ((1.0 - af) * cd, A), (-(1.0 - af) * c * c, B)]
-    b = setup.belt
-    if b.eta_a or b.eta_b:
-        E = system.belt.element_coordinates(p)
-        Ce = np.empty((E.shape[0], 8, 8))
-        bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce,
-                                  system.belt.kernel_scratch())
-        terms.append((c_c, system.belt_damping_matrix(q, Ce)))
+    C_belt = _belt_damping_matrix(system, setup, q, p)
+    if C_belt is not None:
+        terms.append((c_c, C_belt))
     if setup.C is not None:
         terms.append((c_c, setup.C))
     S = _weighted_sum(terms)
@@ -613,7 +623,6 @@ class IterationPlan:
 
     def factor(self, q: np.ndarray, h: float, t: float = 0.0):
         """The integrator.Factor of S at the state q (n_dof,) for the step h at time t."""
-        from . import belt_kernel as bk
         from .integrator import Factor, band_lu_nopivot
 
         am, af, beta, gamma = self.alpha
@@ -629,13 +638,9 @@ class IterationPlan:
         if self.moving:
             c, cd = (float(x[0]) for x in transport_speed(setup, np.array([t])))
             data += (c_c * c) * k["G"] + ((1.0 - af) * cd) * k["A"] - ((1.0 - af) * c * c) * k["B"]
-        b = setup.belt
-        if b.eta_a or b.eta_b:
-            E = system.belt.element_coordinates(p)
-            Ce = np.empty((E.shape[0], 8, 8))
-            bk.element_damping_matrix(E, b.dS, b.d2S, b.wEA, b.wEI, b.Kb, b.curvature, b.eta_a, b.eta_b, Ce,
-                                      system.belt.kernel_scratch())
-            data += c_c * system.belt_damping_matrix(q, Ce).data
+        C_belt = _belt_damping_matrix(system, setup, q, p)
+        if C_belt is not None:
+            data += c_c * C_belt.data
         arms, a = self.arms, system.arms
         if a is not None:  # J^T S J: the arm offsets' rows and columns scaled by dc/dphi, folded onto the angle
             phi = a.phi(q)
