@@ -250,16 +250,21 @@ class ResidualScales:
         return tol * self.scale(q, lam) + floor * self.lever
 
 
-class _Fail(Exception):
-    """A failed Newton solve: message, scaled residual, DOF label at fault."""
+class _Stop(Exception):
+    """A static solve that ends without an equilibrium: message, scaled residual, DOF label at fault."""
 
     def __init__(self, message: str, err: float, dof: str) -> None:
         super().__init__(message)
         self.err, self.dof = err, dof
 
 
-class _Exhausted(_Fail):
-    """The static analysis spent its budget of residual evaluations (`Budget`): no fallback retries."""
+class _Fail(_Stop):
+    """A failed Newton solve, which the fallbacks (smaller load steps, other starts, continuations) retry."""
+
+
+class _Exhausted(_Stop):
+    """The static analysis spent its budget of residual evaluations (`Budget`): not a `_Fail`, so no
+    fallback catches it; `solve_equilibrium` reports it."""
 
 
 EVALUATIONS_PER_ITERATION = 100  # the budget of a static analysis: this many x static.max_iterations
@@ -409,8 +414,6 @@ class _Problem:
             lam = min(1.0, lam_done + dlam)
             try:
                 q = self.newton(q, lam, pinned, bordered=bordered)
-            except _Exhausted:
-                raise
             except _Fail as fail:
                 if dlam < 1.0 / 1024:
                     fail.lam = lam  # type: ignore[attr-defined]
@@ -475,8 +478,6 @@ class _Problem:
                     try:
                         q_new = self.newton(q + dq_du * du + curvature * du**2, 1.0, pinned, bordered=True,
                                             max_iterations=8, line_search=False)
-                    except _Exhausted:
-                        raise
                     except _Fail:
                         ratio = float(np.sqrt(ratio))
                         if ratio < 1.01:
@@ -525,8 +526,6 @@ class _Problem:
                 q_try += step * dqf
                 try:
                     q_new = self.newton(q_try, 1.0, pinned)
-                except _Exhausted:
-                    raise
                 except _Fail:
                     step *= 0.5
                     continue
@@ -583,8 +582,6 @@ def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray 
             q0 = np.array(q0, dtype=float)
             try:
                 q = prob.newton(q0, 1.0, pinned, bordered=prob.adjust, stall=sagging)
-            except _Exhausted:
-                raise
             except _Fail:
                 pass
         if q is not None:
@@ -598,22 +595,18 @@ def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray 
             if tried is None or not np.array_equal(tried, q0):  # (a re-lay pass's first start is this one)
                 try:
                     q = prob.newton(q0, 1.0, pinned, bordered=True, max_iterations=8, stall=sagging)
-                except _Exhausted:
-                    raise
                 except _Fail:
                     q = None
             if q is None and sagging:
                 try:  # sagging spans: continuation in the tension target
                     q = prob.tension_continuation(straight, pinned)
-                except _Exhausted:
-                    raise
                 except _Fail:
                     q = None
             if q is None:
                 q = prob.tension_loop(q0)
         else:
             q = prob.continuation(np.zeros(n), pinned)
-    except _Fail as fail:
+    except _Stop as fail:
         lam = getattr(fail, "lam", 1.0)
         step = f"residual evaluation {prob.budget.used + 1}" if isinstance(fail, _Exhausted) else f"load factor {lam:.4g}"
         raise SolverError(f"{fail} (residual scaled so that 1 means converged)", analysis="static",
