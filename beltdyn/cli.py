@@ -115,7 +115,7 @@ def _drop_stdout() -> None:
         os.close(devnull)
 
 
-_STATE = {"debug": False}
+_STATE = {"debug": False, "signal": None}  # signal: the SIGINT / SIGTERM received, if any
 
 # POSIX convention: 128 + signal number
 EXIT_INTERRUPTED = 130  # SIGINT (Ctrl-C)
@@ -133,6 +133,7 @@ def _fail(exc: BaseException) -> None:
     from .errors import BeltdynError, Terminated
 
     err = _console(stderr=True)
+    exc = _interruption(exc) or exc
     if isinstance(exc, KeyboardInterrupt):
         what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
         err.print(Text.assemble((what, "bold red"), ": finished groups are unchanged; a running transient keeps "
@@ -227,7 +228,29 @@ def _notes(notes: list[str]) -> None:
 def _on_sigterm(signum, frame) -> None:
     from .errors import Terminated
 
+    _STATE["signal"] = signum
     raise Terminated()
+
+
+def _on_sigint(signum, frame) -> None:
+    _STATE["signal"] = signum
+    raise KeyboardInterrupt
+
+
+def _interruption(exc: BaseException) -> KeyboardInterrupt | None:
+    """The Ctrl-C or SIGTERM that `exc` stands for: exc itself if it is one; once either signal has arrived,
+    any other exception too, as the library the handler's KeyboardInterrupt went through turned it into
+    its own error (pybind11 reports one inside a module's initialization as ImportError "initialization
+    failed": a sweep interrupted while scipy imported); else None."""
+    import signal
+
+    from .errors import Terminated
+
+    if isinstance(exc, KeyboardInterrupt):
+        return exc
+    if _STATE["signal"] is None:
+        return None
+    return Terminated() if _STATE["signal"] == signal.SIGTERM else KeyboardInterrupt()
 
 
 def _run(body) -> None:
@@ -236,8 +259,11 @@ def _run(body) -> None:
     exit 143; anything else is an internal error, one line and exit 1 (the traceback with --debug)."""
     import signal
 
+    _STATE["signal"] = None
     try:
         signal.signal(signal.SIGTERM, _on_sigterm)
+        if signal.getsignal(signal.SIGINT) is signal.default_int_handler:  # (not where the caller ignores it)
+            signal.signal(signal.SIGINT, _on_sigint)
     except ValueError:  # not the main thread (e.g. called from a test harness)
         pass
     import rich.console  # noqa: F401 - loaded before the body, so the handlers below need no memory to import
@@ -1081,12 +1107,17 @@ def _sweep_cases(con, cfg, spec, journal, *, resume, workers, scheduler, force):
         with bar:
             return run_sweep(cfg, spec, journal=journal, resume=resume, workers=workers, scheduler=scheduler,
                              progress=lambda k, n: bar.update(task, completed=k), restart=force)
-    except KeyboardInterrupt as exc:
+    except (Exception, KeyboardInterrupt) as exc:  # noqa: BLE001 - an interruption is told apart below
+        stop = _interruption(exc)
+        if stop is None:
+            raise
         n_done = len(journal.done()) if journal.exists() else 0
-        what = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
+        what = "terminated (SIGTERM)" if isinstance(stop, Terminated) else "interrupted"
         _console(stderr=True).print(f"sweep {what}: {n_done} of {spec.n_cases} cases are journaled in "
                                     f"{journal.dir}; continue with --resume")
-        raise
+        if stop is exc:
+            raise
+        raise stop from exc
 
 
 def _print_sweep(con, result) -> None:

@@ -684,3 +684,25 @@ def test_a_span_close_to_slack_is_flagged():
     run = analyse(load_config(BENCH, [f'static.torque=[{{pulley = "C", value = {tau!r}}}]']))
     flagged = [w for w in static_warnings(run.system, run.static) if "close to slack" in w]
     assert len(flagged) == 1 and run.static.span_tension.min() < 0.1 * run.static.mean_tension
+
+
+@pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_an_error_a_signal_caused_in_a_library_is_the_interruption(sig, code, monkeypatch):
+    # A Ctrl-C while scipy imported a pybind11 module reached the CLI as ImportError "initialization
+    # failed" (pybind11 turns the handler's KeyboardInterrupt into that) and was reported as an internal
+    # error, exit 1 (seen in test_second_sweep_on_a_running_journal_is_refused_with_its_pid). Once a
+    # signal has arrived any exception is the interruption: exit 130 / 143. Without one it stays an
+    # internal error (exit 1).
+    import typer
+
+    from beltdyn import cli
+
+    monkeypatch.setitem(cli._STATE, "signal", sig)
+    with pytest.raises(typer.Exit) as got:
+        cli._fail(ImportError("initialization failed"))
+    assert got.value.exit_code == code
+    monkeypatch.setitem(cli._STATE, "signal", None)
+    assert cli._interruption(ImportError("initialization failed")) is None
+    with pytest.raises(typer.Exit) as got:
+        cli._fail(ImportError("initialization failed"))
+    assert got.value.exit_code == 1
