@@ -235,6 +235,51 @@ def _not_own(n: int) -> np.ndarray:
     return out
 
 
+def span_line(x0: float, y0: float, rho0: float, x1: float, y1: float, rho1: float) -> tuple[float, float]:
+    """(angle, length) of the tangent line from a pulley at (x0, y0) of signed radius rho0 to one at
+    (x1, y1) of rho1 (the module docstring), in Python floats; q clipped to [-1, 1] as in an unchecked
+    `compute_layout`, nan for coincident centres."""
+    dx, dy = x1 - x0, y1 - y0
+    dist = math.hypot(dx, dy)
+    if not dist > 0.0:
+        return math.nan, math.nan
+    drho = rho0 - rho1
+    alpha = math.atan2(dy, dx) + math.asin(min(max(drho / dist, -1.0), 1.0))
+    return alpha, math.sqrt(max(dist * dist - drho * drho, 0.0))
+
+
+class MovingPulley:
+    """The belt path while pulley j alone moves from a base layout: the spans j-1 and j and the wraps
+    of pulleys j-1, j, j+1 recomputed in Python floats, the rest kept. For the iterates of the L0 fit
+    and of a tensioner arm's balance (a handful of numbers: numpy calls would cost more than the
+    arithmetic); the answer is laid out in full (`compute_layout`). Unchecked, like an iterate of
+    `compute_layout(check=False)`."""
+
+    def __init__(self, base: Layout, j: int) -> None:
+        n = base.n
+        self.j, self.n = j, n
+        self.o = base.orientation
+        self.rho = (base.orientation * base.side_sign * base.radius).tolist()
+        self.turn_sign = (base.orientation * base.side_sign).tolist()  # o sigma of each pulley
+        self.radius = base.radius.tolist()
+        self.center = base.center.tolist()
+        self.angle = base.span_angle.tolist()  # (n,) the base layout's, replaced at j-1 and j by `at`
+        self.length = base.span_length.tolist()
+        self.arc = base.arc_length.tolist()
+        self.prev, self.next = (j - 1) % n, (j + 1) % n
+        self.wrapped = sorted({self.prev, j, self.next})  # pulleys whose wrap changes
+
+    def at(self, x: float, y: float) -> tuple[list[float], list[float], list[float]]:
+        """(span angles, span lengths, arc lengths), each (n,) lists, with pulley j's centre at (x, y)."""
+        j, p, nx, c, rho = self.j, self.prev, self.next, self.center, self.rho
+        angle, length, arc = self.angle[:], self.length[:], self.arc[:]
+        angle[p], length[p] = span_line(c[p][0], c[p][1], rho[p], x, y, rho[j])
+        angle[j], length[j] = span_line(x, y, rho[j], c[nx][0], c[nx][1], rho[nx])
+        for i in self.wrapped:
+            arc[i] = self.radius[i] * ((self.turn_sign[i] * (angle[i] - angle[i - 1])) % TWO_PI)
+        return angle, length, arc
+
+
 def belt_length_gradient(layout: Layout, j: int) -> np.ndarray:
     """dL/dc_j (2,): arriving span direction minus departing span direction at pulley j."""
     t = layout.span_direction
@@ -332,10 +377,55 @@ def fit_adjustable(
             raise GeometryError(f"L0 fit did not converge (belt length {length(lay):.9g} m)", "belt.length")
         return s, lay
 
-    try:  # the iterates unchecked (a third of the cost), the answer checked; on any doubt the checked way
-        s, lay = newton(False)
-        if lay is not base:
-            check_layout(lay)
+    def quick() -> float | None:
+        """Newton's offset as `newton(False)` takes it, the iterates in floats (`MovingPulley`); None
+        where the iteration would fail (the checked way then says why)."""
+        path = MovingPulley(base, index)
+        cx, cy = (float(v) for v in center[index])
+        ax, ay = (cx, cy) if arm is None else (float(arm[0]), float(arm[1]))
+        dx, dy = (float(v) for v in direction)
+        rx, ry = cx - ax, cy - ay
+        p = path.prev
+        w = arc_weight - 1.0
+
+        def state(s: float) -> tuple[float, float, float]:
+            """(fitted length, slope d length / ds, pulley moved) at offset s."""
+            if arm is None:
+                x, y, vx, vy = cx + s * dx, cy + s * dy, dx, dy
+            else:
+                cs, sn = math.cos(s), math.sin(s)
+                vx, vy = -(sn * rx + cs * ry), cs * rx - sn * ry  # d centre / ds
+                x, y = ax + vy, ay - vx
+            angle, length, arc = path.at(x, y)
+            total = sum(length) + sum(arc)
+            slope = (math.cos(angle[p]) - math.cos(angle[index])) * vx + (math.sin(angle[p]) - math.sin(angle[index])) * vy
+            return total + w * sum(arc), slope
+
+        s = 0.0
+        ell, slope = length(base), float(belt_length_gradient(base, index) @ offset_point(0.0)[1])
+        scale = 1.0 if arm is None else math.hypot(rx, ry)
+        for _ in range(max_iter):
+            f = ell - target_length
+            if abs(f) <= tol * target_length:
+                return s
+            if not abs(slope) >= 1e-9 * scale:
+                return None
+            step = -f / slope
+            for _ in range(60):
+                ell_t, slope_t = state(s + step)
+                if abs(ell_t - target_length) < abs(f) or abs(step) < 1e-15:
+                    break
+                step *= 0.5
+            if not abs(ell_t - target_length) < abs(f):
+                return None
+            s, ell, slope = s + step, ell_t, slope_t
+        return None
+
+    try:  # the iterates in floats and unchecked (`quick`), the answer laid out and checked; on any doubt the
+        s = quick()  # checked way
+        if s is None:
+            raise GeometryError("", "")
+        lay = base if s == 0.0 else layout_at(s, True)
     except GeometryError:
         s, lay = newton(True)
     if slide_range is not None and not (slide_range[0] <= s <= slide_range[1]):

@@ -31,6 +31,7 @@ is iterated (secant) until the mean tension meets the target with every pulley f
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -772,14 +773,19 @@ def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
     so dpsi = a_s(new) - a_s(old) (wrapped to [-pi, pi)) at both ends, and with the signed radii
     rho = orientation x side x R the span leaves rho_s dpsi onto pulley s and takes rho_(s+1) dpsi
     from pulley s+1: reference_s - dpsi_s (rho_s - rho_(s+1))."""
-    from .geometry import TWO_PI
+    rho = (new.orientation * new.side_sign * new.radius).tolist()
+    return np.array(_carried(old.span_angle.tolist(), new.span_angle.tolist(), rho, reference_length.tolist(),
+                             new.span_name))
 
-    turn = (new.span_angle - old.span_angle + np.pi) % TWO_PI - np.pi
-    rho = new.orientation * new.side_sign * new.radius
-    out = reference_length - turn * (rho - np.concatenate((rho[1:], rho[:1])))
-    if not np.all(out > 0.0):
-        s = int(np.argmin(out))
-        raise SolverError(f"span {new.span_name(s)} has no belt left at the solved pulley positions (reference "
+
+def _carried(old_angle: list, new_angle: list, rho: list, reference: list, span_name) -> list:
+    """`carried_reference` on Python floats: lists (n,) of the old and new span angles, the signed
+    radii and the old reference lengths; span_name(s) names span s in the error."""
+    out = [r - ((b - a + math.pi) % (2.0 * math.pi) - math.pi) * (rho[s] - rho[s + 1 - len(rho)])
+           for s, (a, b, r) in enumerate(zip(old_angle, new_angle, reference))]
+    if not min(out) > 0.0:
+        s = min(range(len(out)), key=lambda k: out[k] if out[k] == out[k] else -math.inf)
+        raise SolverError(f"span {span_name(s)} has no belt left at the solved pulley positions (reference "
                           f"length {out[s]:.3g} m)", analysis="static", step="re-lay", item=f"span {s + 1}")
     return out
 
@@ -840,19 +846,22 @@ def torque_split(layout, loads: np.ndarray | None, rot_dof: np.ndarray, driver: 
     return split
 
 
-def _conserved_tension(layout, split: np.ndarray, reference: np.ndarray, EA: float) -> np.ndarray:
-    """(n,) span tensions T_ref + split on `layout` of a belt whose spans' reference lengths there are
-    `reference` (n,) (`carried_reference`: the wraps unstretched) and whose pulleys turn freely: the
-    rotations slide the span ends along the tangent lines (the joints), which moves chord between
-    neighbouring spans and keeps their sum, so sum_s lambda(T_s) reference_s = sum_s L_s (Newton on T_ref)."""
-    from .system import stretch_for_tension as _stretch
+def _conserved_tension(total_length: float, split: list, reference: list, EA: float) -> list:
+    """(n,) span tensions T_ref + split of a belt whose spans' reference lengths are `reference` (n,)
+    (`carried_reference`: the wraps unstretched) on a path whose spans are total_length long together,
+    its pulleys turning freely: the rotations slide the span ends along the tangent lines (the joints),
+    which moves chord between neighbouring spans and keeps their sum, so
+    sum_s lambda(T_s) reference_s = sum_s L_s (Newton on T_ref). Lists of Python floats (numpy calls
+    on 2-12 numbers cost more than the arithmetic)."""
+    from .system import stretch_for_tension as _stretch, stretch_start
 
-    # a handful of spans: plain Python floats (numpy calls on 2-12 numbers cost more than the arithmetic)
-    L = float(layout.span_length.sum())
-    ref, sp = reference.tolist(), split.tolist()
+    L, ref, sp = total_length, reference, split
     total = sum(ref)
-    T_ref = EA * (L / total - 1.0) - sum(r * s for r, s in zip(ref, sp)) / total
-    lam = [_stretch(T_ref + s, EA) for s in sp]
+    T_ref = EA * (L / total - 1.0) - sum(r * s for r, s in zip(ref, sp)) / total  # the start: lambda = 1 + x,
+    x = [(T_ref + s) / EA for s in sp]
+    T_ref += 1.5 * EA * sum(r * v * v for r, v in zip(ref, x)) / total  # then 1 + x - 3/2 x^2 (one step)
+    x = [(T_ref + s) / EA for s in sp]
+    lam = [stretch_start(v) for v in x] if max(map(abs, x)) < 0.05 else [_stretch(T_ref + s, EA) for s in sp]
     half = 0.5 * EA
     for _ in range(50):  # Newton on T_ref and lambda together: one stretch step per tension step
         slope = [half * (3.0 * x * x - 1.0) for x in lam]  # dT/dlambda
@@ -862,19 +871,21 @@ def _conserved_tension(layout, split: np.ndarray, reference: np.ndarray, EA: flo
         lam = [x - d for x, d in zip(lam, d_lam)]
         if abs(step) <= 1e-12 * EA and max(map(abs, d_lam)) <= 1e-15:
             break
-    return T_ref + split
+    return [T_ref + s for s in sp]
 
 
 def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_tension) -> np.ndarray:
-    """Pulley centres (n, 2) of the drive on a rigid belt whose span tensions `span_tension(layout)` (n,)
-    gives (the target or the belt's length, split by the accessory torques): the adjustable pulley where
-    `fit(centers)` places it (mode "adjust"), every spring-supported pulley deflected by its bearing
-    springs under the belt's pull T_j t_j - T_(j-1) t_(j-1) of that layout and the weight on its DOFs
-    (`gravity_force`, the pulley's and its share of the belt's), every sprung tensioner arm (but the
-    adjusting one) turned until its spring balances the moment of that pull about its pivot (secant).
+    """Pulley centres (n, 2) of the drive on a rigid belt whose span tensions `span_tension(angles,
+    lengths)` (lists (n,) of a layout's span angles and lengths -> list (n,)) gives (the target or the
+    belt's length, split by the accessory torques): the adjustable pulley where `fit(centers)` places
+    it (mode "adjust"), every spring-supported pulley deflected by its bearing springs under the belt's
+    pull T_j t_j - T_(j-1) t_(j-1) of that layout and the weight on its DOFs (`gravity_force`, the
+    pulley's and its share of the belt's), every sprung tensioner arm (but the adjusting one) turned
+    until its spring balances the moment of that pull about its pivot (secant; where nothing else
+    moves with the arm, its iterates lay out only the arm pulley's spans, `geometry.MovingPulley`).
     A fixed point over layouts (cheap geometry); the static passes correct what it leaves out (sag,
     bending, the arms' weight)."""
-    from .geometry import relay
+    from .geometry import MovingPulley, relay
 
     lay0 = system.layout
     place = fit if fit is not None else (lambda c: relay(lay0, c, check=False))  # checked where laid (lay_out)
@@ -883,8 +894,8 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
     if system.arms is not None:
         a = system.arms
         for k, dof in enumerate(a.dof):
-            spring = next((c for c in system.components if c.dofs.tolist() == [int(dof)] and c.stiffness is not None),
-                          None)
+            spring = next((c for c in system.components if c.stiffness is not None and c.dofs.shape == (1,)
+                           and c.dofs[0] == dof), None)
             if int(dof) == system.tension.adjust_dof or spring is None:
                 continue
             j = next(i for i, dd in enumerate(system.trans_dof) if dd and dd[0] == a.slot[k])
@@ -898,17 +909,33 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
     prv = (np.arange(lay0.n) - 1) % lay0.n
 
     def pull(lay) -> np.ndarray:
-        f = span_tension(lay)[:, None] * lay.span_direction
+        f = np.array(span_tension(lay.span_angle.tolist(), lay.span_length.tolist()))[:, None] * lay.span_direction
         return f - f[prv]
 
-    for _ in range(50):
-        for j, pv, length, k_s, phi_ref, phi_f in arms:  # each arm's balance, the other pulleys where they are
+    def arm_moment(j: int, pv: np.ndarray, length: float, k_s: float, phi_f: float):
+        """The moment about the pivot on arm pulley j at arm angle phi (spring and belt pull)."""
+        if fit is not None:  # the fit moves the adjustable pulley with it: whole layouts
             def moment(phi: float) -> float:
                 c = centers.copy()
                 c[j] = pv + length * np.array([np.cos(phi), np.sin(phi)])
                 r, f = c[j] - pv, pull(place(c))[j]
                 return float(r[0] * f[1] - r[1] * f[0]) - k_s * (phi - phi_f)
+            return moment
+        path = MovingPulley(lay0 if np.array_equal(centers, lay0.center) else place(centers), j)
+        px, py, i = float(pv[0]), float(pv[1]), path.prev
 
+        def moment(phi: float) -> float:  # only pulley j moves: its two spans in floats
+            cs, sn = math.cos(phi), math.sin(phi)
+            angle, span_length, _ = path.at(px + length * cs, py + length * sn)
+            T = span_tension(angle, span_length)
+            fx = T[j] * math.cos(angle[j]) - T[i] * math.cos(angle[i])
+            fy = T[j] * math.sin(angle[j]) - T[i] * math.sin(angle[i])
+            return length * (cs * fy - sn * fx) - k_s * (phi - phi_f)
+        return moment
+
+    for _ in range(50):
+        for j, pv, length, k_s, phi_ref, phi_f in arms:  # each arm's balance, the other pulleys where they are
+            moment = arm_moment(j, pv, length, k_s, phi_f)
             phi0 = float(np.arctan2(*(centers[j] - pv)[::-1]))
             phi0 += 2.0 * np.pi * round((phi_ref - phi0) / (2.0 * np.pi))  # the layout's branch of the angle
             phi1 = phi0 + 1e-4
@@ -1049,12 +1076,17 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     ref0 = system.belt.reference_length
     material = float(ref0.sum() + lay0.arc_length.sum())  # L0, wraps unstretched
     split = torque_split(lay0, system.loads, d.rot_dof, system.driver_dof)
+    sp = split.tolist()
     if ts.target is not None:
-        def span_tension(lay):  # the target as the length-weighted mean, split by the torques
-            return float(ts.target) - float(lay.span_length @ split) / float(lay.span_length.sum()) + split
+        def span_tension(angle: list, length: list) -> list:  # the target as the length-weighted mean, split by
+            mean = float(ts.target) - sum(x * y for x, y in zip(length, sp)) / sum(length)  # the torques
+            return [mean + y for y in sp]
     elif conserve and ts.mode != "adjust":
-        def span_tension(lay):  # what the belt's length gives on that path
-            return _conserved_tension(lay, split, carried_reference(lay0, lay, ref0), EA)
+        angle0, ref0_, rho0 = lay0.span_angle.tolist(), ref0.tolist(), (lay0.orientation * lay0.side_sign
+                                                                          * lay0.radius).tolist()
+
+        def span_tension(angle: list, length: list) -> list:  # what the belt's length gives on that path
+            return _conserved_tension(sum(length), sp, _carried(angle0, angle, rho0, ref0_, lay0.span_name), EA)
     else:
         span_tension = None
     predict = span_tension is not None and (moving or ts.mode == "adjust")
@@ -1081,7 +1113,8 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                 lam_p = _stretch(float(ts.target), EA)
             else:
                 # started with the pulleys turned to the predicted span tensions
-                warm = _predictor(built, _stretch(span_tension(lay), EA), ts.adjust_dof, built.driver_dof)
+                T = np.array(span_tension(lay.span_angle.tolist(), lay.span_length.tolist()))
+                warm = _predictor(built, _stretch(T, EA), ts.adjust_dof, built.driver_dof)
                 system = built
         except (GeometryError, SolverError, ArithmeticError, ValueError, np.linalg.LinAlgError):
             lay, free, warm = lay0, np.zeros(n_dof), None  # no prediction: start from the L0 fit

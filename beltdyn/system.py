@@ -1718,14 +1718,19 @@ def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
     return F
 
 
+def stretch_start(x: float) -> float:
+    """A start for the stretch lambda of a bar at N / EA = x (`stretch_for_tension`): the series
+    lambda = 1 + x - 3/2 x^2 + 4 x^3 + O(x^4) where the strain is small (one Newton step then reaches
+    round-off for |x| < 1e-2), 1 + x beyond."""
+    return 1.0 + x * (1.0 - x * (1.5 - 4.0 * x)) if abs(x) < 0.05 else 1.0 + x
+
+
 def stretch_for_tension(tension, EA: float):
     """lambda with EA * eps * lambda = N, eps = (lambda^2 - 1)/2 (St. Venant-Kirchhoff bar); elementwise
     for an array of tensions (a float for a float: plain Python arithmetic, no numpy call)."""
-    # start: the series lambda = 1 + x - 3/2 x^2 + 4 x^3 + O(x^4) where the strain is small (one Newton
-    # step then reaches round-off for |x| < 1e-2), 1 + x beyond
-    if isinstance(tension, (float, int)):
+    if isinstance(tension, (float, int)):  # from `stretch_start`
         x = float(tension) / EA
-        lam = 1.0 + x * (1.0 - x * (1.5 - 4.0 * x)) if abs(x) < 0.05 else 1.0 + x
+        lam = stretch_start(x)
         largest = abs
     else:
         x = np.asarray(tension, dtype=float) / EA
@@ -1892,4 +1897,4 @@ class DeferredSystem:
 
 
 __all__ = ["System", "DofMap", "BeltSpans", "SpringSpans", "build_springs", "LinearComponent", "BearingSprings", "Observation", "TensionSetting",
-           "build_system", "number_dofs", "stretch_for_tension", "element_pairs", "DENSE_LIMIT", "ENERGY_KINDS"]
+           "build_system", "number_dofs", "stretch_for_tension", "stretch_start", "element_pairs", "DENSE_LIMIT", "ENERGY_KINDS"]
