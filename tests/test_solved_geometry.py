@@ -390,3 +390,20 @@ def test_bearing_forces_balance_the_belt_on_the_solved_layout():
         dirs = sysm.trans_dir[j]
         assert np.abs(dirs @ total).max() <= 1e-8 * np.linalg.norm(st.hub_load[j]), (j, total)
     assert springs.free is not None and np.any(springs.free != 0.0)  # C sits displaced from its given centre
+
+
+@pytest.mark.parametrize("shrink", [0.9999, 0.997, 0.98, 0.8])
+def test_conserved_tension_meets_its_definition(shrink):
+    # _conserved_tension: span tensions T_ref + split whose stretches lambda(T) (EA eps lambda = T) on
+    # the reference lengths fill the path: sum_s lambda_s reference_s = sum_s L_s (relative 1e-14), the
+    # split kept exactly, from small strains (the series start) to 20 % (the solved stretches start).
+    from beltdyn.static import _conserved_tension
+    from beltdyn.system import stretch_for_tension
+
+    EA, L = 1.2e5, [0.30, 0.25, 0.12, 0.08, 0.21]
+    ref = [x * shrink for x in L]
+    split = [0.0, -40.0, -65.0, -65.0, -90.0]
+    T = _conserved_tension(sum(L), split, ref, EA)
+    filled = sum(stretch_for_tension(t, EA) * r for t, r in zip(T, ref))
+    assert abs(filled - sum(L)) <= 1e-14 * sum(L)
+    np.testing.assert_allclose(np.array(T) - T[0], split, rtol=0, atol=1e-9 * abs(T[0]))
