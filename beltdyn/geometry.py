@@ -421,13 +421,18 @@ def fit_adjustable(
             s, ell, slope = s + step, ell_t, slope_t
         return None
 
+    kind = "slide" if arm is None else "arm"
     try:  # the iterates in floats and unchecked (`quick`), the answer laid out and checked; on any doubt the
         s = quick()  # checked way
         if s is None:
             raise GeometryError("", "")
-        lay = base if s == 0.0 else layout_at(s, True)
+        c = center.copy()
+        c[index] = offset_point(s)[0]
+        lay = compute_layout(c, radius, side_sign, names, orientation=orientation, adjust_offset=s,
+                             adjust_index=index, adjust_kind=kind)
     except GeometryError:
         s, lay = newton(True)
+        lay = replace(lay, adjust_offset=s, adjust_index=index, adjust_kind=kind)
     if slide_range is not None and not (slide_range[0] <= s <= slide_range[1]):
         word = "short" if s * float(belt_length_gradient(lay, index) @ offset_point(s)[1]) < 0 else "long"
         if arm is None:
@@ -440,7 +445,7 @@ def fit_adjustable(
             f"the stops exclude the fitted arm angle: L0 = {target_length:.6g} m needs the arm of pulley "
             f"'{name}' at {phi0 + s:.6g} rad, its stops are [{phi0 + slide_range[0]:g}, {phi0 + slide_range[1]:g}] "
             f"rad (move the stops or change L0)", f"pulleys[{index}].arm_range")
-    return replace(lay, adjust_offset=s, adjust_index=index, adjust_kind="slide" if arm is None else "arm")
+    return lay
 
 
 def relay(layout: Layout, center: np.ndarray, *, adjust_offset: float | None = None, check: bool = True) -> Layout:
