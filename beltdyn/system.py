@@ -1728,6 +1728,11 @@ def stretch_start(x: float) -> float:
 def stretch_for_tension(tension, EA: float):
     """lambda with EA * eps * lambda = N, eps = (lambda^2 - 1)/2 (St. Venant-Kirchhoff bar); elementwise
     for an array of tensions (a float for a float: plain Python arithmetic, no numpy call)."""
+    if not isinstance(tension, (float, int)) and np.size(tension) <= 16:  # a few: element by element in floats
+        T = np.asarray(tension, dtype=float)
+        if T.ndim == 0:
+            return stretch_for_tension(float(T), EA)
+        return np.array([stretch_for_tension(t, EA) for t in T.ravel().tolist()]).reshape(T.shape)
     if isinstance(tension, (float, int)):  # from `stretch_start`
         x = float(tension) / EA
         lam = stretch_start(x)
