@@ -492,5 +492,10 @@ def unwrap_near(angle: float, ref: float) -> float:
 
 def arm_angle(layout: Layout, j: int, pivot: np.ndarray) -> float:
     """The angle (rad, counter-clockwise from +x) of the arm pivot -> centre of pulley j."""
-    d = layout.center[j] - np.asarray(pivot, dtype=float)
-    return math.atan2(float(d[1]), float(d[0]))
+    return pivot_angle(layout.center[j], pivot)
+
+
+def pivot_angle(point, pivot) -> float:
+    """The angle (rad, counter-clockwise from +x) of pivot -> point, both (2,)."""
+    (x, y), (px, py) = (float(v) for v in point), (float(v) for v in pivot)
+    return math.atan2(y - py, x - px)

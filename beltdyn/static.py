@@ -885,7 +885,7 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
     moves with the arm, its iterates lay out only the arm pulley's spans, `geometry.MovingPulley`).
     A fixed point over layouts (cheap geometry); the static passes correct what it leaves out (sag,
     bending, the arms' weight)."""
-    from .geometry import MovingPulley, relay
+    from .geometry import MovingPulley, pivot_angle, relay
 
     lay0 = system.layout
     place = fit if fit is not None else (lambda c: relay(lay0, c, check=False))  # checked where laid (lay_out)
@@ -936,7 +936,7 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
     for _ in range(50):
         for j, pv, length, k_s, phi_ref, phi_f in arms:  # each arm's balance, the other pulleys where they are
             moment = arm_moment(j, pv, length, k_s, phi_f)
-            phi0 = float(np.arctan2(*(centers[j] - pv)[::-1]))
+            phi0 = pivot_angle(centers[j], pv)
             phi0 += 2.0 * np.pi * round((phi_ref - phi0) / (2.0 * np.pi))  # the layout's branch of the angle
             phi1 = phi0 + 1e-4
             m0, m1 = moment(phi0), moment(phi1)
@@ -1017,7 +1017,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     Bearing springs stay anchored where they were relaxed on the L0 fit (spring_free); the adjustable
     pulley's spring in mode "adjust" carries the preload its slide equation asks for, as before.
     """
-    from .geometry import GeometryError, Layout, fit_adjustable, relay
+    from .geometry import GeometryError, Layout, fit_adjustable, pivot_angle, relay
     from .system import stretch_for_tension as _stretch
 
     ts = system.tension
@@ -1041,7 +1041,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             offset = None
         elif old.adjust_kind == "arm":  # the further turn of the arm about its pivot
             pv = system.arms.pivot[arm_of[d.trans_dof[a][0]]]
-            turn = np.arctan2(*(centers[a] - pv)[::-1]) - np.arctan2(*(old.center[a] - pv)[::-1])
+            turn = pivot_angle(centers[a], pv) - pivot_angle(old.center[a], pv)
             offset = old.adjust_offset + float((turn + np.pi) % (2 * np.pi) - np.pi)
         else:
             offset = old.adjust_offset + float((centers[a] - old.center[a]) @ d.trans_dir[a][0])
@@ -1062,7 +1062,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                     continue  # the tension step sets its preload
                 j = next(i for i, dd in enumerate(d.trans_dof) if dd and dd[0] == system.arms.slot[k])
                 pv = system.arms.pivot[k]
-                turn = np.arctan2(*(lay0.center[j] - pv)[::-1]) - np.arctan2(*(centers[j] - pv)[::-1])
+                turn = pivot_angle(lay0.center[j], pv) - pivot_angle(centers[j], pv)
                 free[int(dof)] = float((turn + np.pi) % (2 * np.pi) - np.pi)
         if conserve:
             return new, free, build(new, new.span_length / carried_reference(old, new, ref_old), free)
