@@ -1718,11 +1718,14 @@ def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
     return F
 
 
-def stretch_start(x: float) -> float:
-    """A start for the stretch lambda of a bar at N / EA = x (`stretch_for_tension`): the series
-    lambda = 1 + x - 3/2 x^2 + 4 x^3 + O(x^4) where the strain is small (one Newton step then reaches
-    round-off for |x| < 1e-2), 1 + x beyond."""
-    return 1.0 + x * (1.0 - x * (1.5 - 4.0 * x)) if abs(x) < 0.05 else 1.0 + x
+def stretch_start(x):
+    """A start for the stretch lambda of a bar at N / EA = x (`stretch_for_tension`; a float or an
+    array): the series lambda = 1 + x - 3/2 x^2 + 4 x^3 + O(x^4) where the strain is small (one Newton
+    step then reaches round-off for |x| < 1e-2), 1 + x beyond."""
+    series = 1.0 + x * (1.0 - x * (1.5 - 4.0 * x))
+    if isinstance(x, float):
+        return series if abs(x) < 0.05 else 1.0 + x
+    return np.where(np.abs(x) < 0.05, series, 1.0 + x)
 
 
 def stretch_for_tension(tension, EA: float):
@@ -1739,7 +1742,7 @@ def stretch_for_tension(tension, EA: float):
         largest = abs
     else:
         x = np.asarray(tension, dtype=float) / EA
-        lam = np.where(np.abs(x) < 0.05, 1.0 + x * (1.0 - x * (1.5 - 4.0 * x)), 1.0 + x)
+        lam = stretch_start(x)
 
         def largest(step):
             return float(np.max(np.abs(step), initial=0.0))
