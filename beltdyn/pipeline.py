@@ -75,8 +75,8 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
 
     try:
         solved = solve_static_on_solved_geometry(initial, build, cfg.static)
-        out = replace(out, layout=solved.system.layout, system=solved.system, static=solved.static,
-                      static_passes=solved.passes)
+        out = Analysis(config=cfg, layout=solved.system.layout, system=solved.system, static=solved.static,
+                       fit_layout=layout, static_passes=solved.passes)
         if modal:
             from .modal import solve_modes
 
