@@ -738,28 +738,67 @@ class SpringSpans:
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
                   prestrain_stretch: float | np.ndarray = 1.0) -> SpringSpans | None:
     """The spring spans of the configuration (None without any), on the layout's tangent points."""
-    spans = [s for s, m in enumerate(cfg.span_models) if m == "spring"]
+    spans = tuple(s for s, m in enumerate(cfg.span_models) if m == "spring")
     if not spans:
         return None
-    lam = np.broadcast_to(np.asarray(prestrain_stretch, dtype=float), (layout.n,))
-    k = len(spans)
-    pad = dofs.n
-    cols = [joint_pairs(layout, dofs, s, 0) + [None] + joint_pairs(layout, dofs, s, 1) for s in spans]
-    m = max(len(c) - 1 for c in cols)
-    T = np.zeros((k, 4, m))
-    idx = np.full((k, m), pad, dtype=np.int64)
-    for i, c in enumerate(cols):
-        cut = c.index(None)
-        for col, (dof, v) in enumerate(c[:cut] + c[cut + 1:]):
-            side = 0 if col < cut else 1
-            idx[i, col] = dof
-            T[i, 2 * side: 2 * side + 2, col] = v
+    idx, T, (at, row, col) = _spring_joints(dofs, spans, layout.n)
     sp = np.array(spans, dtype=np.int64)
-    x0 = np.column_stack([layout.span_start[sp], layout.span_end[sp]])
-    return SpringSpans(span=sp, T=T, idx=idx, x0=x0, reference_length=layout.span_length[sp] / lam[sp],
-                       reference_direction=layout.span_direction[sp].copy(), EA=float(cfg.belt.EA),
+    T = T.copy()  # the rotation columns R (z x n) of each end (`joint_pairs`): the layout's
+    rot = np.concatenate([_joint_rotation(layout, sp, 0), _joint_rotation(layout, sp, 1)])  # (2k, 2)
+    T[at, row, col] = rot[:, 0]
+    T[at, row + 1, col] = rot[:, 1]
+    L = layout.span_length[sp] / _span_stretch(prestrain_stretch, layout.n)[sp]
+    return SpringSpans(span=sp, T=T, idx=idx, x0=np.concatenate([layout.span_start[sp], layout.span_end[sp]], axis=1),
+                       reference_length=L, reference_direction=layout.span_direction[sp], EA=float(cfg.belt.EA),
                        rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=layout.n, EI=float(cfg.belt.EI),
                        curvature=cfg.model.curvature)
+
+
+def _span_stretch(prestrain_stretch: float | np.ndarray, n: int) -> np.ndarray:
+    """(n,) the spans' stretch at q = 0 of one number for all or one per span (a new array)."""
+    if np.ndim(prestrain_stretch) == 0:
+        return np.full(n, float(prestrain_stretch))
+    lam = np.array(prestrain_stretch, dtype=float)
+    return lam if lam.shape == (n,) else np.broadcast_to(lam, (n,)).copy()
+
+
+def _joint_rotation(layout: Layout, spans: np.ndarray, side: int) -> np.ndarray:
+    """(k, 2) d r_end / d theta = R (z x n) of the joints at the start (side 0) or end (side 1) of spans (k,),
+    as `joint_pairs`' first pair."""
+    j = spans if side == 0 else (spans + 1) % layout.n
+    normal = layout.start_normal[spans] if side == 0 else layout.end_normal[spans]
+    return _last_pair(-normal[:, 1], normal[:, 0]) * layout.radius[j][:, None]
+
+
+def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """The parts of the spring spans' joints that the DOF map fixes (`joint_pairs`), cached on it (read-only):
+    idx (k, m) the joint coordinates of each span, its start's columns (rotation, then the pulley's
+    translations) before its end's, padded with n_dof; T (k, 4, m) with the translations' directions and
+    zero rotation columns; and where the rotation columns' x rows are ((2k,) span, row, column; the y row
+    below), the k starts, then the k ends."""
+    cache = dofs.__dict__.setdefault("_spring_joints", {})
+    hit = cache.get(spans)
+    if hit is not None:
+        return hit
+    k = len(spans)
+    ends = [(s, (s + 1) % n) for s in spans]
+    m = max(2 + len(dofs.trans_dof[a]) + len(dofs.trans_dof[b]) for a, b in ends)
+    T = np.zeros((k, 4, m))
+    idx = np.full((k, m), dofs.n, dtype=np.int64)
+    rot_col = np.zeros((2, k), dtype=np.int64)
+    for i, pair in enumerate(ends):
+        col = 0
+        for side, j in enumerate(pair):
+            rot_col[side, i] = col
+            idx[i, col] = dofs.rot_dof[j]
+            for col, (dof, v) in enumerate(zip(dofs.trans_dof[j], dofs.trans_dir[j]), start=col + 1):
+                idx[i, col] = dof
+                T[i, 2 * side: 2 * side + 2, col] = v
+            col += 1
+    for a in (idx, T):
+        a.setflags(write=False)
+    hit = cache[spans] = (idx, T, (np.tile(np.arange(k), 2), np.repeat([0, 2], k), rot_col.ravel()))
+    return hit
 
 
 def _sub_tables(tab, els: np.ndarray) -> tuple:
@@ -839,6 +878,42 @@ def _make_pattern(idx: np.ndarray, n: int, *, sparse: bool, extra: tuple[np.ndar
     diag_slot = np.searchsorted(keys, diag_keys)
     return Pattern(n=n, flat=flat, slot=slot, indices=c.astype(np.int32), indptr=indptr.astype(np.int32),
                    diag_slot=diag_slot, nnz=len(keys))
+
+
+def _assembled(n: int, dense: bool, pat: Pattern, blocks: np.ndarray | None, springs: np.ndarray | None,
+               scatter: np.ndarray | None, linear, diagonal: np.ndarray | None):
+    """`System.assemble` on its pattern: element blocks (n_elem, m, m) (None or empty: none), the spring
+    spans' blocks (k, m_s, m_s) through `scatter` (None: none), + the constant stiffness `linear` (dense
+    (n, n) or CSR data; None: none), + a diagonal (n,)."""
+    has_blocks = blocks is not None and len(blocks) > 0
+    if dense:
+        if springs is None:
+            flat, weights = (pat.flat, blocks.ravel()) if has_blocks else (pat.flat[:0], np.zeros(0))
+        elif has_blocks:
+            flat, weights = np.concatenate([pat.flat, scatter]), np.concatenate([blocks.ravel(), springs.ravel()])
+        else:
+            flat, weights = scatter, springs.ravel()
+        K = np.bincount(flat, weights=weights, minlength=(n + 1) ** 2).reshape(n + 1, n + 1)[:n, :n]
+        if linear is not None:
+            K += linear
+        if diagonal is not None:
+            K[np.diag_indices(n)] += diagonal
+        return K
+    from scipy.sparse import csr_matrix
+
+    if has_blocks:
+        keep = pat.slot >= 0
+        data = np.bincount(pat.slot[keep], weights=blocks.ravel()[keep], minlength=pat.nnz)
+    else:
+        data = np.zeros(pat.nnz)
+    if springs is not None:
+        live = scatter >= 0
+        data += np.bincount(scatter[live], weights=springs.ravel()[live], minlength=pat.nnz)
+    if linear is not None:
+        data += linear
+    if diagonal is not None:
+        data[pat.diag_slot] += diagonal
+    return csr_matrix((data, pat.indices, pat.indptr), shape=(n, n))
 
 
 # ------------------------------------------------------------------------------------ the system
@@ -1137,34 +1212,12 @@ class System:
         return self.project_matrix(np.zeros(self.n_dof) if q is None else q, G)
 
     # -------------------------------------------------------------------- assembly
-    def assemble(self, blocks: np.ndarray, *, linear: bool = True, diagonal: np.ndarray | None = None,
+    def assemble(self, blocks: np.ndarray | None, *, linear: bool = True, diagonal: np.ndarray | None = None,
                  springs: np.ndarray | None = None):
-        """Element blocks (n_elem, m, m) (+ the spring spans' blocks (k, m_s, m_s), + the components'
-        constant stiffness, + a diagonal) -> dense (n_p, n_p) or CSR, on the joint coordinates."""
-        n, pat = self.n_p, self.pattern
-        with_springs = springs is not None and self.springs is not None
-        if self.dense:
-            flat, weights = pat.flat, blocks.ravel()
-            if with_springs:
-                flat, weights = np.concatenate([flat, self.spring_scatter]), np.concatenate([weights, springs.ravel()])
-            K = np.bincount(flat, weights=weights, minlength=(n + 1) ** 2).reshape(n + 1, n + 1)[:n, :n]
-            if linear and self.linear_stiffness is not None:
-                K += self.linear_stiffness
-            if diagonal is not None:
-                K[np.diag_indices(n)] += diagonal
-            return K
-        from scipy.sparse import csr_matrix
-
-        keep = pat.slot >= 0
-        data = np.bincount(pat.slot[keep], weights=blocks.ravel()[keep], minlength=pat.nnz)
-        if with_springs:
-            live = self.spring_scatter >= 0
-            data += np.bincount(self.spring_scatter[live], weights=springs.ravel()[live], minlength=pat.nnz)
-        if linear and self.linear_stiffness is not None:
-            data += self.linear_stiffness
-        if diagonal is not None:
-            data[pat.diag_slot] += diagonal
-        return csr_matrix((data, pat.indices, pat.indptr), shape=(n, n))
+        """Element blocks (n_elem, m, m) (None: none) (+ the spring spans' blocks (k, m_s, m_s), + the
+        components' constant stiffness, + a diagonal) -> dense (n_p, n_p) or CSR, on the joint coordinates."""
+        return _assembled(self.n_p, self.dense, self.pattern, blocks, springs if self.springs is not None else None,
+                          self.spring_scatter, self.linear_stiffness if linear else None, diagonal)
 
     def linear_force(self, q: np.ndarray) -> np.ndarray:
         """The components' force K p - offset (joint coordinates p)."""
@@ -1210,7 +1263,7 @@ class System:
                 bs = self._running_spring_blocks(bs)
         if self.springs is not None and self.belt.elements.n_elem == 0:  # every span a spring
             f = fs + self.centripetal_force(p) if running else fs
-            return f, self.assemble(np.zeros((0,) + self.belt.T.shape[2:] * 2), linear=linear, springs=bs)
+            return f, self.assemble(None, linear=linear, springs=bs)
         f, blocks = self.belt.force_and_blocks(p)
         if running:
             f, blocks = f + self.centripetal_force(p), self._running_blocks(blocks)
@@ -1438,25 +1491,28 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
     """Pattern, mass, weight and the components' constant matrices of a system."""
     n = dofs.n
     use_dense = n <= DENSE_LIMIT if dense is None else dense
-    rows, cols = [], []
     if springs is not None:  # the spring spans' blocks: entries of the pattern like the components'
         s_rows, s_cols = element_pairs(springs.idx)
-        live = (s_rows < n) & (s_cols < n)
-        rows.append(s_rows[live])
-        cols.append(s_cols[live])
-    for c in components if not use_dense else ():  # (a dense pattern holds every entry)
-        for mat in (c.stiffness, c.damping, c.mass):
-            if mat is not None:
-                r, cc = np.nonzero(mat)
-                rows.append(c.dofs[r])
-                cols.append(c.dofs[cc])
-    extra = (np.concatenate(rows), np.concatenate(cols)) if rows and not use_dense else None
+    extra = None
+    if not use_dense:  # (a dense pattern holds every entry)
+        rows, cols = [], []
+        if springs is not None:
+            live = (s_rows < n) & (s_cols < n)
+            rows.append(s_rows[live])
+            cols.append(s_cols[live])
+        for c in components:
+            for mat in (c.stiffness, c.damping, c.mass):
+                if mat is not None:
+                    r, cc = np.nonzero(mat)
+                    rows.append(c.dofs[r])
+                    cols.append(c.dofs[cc])
+        extra = (np.concatenate(rows), np.concatenate(cols)) if rows else None
     pattern = make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
 
     def summed(attr: str):
         """The components' matrices `attr` summed: dense (n, n) for dense systems, else the data (nnz,)
         of a CSR matrix on the system's pattern."""
-        mats = [(c.dofs, getattr(c, attr)) for c in components if getattr(c, attr) is not None]
+        mats = [(c.dofs, mat) for c in components if (mat := getattr(c, attr)) is not None]
         if not mats:
             return None
         if use_dense:
@@ -1478,7 +1534,8 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
             offset = np.zeros(n) if offset is None else offset
             offset[c.dofs] += c.stiffness @ np.asarray(c.free, dtype=float)
     g = np.asarray(gravity, dtype=float)
-    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g))
+    has_elements = belt.elements.n_elem > 0
+    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g)) if has_elements else np.zeros(n)
     scatter = None
     if springs is not None:
         fg = fg + springs.gravity_force(g)
@@ -1490,26 +1547,21 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
     for c in components:
         if c.weight is not None:
             fg[c.dofs] += c.weight @ g
-    stub = System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names, driver=driver,
-                  tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=None, gravity_force=fg,
-                  linear_stiffness=None, linear_damping=None, loads=loads, arms=arms, pulley_friction=friction,
-                  springs=springs, spring_scatter=scatter)
-    Mb = stub.assemble(belt.reduce_blocks(belt.elements.mass), linear=False,
-                       springs=None if springs is None else springs.mass_blocks())
+    M = _assembled(n, use_dense, pattern, belt.reduce_blocks(belt.elements.mass) if has_elements else None,
+                   None if springs is None else springs.mass_blocks(), scatter, None, None)
     if use_dense:
-        M = Mb + (M_comp if M_comp is not None else 0.0)
-        lin = K_lin
+        M = M + (M_comp if M_comp is not None else 0.0)
         C = C_lin
     else:
         from scipy.sparse import csr_matrix
 
-        M = Mb
-        if M_comp is not None:  # Mb is already on the pattern: add the components' entries
+        if M_comp is not None:  # M is already on the pattern: add the components' entries
             M.data += M_comp
-        lin = K_lin
         C = csr_matrix((C_lin, pattern.indices, pattern.indptr), shape=(n, n)) if C_lin is not None else None
-    return System(**{**stub.__dict__, "mass": M, "linear_stiffness": lin, "linear_damping": C,
-                     "linear_offset": offset})
+    return System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names, driver=driver,
+                  tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M, gravity_force=fg,
+                  linear_stiffness=K_lin, linear_damping=C, linear_offset=offset, loads=loads, arms=arms,
+                  pulley_friction=friction, springs=springs, spring_scatter=scatter)
 
 
 # ------------------------------------------------------------------------------------ building
@@ -1522,24 +1574,22 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     prestrain_stretch: the stretch of the spans at q = 0 (chord length / reference length), one
     number for all spans or one per span (n_span,)."""
     n_p = layout.n
-    counts = np.array(cfg.span_elements, dtype=np.int64)  # (n_span,) elements of each span
     n_dof = dofs.n
     pad = n_dof
-    lam_s = np.broadcast_to(np.asarray(prestrain_stretch, dtype=float), (n_p,)).copy()
+    lam_s = _span_stretch(prestrain_stretch, n_p)
+    uniform = bool((lam_s == lam_s[0]).all())
     L_ref = layout.span_length / lam_s
     t_dir = layout.span_direction
-    normals = np.column_stack([-t_dir[:, 1], t_dir[:, 0]])
-    n_elem = int(counts.sum())
-    uniform = bool(np.all(lam_s == lam_s[0]))
+    normals = _last_pair(-t_dir[:, 1], t_dir[:, 0])
     lam = float(lam_s[0]) if uniform else float(layout.span_length.sum() / L_ref.sum())
+    n_elem = sum(cfg.span_elements)
     if n_elem == 0:  # every span a spring (`build_springs`): no elements, no joints of the belt's own
-        el = span_element_set(cfg, np.zeros(0), np.zeros(0))
-        T, idx = np.zeros((0, 8, 8)), np.zeros((0, 8), dtype=np.int64)
-        empty = tuple(np.zeros(0, dtype=np.int64) for _ in range(n_p))
-        return BeltSpans(elements=el, elem_span=np.zeros(0, dtype=np.int64), span_elements=empty, T=T, idx=idx,
-                         tsel=joint_selection(T, idx, n_dof), e0=np.zeros((0, 8)), n_dof=n_dof, reference_length=L_ref,
-                         reference_direction=t_dir, reference_normal=normals, prestrain_stretch=lam,
-                         span_stretch=lam_s)
+        none = np.zeros(0, dtype=np.int64)
+        return BeltSpans(elements=span_element_set(cfg, np.zeros(0), np.zeros(0)), elem_span=none,
+                         span_elements=(none,) * n_p, T=np.zeros((0, 8, 8)), idx=np.zeros((0, 8), dtype=np.int64),
+                         tsel=none, e0=np.zeros((0, 8)), n_dof=n_dof, reference_length=L_ref, reference_direction=t_dir,
+                         reference_normal=normals, prestrain_stretch=lam, span_stretch=lam_s)
+    counts = np.array(cfg.span_elements, dtype=np.int64)  # (n_span,) elements of each span
     # Per element, columns 0-3 / 4-7 carry the coordinates of its first / second node, 8-10 / 11-13
     # the joint DOFs of a span end; padding columns are squeezed out afterwards.
     T = np.zeros((n_elem, 8, 14))
