@@ -31,13 +31,14 @@ is iterated (secant) until the mean tension meets the target with every pulley f
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from .config import StaticOptions
 from .errors import SolverError
-from .system import System, stretch_for_tension
+from .system import DOF_GROUPS, System, stretch_for_tension
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -196,22 +197,25 @@ class ResidualScales:
     point, and the bending force's share), in N.
     """
 
-    def __init__(self, system: System) -> None:
-        from .system import DOF_GROUPS
-
+    def __init__(self, system: System, *, EA: float | None = None, external: np.ndarray | None = None) -> None:
+        """EA, external: the system's `EA` and `external_force(1.0)` if at hand."""
         d = system.dofs
         n = system.n_dof
         group = system.dof_groups
         self.system = system
-        self.span = group == DOF_GROUPS.index("span")
-        self.rotation = group == DOF_GROUPS.index("rotation")
-        self.translation = group == DOF_GROUPS.index("translation")
+        self.span = group == _SPAN
+        self.rotation = group == _ROTATION
+        self.translation = group == _TRANSLATION
+        self.other = ~self.span
         self.lever = np.ones(n)  # m: converts a force scale into the row's scale
         self.lever[d.rot_dof] = system.layout.radius
-        if system.arms is not None:  # an arm's row is a torque about its pivot: the arm length
-            self.lever[system.arms.dof] = system.arms.length
+        a = system.arms
+        self._arm_lever = None
+        if a is not None:  # an arm's row is a torque about its pivot: the arm length
+            self.lever[a.dof] = a.length
+            self._arm_lever = np.abs(a.first(a.angle))  # (a, 2) |dc/dphi| at q = 0
         target = system.tension.target
-        EA = system.EA
+        EA = system.EA if EA is None else EA
         if target is not None:
             S = abs(float(target))
         else:
@@ -219,7 +223,9 @@ class ResidualScales:
                              else system.belt.prestrain_stretch, dtype=float)
             S = float(np.abs(0.5 * EA * (lam**3 - lam)).max(initial=0.0))
         self.tension_scale = max(S, 1e-9 * EA)
-        self.weight = self._on_q(np.abs(system.external_force(1.0)))  # weight and accessory torques
+        external = system.external_force(1.0) if external is None else external
+        self.weight = self._on_q(np.abs(external))  # weight and accessory torques
+        self._span_weight = float(self.weight[self.span].max(initial=0.0))  # the largest weight on a span row
         self.K_abs = None
         if system.linear_stiffness is not None:
             K = system.linear_matrix()
@@ -231,23 +237,27 @@ class ResidualScales:
         if a is None:
             return x
         out = x[: a.n_q].copy()
-        out[a.dof] += np.abs(a.first(a.angle) * x[a.n_q:].reshape(-1, 2)).sum(axis=1)
+        out[a.dof] += (self._arm_lever * x[a.n_q:].reshape(-1, 2)).sum(axis=1)
         return out
 
     def scale(self, q: np.ndarray, lam: float) -> np.ndarray:
         """(n,) the force (N) or torque (N m) scale of each row."""
-        g = abs(lam) * self.weight
-        S = max(self.tension_scale, float(g[self.span].max(initial=0.0)))
+        c = abs(lam)
+        g = c * self.weight
+        S = max(self.tension_scale, c * self._span_weight)  # (= the largest of g on the span rows)
         out = np.maximum(S * self.lever, g)
         if self.K_abs is not None:
             kq = self._on_q(np.asarray(self.K_abs @ np.abs(self.system.expand(q))).ravel())
-            other = ~self.span
-            out[other] = np.maximum(out[other], kq[other])
+            np.maximum(out, kq, out=out, where=self.other)
         return out
 
     def allowed(self, q: np.ndarray, lam: float, tol: float, floor: float) -> np.ndarray:
         """(n,) the allowed residual of each row: tol * scale + floor (times the lever arm)."""
         return tol * self.scale(q, lam) + floor * self.lever
+
+
+_EPS = float(np.finfo(float).eps)
+_SPAN, _ROTATION, _TRANSLATION = (DOF_GROUPS.index(g) for g in ("span", "rotation", "translation"))
 
 
 class _Stop(Exception):
@@ -316,21 +326,22 @@ class _Problem:
         # Round-off floor of the residual: the axial force loses ~eps of EA per Gauss point, the linear
         # bending force ~eps of sum_j |K_b,ij| |e_j| (positions of order 1 m through stiff short elements).
         el = system.belt.elements
-        bend = float((np.abs(el.K_bend) @ np.abs(system.belt.e0)[:, :, None]).max(initial=0.0))
+        bend = float((np.abs(el.K_bend) @ np.abs(system.belt.e0)[:, :, None]).max(initial=0.0)) if el.n_elem else 0.0
         n_sp = 0 if system.springs is None else len(system.springs.span)
-        self.noise = 1e3 * np.finfo(float).eps * (system.EA * np.sqrt(el.n_elem + n_sp) + bend)
+        self.EA = EA = system.EA
+        self.noise = 1e3 * _EPS * (EA * math.sqrt(el.n_elem + n_sp) + bend)
         self.history: list[tuple[float, float]] = []
-        self.has_load = bool(np.any(system.external_force(1.0) != 0.0))
-        self.has_weight = bool(np.any(system.gravity != 0.0))
+        external = system.external_force(1.0)
+        self.has_load = bool((external != 0.0).any())
+        self.has_weight = bool((system.gravity != 0.0).any())
         self.accept = 1.0  # Newton stops at err <= accept (a continuation's intermediate stages: looser)
-        self.EA = system.EA
-        self.scales = ResidualScales(system)
+        self.scales = ResidualScales(system, EA=EA, external=external)
         self.last: tuple = (None, 0.0, 0.0, None, None)  # (q, load factor, driver residual, mean tension, tangent)
         self.keep_tangent = False  # keep the unpinned tangent of the last evaluation (what the modal analysis reuses)
 
     def tension_tolerance(self) -> float:
         """Allowed error of the mean tension: relative tolerance + round-off of EA eps (~EA * eps)."""
-        return self.opts.tolerance * abs(self.target) + 100 * np.finfo(float).eps * self.EA
+        return self.opts.tolerance * abs(self.target) + 100 * _EPS * self.EA
 
     def allowed(self, q: np.ndarray, lam: float) -> np.ndarray:
         return self.scales.allowed(q, lam, self.opts.tolerance, self.noise)

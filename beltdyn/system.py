@@ -45,6 +45,10 @@ from .errors import ConfigError
 from .geometry import Layout, layout_from_config
 
 DENSE_LIMIT = 200  # models up to this many DOFs use dense linear algebra
+_EYE2 = np.eye(2)
+_EYE2.setflags(write=False)
+_PAD = np.zeros(1)  # the padding coordinate (index n_dof) appended to p
+_PAD.setflags(write=False)
 DOF_GROUPS = ("span", "rotation", "translation", "arm")
 ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse", "tensioner")
 
@@ -583,7 +587,7 @@ class SpringSpans:
 
     def positions(self, p: np.ndarray) -> np.ndarray:
         """x (k, 4) at the joint coordinates p (n_dof,)."""
-        return self.x0 + np.matmul(self.T, np.append(p, 0.0)[self.idx][:, :, None])[:, :, 0]
+        return self.x0 + np.matmul(self.T, np.concatenate([p, _PAD])[self.idx][:, :, None])[:, :, 0]
 
     def positions_batch(self, P: np.ndarray, *, offset: bool = True) -> np.ndarray:
         """(B, k, 4) end positions (velocities, accelerations with offset=False) of states P (B, n_dof)."""
@@ -622,17 +626,31 @@ class SpringSpans:
 
     def force(self, p: np.ndarray) -> np.ndarray:
         """Reduced elastic force (n_dof,)."""
-        u, _, _, _, N = self.axial(self.positions(p))
-        return self.reduce_vector(np.concatenate([-N[:, None] * u, N[:, None] * u], axis=1))
+        return self._force(p)[0]
+
+    def _force(self, p: np.ndarray):
+        """The reduced elastic force (n_dof,) T^T [-N u, N u] = D^T (N u) through the chord's map D = dd/dp
+        (`_chord_map`), and u, l, lam, N (`axial`)."""
+        u, l, lam, _, N = self.axial(self.positions(p))
+        fr = np.matmul(self._chord_map[1], (N[:, None] * u)[:, :, None])[:, :, 0]
+        return np.bincount(self.idx.ravel(), weights=fr.ravel(), minlength=self.n_dof + 1)[: self.n_dof], u, l, lam, N
 
     def force_and_blocks(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Reduced elastic force (n_dof,) and the tangent blocks T^T K_e T (k, m, m)."""
-        u, l, lam, _, N = self.axial(self.positions(p))
-        f = self.reduce_vector(np.concatenate([-N[:, None] * u, N[:, None] * u], axis=1))
+        """Reduced elastic force (n_dof,) and the tangent blocks T^T K_e T (k, m, m), through the chord's
+        map D: T^T [[K2, -K2], [-K2, K2]] T = D^T K2 D."""
+        f, u, l, lam, N = self._force(p)
         k_a = self.EA * (3.0 * lam * lam - 1.0) / (2.0 * self.reference_length)
         uu = u[:, :, None] * u[:, None, :]
-        K2 = k_a[:, None, None] * uu + (N / l)[:, None, None] * (np.eye(2) - uu)
-        return f, self.reduce_blocks(self._pair(K2))
+        K2 = k_a[:, None, None] * uu + (N / l)[:, None, None] * (_EYE2 - uu)
+        D, Dt = self._chord_map
+        return f, np.matmul(np.matmul(Dt, K2), D)
+
+    @functools.cached_property
+    def _chord_map(self) -> tuple[np.ndarray, np.ndarray]:
+        """(D, D^T): D = T[:, 2:4] - T[:, 0:2] (k, 2, m), the chord d = r_b - r_a per joint coordinate, and its
+        transpose (k, m, 2), contiguous (cached)."""
+        D = self.T[:, 2:4] - self.T[:, 0:2]
+        return D, np.ascontiguousarray(D.transpose(0, 2, 1))
 
     def damping_blocks(self, p: np.ndarray) -> np.ndarray:
         """(k, m, m) the damping matrix dN_d/d(x') through the joints at p (Kelvin-Voigt)."""
@@ -1013,14 +1031,31 @@ class ArmJoints:
     def project_matrix(self, q: np.ndarray, K, f: np.ndarray | None = None, *, dense: bool):
         """J^T K J (+ the geometric term sum_k (f_u,k . c''(phi_k)) on (phi_k, phi_k) for the force f
         (n_p,) on the joint coordinates whose derivative K (n_p, n_p) is; none for f = None)."""
-        dc = self.first(self.phi(q))
-        geo = None
-        if f is not None:
-            fu = f[self.n_q:].reshape(len(self.dof), 2)
-            geo = np.einsum("kd,kd->k", self.second(self.phi(q)), fu)
+        if f is None:
+            return self._project_matrix(self.first(self.phi(q)), K, None, dense=dense)
+        return self.project_both(q, f, K, dense=dense)[1]
+
+    def project_both(self, q: np.ndarray, f: np.ndarray, K, *, dense: bool):
+        """(`project`(q, f), `project_matrix`(q, K, f)): the arm's sine and cosine evaluated once."""
+        phi = self.phi(q)
+        sin, cos = np.sin(phi), np.cos(phi)
+        dc = self.length[:, None] * _last_pair(-sin, cos)  # `first`
+        fu = f[self.n_q:].reshape(len(self.dof), 2)
+        out = f[: self.n_q].copy()
+        out[self.dof] += np.einsum("kd,kd->k", dc, fu)
+        geo = np.einsum("kd,kd->k", -self.length[:, None] * _last_pair(cos, sin), fu)  # `second`
+        return out, self._project_matrix(dc, K, geo, dense=dense)
+
+    def _project_matrix(self, dc: np.ndarray, K, geo: np.ndarray | None, *, dense: bool):
+        """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`)."""
         if dense and not hasattr(K, "tocsr"):
-            J = np.zeros((self.n_p, self.n_q))  # the jacobian, dense: identity on q, dc/dphi in the arm columns
-            J[np.arange(self.n_q), np.arange(self.n_q)] = 1.0
+            J = self.__dict__.get("_J0")
+            if J is None:  # the jacobian's constant part: identity on q (cached)
+                J = np.zeros((self.n_p, self.n_q))
+                J[np.arange(self.n_q), np.arange(self.n_q)] = 1.0
+                J.setflags(write=False)
+                object.__setattr__(self, "_J0", J)
+            J = J.copy()  # the jacobian, dense: dc/dphi in the arm columns
             J[self.slot, self.dof], J[self.slot + 1, self.dof] = dc[:, 0], dc[:, 1]
             out = J.T @ np.asarray(K) @ J
             if geo is not None:
@@ -1318,7 +1353,7 @@ class System:
         f = f + self.linear_force(p) - self.external_force(load_factor)
         if self.arms is None:
             return f, K
-        return self.arms.project(q, f), self.arms.project_matrix(q, K, f, dense=self.dense)
+        return self.arms.project_both(q, f, K, dense=self.dense)
 
     def tangent_on_joints(self, q: np.ndarray):
         """The internal force's tangent on the joint coordinates p at P(q) (n_p, n_p)."""
