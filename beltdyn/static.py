@@ -77,21 +77,20 @@ def _predictor(system: System, stretch: float | np.ndarray, adjust_dof: int, dri
     """
     model = system.belt
     n = system.layout.n
-    unknowns = [int(system.rot_dof[j]) for j in range(n) if int(system.rot_dof[j]) != driver_dof]
+    unknowns = [d for d in system.rot_dof.tolist() if d != driver_dof]
     unknowns += [adjust_dof] if adjust_dof >= 0 else []
     A_p = np.zeros((n, system.n_p + 1))  # on the joint coordinates (an arm's centre offsets), padding last
     t = model.reference_direction
-    flex = model.flexible
-    span = np.repeat(flex, model.idx.shape[1])
-    for els, rows, sign in ((model.first, slice(0, 2), -1.0), (model.last, slice(4, 6), 1.0)):
-        coef = sign * np.einsum("sdk,sd->sk", model.T[els, rows, :], t[flex])  # (n_flex, m): d(elongation)/d(dof)
-        np.add.at(A_p, (span, model.idx[els].ravel()), coef.ravel())
+    if model.elements.n_elem:
+        flex = model.flexible
+        span = np.repeat(flex, model.idx.shape[1])
+        for els, rows, sign in ((model.first, slice(0, 2), -1.0), (model.last, slice(4, 6), 1.0)):
+            coef = sign * np.einsum("sdk,sd->sk", model.T[els, rows, :], t[flex])  # (n_flex, m): d(elongation)/d(dof)
+            np.add.at(A_p, (span, model.idx[els].ravel()), coef.ravel())
     sp = system.springs
-    if sp is not None:  # a spring span's ends: the same joints
-        span = np.repeat(sp.span, sp.idx.shape[1])
-        for rows, sign in ((slice(0, 2), -1.0), (slice(2, 4), 1.0)):
-            coef = sign * np.einsum("sdk,sd->sk", sp.T[:, rows, :], t[sp.span])
-            np.add.at(A_p, (span, sp.idx.ravel()), coef.ravel())
+    if sp is not None:  # a spring span's ends: the same joints; its chord's map D = dd/dp
+        coef = np.einsum("sdk,sd->sk", sp.chord_map, t[sp.span])
+        np.add.at(A_p, (np.repeat(sp.span, sp.idx.shape[1]), sp.idx.ravel()), coef.ravel())
     A_p = A_p[:, : system.n_p]
     A_q = A_p if system.arms is None else system.arms.project(np.zeros(system.n_dof), A_p)  # A_p J
     A = A_q[:, unknowns]
@@ -111,6 +110,8 @@ def _straight_spans(system: System, q: np.ndarray) -> np.ndarray:
     nodes evenly spaced and its gradients the chord over the reference length (the stretch)."""
     model = system.belt
     q = q.copy()
+    if not model.elements.n_elem:  # every span a spring: no nodes of their own
+        return q
     e = model.element_coordinates(system.expand(q))
     for s, els in enumerate(model.span_elements):
         n_e = len(els)

@@ -630,9 +630,9 @@ class SpringSpans:
 
     def _force(self, p: np.ndarray):
         """The reduced elastic force (n_dof,) T^T [-N u, N u] = D^T (N u) through the chord's map D = dd/dp
-        (`_chord_map`), and u, l, lam, N (`axial`)."""
+        (`chord_map`), and u, l, lam, N (`axial`)."""
         u, l, lam, _, N = self.axial(self.positions(p))
-        fr = np.matmul(self._chord_map[1], (N[:, None] * u)[:, :, None])[:, :, 0]
+        fr = np.matmul(self.chord_map_t, (N[:, None] * u)[:, :, None])[:, :, 0]
         return np.bincount(self.idx.ravel(), weights=fr.ravel(), minlength=self.n_dof + 1)[: self.n_dof], u, l, lam, N
 
     def force_and_blocks(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -642,15 +642,25 @@ class SpringSpans:
         k_a = self.EA * (3.0 * lam * lam - 1.0) / (2.0 * self.reference_length)
         uu = u[:, :, None] * u[:, None, :]
         K2 = k_a[:, None, None] * uu + (N / l)[:, None, None] * (_EYE2 - uu)
-        D, Dt = self._chord_map
-        return f, np.matmul(np.matmul(Dt, K2), D)
+        return f, np.matmul(np.matmul(self.chord_map_t, K2), self.chord_map)
 
-    @functools.cached_property
-    def _chord_map(self) -> tuple[np.ndarray, np.ndarray]:
-        """(D, D^T): D = T[:, 2:4] - T[:, 0:2] (k, 2, m), the chord d = r_b - r_a per joint coordinate, and its
-        transpose (k, m, 2), contiguous (cached)."""
-        D = self.T[:, 2:4] - self.T[:, 0:2]
-        return D, np.ascontiguousarray(D.transpose(0, 2, 1))
+    @property
+    def chord_map(self) -> np.ndarray:
+        """D = T[:, 2:4] - T[:, 0:2] (k, 2, m): the chord d = r_b - r_a per joint coordinate (cached)."""
+        D = self.__dict__.get("_D")
+        if D is None:
+            D = self.T[:, 2:4] - self.T[:, 0:2]
+            object.__setattr__(self, "_D", D)
+        return D
+
+    @property
+    def chord_map_t(self) -> np.ndarray:
+        """D^T (k, m, 2), contiguous (cached)."""
+        Dt = self.__dict__.get("_Dt")
+        if Dt is None:
+            Dt = np.ascontiguousarray(self.chord_map.transpose(0, 2, 1))
+            object.__setattr__(self, "_Dt", Dt)
+        return Dt
 
     def damping_blocks(self, p: np.ndarray) -> np.ndarray:
         """(k, m, m) the damping matrix dN_d/d(x') through the joints at p (Kelvin-Voigt)."""
