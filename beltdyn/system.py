@@ -43,6 +43,7 @@ from . import ancf
 from .config import DriveConfig
 from .errors import ConfigError
 from .geometry import Layout, layout_from_config
+from .supports import SUPPORT_CLASSES, support_of
 
 DENSE_LIMIT = 200  # models up to this many DOFs use dense linear algebra
 _EYE2 = np.eye(2)
@@ -100,8 +101,6 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
     """DOF order along the loop: pulley j (its support's DOFs, rotation), then span j (start
     gradients, interior nodes, end gradients; none for a spring span); the supports' dependent DOFs
     after all of them."""
-    from .supports import SUPPORT_CLASSES
-
     # the support's class too: a registered class (tests/test_system.py) may replace a kind's
     key = (cfg.span_elements, tuple((p.name, p.support, SUPPORT_CLASSES[p.support], tuple(p.slide_direction))
                                     for p in cfg.pulleys))
@@ -128,8 +127,6 @@ def _number_dofs(cfg: DriveConfig) -> DofMap:
         units.append(unit)
         group.append(DOF_GROUPS.index(grp))
         return len(labels) - 1
-
-    from .supports import support_of
 
     comp = (("r1", "m"), ("r2", "m"), ("r1'", "1"), ("r2'", "1"))
     arm_dof = np.full(len(cfg.pulleys), -1, dtype=int)
@@ -1005,7 +1002,11 @@ class ArmJoints:
     def expand(self, q: np.ndarray) -> np.ndarray:
         """p (..., n_p) from q (..., n_q)."""
         phi = self.phi(q)
-        u = self.length[:, None] * _last_pair(np.cos(phi) - np.cos(self.angle), np.sin(phi) - np.sin(self.angle))
+        trig = self.__dict__.get("_trig0")
+        if trig is None:  # cos and sin of the arm angles at q = 0 (cached)
+            trig = (np.cos(self.angle), np.sin(self.angle))
+            object.__setattr__(self, "_trig0", trig)
+        u = self.length[:, None] * _last_pair(np.cos(phi) - trig[0], np.sin(phi) - trig[1])
         return np.concatenate([q, u.reshape(*q.shape[:-1], -1)], axis=-1)
 
     def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -1748,8 +1749,6 @@ def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = No
     spring_free (n_dof,): the value of each translation DOF at which its bearing spring is relaxed
     (None: 0, the pulley at its layout centre). A layout whose pulleys sit displaced from their given
     centres (`geometry.relay`) anchors the springs at the given centres with it."""
-    from .supports import support_of
-
     rot = dofs.rot_dof
     out: list[LinearComponent] = [LinearComponent(
         name="pulley inertia", dofs=rot.copy(), mass=np.diag([p.inertia for p in cfg.pulleys]),
@@ -1790,8 +1789,6 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap) -> ArmJoints | No
     arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
     if not arms:
         return None
-    from .supports import support_of
-
     pivot = np.array([cfg.pulleys[j].arm_pivot for j in arms], dtype=float)
     return ArmJoints(dof=np.array([dofs.arm_dof[j] for j in arms], dtype=np.int64),
                      slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64), pivot=pivot,
@@ -1933,8 +1930,6 @@ def tension_setting(cfg: DriveConfig, dofs: DofMap) -> TensionSetting:
     adjust_dof = -1
     adjust_range = None
     if a is not None:  # the adjustable pulley's first own DOF (a slide's offset, an arm's angle) sets the tension
-        from .supports import support_of
-
         sup = support_of(cfg.pulleys[a])
         if adjust:
             adjust_dof = int(dofs.arm_dof[a]) if dofs.arm_dof[a] >= 0 else int(dofs.trans_dof[a][0])
