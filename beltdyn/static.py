@@ -38,7 +38,7 @@ import numpy as np
 
 from .config import StaticOptions
 from .errors import SolverError
-from .system import System, stretch_for_tension
+from .system import DOF_GROUPS, System, stretch_for_tension
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -77,21 +77,20 @@ def _predictor(system: System, stretch: float | np.ndarray, adjust_dof: int, dri
     """
     model = system.belt
     n = system.layout.n
-    unknowns = [int(system.rot_dof[j]) for j in range(n) if int(system.rot_dof[j]) != driver_dof]
+    unknowns = [d for d in system.rot_dof.tolist() if d != driver_dof]
     unknowns += [adjust_dof] if adjust_dof >= 0 else []
     A_p = np.zeros((n, system.n_p + 1))  # on the joint coordinates (an arm's centre offsets), padding last
     t = model.reference_direction
-    flex = model.flexible
-    span = np.repeat(flex, model.idx.shape[1])
-    for els, rows, sign in ((model.first, slice(0, 2), -1.0), (model.last, slice(4, 6), 1.0)):
-        coef = sign * np.einsum("sdk,sd->sk", model.T[els, rows, :], t[flex])  # (n_flex, m): d(elongation)/d(dof)
-        np.add.at(A_p, (span, model.idx[els].ravel()), coef.ravel())
+    if model.elements.n_elem:
+        flex = model.flexible
+        span = np.repeat(flex, model.idx.shape[1])
+        for els, rows, sign in ((model.first, slice(0, 2), -1.0), (model.last, slice(4, 6), 1.0)):
+            coef = sign * np.einsum("sdk,sd->sk", model.T[els, rows, :], t[flex])  # (n_flex, m): d(elongation)/d(dof)
+            np.add.at(A_p, (span, model.idx[els].ravel()), coef.ravel())
     sp = system.springs
-    if sp is not None:  # a spring span's ends: the same joints
-        span = np.repeat(sp.span, sp.idx.shape[1])
-        for rows, sign in ((slice(0, 2), -1.0), (slice(2, 4), 1.0)):
-            coef = sign * np.einsum("sdk,sd->sk", sp.T[:, rows, :], t[sp.span])
-            np.add.at(A_p, (span, sp.idx.ravel()), coef.ravel())
+    if sp is not None:  # a spring span's ends: the same joints; its chord's map D = dd/dp
+        coef = np.einsum("sdk,sd->sk", sp.chord_map, t[sp.span])
+        np.add.at(A_p, (np.repeat(sp.span, sp.idx.shape[1]), sp.idx.ravel()), coef.ravel())
     A_p = A_p[:, : system.n_p]
     A_q = A_p if system.arms is None else system.arms.project(np.zeros(system.n_dof), A_p)  # A_p J
     A = A_q[:, unknowns]
@@ -111,6 +110,8 @@ def _straight_spans(system: System, q: np.ndarray) -> np.ndarray:
     nodes evenly spaced and its gradients the chord over the reference length (the stretch)."""
     model = system.belt
     q = q.copy()
+    if not model.elements.n_elem:  # every span a spring: no nodes of their own
+        return q
     e = model.element_coordinates(system.expand(q))
     for s, els in enumerate(model.span_elements):
         n_e = len(els)
@@ -197,22 +198,25 @@ class ResidualScales:
     point, and the bending force's share), in N.
     """
 
-    def __init__(self, system: System) -> None:
-        from .system import DOF_GROUPS
-
+    def __init__(self, system: System, *, EA: float | None = None, external: np.ndarray | None = None) -> None:
+        """EA, external: the system's `EA` and `external_force(1.0)` if at hand."""
         d = system.dofs
         n = system.n_dof
         group = system.dof_groups
         self.system = system
-        self.span = group == DOF_GROUPS.index("span")
-        self.rotation = group == DOF_GROUPS.index("rotation")
-        self.translation = group == DOF_GROUPS.index("translation")
+        self.span = group == _SPAN
+        self.rotation = group == _ROTATION
+        self.translation = group == _TRANSLATION
+        self.other = ~self.span
         self.lever = np.ones(n)  # m: converts a force scale into the row's scale
         self.lever[d.rot_dof] = system.layout.radius
-        if system.arms is not None:  # an arm's row is a torque about its pivot: the arm length
-            self.lever[system.arms.dof] = system.arms.length
+        a = system.arms
+        self._arm_lever = None
+        if a is not None:  # an arm's row is a torque about its pivot: the arm length
+            self.lever[a.dof] = a.length
+            self._arm_lever = np.abs(a.first(a.angle))  # (a, 2) |dc/dphi| at q = 0
         target = system.tension.target
-        EA = system.EA
+        EA = system.EA if EA is None else EA
         if target is not None:
             S = abs(float(target))
         else:
@@ -220,7 +224,9 @@ class ResidualScales:
                              else system.belt.prestrain_stretch, dtype=float)
             S = float(np.abs(0.5 * EA * (lam**3 - lam)).max(initial=0.0))
         self.tension_scale = max(S, 1e-9 * EA)
-        self.weight = self._on_q(np.abs(system.external_force(1.0)))  # weight and accessory torques
+        external = system.external_force(1.0) if external is None else external
+        self.weight = self._on_q(np.abs(external))  # weight and accessory torques
+        self._span_weight = float(self.weight[self.span].max(initial=0.0))  # the largest weight on a span row
         self.K_abs = None
         if system.linear_stiffness is not None:
             K = system.linear_matrix()
@@ -232,23 +238,27 @@ class ResidualScales:
         if a is None:
             return x
         out = x[: a.n_q].copy()
-        out[a.dof] += np.abs(a.first(a.angle) * x[a.n_q:].reshape(-1, 2)).sum(axis=1)
+        out[a.dof] += (self._arm_lever * x[a.n_q:].reshape(-1, 2)).sum(axis=1)
         return out
 
     def scale(self, q: np.ndarray, lam: float) -> np.ndarray:
         """(n,) the force (N) or torque (N m) scale of each row."""
-        g = abs(lam) * self.weight
-        S = max(self.tension_scale, float(g[self.span].max(initial=0.0)))
+        c = abs(lam)
+        g = c * self.weight
+        S = max(self.tension_scale, c * self._span_weight)  # (= the largest of g on the span rows)
         out = np.maximum(S * self.lever, g)
         if self.K_abs is not None:
             kq = self._on_q(np.asarray(self.K_abs @ np.abs(self.system.expand(q))).ravel())
-            other = ~self.span
-            out[other] = np.maximum(out[other], kq[other])
+            np.maximum(out, kq, out=out, where=self.other)
         return out
 
     def allowed(self, q: np.ndarray, lam: float, tol: float, floor: float) -> np.ndarray:
         """(n,) the allowed residual of each row: tol * scale + floor (times the lever arm)."""
         return tol * self.scale(q, lam) + floor * self.lever
+
+
+_EPS = float(np.finfo(float).eps)
+_SPAN, _ROTATION, _TRANSLATION = (DOF_GROUPS.index(g) for g in ("span", "rotation", "translation"))
 
 
 class _Stop(Exception):
@@ -317,21 +327,22 @@ class _Problem:
         # Round-off floor of the residual: the axial force loses ~eps of EA per Gauss point, the linear
         # bending force ~eps of sum_j |K_b,ij| |e_j| (positions of order 1 m through stiff short elements).
         el = system.belt.elements
-        bend = float((np.abs(el.K_bend) @ np.abs(system.belt.e0)[:, :, None]).max(initial=0.0))
+        bend = float((np.abs(el.K_bend) @ np.abs(system.belt.e0)[:, :, None]).max(initial=0.0)) if el.n_elem else 0.0
         n_sp = 0 if system.springs is None else len(system.springs.span)
-        self.noise = 1e3 * np.finfo(float).eps * (system.EA * np.sqrt(el.n_elem + n_sp) + bend)
+        self.EA = EA = system.EA
+        self.noise = 1e3 * _EPS * (EA * math.sqrt(el.n_elem + n_sp) + bend)
         self.history: list[tuple[float, float]] = []
-        self.has_load = bool(np.any(system.external_force(1.0) != 0.0))
-        self.has_weight = bool(np.any(system.gravity != 0.0))
+        external = system.external_force(1.0)
+        self.has_load = bool((external != 0.0).any())
+        self.has_weight = bool((system.gravity != 0.0).any())
         self.accept = 1.0  # Newton stops at err <= accept (a continuation's intermediate stages: looser)
-        self.EA = system.EA
-        self.scales = ResidualScales(system)
+        self.scales = ResidualScales(system, EA=EA, external=external)
         self.last: tuple = (None, 0.0, 0.0, None, None)  # (q, load factor, driver residual, mean tension, tangent)
         self.keep_tangent = False  # keep the unpinned tangent of the last evaluation (what the modal analysis reuses)
 
     def tension_tolerance(self) -> float:
         """Allowed error of the mean tension: relative tolerance + round-off of EA eps (~EA * eps)."""
-        return self.opts.tolerance * abs(self.target) + 100 * np.finfo(float).eps * self.EA
+        return self.opts.tolerance * abs(self.target) + 100 * _EPS * self.EA
 
     def allowed(self, q: np.ndarray, lam: float) -> np.ndarray:
         return self.scales.allowed(q, lam, self.opts.tolerance, self.noise)

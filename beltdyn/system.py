@@ -43,8 +43,13 @@ from . import ancf
 from .config import DriveConfig
 from .errors import ConfigError
 from .geometry import Layout, layout_from_config
+from .supports import SUPPORT_CLASSES, support_of
 
 DENSE_LIMIT = 200  # models up to this many DOFs use dense linear algebra
+_EYE2 = np.eye(2)
+_EYE2.setflags(write=False)
+_PAD = np.zeros(1)  # the padding coordinate (index n_dof) appended to p
+_PAD.setflags(write=False)
 DOF_GROUPS = ("span", "rotation", "translation", "arm")
 ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse", "tensioner")
 
@@ -96,8 +101,6 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
     """DOF order along the loop: pulley j (its support's DOFs, rotation), then span j (start
     gradients, interior nodes, end gradients; none for a spring span); the supports' dependent DOFs
     after all of them."""
-    from .supports import SUPPORT_CLASSES
-
     # the support's class too: a registered class (tests/test_system.py) may replace a kind's
     key = (cfg.span_elements, tuple((p.name, p.support, SUPPORT_CLASSES[p.support], tuple(p.slide_direction))
                                     for p in cfg.pulleys))
@@ -124,8 +127,6 @@ def _number_dofs(cfg: DriveConfig) -> DofMap:
         units.append(unit)
         group.append(DOF_GROUPS.index(grp))
         return len(labels) - 1
-
-    from .supports import support_of
 
     comp = (("r1", "m"), ("r2", "m"), ("r1'", "1"), ("r2'", "1"))
     arm_dof = np.full(len(cfg.pulleys), -1, dtype=int)
@@ -583,7 +584,7 @@ class SpringSpans:
 
     def positions(self, p: np.ndarray) -> np.ndarray:
         """x (k, 4) at the joint coordinates p (n_dof,)."""
-        return self.x0 + np.matmul(self.T, np.append(p, 0.0)[self.idx][:, :, None])[:, :, 0]
+        return self.x0 + np.matmul(self.T, np.concatenate([p, _PAD])[self.idx][:, :, None])[:, :, 0]
 
     def positions_batch(self, P: np.ndarray, *, offset: bool = True) -> np.ndarray:
         """(B, k, 4) end positions (velocities, accelerations with offset=False) of states P (B, n_dof)."""
@@ -622,17 +623,41 @@ class SpringSpans:
 
     def force(self, p: np.ndarray) -> np.ndarray:
         """Reduced elastic force (n_dof,)."""
-        u, _, _, _, N = self.axial(self.positions(p))
-        return self.reduce_vector(np.concatenate([-N[:, None] * u, N[:, None] * u], axis=1))
+        return self._force(p)[0]
+
+    def _force(self, p: np.ndarray):
+        """The reduced elastic force (n_dof,) T^T [-N u, N u] = D^T (N u) through the chord's map D = dd/dp
+        (`chord_map`), and u, l, lam, N (`axial`)."""
+        u, l, lam, _, N = self.axial(self.positions(p))
+        fr = np.matmul(self.chord_map_t, (N[:, None] * u)[:, :, None])[:, :, 0]
+        return np.bincount(self.idx.ravel(), weights=fr.ravel(), minlength=self.n_dof + 1)[: self.n_dof], u, l, lam, N
 
     def force_and_blocks(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Reduced elastic force (n_dof,) and the tangent blocks T^T K_e T (k, m, m)."""
-        u, l, lam, _, N = self.axial(self.positions(p))
-        f = self.reduce_vector(np.concatenate([-N[:, None] * u, N[:, None] * u], axis=1))
+        """Reduced elastic force (n_dof,) and the tangent blocks T^T K_e T (k, m, m), through the chord's
+        map D: T^T [[K2, -K2], [-K2, K2]] T = D^T K2 D."""
+        f, u, l, lam, N = self._force(p)
         k_a = self.EA * (3.0 * lam * lam - 1.0) / (2.0 * self.reference_length)
         uu = u[:, :, None] * u[:, None, :]
-        K2 = k_a[:, None, None] * uu + (N / l)[:, None, None] * (np.eye(2) - uu)
-        return f, self.reduce_blocks(self._pair(K2))
+        K2 = k_a[:, None, None] * uu + (N / l)[:, None, None] * (_EYE2 - uu)
+        return f, np.matmul(np.matmul(self.chord_map_t, K2), self.chord_map)
+
+    @property
+    def chord_map(self) -> np.ndarray:
+        """D = T[:, 2:4] - T[:, 0:2] (k, 2, m): the chord d = r_b - r_a per joint coordinate (cached)."""
+        D = self.__dict__.get("_D")
+        if D is None:
+            D = self.T[:, 2:4] - self.T[:, 0:2]
+            object.__setattr__(self, "_D", D)
+        return D
+
+    @property
+    def chord_map_t(self) -> np.ndarray:
+        """D^T (k, m, 2), contiguous (cached)."""
+        Dt = self.__dict__.get("_Dt")
+        if Dt is None:
+            Dt = np.ascontiguousarray(self.chord_map.transpose(0, 2, 1))
+            object.__setattr__(self, "_Dt", Dt)
+        return Dt
 
     def damping_blocks(self, p: np.ndarray) -> np.ndarray:
         """(k, m, m) the damping matrix dN_d/d(x') through the joints at p (Kelvin-Voigt)."""
@@ -738,28 +763,67 @@ class SpringSpans:
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
                   prestrain_stretch: float | np.ndarray = 1.0) -> SpringSpans | None:
     """The spring spans of the configuration (None without any), on the layout's tangent points."""
-    spans = [s for s, m in enumerate(cfg.span_models) if m == "spring"]
+    spans = tuple(s for s, m in enumerate(cfg.span_models) if m == "spring")
     if not spans:
         return None
-    lam = np.broadcast_to(np.asarray(prestrain_stretch, dtype=float), (layout.n,))
-    k = len(spans)
-    pad = dofs.n
-    cols = [joint_pairs(layout, dofs, s, 0) + [None] + joint_pairs(layout, dofs, s, 1) for s in spans]
-    m = max(len(c) - 1 for c in cols)
-    T = np.zeros((k, 4, m))
-    idx = np.full((k, m), pad, dtype=np.int64)
-    for i, c in enumerate(cols):
-        cut = c.index(None)
-        for col, (dof, v) in enumerate(c[:cut] + c[cut + 1:]):
-            side = 0 if col < cut else 1
-            idx[i, col] = dof
-            T[i, 2 * side: 2 * side + 2, col] = v
+    idx, T, (at, row, col) = _spring_joints(dofs, spans, layout.n)
     sp = np.array(spans, dtype=np.int64)
-    x0 = np.column_stack([layout.span_start[sp], layout.span_end[sp]])
-    return SpringSpans(span=sp, T=T, idx=idx, x0=x0, reference_length=layout.span_length[sp] / lam[sp],
-                       reference_direction=layout.span_direction[sp].copy(), EA=float(cfg.belt.EA),
+    T = T.copy()  # the rotation columns R (z x n) of each end (`joint_pairs`): the layout's
+    rot = np.concatenate([_joint_rotation(layout, sp, 0), _joint_rotation(layout, sp, 1)])  # (2k, 2)
+    T[at, row, col] = rot[:, 0]
+    T[at, row + 1, col] = rot[:, 1]
+    L = layout.span_length[sp] / _span_stretch(prestrain_stretch, layout.n)[sp]
+    return SpringSpans(span=sp, T=T, idx=idx, x0=np.concatenate([layout.span_start[sp], layout.span_end[sp]], axis=1),
+                       reference_length=L, reference_direction=layout.span_direction[sp], EA=float(cfg.belt.EA),
                        rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=layout.n, EI=float(cfg.belt.EI),
                        curvature=cfg.model.curvature)
+
+
+def _span_stretch(prestrain_stretch: float | np.ndarray, n: int) -> np.ndarray:
+    """(n,) the spans' stretch at q = 0 of one number for all or one per span (a new array)."""
+    if np.ndim(prestrain_stretch) == 0:
+        return np.full(n, float(prestrain_stretch))
+    lam = np.array(prestrain_stretch, dtype=float)
+    return lam if lam.shape == (n,) else np.broadcast_to(lam, (n,)).copy()
+
+
+def _joint_rotation(layout: Layout, spans: np.ndarray, side: int) -> np.ndarray:
+    """(k, 2) d r_end / d theta = R (z x n) of the joints at the start (side 0) or end (side 1) of spans (k,),
+    as `joint_pairs`' first pair."""
+    j = spans if side == 0 else (spans + 1) % layout.n
+    normal = layout.start_normal[spans] if side == 0 else layout.end_normal[spans]
+    return _last_pair(-normal[:, 1], normal[:, 0]) * layout.radius[j][:, None]
+
+
+def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.ndarray, np.ndarray, tuple]:
+    """The parts of the spring spans' joints that the DOF map fixes (`joint_pairs`), cached on it (read-only):
+    idx (k, m) the joint coordinates of each span, its start's columns (rotation, then the pulley's
+    translations) before its end's, padded with n_dof; T (k, 4, m) with the translations' directions and
+    zero rotation columns; and where the rotation columns' x rows are ((2k,) span, row, column; the y row
+    below), the k starts, then the k ends."""
+    cache = dofs.__dict__.setdefault("_spring_joints", {})
+    hit = cache.get(spans)
+    if hit is not None:
+        return hit
+    k = len(spans)
+    ends = [(s, (s + 1) % n) for s in spans]
+    m = max(2 + len(dofs.trans_dof[a]) + len(dofs.trans_dof[b]) for a, b in ends)
+    T = np.zeros((k, 4, m))
+    idx = np.full((k, m), dofs.n, dtype=np.int64)
+    rot_col = np.zeros((2, k), dtype=np.int64)
+    for i, pair in enumerate(ends):
+        col = 0
+        for side, j in enumerate(pair):
+            rot_col[side, i] = col
+            idx[i, col] = dofs.rot_dof[j]
+            for col, (dof, v) in enumerate(zip(dofs.trans_dof[j], dofs.trans_dir[j]), start=col + 1):
+                idx[i, col] = dof
+                T[i, 2 * side: 2 * side + 2, col] = v
+            col += 1
+    for a in (idx, T):
+        a.setflags(write=False)
+    hit = cache[spans] = (idx, T, (np.tile(np.arange(k), 2), np.repeat([0, 2], k), rot_col.ravel()))
+    return hit
 
 
 def _sub_tables(tab, els: np.ndarray) -> tuple:
@@ -841,6 +905,42 @@ def _make_pattern(idx: np.ndarray, n: int, *, sparse: bool, extra: tuple[np.ndar
                    diag_slot=diag_slot, nnz=len(keys))
 
 
+def _assembled(n: int, dense: bool, pat: Pattern, blocks: np.ndarray | None, springs: np.ndarray | None,
+               scatter: np.ndarray | None, linear, diagonal: np.ndarray | None):
+    """`System.assemble` on its pattern: element blocks (n_elem, m, m) (None or empty: none), the spring
+    spans' blocks (k, m_s, m_s) through `scatter` (None: none), + the constant stiffness `linear` (dense
+    (n, n) or CSR data; None: none), + a diagonal (n,)."""
+    has_blocks = blocks is not None and len(blocks) > 0
+    if dense:
+        if springs is None:
+            flat, weights = (pat.flat, blocks.ravel()) if has_blocks else (pat.flat[:0], np.zeros(0))
+        elif has_blocks:
+            flat, weights = np.concatenate([pat.flat, scatter]), np.concatenate([blocks.ravel(), springs.ravel()])
+        else:
+            flat, weights = scatter, springs.ravel()
+        K = np.bincount(flat, weights=weights, minlength=(n + 1) ** 2).reshape(n + 1, n + 1)[:n, :n]
+        if linear is not None:
+            K += linear
+        if diagonal is not None:
+            K[np.diag_indices(n)] += diagonal
+        return K
+    from scipy.sparse import csr_matrix
+
+    if has_blocks:
+        keep = pat.slot >= 0
+        data = np.bincount(pat.slot[keep], weights=blocks.ravel()[keep], minlength=pat.nnz)
+    else:
+        data = np.zeros(pat.nnz)
+    if springs is not None:
+        live = scatter >= 0
+        data += np.bincount(scatter[live], weights=springs.ravel()[live], minlength=pat.nnz)
+    if linear is not None:
+        data += linear
+    if diagonal is not None:
+        data[pat.diag_slot] += diagonal
+    return csr_matrix((data, pat.indices, pat.indptr), shape=(n, n))
+
+
 # ------------------------------------------------------------------------------------ the system
 @dataclass(frozen=True, kw_only=True)
 class TensionSetting:
@@ -902,7 +1002,11 @@ class ArmJoints:
     def expand(self, q: np.ndarray) -> np.ndarray:
         """p (..., n_p) from q (..., n_q)."""
         phi = self.phi(q)
-        u = self.length[:, None] * _last_pair(np.cos(phi) - np.cos(self.angle), np.sin(phi) - np.sin(self.angle))
+        trig = self.__dict__.get("_trig0")
+        if trig is None:  # cos and sin of the arm angles at q = 0 (cached)
+            trig = (np.cos(self.angle), np.sin(self.angle))
+            object.__setattr__(self, "_trig0", trig)
+        u = self.length[:, None] * _last_pair(np.cos(phi) - trig[0], np.sin(phi) - trig[1])
         return np.concatenate([q, u.reshape(*q.shape[:-1], -1)], axis=-1)
 
     def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
@@ -938,14 +1042,31 @@ class ArmJoints:
     def project_matrix(self, q: np.ndarray, K, f: np.ndarray | None = None, *, dense: bool):
         """J^T K J (+ the geometric term sum_k (f_u,k . c''(phi_k)) on (phi_k, phi_k) for the force f
         (n_p,) on the joint coordinates whose derivative K (n_p, n_p) is; none for f = None)."""
-        dc = self.first(self.phi(q))
-        geo = None
-        if f is not None:
-            fu = f[self.n_q:].reshape(len(self.dof), 2)
-            geo = np.einsum("kd,kd->k", self.second(self.phi(q)), fu)
+        if f is None:
+            return self._project_matrix(self.first(self.phi(q)), K, None, dense=dense)
+        return self.project_both(q, f, K, dense=dense)[1]
+
+    def project_both(self, q: np.ndarray, f: np.ndarray, K, *, dense: bool):
+        """(`project`(q, f), `project_matrix`(q, K, f)): the arm's sine and cosine evaluated once."""
+        phi = self.phi(q)
+        sin, cos = np.sin(phi), np.cos(phi)
+        dc = self.length[:, None] * _last_pair(-sin, cos)  # `first`
+        fu = f[self.n_q:].reshape(len(self.dof), 2)
+        out = f[: self.n_q].copy()
+        out[self.dof] += np.einsum("kd,kd->k", dc, fu)
+        geo = np.einsum("kd,kd->k", -self.length[:, None] * _last_pair(cos, sin), fu)  # `second`
+        return out, self._project_matrix(dc, K, geo, dense=dense)
+
+    def _project_matrix(self, dc: np.ndarray, K, geo: np.ndarray | None, *, dense: bool):
+        """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`)."""
         if dense and not hasattr(K, "tocsr"):
-            J = np.zeros((self.n_p, self.n_q))  # the jacobian, dense: identity on q, dc/dphi in the arm columns
-            J[np.arange(self.n_q), np.arange(self.n_q)] = 1.0
+            J = self.__dict__.get("_J0")
+            if J is None:  # the jacobian's constant part: identity on q (cached)
+                J = np.zeros((self.n_p, self.n_q))
+                J[np.arange(self.n_q), np.arange(self.n_q)] = 1.0
+                J.setflags(write=False)
+                object.__setattr__(self, "_J0", J)
+            J = J.copy()  # the jacobian, dense: dc/dphi in the arm columns
             J[self.slot, self.dof], J[self.slot + 1, self.dof] = dc[:, 0], dc[:, 1]
             out = J.T @ np.asarray(K) @ J
             if geo is not None:
@@ -1137,34 +1258,12 @@ class System:
         return self.project_matrix(np.zeros(self.n_dof) if q is None else q, G)
 
     # -------------------------------------------------------------------- assembly
-    def assemble(self, blocks: np.ndarray, *, linear: bool = True, diagonal: np.ndarray | None = None,
+    def assemble(self, blocks: np.ndarray | None, *, linear: bool = True, diagonal: np.ndarray | None = None,
                  springs: np.ndarray | None = None):
-        """Element blocks (n_elem, m, m) (+ the spring spans' blocks (k, m_s, m_s), + the components'
-        constant stiffness, + a diagonal) -> dense (n_p, n_p) or CSR, on the joint coordinates."""
-        n, pat = self.n_p, self.pattern
-        with_springs = springs is not None and self.springs is not None
-        if self.dense:
-            flat, weights = pat.flat, blocks.ravel()
-            if with_springs:
-                flat, weights = np.concatenate([flat, self.spring_scatter]), np.concatenate([weights, springs.ravel()])
-            K = np.bincount(flat, weights=weights, minlength=(n + 1) ** 2).reshape(n + 1, n + 1)[:n, :n]
-            if linear and self.linear_stiffness is not None:
-                K += self.linear_stiffness
-            if diagonal is not None:
-                K[np.diag_indices(n)] += diagonal
-            return K
-        from scipy.sparse import csr_matrix
-
-        keep = pat.slot >= 0
-        data = np.bincount(pat.slot[keep], weights=blocks.ravel()[keep], minlength=pat.nnz)
-        if with_springs:
-            live = self.spring_scatter >= 0
-            data += np.bincount(self.spring_scatter[live], weights=springs.ravel()[live], minlength=pat.nnz)
-        if linear and self.linear_stiffness is not None:
-            data += self.linear_stiffness
-        if diagonal is not None:
-            data[pat.diag_slot] += diagonal
-        return csr_matrix((data, pat.indices, pat.indptr), shape=(n, n))
+        """Element blocks (n_elem, m, m) (None: none) (+ the spring spans' blocks (k, m_s, m_s), + the
+        components' constant stiffness, + a diagonal) -> dense (n_p, n_p) or CSR, on the joint coordinates."""
+        return _assembled(self.n_p, self.dense, self.pattern, blocks, springs if self.springs is not None else None,
+                          self.spring_scatter, self.linear_stiffness if linear else None, diagonal)
 
     def linear_force(self, q: np.ndarray) -> np.ndarray:
         """The components' force K p - offset (joint coordinates p)."""
@@ -1210,7 +1309,7 @@ class System:
                 bs = self._running_spring_blocks(bs)
         if self.springs is not None and self.belt.elements.n_elem == 0:  # every span a spring
             f = fs + self.centripetal_force(p) if running else fs
-            return f, self.assemble(np.zeros((0,) + self.belt.T.shape[2:] * 2), linear=linear, springs=bs)
+            return f, self.assemble(None, linear=linear, springs=bs)
         f, blocks = self.belt.force_and_blocks(p)
         if running:
             f, blocks = f + self.centripetal_force(p), self._running_blocks(blocks)
@@ -1265,7 +1364,7 @@ class System:
         f = f + self.linear_force(p) - self.external_force(load_factor)
         if self.arms is None:
             return f, K
-        return self.arms.project(q, f), self.arms.project_matrix(q, K, f, dense=self.dense)
+        return self.arms.project_both(q, f, K, dense=self.dense)
 
     def tangent_on_joints(self, q: np.ndarray):
         """The internal force's tangent on the joint coordinates p at P(q) (n_p, n_p)."""
@@ -1438,25 +1537,28 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
     """Pattern, mass, weight and the components' constant matrices of a system."""
     n = dofs.n
     use_dense = n <= DENSE_LIMIT if dense is None else dense
-    rows, cols = [], []
     if springs is not None:  # the spring spans' blocks: entries of the pattern like the components'
         s_rows, s_cols = element_pairs(springs.idx)
-        live = (s_rows < n) & (s_cols < n)
-        rows.append(s_rows[live])
-        cols.append(s_cols[live])
-    for c in components if not use_dense else ():  # (a dense pattern holds every entry)
-        for mat in (c.stiffness, c.damping, c.mass):
-            if mat is not None:
-                r, cc = np.nonzero(mat)
-                rows.append(c.dofs[r])
-                cols.append(c.dofs[cc])
-    extra = (np.concatenate(rows), np.concatenate(cols)) if rows and not use_dense else None
+    extra = None
+    if not use_dense:  # (a dense pattern holds every entry)
+        rows, cols = [], []
+        if springs is not None:
+            live = (s_rows < n) & (s_cols < n)
+            rows.append(s_rows[live])
+            cols.append(s_cols[live])
+        for c in components:
+            for mat in (c.stiffness, c.damping, c.mass):
+                if mat is not None:
+                    r, cc = np.nonzero(mat)
+                    rows.append(c.dofs[r])
+                    cols.append(c.dofs[cc])
+        extra = (np.concatenate(rows), np.concatenate(cols)) if rows else None
     pattern = make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
 
     def summed(attr: str):
         """The components' matrices `attr` summed: dense (n, n) for dense systems, else the data (nnz,)
         of a CSR matrix on the system's pattern."""
-        mats = [(c.dofs, getattr(c, attr)) for c in components if getattr(c, attr) is not None]
+        mats = [(c.dofs, mat) for c in components if (mat := getattr(c, attr)) is not None]
         if not mats:
             return None
         if use_dense:
@@ -1478,7 +1580,8 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
             offset = np.zeros(n) if offset is None else offset
             offset[c.dofs] += c.stiffness @ np.asarray(c.free, dtype=float)
     g = np.asarray(gravity, dtype=float)
-    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g))
+    has_elements = belt.elements.n_elem > 0
+    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g)) if has_elements else np.zeros(n)
     scatter = None
     if springs is not None:
         fg = fg + springs.gravity_force(g)
@@ -1490,26 +1593,21 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
     for c in components:
         if c.weight is not None:
             fg[c.dofs] += c.weight @ g
-    stub = System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names, driver=driver,
-                  tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=None, gravity_force=fg,
-                  linear_stiffness=None, linear_damping=None, loads=loads, arms=arms, pulley_friction=friction,
-                  springs=springs, spring_scatter=scatter)
-    Mb = stub.assemble(belt.reduce_blocks(belt.elements.mass), linear=False,
-                       springs=None if springs is None else springs.mass_blocks())
+    M = _assembled(n, use_dense, pattern, belt.reduce_blocks(belt.elements.mass) if has_elements else None,
+                   None if springs is None else springs.mass_blocks(), scatter, None, None)
     if use_dense:
-        M = Mb + (M_comp if M_comp is not None else 0.0)
-        lin = K_lin
+        M = M + (M_comp if M_comp is not None else 0.0)
         C = C_lin
     else:
         from scipy.sparse import csr_matrix
 
-        M = Mb
-        if M_comp is not None:  # Mb is already on the pattern: add the components' entries
+        if M_comp is not None:  # M is already on the pattern: add the components' entries
             M.data += M_comp
-        lin = K_lin
         C = csr_matrix((C_lin, pattern.indices, pattern.indptr), shape=(n, n)) if C_lin is not None else None
-    return System(**{**stub.__dict__, "mass": M, "linear_stiffness": lin, "linear_damping": C,
-                     "linear_offset": offset})
+    return System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names, driver=driver,
+                  tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M, gravity_force=fg,
+                  linear_stiffness=K_lin, linear_damping=C, linear_offset=offset, loads=loads, arms=arms,
+                  pulley_friction=friction, springs=springs, spring_scatter=scatter)
 
 
 # ------------------------------------------------------------------------------------ building
@@ -1522,24 +1620,22 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     prestrain_stretch: the stretch of the spans at q = 0 (chord length / reference length), one
     number for all spans or one per span (n_span,)."""
     n_p = layout.n
-    counts = np.array(cfg.span_elements, dtype=np.int64)  # (n_span,) elements of each span
     n_dof = dofs.n
     pad = n_dof
-    lam_s = np.broadcast_to(np.asarray(prestrain_stretch, dtype=float), (n_p,)).copy()
+    lam_s = _span_stretch(prestrain_stretch, n_p)
+    uniform = bool((lam_s == lam_s[0]).all())
     L_ref = layout.span_length / lam_s
     t_dir = layout.span_direction
-    normals = np.column_stack([-t_dir[:, 1], t_dir[:, 0]])
-    n_elem = int(counts.sum())
-    uniform = bool(np.all(lam_s == lam_s[0]))
+    normals = _last_pair(-t_dir[:, 1], t_dir[:, 0])
     lam = float(lam_s[0]) if uniform else float(layout.span_length.sum() / L_ref.sum())
+    n_elem = sum(cfg.span_elements)
     if n_elem == 0:  # every span a spring (`build_springs`): no elements, no joints of the belt's own
-        el = span_element_set(cfg, np.zeros(0), np.zeros(0))
-        T, idx = np.zeros((0, 8, 8)), np.zeros((0, 8), dtype=np.int64)
-        empty = tuple(np.zeros(0, dtype=np.int64) for _ in range(n_p))
-        return BeltSpans(elements=el, elem_span=np.zeros(0, dtype=np.int64), span_elements=empty, T=T, idx=idx,
-                         tsel=joint_selection(T, idx, n_dof), e0=np.zeros((0, 8)), n_dof=n_dof, reference_length=L_ref,
-                         reference_direction=t_dir, reference_normal=normals, prestrain_stretch=lam,
-                         span_stretch=lam_s)
+        none = np.zeros(0, dtype=np.int64)
+        return BeltSpans(elements=span_element_set(cfg, np.zeros(0), np.zeros(0)), elem_span=none,
+                         span_elements=(none,) * n_p, T=np.zeros((0, 8, 8)), idx=np.zeros((0, 8), dtype=np.int64),
+                         tsel=none, e0=np.zeros((0, 8)), n_dof=n_dof, reference_length=L_ref, reference_direction=t_dir,
+                         reference_normal=normals, prestrain_stretch=lam, span_stretch=lam_s)
+    counts = np.array(cfg.span_elements, dtype=np.int64)  # (n_span,) elements of each span
     # Per element, columns 0-3 / 4-7 carry the coordinates of its first / second node, 8-10 / 11-13
     # the joint DOFs of a span end; padding columns are squeezed out afterwards.
     T = np.zeros((n_elem, 8, 14))
@@ -1653,8 +1749,6 @@ def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = No
     spring_free (n_dof,): the value of each translation DOF at which its bearing spring is relaxed
     (None: 0, the pulley at its layout centre). A layout whose pulleys sit displaced from their given
     centres (`geometry.relay`) anchors the springs at the given centres with it."""
-    from .supports import support_of
-
     rot = dofs.rot_dof
     out: list[LinearComponent] = [LinearComponent(
         name="pulley inertia", dofs=rot.copy(), mass=np.diag([p.inertia for p in cfg.pulleys]),
@@ -1695,8 +1789,6 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap) -> ArmJoints | No
     arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
     if not arms:
         return None
-    from .supports import support_of
-
     pivot = np.array([cfg.pulleys[j].arm_pivot for j in arms], dtype=float)
     return ArmJoints(dof=np.array([dofs.arm_dof[j] for j in arms], dtype=np.int64),
                      slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64), pivot=pivot,
@@ -1851,8 +1943,6 @@ def tension_setting(cfg: DriveConfig, dofs: DofMap) -> TensionSetting:
     adjust_dof = -1
     adjust_range = None
     if a is not None:  # the adjustable pulley's first own DOF (a slide's offset, an arm's angle) sets the tension
-        from .supports import support_of
-
         sup = support_of(cfg.pulleys[a])
         if adjust:
             adjust_dof = int(dofs.arm_dof[a]) if dofs.arm_dof[a] >= 0 else int(dofs.trans_dof[a][0])
