@@ -327,10 +327,16 @@ def fit_adjustable(
         c, sn = math.cos(s), math.sin(s)
         rot = np.array([c * r[0] - sn * r[1], sn * r[0] + c * r[1]])
         return arm + rot, np.array([-rot[1], rot[0]])
-    try:  # base: the layout at `center` if the caller has it
-        base = base if base is not None else compute_layout(center, radius, side_sign, names, orientation=orientation)
-    except GeometryError as exc:
-        raise GeometryError(f"at the given centre of the adjustable pulley: {exc}", exc.key) from None
+    def checked_base() -> Layout:
+        try:
+            return compute_layout(center, radius, side_sign, names, orientation=orientation)
+        except GeometryError as exc:
+            raise GeometryError(f"at the given centre of the adjustable pulley: {exc}", exc.key) from None
+
+    # base: the layout at `center` if the caller has it; unchecked for the quick way (the drawn centre is only
+    # where the fit starts: the fitted layout is checked), checked before the checked way
+    base = base if base is not None else compute_layout(center, radius, side_sign, names, orientation=orientation,
+                                                         check=False)
     orientation = base.orientation
 
     def layout_at(s: float, check: bool) -> Layout:
@@ -431,6 +437,7 @@ def fit_adjustable(
         lay = compute_layout(c, radius, side_sign, names, orientation=orientation, adjust_offset=s,
                              adjust_index=index, adjust_kind=kind)
     except GeometryError:
+        base = checked_base()
         s, lay = newton(True)
         lay = replace(lay, adjust_offset=s, adjust_index=index, adjust_kind=kind)
     if slide_range is not None and not (slide_range[0] <= s <= slide_range[1]):

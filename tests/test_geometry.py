@@ -75,6 +75,18 @@ def test_fit_moves_adjustable_pulley_until_length_matches():
         assert lay.belt_length == pytest.approx(L0, rel=1e-13)
 
 
+def test_fit_starts_from_a_drawn_centre_that_does_not_fit():
+    # The drawn centre of the adjustable pulley is only where the fit starts: drawn overlapping its
+    # neighbour, it is moved out along its slide to the length L0 (1e-13 relative), and the fitted
+    # layout passes every check (compute_layout with checks on the fitted centres gives the same path).
+    c = np.array([[0.0, 0.0], [0.1, 0.0]])
+    r, side = np.array([0.05, 0.12]), np.array([1.0, 1.0])
+    lay = fit_adjustable(c, r, side, ("a", "b"), index=1, direction=np.array([1.0, 0.0]), target_length=2.2)
+    assert lay.belt_length == pytest.approx(2.2, rel=1e-13)
+    again = compute_layout(lay.center, r, side, ("a", "b"))
+    np.testing.assert_array_equal(again.span_length, lay.span_length)
+
+
 def test_fit_reports_unreachable_length():
     c = np.array([[0.0, 0.0], [0.7, 0.0]])
     with pytest.raises(GeometryError, match="too short") as err:
