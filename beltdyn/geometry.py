@@ -484,7 +484,7 @@ def layout_from_config(cfg: DriveConfig) -> Layout:
         raise ConfigError(str(exc), file=cfg.source, key=exc.key) from None
     for j, p in enumerate(cfg.pulleys):  # stops that exclude the (fitted) arm angle
         if p.support == "arm" and p.arm_range is not None:
-            phi = unwrap_near(arm_angle(lay, j, np.array(p.arm_pivot)), sum(p.arm_range) / 2)
+            phi = unwrap_near(arm_angle(lay, j, p.arm_pivot), sum(p.arm_range) / 2)
             if not p.arm_range[0] <= phi <= p.arm_range[1]:
                 raise ConfigError(f"the arm of pulley '{p.name}' sits at {phi:.6g} rad, outside its stops "
                                   f"[{p.arm_range[0]:g}, {p.arm_range[1]:g}] rad", file=cfg.source,
@@ -497,8 +497,8 @@ def unwrap_near(angle: float, ref: float) -> float:
     return float(angle + TWO_PI * round((ref - angle) / TWO_PI))
 
 
-def arm_angle(layout: Layout, j: int, pivot: np.ndarray) -> float:
-    """The angle (rad, counter-clockwise from +x) of the arm pivot -> centre of pulley j."""
+def arm_angle(layout: Layout, j: int, pivot) -> float:
+    """The angle (rad, counter-clockwise from +x) of the arm pivot (2,) -> centre of pulley j."""
     return pivot_angle(layout.center[j], pivot)
 
 

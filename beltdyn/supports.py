@@ -141,7 +141,7 @@ class ArmSupport(Support):
         from .geometry import arm_angle, unwrap_near
 
         p = self.pulley
-        phi = arm_angle(layout, index, np.array(p.arm_pivot))
+        phi = arm_angle(layout, index, p.arm_pivot)
         return unwrap_near(phi, 0.5 * (p.arm_range[0] + p.arm_range[1])) if p.arm_range is not None else phi
 
     def own_components(self, dof: int, layout, index: int, spring_free: np.ndarray | None = None) -> tuple:
