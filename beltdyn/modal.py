@@ -164,14 +164,21 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     w_el, v_el = w[~rigid][:n_modes], v[:, ~rigid][:, :n_modes]
     freq = np.sqrt(np.maximum(w_el, 0.0)) / (2 * np.pi)
     shapes = v_el.T.copy()
-    belt = model.belt
-    motion = belt.element_coordinates_batch(model.expand_motion(q, shapes), offset=False)  # (modes, n_elem, 8)
-    kind, order, span, label, share, sshare = classify(model, shapes, freq, q, motion=motion)
-    mid = belt.midspan_displacement_linear(belt.element_coordinates(model.expand(q)), motion)
+    kind, order, span, label, share, sshare, mid = _shape_outputs(model, q, shapes, freq)
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order, span=span, label=label, energy_share=share,
         span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid, rigid_frequency=np.sqrt(np.abs(w[rigid])) / (2 * np.pi),
         solver=name)
+
+
+def _shape_outputs(model: System, q: np.ndarray, shapes: np.ndarray, freq: np.ndarray):
+    """`classify`'s outputs of the shapes (n_modes, n_dof) about q, and their mid-span displacements
+    (n_modes, n_span)."""
+    belt = model.belt
+    joint = model.expand_motion(q, shapes)  # (modes, n_p)
+    motion = belt.element_coordinates_batch(joint, offset=False)  # (modes, n_elem, 8)
+    out = classify(model, shapes, freq, q, motion=motion, joint=joint)
+    return *out, belt.midspan_displacement_linear(model.expand(q), motion)
 
 
 def _generalized_eigh(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -392,11 +399,8 @@ def _solve_running(model: System, q: np.ndarray, *, n_modes: int, solver: str) -
     growth = np.where(np.abs(sel.real) > eps[pick], sel.real, 0.0)
     stability = tuple("divergence" if d else ("flutter" if g > 0 else "stable")
                       for d, g in zip(diverging[pick], growth))
-    belt = model.belt
-    motion = belt.element_coordinates_batch(model.expand_motion(q, shapes), offset=False)
-    kind, order_, span, label, share, sshare = classify(model, shapes, freq, q, motion=motion)
+    kind, order_, span, label, share, sshare, mid = _shape_outputs(model, q, shapes, freq)
     label = tuple(lab if st == "stable" else f"{lab} ({st})" for lab, st in zip(label, stability))
-    mid = belt.midspan_displacement_linear(belt.element_coordinates(model.expand(q)), motion)
     critical = critical_speed(model, q) if any(st != "stable" for st in stability) else float("nan")
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order_, span=span, label=label, energy_share=share,
@@ -427,21 +431,22 @@ def critical_speed(model: System, q: np.ndarray) -> float:
     return float(1.0 / np.sqrt(top)) if top > 0 else float("inf")
 
 
-def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None, *, motion=None
+def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None, *, motion=None, joint=None
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Kinetic-energy shares of mass-normalized shapes (n_modes, n_dof), from the system's components.
+    """Kinetic-energy shares of mass-normalized shapes (n_modes, n_dof), from the system's components
+    (motion, joint: the shapes' element coordinates and joint coordinates, if at hand).
 
     Returns shares (n_modes, len(KINDS)), span_long (n_modes, n_span), span_trans (n_modes, n_span)
     (all divided by the total) and the transverse nodal motion (n_modes, n_elem, 4).
     """
     if np.iscomplexobj(shapes):  # the energy of Re phi and Im phi together (phi^H M phi), in one call
         k = shapes.shape[0]
-        parts = model.kinetic_energy_shares(np.concatenate([shapes.real, shapes.imag]), q,
-                                            motion=None if motion is None else np.concatenate([motion.real, motion.imag]))
+        both = lambda x: None if x is None else np.concatenate([x.real, x.imag])  # noqa: E731
+        parts = model.kinetic_energy_shares(both(shapes), q, motion=both(motion), joint=both(joint))
         kinds, span_long, span_trans = (x[:k] + x[k:] for x in parts[:3])
         b = parts[3][:k] + 1j * parts[3][k:]
     else:
-        kinds, span_long, span_trans, b = model.kinetic_energy_shares(shapes, q, motion=motion)
+        kinds, span_long, span_trans, b = model.kinetic_energy_shares(shapes, q, motion=motion, joint=joint)
     total = kinds.sum(axis=1, keepdims=True)
     total[total == 0] = 1.0
     return kinds / total, span_long / total, span_trans / total, b
@@ -490,11 +495,12 @@ def half_waves_real(W: np.ndarray, threshold: float = 0.05) -> np.ndarray:
     return np.count_nonzero((s[:, 1:] != s[:, :-1]) & (s[:, :-1] != 0.0), axis=1) + 1
 
 
-def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray | None = None, *, motion=None):
+def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray | None = None, *, motion=None,
+             joint=None):
     """kind, order, span, label, energy shares and span shares of each mode. A mode whose largest
     share stays below 1/2 is "mixed" and its label names its two largest parts (e.g. the tensioner
-    arm coupled with the transverse motion of an adjacent span)."""
-    shares, span_long, span_trans, b = energy_shares(model, shapes, q, motion=motion)
+    arm coupled with the transverse motion of an adjacent span). motion, joint: as `energy_shares`."""
+    shares, span_long, span_trans, b = energy_shares(model, shapes, q, motion=motion, joint=joint)
     n_modes = shapes.shape[0]
     wsamp = (np.matmul(model.belt.sampling_table(8)[None], b[..., None])[..., 0]  # (k, n_elem, 8) samples
              if model.belt.elements.n_elem else None)

@@ -318,6 +318,8 @@ class BeltSpans:
     def element_coordinates_batch(self, q: np.ndarray, *, offset: bool = True) -> np.ndarray:
         """(B, n_elem, 8) element coordinates (velocities with offset=False) of states q (B, n_dof): the
         interior elements' (T = [I8 | 0], tsel < 0) gathered, the joint elements' through T."""
+        if not len(self.idx):  # every span a spring
+            return np.zeros((q.shape[0], 0, 8))
         q_ext = np.concatenate([q, np.zeros((q.shape[0], 1))], axis=1)
         E = q_ext[:, self.idx[:, :8]]
         joint = np.flatnonzero(self.tsel >= 0)
@@ -411,13 +413,13 @@ class BeltSpans:
         n = np.stack([-c[..., 1], c[..., 0]], axis=-1) / np.linalg.norm(c, axis=-1, keepdims=True)
         return self.on_spans(np.einsum("bsd,bsd->bs", p - r0, n))
 
-    def midspan_displacement_linear(self, E: np.ndarray, dE: np.ndarray) -> np.ndarray:
-        """(B, n_span) the first-order change of `midspan_displacement` at the state E (n_elem, 8) for
-        element motions dE (B, n_elem, 8) (mode shapes). With the chord c = r1 - r0, n = J c / |c|:
-        d(delta) = (dp - dr0) . n + (p - r0) . dn,  dn = J dc / |c| - J c (c . dc) / |c|^3."""
+    def midspan_displacement_linear(self, q: np.ndarray, dE: np.ndarray) -> np.ndarray:
+        """(B, n_span) the first-order change of `midspan_displacement` at the state q (n_dof,) (joint
+        coordinates) for element motions dE (B, n_elem, 8) (mode shapes). With the chord c = r1 - r0,
+        n = J c / |c|: d(delta) = (dp - dr0) . n + (p - r0) . dn,  dn = J dc / |c| - J c (c . dc) / |c|^3."""
         if self.elements.n_elem == 0:  # every span a spring: no transverse motion anywhere
             return np.zeros((dE.shape[0], self.n_span))
-        p, r0, c = self._midspan_terms(E[None])
+        p, r0, c = self._midspan_terms(self.element_coordinates(q)[None])
         dp, dr0, dc = self._midspan_terms(dE, offset=False)
         cx, cy = c[..., 0], c[..., 1]
         norm = np.hypot(cx, cy)
@@ -728,11 +730,13 @@ class SpringSpans:
         """(B, k) each: the lumped masses' quadratic energy form dX^T M dX along and across the chord
         at p = 0 for end motions dX (B, k, 4) (as the belt's share splits, `System.kinetic_energy_shares`)."""
         t = self.reference_direction
-        nrm = np.column_stack([-t[:, 1], t[:, 0]])
-        m = self.end_mass[None, :]
-        a = np.einsum("bkjd,kd->bkj", dX.reshape(dX.shape[0], -1, 2, 2), t)
-        b = np.einsum("bkjd,kd->bkj", dX.reshape(dX.shape[0], -1, 2, 2), nrm)
-        return m * (a * a).sum(axis=2), m * (b * b).sum(axis=2)
+        m = self.end_mass
+        X = dX.reshape(dX.shape[0], -1, 2, 2)
+        x, y = X[..., 0], X[..., 1]  # (B, k, 2 ends)
+        a = x * t[:, 0, None] + y * t[:, 1, None]  # along the chord t
+        b = x * -t[:, 1, None] + y * t[:, 0, None]  # across it, n = z x t
+        a, b = a * a, b * b
+        return m * (a[..., 0] + a[..., 1]), m * (b[..., 0] + b[..., 1])
 
 
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
@@ -907,7 +911,7 @@ class ArmJoints:
 
     def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """J(q) dq (..., n_p): velocities, or mode shapes about q."""
-        du = np.einsum("...kd,...k->...kd", self.first(self.phi(q)), dq[..., self.dof])
+        du = self.first(self.phi(q)) * dq[..., self.dof, None]
         return np.concatenate([dq, du.reshape(*dq.shape[:-1], -1)], axis=-1)
 
     def expand_acceleration(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
@@ -1390,9 +1394,10 @@ class System:
 
     # -------------------------------------------------------------------- energy
     def kinetic_energy_shares(self, shapes: np.ndarray, q: np.ndarray | None = None, *,
-                              motion: np.ndarray | None = None
+                              motion: np.ndarray | None = None, joint: np.ndarray | None = None
                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Kinetic-energy split of shapes (n_modes, n_dof) about the state q by kind.
+        """Kinetic-energy split of shapes (n_modes, n_dof) about the state q by kind (motion: their
+        element coordinates, joint: the shapes on the joint coordinates p, if at hand).
 
         Returns kinds (n_modes, len(ENERGY_KINDS)) absolute (not normalized), span_long and
         span_trans (n_modes, n_span), and the transverse nodal motion b (n_modes, n_elem, 4). The
@@ -1402,21 +1407,26 @@ class System:
         belt = self.belt
         el = belt.elements
         n_modes = shapes.shape[0]
-        if self.arms is not None:
+        if joint is not None:
+            shapes = joint
+        elif self.arms is not None:
             shapes = self.arms.expand_motion(np.zeros(self.n_dof) if q is None else q, shapes)
-        de = (belt.element_coordinates_batch(shapes, offset=False) if motion is None else motion).reshape(
-            n_modes, el.n_elem, 4, 2)
-        t = belt.reference_direction[belt.elem_span]
-        nrm = belt.reference_normal[belt.elem_span]
-        a = np.einsum("kejd,ed->kej", de, t)
-        b = np.einsum("kejd,ed->kej", de, nrm)
-        Ms = el.mass.reshape(el.n_elem, 4, 2, 4, 2)[:, :, 0, :, 0]
-        ka = np.einsum("kei,eij,kej->ke", a, Ms, a)
-        kb = np.einsum("kei,eij,kej->ke", b, Ms, b)
         span_long = np.zeros((n_modes, belt.n_span))
         span_trans = np.zeros((n_modes, belt.n_span))
-        np.add.at(span_long.T, belt.elem_span, ka.T)
-        np.add.at(span_trans.T, belt.elem_span, kb.T)
+        if el.n_elem:
+            de = (belt.element_coordinates_batch(shapes, offset=False) if motion is None else motion).reshape(
+                n_modes, el.n_elem, 4, 2)
+            t = belt.reference_direction[belt.elem_span]
+            nrm = belt.reference_normal[belt.elem_span]
+            a = np.einsum("kejd,ed->kej", de, t)
+            b = np.einsum("kejd,ed->kej", de, nrm)
+            Ms = el.mass.reshape(el.n_elem, 4, 2, 4, 2)[:, :, 0, :, 0]
+            ka = np.einsum("kei,eij,kej->ke", a, Ms, a)
+            kb = np.einsum("kei,eij,kej->ke", b, Ms, b)
+            np.add.at(span_long.T, belt.elem_span, ka.T)
+            np.add.at(span_trans.T, belt.elem_span, kb.T)
+        else:  # every span a spring
+            b = np.zeros((n_modes, 0, 4))
         if self.springs is not None:  # the lumped masses of the spring spans, along and across the chord
             sa, sb = self.springs.kinetic_energy_split(self.springs.positions_batch(shapes, offset=False))
             span_long[:, self.springs.span] += sa
