@@ -178,7 +178,8 @@ def _shape_outputs(model: System, q: np.ndarray, shapes: np.ndarray, freq: np.nd
     joint = model.expand_motion(q, shapes)  # (modes, n_p)
     motion = belt.element_coordinates_batch(joint, offset=False)  # (modes, n_elem, 8)
     out = classify(model, shapes, freq, q, motion=motion, joint=joint)
-    return *out, belt.midspan_displacement_linear(model.expand(q), motion)
+    E = belt.element_coordinates(model.expand(q)) if belt.elements.n_elem else belt.e0  # (n_elem, 8)
+    return *out, belt.midspan_displacement_linear(E, motion)
 
 
 def _generalized_eigh(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -507,18 +508,21 @@ def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray 
     kinds, orders, spans, labels = [], np.zeros(n_modes, dtype=int), np.zeros(n_modes, dtype=int), []
     rank: dict[str, int] = {}
     names = model.layout
-    best_of = np.argmax(shares, axis=1)
-    kind_of = [KINDS[b] if shares[k, b] >= 0.5 else "mixed" for k, b in enumerate(best_of.tolist())]
-    trans_span = np.argmax(span_trans, axis=1) if n_modes else np.zeros(0, dtype=int)
-    waves = np.ones(n_modes, dtype=int)  # a spring span has no transverse shape of its own: its lumped
-    is_trans = np.array([k == "transverse" for k in kind_of], dtype=bool)  # end masses swing with the pulleys
-    for s in np.unique(trans_span[is_trans]).tolist():  # each span's transverse modes at once
-        els = model.belt.span_elements[s]
-        ks = np.flatnonzero(is_trans & (trans_span == s))
-        if not len(els):
-            continue
-        W = wsamp[ks][:, els].reshape(len(ks), -1)
-        waves[ks] = [half_waves(w) for w in W] if np.iscomplexobj(W) else half_waves_real(W)  # travelling: envelopes
+    best = shares.max(axis=1, initial=-np.inf).tolist()
+    kind_of = [KINDS[b] if x >= 0.5 else "mixed" for b, x in zip(np.argmax(shares, axis=1).tolist(), best)]
+    waves = [1] * n_modes  # a spring span has no transverse shape of its own: its lumped end masses swing with the pulleys
+    if "transverse" in kind_of:
+        trans_span = np.argmax(span_trans, axis=1)
+        is_trans = np.array([k == "transverse" for k in kind_of], dtype=bool)
+        for s in np.unique(trans_span[is_trans]).tolist():  # each span's transverse modes at once
+            els = model.belt.span_elements[s]
+            ks = np.flatnonzero(is_trans & (trans_span == s))
+            if not len(els):
+                continue
+            W = wsamp[ks][:, els].reshape(len(ks), -1)
+            got = [half_waves(w) for w in W] if np.iscomplexobj(W) else half_waves_real(W).tolist()  # travelling: envelopes
+            for k, w in zip(ks.tolist(), got):
+                waves[k] = w
     for k in range(n_modes):
         kind = kind_of[k]
         span = 0

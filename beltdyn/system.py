@@ -413,13 +413,13 @@ class BeltSpans:
         n = np.stack([-c[..., 1], c[..., 0]], axis=-1) / np.linalg.norm(c, axis=-1, keepdims=True)
         return self.on_spans(np.einsum("bsd,bsd->bs", p - r0, n))
 
-    def midspan_displacement_linear(self, q: np.ndarray, dE: np.ndarray) -> np.ndarray:
-        """(B, n_span) the first-order change of `midspan_displacement` at the state q (n_dof,) (joint
-        coordinates) for element motions dE (B, n_elem, 8) (mode shapes). With the chord c = r1 - r0,
-        n = J c / |c|: d(delta) = (dp - dr0) . n + (p - r0) . dn,  dn = J dc / |c| - J c (c . dc) / |c|^3."""
+    def midspan_displacement_linear(self, E: np.ndarray, dE: np.ndarray) -> np.ndarray:
+        """(B, n_span) the first-order change of `midspan_displacement` at the state E (n_elem, 8) for
+        element motions dE (B, n_elem, 8) (mode shapes). With the chord c = r1 - r0, n = J c / |c|:
+        d(delta) = (dp - dr0) . n + (p - r0) . dn,  dn = J dc / |c| - J c (c . dc) / |c|^3."""
         if self.elements.n_elem == 0:  # every span a spring: no transverse motion anywhere
             return np.zeros((dE.shape[0], self.n_span))
-        p, r0, c = self._midspan_terms(self.element_coordinates(q)[None])
+        p, r0, c = self._midspan_terms(E[None])
         dp, dr0, dc = self._midspan_terms(dE, offset=False)
         cx, cy = c[..., 0], c[..., 1]
         norm = np.hypot(cx, cy)
