@@ -694,7 +694,7 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *
         driver_torque = known["driver_torque"] - float(preload[driver_dof])
     else:
         driver_torque = float((model.equilibrium(q, tangent=False)[0] - preload)[driver_dof])
-    T_mean = known["mean_tension"] if "mean_tension" in known else model.mean_tension_and_gradient(q)[0]
+    T_mean = known["mean_tension"] if "mean_tension" in known else model.mean_tension_and_gradient(q, gradient=False)[0]
     a = lay.adjust_index
     if a is None:
         offset = 0.0
@@ -709,11 +709,9 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *
     pivot = np.full((n, 2), np.nan)
     if model.arms is not None:
         arms = model.arms
-        for k, d in enumerate(arms.dof):
-            j = next(i for i in range(n) if model.trans_dof[i] and model.trans_dof[i][0] == arms.slot[k])
+        for k, (j, spring, weight) in enumerate(model.arm_statics):
+            d = int(arms.dof[k])
             arm_angle[j] = float(arms.angle[k] + q[d])
-            spring = next((c for c in model.components if c.dofs.tolist() == [int(d)] and c.stiffness is not None),
-                          None)
             if spring is not None:
                 k_s = float(spring.stiffness[0, 0])
                 free = float(spring.free[0]) if spring.free is not None else 0.0
@@ -721,12 +719,6 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *
                 arm_free[j] = arm_angle[j] + arm_torque[j] / k_s
             else:  # no spring: a constant preload torque (adjust mode), if any
                 arm_torque[j] = float(preload[d])
-            weight = np.zeros(2)
-            for c in model.components:
-                if c.weight is not None:
-                    for i, dd in enumerate(c.dofs):
-                        if dd in (arms.slot[k], arms.slot[k] + 1):
-                            weight += c.weight[i] * model.gravity[int(dd - arms.slot[k])]
             pivot[j] = -(hub[j] + weight)  # statics of arm + pulley: pivot + belt + weight = 0
     applied = np.zeros(n)
     if model.loads is not None:

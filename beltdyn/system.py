@@ -312,6 +312,8 @@ class BeltSpans:
     # -------------------------------------------------------------------- coordinates
     def element_coordinates(self, q: np.ndarray) -> np.ndarray:
         """e (n_elem, 8) = e0 + T q[idx]."""
+        if not len(self.idx):  # every span a spring
+            return np.zeros((0, 8))
         qe = np.append(q, 0.0)[self.idx]
         return self.e0 + np.matmul(self.T, qe[:, :, None])[:, :, 0]
 
@@ -593,11 +595,16 @@ class SpringSpans:
         X = np.einsum("kim,bkm->bki", self.T, Pe)
         return X + self.x0 if offset else X
 
-    def axial(self, X: np.ndarray):
-        """u (..., k, 2), l, lam, eps, N (..., k) at end positions X (..., k, 4)."""
+    @staticmethod
+    def chord(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """u (..., k, 2), l (..., k): the chords' unit direction and length at end positions X (..., k, 4)."""
         d = X[..., 2:4] - X[..., 0:2]
         l = np.sqrt(np.einsum("...d,...d->...", d, d))
-        u = d / l[..., None]
+        return d / l[..., None], l
+
+    def axial(self, X: np.ndarray):
+        """u (..., k, 2), l, lam, eps, N (..., k) at end positions X (..., k, 4)."""
+        u, l = self.chord(X)
         lam = l / self.reference_length
         eps = 0.5 * (lam * lam - 1.0)
         return u, l, lam, eps, self.EA * eps * lam
@@ -689,9 +696,12 @@ class SpringSpans:
         _, _, _, eps, _ = self.axial(self.positions(p))
         return float((0.5 * self.EA * self.reference_length * eps * eps).sum())
 
-    def tension_integral(self, p: np.ndarray) -> tuple[float, np.ndarray]:
-        """sum_k N_k L_k (N m) and its gradient (n_dof,): the springs' share of the length-weighted mean."""
+    def tension_integral(self, p: np.ndarray, *, gradient: bool = True) -> tuple[float, np.ndarray | None]:
+        """sum_k N_k L_k (N m) and its gradient (n_dof,) (None without gradient): the springs' share of the
+        length-weighted mean."""
         u, _, lam, _, N = self.axial(self.positions(p))
+        if not gradient:
+            return float((N * self.reference_length).sum()), None
         k_a = self.EA * (3.0 * lam * lam - 1.0) / (2.0 * self.reference_length)
         g = (k_a * self.reference_length)[:, None] * u
         return float((N * self.reference_length).sum()), self.reduce_vector(np.concatenate([-g, g], axis=1))
@@ -710,8 +720,11 @@ class SpringSpans:
         if Xd is not None and self.damping_axial > 0.0:
             N = N + self.damping_force(X, Xd)
         w = self.end_mass[None, :, None] * np.asarray(gravity, dtype=float)
-        F = np.stack([-N[..., None] * u - w, N[..., None] * u - w], axis=2)
-        return self._scatter(F)
+        Nu = N[..., None] * u
+        out = np.zeros((X.shape[0], self.n_span, 2, 2))
+        out[:, self.span, 0] = -Nu - w
+        out[:, self.span, 1] = Nu - w
+        return out
 
     def end_inertia(self, Xa: np.ndarray) -> np.ndarray:
         """(B, n_span, 2, 2) inertia forces of the lumped masses, end accelerations Xa (B, k, 4)."""
@@ -721,10 +734,12 @@ class SpringSpans:
     def end_tensions(self, X: np.ndarray, F_end: np.ndarray) -> np.ndarray:
         """(B, n_span, 2) span tensions at the ends of the spring spans (zeros elsewhere) from the end
         forces F_end (B, n_span, 2, 2): N_start = -F_start . u, N_end = F_end . u."""
-        u = self.axial(X)[0]
+        u = self.chord(X)[0]
         F = F_end[:, self.span]
-        return self._scatter(np.stack([-np.einsum("bkd,bkd->bk", F[:, :, 0], u),
-                                       np.einsum("bkd,bkd->bk", F[:, :, 1], u)], axis=-1))
+        out = np.zeros((X.shape[0], self.n_span, 2))
+        out[:, self.span, 0] = -np.einsum("bkd,bkd->bk", F[:, :, 0], u)
+        out[:, self.span, 1] = np.einsum("bkd,bkd->bk", F[:, :, 1], u)
+        return out
 
     def kinetic_energy_split(self, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(B, k) each: the lumped masses' quadratic energy form dX^T M dX along and across the chord
@@ -1294,19 +1309,22 @@ class System:
             return self.mass
         return self.project_matrix(np.zeros(self.n_dof) if q is None else q, self.mass)
 
-    def mean_tension_and_gradient(self, q: np.ndarray) -> tuple[float, np.ndarray]:
-        """Length-weighted mean true axial force over all spans (N), ANCF and spring, and its gradient."""
+    def mean_tension_and_gradient(self, q: np.ndarray, *, gradient: bool = True) -> tuple[float, np.ndarray | None]:
+        """Length-weighted mean true axial force over all spans (N), ANCF and spring, and its gradient
+        (n_dof,) (None without gradient)."""
         p = self.expand(q)
         if self.springs is None:
             T, g = self.belt.mean_tension_and_gradient(p)
         else:
             L_b = float(self.belt.elements.length.sum())
-            NL, g = self.springs.tension_integral(p)
+            NL, g = self.springs.tension_integral(p, gradient=gradient)
             if L_b > 0.0:
                 T_b, g_b = self.belt.mean_tension_and_gradient(p)
-                NL, g = NL + T_b * L_b, g + g_b * L_b
+                NL, g = NL + T_b * L_b, (g + g_b * L_b if gradient else None)
             total = L_b + float(self.springs.reference_length.sum())
-            T, g = NL / total, g / total
+            T, g = NL / total, (g / total if gradient else None)
+        if not gradient:
+            return T, None
         return T, (g if self.arms is None else self.arms.project(q, g))
 
     def span_models(self) -> tuple[tuple[str, ...], np.ndarray]:
@@ -1330,9 +1348,10 @@ class System:
         return max(ea)
 
     def span_end_forces(self, p: np.ndarray, vp: np.ndarray | None, E: np.ndarray | None = None,
-                        Ed: np.ndarray | None = None) -> np.ndarray:
+                        Ed: np.ndarray | None = None, X: np.ndarray | None = None) -> np.ndarray:
         """(B, n_span, 2, 2) force of each span on its end points for states p, vp (B, n_p) (as
-        `BeltSpans.end_forces`; E, Ed the belt's element states if at hand)."""
+        `BeltSpans.end_forces`; E, Ed the belt's element states, X the spring spans' end positions, if
+        at hand)."""
         b = self.belt
         if b.elements.n_elem == 0:  # every span a spring
             F = np.zeros((p.shape[0], b.n_span, 2, 2))
@@ -1343,18 +1362,20 @@ class System:
             F = b.end_forces(E, Ed, self.gravity)  # (Ed is read with belt damping only)
         if self.springs is not None:
             sp = self.springs
-            F = F + sp.end_forces(sp.positions_batch(p), None if vp is None else sp.positions_batch(vp, offset=False),
-                                  self.gravity)
+            F = F + sp.end_forces(sp.positions_batch(p) if X is None else X,
+                                  None if vp is None else sp.positions_batch(vp, offset=False), self.gravity)
         return F
 
-    def span_end_tensions(self, p: np.ndarray, F: np.ndarray, E: np.ndarray | None = None) -> np.ndarray:
-        """(B, n_span, 2) tensions at the span ends from their end forces F (`span_end_forces`)."""
+    def span_end_tensions(self, p: np.ndarray, F: np.ndarray, E: np.ndarray | None = None,
+                          X: np.ndarray | None = None) -> np.ndarray:
+        """(B, n_span, 2) tensions at the span ends from their end forces F (`span_end_forces`; E, X as
+        there)."""
         if self.belt.elements.n_elem == 0:
             T = np.zeros(F.shape[:2] + (2,))
         else:
             T = self.belt.end_tensions(self.belt.element_coordinates_batch(p) if E is None else E, F)
         if self.springs is not None:
-            T = T + self.springs.end_tensions(self.springs.positions_batch(p), F)
+            T = T + self.springs.end_tensions(self.springs.positions_batch(p) if X is None else X, F)
         return T
 
     def span_end_inertia(self, ap: np.ndarray) -> np.ndarray:
@@ -1373,23 +1394,63 @@ class System:
         discrete equilibrium even where the strain is tiny)."""
         p = self.expand(q)[None]
         E = self.belt.element_coordinates(p[0])[None]
-        F = self.span_end_forces(p, None, E)
+        X = None if self.springs is None else self.springs.positions_batch(p)
+        F = self.span_end_forces(p, None, E, X=X)
         hub = F if not self.belt_speed else F + self.span_transport_forces(E, None, self.belt_speed, p=p)
-        return self.hub_loads(hub)[0], self.span_end_tensions(p, F, E)[0]
+        return self.hub_loads(hub)[0], self.span_end_tensions(p, F, E, X=X)[0]
 
     def hub_loads(self, F_end: np.ndarray) -> np.ndarray:
         """(B, n_pulley, 2) force of the belt on each pulley from the span end-node forces."""
         n = self.layout.n
-        hub = -F_end[:, :, 0].copy()
-        hub -= np.roll(F_end[:, :, 1], 1, axis=1)  # span s ends on pulley s + 1
+        hub = -F_end[:, :, 0]
+        hub[:, 1:] -= F_end[:, :-1, 1]  # span s ends on pulley s + 1
+        hub[:, 0] -= F_end[:, -1, 1]
         return hub[:, :n]
 
+    @functools.cached_property
+    def _center_motion(self) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
+        """The pulleys' translations as (pulleys (r,), their i-th translation DOF (r,), its direction
+        (r, 2)) for i = 0, 1, ...: `pulley_centers` without a loop over the pulleys."""
+        out = []
+        for i in range(max((len(d) for d in self.trans_dof), default=0)):
+            js = [j for j, d in enumerate(self.trans_dof) if len(d) > i]
+            out.append((np.array(js, dtype=np.int64), np.array([self.trans_dof[j][i] for j in js], dtype=np.int64),
+                        np.array([self.trans_dir[j][i] for j in js], dtype=float).reshape(-1, 2)))
+        return tuple(out)
+
+    @property
+    def arm_statics(self) -> tuple[tuple[int, LinearComponent | None, np.ndarray], ...]:
+        """Per tensioner arm: its pulley's index, the arm's spring (the component on the arm angle alone
+        with a stiffness; None: none) and the weight (2,) N of what the arm carries (its pulley's
+        components' weight on the pulley's offsets at this gravity). Cached."""
+        return self._arm_statics
+
+    @functools.cached_property  # (a "_" name: not a field, which `with_belt` and `with_speed` copy)
+    def _arm_statics(self) -> tuple[tuple[int, LinearComponent | None, np.ndarray], ...]:
+        arms = self.arms
+        if arms is None:
+            return ()
+        out = []
+        for k, d in enumerate(arms.dof):
+            slot = int(arms.slot[k])
+            j = next(i for i, dd in enumerate(self.trans_dof) if dd and dd[0] == slot)
+            spring = next((c for c in self.components if c.dofs.tolist() == [int(d)] and c.stiffness is not None),
+                          None)
+            weight = np.zeros(2)
+            for c in self.components:
+                if c.weight is not None:
+                    for i, dd in enumerate(c.dofs):
+                        if dd in (slot, slot + 1):
+                            weight += c.weight[i] * self.gravity[int(dd - slot)]
+            out.append((j, spring, weight))
+        return tuple(out)
+
     def pulley_centers(self, q: np.ndarray) -> np.ndarray:
+        """(n_pulley, 2) the pulley centres at q (m)."""
         q = self.expand(q)
         c = self.layout.center.copy()
-        for j, (dofs, dirs) in enumerate(zip(self.trans_dof, self.trans_dir)):
-            for d, v in zip(dofs, dirs):
-                c[j] += q[d] * v
+        for j, d, v in self._center_motion:  # each pulley's translations in the order of its DOFs
+            c[j] += q[d][:, None] * v
         return c
 
     # -------------------------------------------------------------------- energy
