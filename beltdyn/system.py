@@ -218,6 +218,12 @@ class BearingSprings(LinearComponent):
 
 
 # ------------------------------------------------------------------------------------ the belt
+def _plus(a: np.ndarray | None, b: np.ndarray) -> np.ndarray:
+    """a + b, or b without a (the flexible spans' and the spring spans' parts of a per-span output:
+    every span is one or the other)."""
+    return b if a is None else a + b
+
+
 def _transposed(spans) -> np.ndarray:
     """spans.T (k, r, m) transposed to (k, m, r), contiguous, cached on the (frozen) spans object."""
     tt = spans.__dict__.get("_Tt")
@@ -706,8 +712,16 @@ class SpringSpans:
         g = (k_a * self.reference_length)[:, None] * u
         return float((N * self.reference_length).sum()), self.reduce_vector(np.concatenate([-g, g], axis=1))
 
+    @functools.cached_property
+    def _spans(self) -> slice | np.ndarray:
+        """Where the springs' rows go among the spans: `span`, or a slice when every span is a spring."""
+        every = len(self.span) == self.n_span and np.array_equal(self.span, np.arange(self.n_span))
+        return slice(None) if every else self.span
+
     def _scatter(self, x: np.ndarray) -> np.ndarray:
         """(B, k, ...) -> (B, n_span, ...), zeros for the other spans."""
+        if isinstance(self._spans, slice):
+            return x
         out = np.zeros((x.shape[0], self.n_span) + x.shape[2:])
         out[:, self.span] = x
         return out
@@ -722,8 +736,8 @@ class SpringSpans:
         w = self.end_mass[None, :, None] * np.asarray(gravity, dtype=float)
         Nu = N[..., None] * u
         out = np.zeros((X.shape[0], self.n_span, 2, 2))
-        out[:, self.span, 0] = -Nu - w
-        out[:, self.span, 1] = Nu - w
+        out[:, self._spans, 0] = -Nu - w
+        out[:, self._spans, 1] = Nu - w
         return out
 
     def end_inertia(self, Xa: np.ndarray) -> np.ndarray:
@@ -735,10 +749,10 @@ class SpringSpans:
         """(B, n_span, 2) span tensions at the ends of the spring spans (zeros elsewhere) from the end
         forces F_end (B, n_span, 2, 2): N_start = -F_start . u, N_end = F_end . u."""
         u = self.chord(X)[0]
-        F = F_end[:, self.span]
+        F = F_end[:, self._spans]
         out = np.zeros((X.shape[0], self.n_span, 2))
-        out[:, self.span, 0] = -np.einsum("bkd,bkd->bk", F[:, :, 0], u)
-        out[:, self.span, 1] = np.einsum("bkd,bkd->bk", F[:, :, 1], u)
+        out[:, self._spans, 0] = -np.einsum("bkd,bkd->bk", F[:, :, 0], u)
+        out[:, self._spans, 1] = np.einsum("bkd,bkd->bk", F[:, :, 1], u)
         return out
 
     def kinetic_energy_split(self, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -921,8 +935,14 @@ class ArmJoints:
     def expand(self, q: np.ndarray) -> np.ndarray:
         """p (..., n_p) from q (..., n_q)."""
         phi = self.phi(q)
-        u = self.length[:, None] * _last_pair(np.cos(phi) - np.cos(self.angle), np.sin(phi) - np.sin(self.angle))
+        cos0, sin0 = self._reference_cos_sin
+        u = self.length[:, None] * _last_pair(np.cos(phi) - cos0, np.sin(phi) - sin0)
         return np.concatenate([q, u.reshape(*q.shape[:-1], -1)], axis=-1)
+
+    @functools.cached_property
+    def _reference_cos_sin(self) -> tuple[np.ndarray, np.ndarray]:
+        """cos and sin (a,) of the arm angles at q = 0."""
+        return np.cos(self.angle), np.sin(self.angle)
 
     def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """J(q) dq (..., n_p): velocities, or mode shapes about q."""
@@ -1353,39 +1373,36 @@ class System:
         `BeltSpans.end_forces`; E, Ed the belt's element states, X the spring spans' end positions, if
         at hand)."""
         b = self.belt
-        if b.elements.n_elem == 0:  # every span a spring
-            F = np.zeros((p.shape[0], b.n_span, 2, 2))
-        else:
+        F = None
+        if b.elements.n_elem:
             E = b.element_coordinates_batch(p) if E is None else E
             if vp is not None and Ed is None and (b.damping_axial > 0.0 or b.damping_bending > 0.0):
                 Ed = b.element_coordinates_batch(vp, offset=False)
             F = b.end_forces(E, Ed, self.gravity)  # (Ed is read with belt damping only)
         if self.springs is not None:
             sp = self.springs
-            F = F + sp.end_forces(sp.positions_batch(p) if X is None else X,
-                                  None if vp is None else sp.positions_batch(vp, offset=False), self.gravity)
+            F = _plus(F, sp.end_forces(sp.positions_batch(p) if X is None else X,
+                                       None if vp is None else sp.positions_batch(vp, offset=False), self.gravity))
         return F
 
     def span_end_tensions(self, p: np.ndarray, F: np.ndarray, E: np.ndarray | None = None,
                           X: np.ndarray | None = None) -> np.ndarray:
         """(B, n_span, 2) tensions at the span ends from their end forces F (`span_end_forces`; E, X as
         there)."""
-        if self.belt.elements.n_elem == 0:
-            T = np.zeros(F.shape[:2] + (2,))
-        else:
+        T = None
+        if self.belt.elements.n_elem:
             T = self.belt.end_tensions(self.belt.element_coordinates_batch(p) if E is None else E, F)
         if self.springs is not None:
-            T = T + self.springs.end_tensions(self.springs.positions_batch(p) if X is None else X, F)
+            T = _plus(T, self.springs.end_tensions(self.springs.positions_batch(p) if X is None else X, F))
         return T
 
     def span_end_inertia(self, ap: np.ndarray) -> np.ndarray:
         """(B, n_span, 2, 2) inertia forces of the span-end masses for accelerations ap (B, n_p)."""
-        if self.belt.elements.n_elem == 0:
-            F = np.zeros((ap.shape[0], self.belt.n_span, 2, 2))
-        else:
+        F = None
+        if self.belt.elements.n_elem:
             F = self.belt.end_inertia(self.belt.element_coordinates_batch(ap, offset=False))
         if self.springs is not None:
-            F = F + self.springs.end_inertia(self.springs.positions_batch(ap, offset=False))
+            F = _plus(F, self.springs.end_inertia(self.springs.positions_batch(ap, offset=False)))
         return F
 
     def joint_reactions(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
