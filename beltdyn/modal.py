@@ -147,11 +147,10 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
         order = np.argsort(w)
         w, v = w[order], v[:, order]
         name = "sparse"
-    Kdiag = np.asarray(K.diagonal() if not model.dense else np.diag(K))
-    Mdiag = np.asarray(M.diagonal() if not model.dense else np.diag(M))
-    lam_max = float(np.max(Kdiag / Mdiag))
+    Kdiag, Mdiag = np.asarray(K.diagonal()), np.asarray(M.diagonal())  # (dense or sparse)
+    lam_max = float((Kdiag / Mdiag).max())
     tol = zero_tolerance(lam_max)
-    if np.any(w < -tol) :
+    if (w < -tol).any():
         i = int(np.argmin(w))
         dof = model.dof_labels[int(np.argmax(np.abs(v[:, i])))]
         raise SolverError(
@@ -161,9 +160,9 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     n_rigid = int(rigid.sum())
     if n_rigid > 1:  # beyond the belt turning with the pulleys: a mechanism (no stiffness somewhere)
         _mechanism(model, v[:, rigid], Mdiag)
-    w_el, v_el = w[~rigid][:n_modes], v[:, ~rigid][:, :n_modes]
-    freq = np.sqrt(np.maximum(w_el, 0.0)) / (2 * np.pi)
-    shapes = v_el.T.copy()
+    elastic = np.flatnonzero(~rigid)[:n_modes]
+    freq = np.sqrt(np.maximum(w[elastic], 0.0)) / (2 * np.pi)
+    shapes = v.T[elastic]  # (a copy: fancy indexing)
     kind, order, span, label, share, sshare, mid = _shape_outputs(model, q, shapes, freq)
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order, span=span, label=label, energy_share=share,

@@ -713,8 +713,19 @@ class SpringSpans:
         return float((N * self.reference_length).sum()), self.reduce_vector(np.concatenate([-g, g], axis=1))
 
     @functools.cached_property
+    def _chord_frame(self) -> np.ndarray:
+        """(k, 2, 2) the chord's direction t and normal n = z x t at p = 0 (rows)."""
+        t = self.reference_direction
+        return np.stack([t, np.column_stack([-t[:, 1], t[:, 0]])], axis=1)
+
+    @property
+    def span_rows(self) -> slice | np.ndarray:
+        """Where the springs' rows go among the spans: `span`, or a slice when every span is a spring
+        (cached)."""
+        return self._spans
+
+    @functools.cached_property  # (a "_" name: not a field, which `System.with_belt` copies)
     def _spans(self) -> slice | np.ndarray:
-        """Where the springs' rows go among the spans: `span`, or a slice when every span is a spring."""
         every = len(self.span) == self.n_span and np.array_equal(self.span, np.arange(self.n_span))
         return slice(None) if every else self.span
 
@@ -758,14 +769,9 @@ class SpringSpans:
     def kinetic_energy_split(self, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(B, k) each: the lumped masses' quadratic energy form dX^T M dX along and across the chord
         at p = 0 for end motions dX (B, k, 4) (as the belt's share splits, `System.kinetic_energy_shares`)."""
-        t = self.reference_direction
-        m = self.end_mass
-        X = dX.reshape(dX.shape[0], -1, 2, 2)
-        x, y = X[..., 0], X[..., 1]  # (B, k, 2 ends)
-        a = x * t[:, 0, None] + y * t[:, 1, None]  # along the chord t
-        b = x * -t[:, 1, None] + y * t[:, 0, None]  # across it, n = z x t
-        a, b = a * a, b * b
-        return m * (a[..., 0] + a[..., 1]), m * (b[..., 0] + b[..., 1])
+        ab = np.einsum("bkjd,kcd->bkcj", dX.reshape(dX.shape[0], -1, 2, 2), self._chord_frame)  # (B, k, t|n, end)
+        e = self.end_mass[:, None] * (ab * ab).sum(axis=3)
+        return e[..., 0], e[..., 1]
 
 
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
@@ -1506,17 +1512,23 @@ class System:
         else:  # every span a spring
             b = np.zeros((n_modes, 0, 4))
         if self.springs is not None:  # the lumped masses of the spring spans, along and across the chord
-            sa, sb = self.springs.kinetic_energy_split(self.springs.positions_batch(shapes, offset=False))
-            span_long[:, self.springs.span] += sa
-            span_trans[:, self.springs.span] += sb
+            sp = self.springs
+            sa, sb = sp.kinetic_energy_split(sp.positions_batch(shapes, offset=False))
+            span_long[:, sp.span_rows] += sa
+            span_trans[:, sp.span_rows] += sb
         kinds = np.zeros((n_modes, len(ENERGY_KINDS)))
         kinds[:, 2] = span_long.sum(axis=1)
         kinds[:, 3] = span_trans.sum(axis=1)
-        for c in self.components:
-            if c.mass is not None and c.energy_kind:
-                x = shapes[:, c.dofs]
-                kinds[:, ENERGY_KINDS.index(c.energy_kind)] += np.einsum("ki,ij,kj->k", x, c.mass, x)
+        for dofs, mass, kind in self._energy_components:
+            x = shapes[:, dofs]
+            kinds[:, kind] += np.einsum("ki,ij,kj->k", x, mass, x)
         return kinds, span_long, span_trans, b
+
+    @functools.cached_property
+    def _energy_components(self) -> tuple[tuple[np.ndarray, np.ndarray, int], ...]:
+        """(DOFs, mass matrix, index in ENERGY_KINDS) of each component whose mass counts for a kind."""
+        return tuple((c.dofs, c.mass, ENERGY_KINDS.index(c.energy_kind)) for c in self.components
+                     if c.mass is not None and c.energy_kind)
 
 
 def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[LinearComponent, ...], *,
