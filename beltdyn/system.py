@@ -218,6 +218,9 @@ class BearingSprings(LinearComponent):
 
 
 # ------------------------------------------------------------------------------------ the belt
+_ROTATE = np.array([1.0, 1.0, -1.0, 1.0])  # (t_x, t_y, t_y, t_x) -> (t, z x t)
+
+
 def _plus(a: np.ndarray | None, b: np.ndarray) -> np.ndarray:
     """a + b, or b without a (the flexible spans' and the spring spans' parts of a per-span output:
     every span is one or the other)."""
@@ -712,12 +715,6 @@ class SpringSpans:
         g = (k_a * self.reference_length)[:, None] * u
         return float((N * self.reference_length).sum()), self.reduce_vector(np.concatenate([-g, g], axis=1))
 
-    @functools.cached_property
-    def _chord_frame(self) -> np.ndarray:
-        """(k, 2, 2) the chord's direction t and normal n = z x t at p = 0 (rows)."""
-        t = self.reference_direction
-        return np.stack([t, np.column_stack([-t[:, 1], t[:, 0]])], axis=1)
-
     @property
     def span_rows(self) -> slice | np.ndarray:
         """Where the springs' rows go among the spans: `span`, or a slice when every span is a spring
@@ -769,7 +766,8 @@ class SpringSpans:
     def kinetic_energy_split(self, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(B, k) each: the lumped masses' quadratic energy form dX^T M dX along and across the chord
         at p = 0 for end motions dX (B, k, 4) (as the belt's share splits, `System.kinetic_energy_shares`)."""
-        ab = np.einsum("bkjd,kcd->bkcj", dX.reshape(dX.shape[0], -1, 2, 2), self._chord_frame)  # (B, k, t|n, end)
+        frame = (self.reference_direction[:, [0, 1, 1, 0]] * _ROTATE).reshape(-1, 2, 2)  # (k, t|n, 2): n = z x t
+        ab = np.einsum("bkjd,kcd->bkcj", dX.reshape(dX.shape[0], -1, 2, 2), frame)  # (B, k, t|n, end)
         e = self.end_mass[:, None] * (ab * ab).sum(axis=3)
         return e[..., 0], e[..., 1]
 
@@ -983,14 +981,14 @@ class ArmJoints:
     def project_matrix(self, q: np.ndarray, K, f: np.ndarray | None = None, *, dense: bool):
         """J^T K J (+ the geometric term sum_k (f_u,k . c''(phi_k)) on (phi_k, phi_k) for the force f
         (n_p,) on the joint coordinates whose derivative K (n_p, n_p) is; none for f = None)."""
-        dc = self.first(self.phi(q))
+        phi = self.phi(q)
+        dc = self.first(phi)
         geo = None
         if f is not None:
             fu = f[self.n_q:].reshape(len(self.dof), 2)
-            geo = np.einsum("kd,kd->k", self.second(self.phi(q)), fu)
+            geo = np.einsum("kd,kd->k", self.second(phi), fu)
         if dense and not hasattr(K, "tocsr"):
-            J = np.zeros((self.n_p, self.n_q))  # the jacobian, dense: identity on q, dc/dphi in the arm columns
-            J[np.arange(self.n_q), np.arange(self.n_q)] = 1.0
+            J = np.eye(self.n_p, self.n_q)  # the jacobian, dense: identity on q, dc/dphi in the arm columns
             J[self.slot, self.dof], J[self.slot + 1, self.dof] = dc[:, 0], dc[:, 1]
             out = J.T @ np.asarray(K) @ J
             if geo is not None:
@@ -1335,10 +1333,11 @@ class System:
             return self.mass
         return self.project_matrix(np.zeros(self.n_dof) if q is None else q, self.mass)
 
-    def mean_tension_and_gradient(self, q: np.ndarray, *, gradient: bool = True) -> tuple[float, np.ndarray | None]:
+    def mean_tension_and_gradient(self, q: np.ndarray, *, gradient: bool = True, p: np.ndarray | None = None
+                                  ) -> tuple[float, np.ndarray | None]:
         """Length-weighted mean true axial force over all spans (N), ANCF and spring, and its gradient
-        (n_dof,) (None without gradient)."""
-        p = self.expand(q)
+        (n_dof,) (None without gradient). p: q on the joint coordinates, if at hand."""
+        p = self.expand(q) if p is None else p
         if self.springs is None:
             T, g = self.belt.mean_tension_and_gradient(p)
         else:
@@ -1411,11 +1410,11 @@ class System:
             F = _plus(F, self.springs.end_inertia(self.springs.positions_batch(ap, offset=False)))
         return F
 
-    def joint_reactions(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def joint_reactions(self, q: np.ndarray, *, p: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Static hub loads (n_pulley, 2), N, the force of the belt on each pulley, and span tensions
         (n_span, 2), N, at the start and end of each span, from the joint reactions (exact for the
-        discrete equilibrium even where the strain is tiny)."""
-        p = self.expand(q)[None]
+        discrete equilibrium even where the strain is tiny). p: q on the joint coordinates, if at hand."""
+        p = (self.expand(q) if p is None else p)[None]
         E = self.belt.element_coordinates(p[0])[None]
         X = None if self.springs is None else self.springs.positions_batch(p)
         F = self.span_end_forces(p, None, E, X=X)
@@ -1430,17 +1429,6 @@ class System:
         hub[:, 0] -= F_end[:, -1, 1]
         return hub[:, :n]
 
-    @functools.cached_property
-    def _center_motion(self) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
-        """The pulleys' translations as (pulleys (r,), their i-th translation DOF (r,), its direction
-        (r, 2)) for i = 0, 1, ...: `pulley_centers` without a loop over the pulleys."""
-        out = []
-        for i in range(max((len(d) for d in self.trans_dof), default=0)):
-            js = [j for j, d in enumerate(self.trans_dof) if len(d) > i]
-            out.append((np.array(js, dtype=np.int64), np.array([self.trans_dof[j][i] for j in js], dtype=np.int64),
-                        np.array([self.trans_dir[j][i] for j in js], dtype=float).reshape(-1, 2)))
-        return tuple(out)
-
     @property
     def arm_statics(self) -> tuple[tuple[int, LinearComponent | None, np.ndarray], ...]:
         """Per tensioner arm: its pulley's index, the arm's spring (the component on the arm angle alone
@@ -1454,26 +1442,26 @@ class System:
         if arms is None:
             return ()
         out = []
-        for k, d in enumerate(arms.dof):
-            slot = int(arms.slot[k])
+        dofs = [c.dofs.tolist() for c in self.components]
+        for d, slot in zip(arms.dof.tolist(), arms.slot.tolist()):
             j = next(i for i, dd in enumerate(self.trans_dof) if dd and dd[0] == slot)
-            spring = next((c for c in self.components if c.dofs.tolist() == [int(d)] and c.stiffness is not None),
-                          None)
+            spring = next((c for c, cd in zip(self.components, dofs) if cd == [d] and c.stiffness is not None), None)
             weight = np.zeros(2)
-            for c in self.components:
+            for c, cd in zip(self.components, dofs):
                 if c.weight is not None:
-                    for i, dd in enumerate(c.dofs):
+                    for i, dd in enumerate(cd):
                         if dd in (slot, slot + 1):
-                            weight += c.weight[i] * self.gravity[int(dd - slot)]
+                            weight += c.weight[i] * self.gravity[dd - slot]
             out.append((j, spring, weight))
         return tuple(out)
 
-    def pulley_centers(self, q: np.ndarray) -> np.ndarray:
-        """(n_pulley, 2) the pulley centres at q (m)."""
-        q = self.expand(q)
+    def pulley_centers(self, q: np.ndarray, *, p: np.ndarray | None = None) -> np.ndarray:
+        """(n_pulley, 2) the pulley centres at q (m); p: q on the joint coordinates, if at hand."""
+        q = self.expand(q) if p is None else p
         c = self.layout.center.copy()
-        for j, d, v in self._center_motion:  # each pulley's translations in the order of its DOFs
-            c[j] += q[d][:, None] * v
+        for j, (dofs, dirs) in enumerate(zip(self.trans_dof, self.trans_dir)):
+            for d, v in zip(dofs, dirs):
+                c[j] += q[d] * v
         return c
 
     # -------------------------------------------------------------------- energy
