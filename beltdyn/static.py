@@ -723,10 +723,8 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *
             else:  # no spring: a constant preload torque (adjust mode), if any
                 arm_torque[j] = float(preload[d])
             pivot[j] = -(hub[j] + weight)  # statics of arm + pulley: pivot + belt + weight = 0
-    applied = np.zeros(n)
-    if model.loads is not None:
-        applied = model.loads[model.rot_dof].copy()
-    friction = model.pulley_friction if model.pulley_friction is not None else np.full(n, np.nan)
+    applied = np.zeros(n) if model.loads is None else model.loads[model.rot_dof]
+    friction = model.pulley_friction
     mu_req = required_friction(span_tension, lay.wrap_angle)
     return StaticResult(
         q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
@@ -735,7 +733,8 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *
         residual_history=np.array(hist_r), load_factor_history=np.array(hist_l), iterations=iterations,
         tension_mode=model.tension.mode, arm_angle=arm_angle, arm_torque=arm_torque, arm_free_angle=arm_free,
         pivot_reaction=pivot, applied_torque=applied, required_friction=mu_req,
-        slip_margin=slip_margin(mu_req, friction) if not np.all(np.isnan(friction)) else np.full(n, np.nan))
+        slip_margin=(slip_margin(mu_req, friction) if friction is not None and not np.isnan(friction).all()
+                     else np.full(n, np.nan)))
 
 
 # ------------------------------------------------------------------------------------ solved geometry

@@ -694,7 +694,7 @@ class SpringSpans:
         f = -c * c * np.einsum("kij,bkj->bki", Bm, X) + cd * np.einsum("kij,bkj->bki", A, X)
         if Xd is not None:
             f = f + c * np.einsum("kij,bkj->bki", A - A.transpose(0, 2, 1), Xd)
-        return self._scatter(f.reshape(X.shape[0], -1, 2, 2))
+        return self.scatter(f.reshape(X.shape[0], -1, 2, 2))
 
     def gravity_force(self, g: np.ndarray) -> np.ndarray:
         """(n_dof,) the generalized weight of the lumped masses for the gravity vector g (2,)."""
@@ -726,7 +726,7 @@ class SpringSpans:
         every = len(self.span) == self.n_span and np.array_equal(self.span, np.arange(self.n_span))
         return slice(None) if every else self.span
 
-    def _scatter(self, x: np.ndarray) -> np.ndarray:
+    def scatter(self, x: np.ndarray) -> np.ndarray:
         """(B, k, ...) -> (B, n_span, ...), zeros for the other spans."""
         if isinstance(self._spans, slice):
             return x
@@ -751,7 +751,7 @@ class SpringSpans:
     def end_inertia(self, Xa: np.ndarray) -> np.ndarray:
         """(B, n_span, 2, 2) inertia forces of the lumped masses, end accelerations Xa (B, k, 4)."""
         m = self.end_mass[None, :, None]
-        return self._scatter(np.stack([m * Xa[..., 0:2], m * Xa[..., 2:4]], axis=2))
+        return self.scatter(np.stack([m * Xa[..., 0:2], m * Xa[..., 2:4]], axis=2))
 
     def end_tensions(self, X: np.ndarray, F_end: np.ndarray) -> np.ndarray:
         """(B, n_span, 2) span tensions at the ends of the spring spans (zeros elsewhere) from the end
@@ -1483,9 +1483,9 @@ class System:
             shapes = joint
         elif self.arms is not None:
             shapes = self.arms.expand_motion(np.zeros(self.n_dof) if q is None else q, shapes)
-        span_long = np.zeros((n_modes, belt.n_span))
-        span_trans = np.zeros((n_modes, belt.n_span))
         if el.n_elem:
+            span_long = np.zeros((n_modes, belt.n_span))
+            span_trans = np.zeros((n_modes, belt.n_span))
             de = (belt.element_coordinates_batch(shapes, offset=False) if motion is None else motion).reshape(
                 n_modes, el.n_elem, 4, 2)
             t = belt.reference_direction[belt.elem_span]
@@ -1502,8 +1502,11 @@ class System:
         if self.springs is not None:  # the lumped masses of the spring spans, along and across the chord
             sp = self.springs
             sa, sb = sp.kinetic_energy_split(sp.positions_batch(shapes, offset=False))
-            span_long[:, sp.span_rows] += sa
-            span_trans[:, sp.span_rows] += sb
+            if el.n_elem:
+                span_long[:, sp.span_rows] += sa
+                span_trans[:, sp.span_rows] += sb
+            else:  # every span a spring
+                span_long, span_trans = sp.scatter(sa), sp.scatter(sb)
         kinds = np.zeros((n_modes, len(ENERGY_KINDS)))
         kinds[:, 2] = span_long.sum(axis=1)
         kinds[:, 3] = span_trans.sum(axis=1)
