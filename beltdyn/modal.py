@@ -119,7 +119,7 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
         Md = M if model.dense else M.toarray()
         try:
             if n <= 200:  # divide and conquer on the full problem beats the subset driver here
-                w, v = eigh(Kd, Md, driver="gvd", check_finite=False)
+                w, v = _generalized_eigh(Kd, Md)
                 w, v = w[:n_want], v[:, :n_want]
             else:
                 w, v = eigh(Kd, Md, subset_by_index=[0, n_want - 1], check_finite=False)
@@ -147,11 +147,10 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
         order = np.argsort(w)
         w, v = w[order], v[:, order]
         name = "sparse"
-    Kdiag = np.asarray(K.diagonal() if not model.dense else np.diag(K))
-    Mdiag = np.asarray(M.diagonal() if not model.dense else np.diag(M))
-    lam_max = float(np.max(Kdiag / Mdiag))
+    Kdiag, Mdiag = np.asarray(K.diagonal()), np.asarray(M.diagonal())  # (dense or sparse)
+    lam_max = float((Kdiag / Mdiag).max())
     tol = zero_tolerance(lam_max)
-    if np.any(w < -tol) :
+    if (w < -tol).any():
         i = int(np.argmin(w))
         dof = model.dof_labels[int(np.argmax(np.abs(v[:, i])))]
         raise SolverError(
@@ -161,17 +160,43 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     n_rigid = int(rigid.sum())
     if n_rigid > 1:  # beyond the belt turning with the pulleys: a mechanism (no stiffness somewhere)
         _mechanism(model, v[:, rigid], Mdiag)
-    w_el, v_el = w[~rigid][:n_modes], v[:, ~rigid][:, :n_modes]
-    freq = np.sqrt(np.maximum(w_el, 0.0)) / (2 * np.pi)
-    shapes = v_el.T.copy()
-    belt = model.belt
-    motion = belt.element_coordinates_batch(model.expand_motion(q, shapes), offset=False)  # (modes, n_elem, 8)
-    kind, order, span, label, share, sshare = classify(model, shapes, freq, q, motion=motion)
-    mid = belt.midspan_displacement_linear(belt.element_coordinates(model.expand(q)), motion)
+    elastic = np.flatnonzero(~rigid)[:n_modes]
+    freq = np.sqrt(np.maximum(w[elastic], 0.0)) / (2 * np.pi)
+    shapes = v.T[elastic]  # (a copy: fancy indexing)
+    kind, order, span, label, share, sshare, mid = _shape_outputs(model, q, shapes, freq)
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order, span=span, label=label, energy_share=share,
         span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid, rigid_frequency=np.sqrt(np.abs(w[rigid])) / (2 * np.pi),
         solver=name)
+
+
+def _shape_outputs(model: System, q: np.ndarray, shapes: np.ndarray, freq: np.ndarray):
+    """`classify`'s outputs of the shapes (n_modes, n_dof) about q, and their mid-span displacements
+    (n_modes, n_span)."""
+    belt = model.belt
+    joint = model.expand_motion(q, shapes)  # (modes, n_p)
+    motion = belt.element_coordinates_batch(joint, offset=False)  # (modes, n_elem, 8)
+    out = classify(model, shapes, freq, q, motion=motion, joint=joint)
+    E = belt.element_coordinates(model.expand(q)) if belt.elements.n_elem else belt.e0  # (n_elem, 8)
+    return *out, belt.midspan_displacement_linear(E, motion)
+
+
+def _generalized_eigh(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """All eigenpairs (ascending, x^T M x = 1) of K x = lam M x, K (n, n) symmetric, M positive definite:
+    LAPACK dsygvd (divide and conquer), the call scipy.linalg.eigh(K, M, driver="gvd") makes, without
+    its argument checks (a quarter of the modal analysis of an 8-DOF drive). Raises LinAlgError as eigh."""
+    from scipy.linalg.lapack import dsygvd
+
+    w, v, info = dsygvd(K, M, itype=1, jobz="V", uplo="L")
+    if info == 0:
+        return w, v
+    n = K.shape[0]
+    if info > n:
+        raise np.linalg.LinAlgError(f"The leading minor of order {info - n} of B is not positive definite. The "
+                                    f"factorization of B could not be completed and no eigenvalues or "
+                                    f"eigenvectors were computed.")
+    raise np.linalg.LinAlgError(f"The algorithm failed to compute an eigenvalue while working on the submatrix "
+                                f"lying in rows and columns {info}/{n + 1} through mod({info},{n + 1}).")
 
 
 def _symmetric_shift_invert(M, lu, sigma: float, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -374,11 +399,8 @@ def _solve_running(model: System, q: np.ndarray, *, n_modes: int, solver: str) -
     growth = np.where(np.abs(sel.real) > eps[pick], sel.real, 0.0)
     stability = tuple("divergence" if d else ("flutter" if g > 0 else "stable")
                       for d, g in zip(diverging[pick], growth))
-    belt = model.belt
-    motion = belt.element_coordinates_batch(model.expand_motion(q, shapes), offset=False)
-    kind, order_, span, label, share, sshare = classify(model, shapes, freq, q, motion=motion)
+    kind, order_, span, label, share, sshare, mid = _shape_outputs(model, q, shapes, freq)
     label = tuple(lab if st == "stable" else f"{lab} ({st})" for lab, st in zip(label, stability))
-    mid = belt.midspan_displacement_linear(belt.element_coordinates(model.expand(q)), motion)
     critical = critical_speed(model, q) if any(st != "stable" for st in stability) else float("nan")
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order_, span=span, label=label, energy_share=share,
@@ -409,21 +431,22 @@ def critical_speed(model: System, q: np.ndarray) -> float:
     return float(1.0 / np.sqrt(top)) if top > 0 else float("inf")
 
 
-def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None, *, motion=None
+def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None, *, motion=None, joint=None
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Kinetic-energy shares of mass-normalized shapes (n_modes, n_dof), from the system's components.
+    """Kinetic-energy shares of mass-normalized shapes (n_modes, n_dof), from the system's components
+    (motion, joint: the shapes' element coordinates and joint coordinates, if at hand).
 
     Returns shares (n_modes, len(KINDS)), span_long (n_modes, n_span), span_trans (n_modes, n_span)
     (all divided by the total) and the transverse nodal motion (n_modes, n_elem, 4).
     """
     if np.iscomplexobj(shapes):  # the energy of Re phi and Im phi together (phi^H M phi), in one call
         k = shapes.shape[0]
-        parts = model.kinetic_energy_shares(np.concatenate([shapes.real, shapes.imag]), q,
-                                            motion=None if motion is None else np.concatenate([motion.real, motion.imag]))
+        both = lambda x: None if x is None else np.concatenate([x.real, x.imag])  # noqa: E731
+        parts = model.kinetic_energy_shares(both(shapes), q, motion=both(motion), joint=both(joint))
         kinds, span_long, span_trans = (x[:k] + x[k:] for x in parts[:3])
         b = parts[3][:k] + 1j * parts[3][k:]
     else:
-        kinds, span_long, span_trans, b = model.kinetic_energy_shares(shapes, q, motion=motion)
+        kinds, span_long, span_trans, b = model.kinetic_energy_shares(shapes, q, motion=motion, joint=joint)
     total = kinds.sum(axis=1, keepdims=True)
     total[total == 0] = 1.0
     return kinds / total, span_long / total, span_trans / total, b
@@ -472,29 +495,33 @@ def half_waves_real(W: np.ndarray, threshold: float = 0.05) -> np.ndarray:
     return np.count_nonzero((s[:, 1:] != s[:, :-1]) & (s[:, :-1] != 0.0), axis=1) + 1
 
 
-def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray | None = None, *, motion=None):
+def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray | None = None, *, motion=None,
+             joint=None):
     """kind, order, span, label, energy shares and span shares of each mode. A mode whose largest
     share stays below 1/2 is "mixed" and its label names its two largest parts (e.g. the tensioner
-    arm coupled with the transverse motion of an adjacent span)."""
-    shares, span_long, span_trans, b = energy_shares(model, shapes, q, motion=motion)
+    arm coupled with the transverse motion of an adjacent span). motion, joint: as `energy_shares`."""
+    shares, span_long, span_trans, b = energy_shares(model, shapes, q, motion=motion, joint=joint)
     n_modes = shapes.shape[0]
     wsamp = (np.matmul(model.belt.sampling_table(8)[None], b[..., None])[..., 0]  # (k, n_elem, 8) samples
              if model.belt.elements.n_elem else None)
     kinds, orders, spans, labels = [], np.zeros(n_modes, dtype=int), np.zeros(n_modes, dtype=int), []
     rank: dict[str, int] = {}
     names = model.layout
-    best_of = np.argmax(shares, axis=1)
-    kind_of = [KINDS[b] if shares[k, b] >= 0.5 else "mixed" for k, b in enumerate(best_of.tolist())]
-    trans_span = np.argmax(span_trans, axis=1) if n_modes else np.zeros(0, dtype=int)
-    waves = np.ones(n_modes, dtype=int)  # a spring span has no transverse shape of its own: its lumped
-    is_trans = np.array([k == "transverse" for k in kind_of], dtype=bool)  # end masses swing with the pulleys
-    for s in np.unique(trans_span[is_trans]).tolist():  # each span's transverse modes at once
-        els = model.belt.span_elements[s]
-        ks = np.flatnonzero(is_trans & (trans_span == s))
-        if not len(els):
-            continue
-        W = wsamp[ks][:, els].reshape(len(ks), -1)
-        waves[ks] = [half_waves(w) for w in W] if np.iscomplexobj(W) else half_waves_real(W)  # travelling: envelopes
+    best = shares.max(axis=1, initial=-np.inf).tolist()
+    kind_of = [KINDS[b] if x >= 0.5 else "mixed" for b, x in zip(np.argmax(shares, axis=1).tolist(), best)]
+    waves = [1] * n_modes  # a spring span has no transverse shape of its own: its lumped end masses swing with the pulleys
+    if "transverse" in kind_of:
+        trans_span = np.argmax(span_trans, axis=1)
+        is_trans = np.array([k == "transverse" for k in kind_of], dtype=bool)
+        for s in np.unique(trans_span[is_trans]).tolist():  # each span's transverse modes at once
+            els = model.belt.span_elements[s]
+            ks = np.flatnonzero(is_trans & (trans_span == s))
+            if not len(els):
+                continue
+            W = wsamp[ks][:, els].reshape(len(ks), -1)
+            got = [half_waves(w) for w in W] if np.iscomplexobj(W) else half_waves_real(W).tolist()  # travelling: envelopes
+            for k, w in zip(ks.tolist(), got):
+                waves[k] = w
     for k in range(n_modes):
         kind = kind_of[k]
         span = 0

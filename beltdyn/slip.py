@@ -22,26 +22,26 @@ import numpy as np
 def pulley_tensions(span_tension: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(T_in, T_out) (..., n): the tension of the span arriving at each pulley (its end) and of the
     span leaving it (its start), from span_tension (..., n_span, 2) (span s runs pulley s -> s + 1)."""
-    t_in = np.roll(span_tension[..., 1], 1, axis=-1)
-    t_out = span_tension[..., 0]
-    return t_in, t_out
+    t_end = span_tension[..., 1]
+    return np.concatenate((t_end[..., -1:], t_end[..., :-1]), axis=-1), span_tension[..., 0]
 
 
 def required_friction(span_tension: np.ndarray, wrap: np.ndarray, centrifugal: float = 0.0) -> np.ndarray:
     """mu_required (..., n) = ln(T_tight / T_slack) / wrap, inf where a span is slack."""
     t_in, t_out = pulley_tensions(span_tension)
-    t_in, t_out = t_in - centrifugal, t_out - centrifugal
+    if centrifugal:
+        t_in, t_out = t_in - centrifugal, t_out - centrifugal
     tight, slack = np.maximum(t_in, t_out), np.minimum(t_in, t_out)
+    taut = slack > 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
-        mu = np.where(slack > 0.0, np.log(np.where(slack > 0.0, tight / np.where(slack > 0, slack, 1.0), 1.0))
-                      / np.asarray(wrap), np.inf)
-    return mu
+        return np.where(taut, np.log(np.where(taut, tight / np.where(taut, slack, 1.0), 1.0)) / np.asarray(wrap), np.inf)
 
 
 def slip_margin(mu_required: np.ndarray, friction: np.ndarray) -> np.ndarray:
     """friction / mu_required (..., n): inf where no ratio is needed, 0 where slack, NaN without friction."""
     f = np.asarray(friction, dtype=float)
+    needed = mu_required > 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
-        m = np.where(mu_required > 0.0, f / np.where(mu_required > 0.0, mu_required, 1.0), np.inf)
+        m = np.where(needed, f / np.where(needed, mu_required, 1.0), np.inf)
     m = np.where(np.isinf(mu_required), 0.0, m)
     return np.where(np.isnan(f), np.nan, m)

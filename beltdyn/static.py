@@ -663,8 +663,9 @@ def _check_slack(system: System, st: StaticResult) -> None:
     """A span in compression at equilibrium: the belt would go slack (it carries no compression; the
     model's bending stiffness holds it only numerically). A named failure, never a silent result."""
     T = st.span_tension
-    worst = int(np.argmin(T.min(axis=1)))
-    if T[worst].min() >= -1e-6 * float(np.abs(T).max(initial=1.0)):
+    lowest = T.min(axis=1)
+    worst = int(lowest.argmin())
+    if lowest[worst] >= -1e-6 * float(np.abs(T).max(initial=1.0)):
         return
     loads = " under the accessory torques" if system.loads is not None and np.any(system.loads) else ""
     raise SolverError(f"span {system.layout.span_name(worst)} is compressed ({T[worst].min():.4g} N){loads}: the belt "
@@ -701,12 +702,14 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *
     `solve_equilibrium`)."""
     lay = model.layout
     known = known or {}
-    hub, span_tension = model.joint_reactions(q)
+    p = model.expand(q)
+    hub, span_tension = model.joint_reactions(q, p=p)
     if "driver_torque" in known:
         driver_torque = known["driver_torque"] - float(preload[driver_dof])
     else:
         driver_torque = float((model.equilibrium(q, tangent=False)[0] - preload)[driver_dof])
-    T_mean = known["mean_tension"] if "mean_tension" in known else model.mean_tension_and_gradient(q)[0]
+    T_mean = (known["mean_tension"] if "mean_tension" in known else
+              model.mean_tension_and_gradient(q, gradient=False, p=p)[0])
     a = lay.adjust_index
     if a is None:
         offset = 0.0
@@ -717,15 +720,13 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *
     from .slip import required_friction, slip_margin
 
     n = lay.n
-    arm_angle, arm_torque, arm_free = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
-    pivot = np.full((n, 2), np.nan)
+    arm_angle = np.full(n, np.nan)
+    arm_torque, arm_free, pivot = arm_angle.copy(), arm_angle.copy(), np.full((n, 2), np.nan)
     if model.arms is not None:
         arms = model.arms
-        for k, d in enumerate(arms.dof):
-            j = next(i for i in range(n) if model.trans_dof[i] and model.trans_dof[i][0] == arms.slot[k])
+        for k, (j, spring, weight) in enumerate(model.arm_statics):
+            d = int(arms.dof[k])
             arm_angle[j] = float(arms.angle[k] + q[d])
-            spring = next((c for c in model.components if c.dofs.tolist() == [int(d)] and c.stiffness is not None),
-                          None)
             if spring is not None:
                 k_s = float(spring.stiffness[0, 0])
                 free = float(spring.free[0]) if spring.free is not None else 0.0
@@ -733,26 +734,19 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *
                 arm_free[j] = arm_angle[j] + arm_torque[j] / k_s
             else:  # no spring: a constant preload torque (adjust mode), if any
                 arm_torque[j] = float(preload[d])
-            weight = np.zeros(2)
-            for c in model.components:
-                if c.weight is not None:
-                    for i, dd in enumerate(c.dofs):
-                        if dd in (arms.slot[k], arms.slot[k] + 1):
-                            weight += c.weight[i] * model.gravity[int(dd - arms.slot[k])]
             pivot[j] = -(hub[j] + weight)  # statics of arm + pulley: pivot + belt + weight = 0
-    applied = np.zeros(n)
-    if model.loads is not None:
-        applied = model.loads[model.rot_dof].copy()
-    friction = model.pulley_friction if model.pulley_friction is not None else np.full(n, np.nan)
+    applied = np.zeros(n) if model.loads is None else model.loads[model.rot_dof]
+    friction = model.pulley_friction
     mu_req = required_friction(span_tension, lay.wrap_angle)
     return StaticResult(
         q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
-        hub_load=hub, pulley_center=model.pulley_centers(q), pulley_rotation=q[model.rot_dof].copy(),
+        hub_load=hub, pulley_center=model.pulley_centers(q, p=p), pulley_rotation=q[model.rot_dof],
         driver_torque=driver_torque, adjust_offset=offset,
         residual_history=np.array(hist_r), load_factor_history=np.array(hist_l), iterations=iterations,
         tension_mode=model.tension.mode, arm_angle=arm_angle, arm_torque=arm_torque, arm_free_angle=arm_free,
         pivot_reaction=pivot, applied_torque=applied, required_friction=mu_req,
-        slip_margin=slip_margin(mu_req, friction) if not np.all(np.isnan(friction)) else np.full(n, np.nan))
+        slip_margin=(slip_margin(mu_req, friction) if friction is not None and not np.isnan(friction).all()
+                     else np.full(n, np.nan)))
 
 
 # ------------------------------------------------------------------------------------ solved geometry

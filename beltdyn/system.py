@@ -219,6 +219,15 @@ class BearingSprings(LinearComponent):
 
 
 # ------------------------------------------------------------------------------------ the belt
+_ROTATE = np.array([1.0, 1.0, -1.0, 1.0])  # (t_x, t_y, t_y, t_x) -> (t, z x t)
+
+
+def _plus(a: np.ndarray | None, b: np.ndarray) -> np.ndarray:
+    """a + b, or b without a (the flexible spans' and the spring spans' parts of a per-span output:
+    every span is one or the other)."""
+    return b if a is None else a + b
+
+
 def _transposed(spans) -> np.ndarray:
     """spans.T (k, r, m) transposed to (k, m, r), contiguous, cached on the (frozen) spans object."""
     tt = spans.__dict__.get("_Tt")
@@ -313,12 +322,16 @@ class BeltSpans:
     # -------------------------------------------------------------------- coordinates
     def element_coordinates(self, q: np.ndarray) -> np.ndarray:
         """e (n_elem, 8) = e0 + T q[idx]."""
+        if not len(self.idx):  # every span a spring
+            return np.zeros((0, 8))
         qe = np.append(q, 0.0)[self.idx]
         return self.e0 + np.matmul(self.T, qe[:, :, None])[:, :, 0]
 
     def element_coordinates_batch(self, q: np.ndarray, *, offset: bool = True) -> np.ndarray:
         """(B, n_elem, 8) element coordinates (velocities with offset=False) of states q (B, n_dof): the
         interior elements' (T = [I8 | 0], tsel < 0) gathered, the joint elements' through T."""
+        if not len(self.idx):  # every span a spring
+            return np.zeros((q.shape[0], 0, 8))
         q_ext = np.concatenate([q, np.zeros((q.shape[0], 1))], axis=1)
         E = q_ext[:, self.idx[:, :8]]
         joint = np.flatnonzero(self.tsel >= 0)
@@ -592,11 +605,16 @@ class SpringSpans:
         X = np.einsum("kim,bkm->bki", self.T, Pe)
         return X + self.x0 if offset else X
 
-    def axial(self, X: np.ndarray):
-        """u (..., k, 2), l, lam, eps, N (..., k) at end positions X (..., k, 4)."""
+    @staticmethod
+    def chord(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """u (..., k, 2), l (..., k): the chords' unit direction and length at end positions X (..., k, 4)."""
         d = X[..., 2:4] - X[..., 0:2]
         l = np.sqrt(np.einsum("...d,...d->...", d, d))
-        u = d / l[..., None]
+        return d / l[..., None], l
+
+    def axial(self, X: np.ndarray):
+        """u (..., k, 2), l, lam, eps, N (..., k) at end positions X (..., k, 4)."""
+        u, l = self.chord(X)
         lam = l / self.reference_length
         eps = 0.5 * (lam * lam - 1.0)
         return u, l, lam, eps, self.EA * eps * lam
@@ -701,7 +719,7 @@ class SpringSpans:
         f = -c * c * np.einsum("kij,bkj->bki", Bm, X) + cd * np.einsum("kij,bkj->bki", A, X)
         if Xd is not None:
             f = f + c * np.einsum("kij,bkj->bki", A - A.transpose(0, 2, 1), Xd)
-        return self._scatter(f.reshape(X.shape[0], -1, 2, 2))
+        return self.scatter(f.reshape(X.shape[0], -1, 2, 2))
 
     def gravity_force(self, g: np.ndarray) -> np.ndarray:
         """(n_dof,) the generalized weight of the lumped masses for the gravity vector g (2,)."""
@@ -712,15 +730,31 @@ class SpringSpans:
         _, _, _, eps, _ = self.axial(self.positions(p))
         return float((0.5 * self.EA * self.reference_length * eps * eps).sum())
 
-    def tension_integral(self, p: np.ndarray) -> tuple[float, np.ndarray]:
-        """sum_k N_k L_k (N m) and its gradient (n_dof,): the springs' share of the length-weighted mean."""
+    def tension_integral(self, p: np.ndarray, *, gradient: bool = True) -> tuple[float, np.ndarray | None]:
+        """sum_k N_k L_k (N m) and its gradient (n_dof,) (None without gradient): the springs' share of the
+        length-weighted mean."""
         u, _, lam, _, N = self.axial(self.positions(p))
+        if not gradient:
+            return float((N * self.reference_length).sum()), None
         k_a = self.EA * (3.0 * lam * lam - 1.0) / (2.0 * self.reference_length)
         g = (k_a * self.reference_length)[:, None] * u
         return float((N * self.reference_length).sum()), self.reduce_vector(np.concatenate([-g, g], axis=1))
 
-    def _scatter(self, x: np.ndarray) -> np.ndarray:
+    @property
+    def span_rows(self) -> slice | np.ndarray:
+        """Where the springs' rows go among the spans: `span`, or a slice when every span is a spring
+        (cached)."""
+        return self._spans
+
+    @functools.cached_property  # (a "_" name: not a field, which `System.with_belt` copies)
+    def _spans(self) -> slice | np.ndarray:
+        every = len(self.span) == self.n_span and np.array_equal(self.span, np.arange(self.n_span))
+        return slice(None) if every else self.span
+
+    def scatter(self, x: np.ndarray) -> np.ndarray:
         """(B, k, ...) -> (B, n_span, ...), zeros for the other spans."""
+        if isinstance(self._spans, slice):
+            return x
         out = np.zeros((x.shape[0], self.n_span) + x.shape[2:])
         out[:, self.span] = x
         return out
@@ -733,31 +767,34 @@ class SpringSpans:
         if Xd is not None and self.damping_axial > 0.0:
             N = N + self.damping_force(X, Xd)
         w = self.end_mass[None, :, None] * np.asarray(gravity, dtype=float)
-        F = np.stack([-N[..., None] * u - w, N[..., None] * u - w], axis=2)
-        return self._scatter(F)
+        Nu = N[..., None] * u
+        out = np.zeros((X.shape[0], self.n_span, 2, 2))
+        out[:, self._spans, 0] = -Nu - w
+        out[:, self._spans, 1] = Nu - w
+        return out
 
     def end_inertia(self, Xa: np.ndarray) -> np.ndarray:
         """(B, n_span, 2, 2) inertia forces of the lumped masses, end accelerations Xa (B, k, 4)."""
         m = self.end_mass[None, :, None]
-        return self._scatter(np.stack([m * Xa[..., 0:2], m * Xa[..., 2:4]], axis=2))
+        return self.scatter(np.stack([m * Xa[..., 0:2], m * Xa[..., 2:4]], axis=2))
 
     def end_tensions(self, X: np.ndarray, F_end: np.ndarray) -> np.ndarray:
         """(B, n_span, 2) span tensions at the ends of the spring spans (zeros elsewhere) from the end
         forces F_end (B, n_span, 2, 2): N_start = -F_start . u, N_end = F_end . u."""
-        u = self.axial(X)[0]
-        F = F_end[:, self.span]
-        return self._scatter(np.stack([-np.einsum("bkd,bkd->bk", F[:, :, 0], u),
-                                       np.einsum("bkd,bkd->bk", F[:, :, 1], u)], axis=-1))
+        u = self.chord(X)[0]
+        F = F_end[:, self._spans]
+        out = np.zeros((X.shape[0], self.n_span, 2))
+        out[:, self._spans, 0] = -np.einsum("bkd,bkd->bk", F[:, :, 0], u)
+        out[:, self._spans, 1] = np.einsum("bkd,bkd->bk", F[:, :, 1], u)
+        return out
 
     def kinetic_energy_split(self, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(B, k) each: the lumped masses' quadratic energy form dX^T M dX along and across the chord
         at p = 0 for end motions dX (B, k, 4) (as the belt's share splits, `System.kinetic_energy_shares`)."""
-        t = self.reference_direction
-        nrm = np.column_stack([-t[:, 1], t[:, 0]])
-        m = self.end_mass[None, :]
-        a = np.einsum("bkjd,kd->bkj", dX.reshape(dX.shape[0], -1, 2, 2), t)
-        b = np.einsum("bkjd,kd->bkj", dX.reshape(dX.shape[0], -1, 2, 2), nrm)
-        return m * (a * a).sum(axis=2), m * (b * b).sum(axis=2)
+        frame = (self.reference_direction[:, [0, 1, 1, 0]] * _ROTATE).reshape(-1, 2, 2)  # (k, t|n, 2): n = z x t
+        ab = np.einsum("bkjd,kcd->bkcj", dX.reshape(dX.shape[0], -1, 2, 2), frame)  # (B, k, t|n, end)
+        e = self.end_mass[:, None] * (ab * ab).sum(axis=3)
+        return e[..., 0], e[..., 1]
 
 
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
@@ -1002,16 +1039,18 @@ class ArmJoints:
     def expand(self, q: np.ndarray) -> np.ndarray:
         """p (..., n_p) from q (..., n_q)."""
         phi = self.phi(q)
-        trig = self.__dict__.get("_trig0")
-        if trig is None:  # cos and sin of the arm angles at q = 0 (cached)
-            trig = (np.cos(self.angle), np.sin(self.angle))
-            object.__setattr__(self, "_trig0", trig)
-        u = self.length[:, None] * _last_pair(np.cos(phi) - trig[0], np.sin(phi) - trig[1])
+        cos0, sin0 = self._reference_cos_sin
+        u = self.length[:, None] * _last_pair(np.cos(phi) - cos0, np.sin(phi) - sin0)
         return np.concatenate([q, u.reshape(*q.shape[:-1], -1)], axis=-1)
+
+    @functools.cached_property
+    def _reference_cos_sin(self) -> tuple[np.ndarray, np.ndarray]:
+        """cos and sin (a,) of the arm angles at q = 0."""
+        return np.cos(self.angle), np.sin(self.angle)
 
     def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
         """J(q) dq (..., n_p): velocities, or mode shapes about q."""
-        du = np.einsum("...kd,...k->...kd", self.first(self.phi(q)), dq[..., self.dof])
+        du = self.first(self.phi(q)) * dq[..., self.dof, None]
         return np.concatenate([dq, du.reshape(*dq.shape[:-1], -1)], axis=-1)
 
     def expand_acceleration(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
@@ -1060,13 +1099,7 @@ class ArmJoints:
     def _project_matrix(self, dc: np.ndarray, K, geo: np.ndarray | None, *, dense: bool):
         """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`)."""
         if dense and not hasattr(K, "tocsr"):
-            J = self.__dict__.get("_J0")
-            if J is None:  # the jacobian's constant part: identity on q (cached)
-                J = np.zeros((self.n_p, self.n_q))
-                J[np.arange(self.n_q), np.arange(self.n_q)] = 1.0
-                J.setflags(write=False)
-                object.__setattr__(self, "_J0", J)
-            J = J.copy()  # the jacobian, dense: dc/dphi in the arm columns
+            J = np.eye(self.n_p, self.n_q)  # the jacobian, dense: identity on q, dc/dphi in the arm columns
             J[self.slot, self.dof], J[self.slot + 1, self.dof] = dc[:, 0], dc[:, 1]
             out = J.T @ np.asarray(K) @ J
             if geo is not None:
@@ -1389,19 +1422,23 @@ class System:
             return self.mass
         return self.project_matrix(np.zeros(self.n_dof) if q is None else q, self.mass)
 
-    def mean_tension_and_gradient(self, q: np.ndarray) -> tuple[float, np.ndarray]:
-        """Length-weighted mean true axial force over all spans (N), ANCF and spring, and its gradient."""
-        p = self.expand(q)
+    def mean_tension_and_gradient(self, q: np.ndarray, *, gradient: bool = True, p: np.ndarray | None = None
+                                  ) -> tuple[float, np.ndarray | None]:
+        """Length-weighted mean true axial force over all spans (N), ANCF and spring, and its gradient
+        (n_dof,) (None without gradient). p: q on the joint coordinates, if at hand."""
+        p = self.expand(q) if p is None else p
         if self.springs is None:
             T, g = self.belt.mean_tension_and_gradient(p)
         else:
             L_b = float(self.belt.elements.length.sum())
-            NL, g = self.springs.tension_integral(p)
+            NL, g = self.springs.tension_integral(p, gradient=gradient)
             if L_b > 0.0:
                 T_b, g_b = self.belt.mean_tension_and_gradient(p)
-                NL, g = NL + T_b * L_b, g + g_b * L_b
+                NL, g = NL + T_b * L_b, (g + g_b * L_b if gradient else None)
             total = L_b + float(self.springs.reference_length.sum())
-            T, g = NL / total, g / total
+            T, g = NL / total, (g / total if gradient else None)
+        if not gradient:
+            return T, None
         return T, (g if self.arms is None else self.arms.project(q, g))
 
     def span_models(self) -> tuple[tuple[str, ...], np.ndarray]:
@@ -1425,62 +1462,91 @@ class System:
         return max(ea)
 
     def span_end_forces(self, p: np.ndarray, vp: np.ndarray | None, E: np.ndarray | None = None,
-                        Ed: np.ndarray | None = None) -> np.ndarray:
+                        Ed: np.ndarray | None = None, X: np.ndarray | None = None) -> np.ndarray:
         """(B, n_span, 2, 2) force of each span on its end points for states p, vp (B, n_p) (as
-        `BeltSpans.end_forces`; E, Ed the belt's element states if at hand)."""
+        `BeltSpans.end_forces`; E, Ed the belt's element states, X the spring spans' end positions, if
+        at hand)."""
         b = self.belt
-        if b.elements.n_elem == 0:  # every span a spring
-            F = np.zeros((p.shape[0], b.n_span, 2, 2))
-        else:
+        F = None
+        if b.elements.n_elem:
             E = b.element_coordinates_batch(p) if E is None else E
             if vp is not None and Ed is None and (b.damping_axial > 0.0 or b.damping_bending > 0.0):
                 Ed = b.element_coordinates_batch(vp, offset=False)
             F = b.end_forces(E, Ed, self.gravity)  # (Ed is read with belt damping only)
         if self.springs is not None:
             sp = self.springs
-            F = F + sp.end_forces(sp.positions_batch(p), None if vp is None else sp.positions_batch(vp, offset=False),
-                                  self.gravity)
+            F = _plus(F, sp.end_forces(sp.positions_batch(p) if X is None else X,
+                                       None if vp is None else sp.positions_batch(vp, offset=False), self.gravity))
         return F
 
-    def span_end_tensions(self, p: np.ndarray, F: np.ndarray, E: np.ndarray | None = None) -> np.ndarray:
-        """(B, n_span, 2) tensions at the span ends from their end forces F (`span_end_forces`)."""
-        if self.belt.elements.n_elem == 0:
-            T = np.zeros(F.shape[:2] + (2,))
-        else:
+    def span_end_tensions(self, p: np.ndarray, F: np.ndarray, E: np.ndarray | None = None,
+                          X: np.ndarray | None = None) -> np.ndarray:
+        """(B, n_span, 2) tensions at the span ends from their end forces F (`span_end_forces`; E, X as
+        there)."""
+        T = None
+        if self.belt.elements.n_elem:
             T = self.belt.end_tensions(self.belt.element_coordinates_batch(p) if E is None else E, F)
         if self.springs is not None:
-            T = T + self.springs.end_tensions(self.springs.positions_batch(p), F)
+            T = _plus(T, self.springs.end_tensions(self.springs.positions_batch(p) if X is None else X, F))
         return T
 
     def span_end_inertia(self, ap: np.ndarray) -> np.ndarray:
         """(B, n_span, 2, 2) inertia forces of the span-end masses for accelerations ap (B, n_p)."""
-        if self.belt.elements.n_elem == 0:
-            F = np.zeros((ap.shape[0], self.belt.n_span, 2, 2))
-        else:
+        F = None
+        if self.belt.elements.n_elem:
             F = self.belt.end_inertia(self.belt.element_coordinates_batch(ap, offset=False))
         if self.springs is not None:
-            F = F + self.springs.end_inertia(self.springs.positions_batch(ap, offset=False))
+            F = _plus(F, self.springs.end_inertia(self.springs.positions_batch(ap, offset=False)))
         return F
 
-    def joint_reactions(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def joint_reactions(self, q: np.ndarray, *, p: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Static hub loads (n_pulley, 2), N, the force of the belt on each pulley, and span tensions
         (n_span, 2), N, at the start and end of each span, from the joint reactions (exact for the
-        discrete equilibrium even where the strain is tiny)."""
-        p = self.expand(q)[None]
+        discrete equilibrium even where the strain is tiny). p: q on the joint coordinates, if at hand."""
+        p = (self.expand(q) if p is None else p)[None]
         E = self.belt.element_coordinates(p[0])[None]
-        F = self.span_end_forces(p, None, E)
+        X = None if self.springs is None else self.springs.positions_batch(p)
+        F = self.span_end_forces(p, None, E, X=X)
         hub = F if not self.belt_speed else F + self.span_transport_forces(E, None, self.belt_speed, p=p)
-        return self.hub_loads(hub)[0], self.span_end_tensions(p, F, E)[0]
+        return self.hub_loads(hub)[0], self.span_end_tensions(p, F, E, X=X)[0]
 
     def hub_loads(self, F_end: np.ndarray) -> np.ndarray:
         """(B, n_pulley, 2) force of the belt on each pulley from the span end-node forces."""
         n = self.layout.n
-        hub = -F_end[:, :, 0].copy()
-        hub -= np.roll(F_end[:, :, 1], 1, axis=1)  # span s ends on pulley s + 1
+        hub = -F_end[:, :, 0]
+        hub[:, 1:] -= F_end[:, :-1, 1]  # span s ends on pulley s + 1
+        hub[:, 0] -= F_end[:, -1, 1]
         return hub[:, :n]
 
-    def pulley_centers(self, q: np.ndarray) -> np.ndarray:
-        q = self.expand(q)
+    @property
+    def arm_statics(self) -> tuple[tuple[int, LinearComponent | None, np.ndarray], ...]:
+        """Per tensioner arm: its pulley's index, the arm's spring (the component on the arm angle alone
+        with a stiffness; None: none) and the weight (2,) N of what the arm carries (its pulley's
+        components' weight on the pulley's offsets at this gravity). Cached."""
+        return self._arm_statics
+
+    @functools.cached_property  # (a "_" name: not a field, which `with_belt` and `with_speed` copy)
+    def _arm_statics(self) -> tuple[tuple[int, LinearComponent | None, np.ndarray], ...]:
+        arms = self.arms
+        if arms is None:
+            return ()
+        out = []
+        dofs = [c.dofs.tolist() for c in self.components]
+        for d, slot in zip(arms.dof.tolist(), arms.slot.tolist()):
+            j = next(i for i, dd in enumerate(self.trans_dof) if dd and dd[0] == slot)
+            spring = next((c for c, cd in zip(self.components, dofs) if cd == [d] and c.stiffness is not None), None)
+            weight = np.zeros(2)
+            for c, cd in zip(self.components, dofs):
+                if c.weight is not None:
+                    for i, dd in enumerate(cd):
+                        if dd in (slot, slot + 1):
+                            weight += c.weight[i] * self.gravity[dd - slot]
+            out.append((j, spring, weight))
+        return tuple(out)
+
+    def pulley_centers(self, q: np.ndarray, *, p: np.ndarray | None = None) -> np.ndarray:
+        """(n_pulley, 2) the pulley centres at q (m); p: q on the joint coordinates, if at hand."""
+        q = self.expand(q) if p is None else p
         c = self.layout.center.copy()
         for j, (dofs, dirs) in enumerate(zip(self.trans_dof, self.trans_dir)):
             for d, v in zip(dofs, dirs):
@@ -1489,9 +1555,10 @@ class System:
 
     # -------------------------------------------------------------------- energy
     def kinetic_energy_shares(self, shapes: np.ndarray, q: np.ndarray | None = None, *,
-                              motion: np.ndarray | None = None
+                              motion: np.ndarray | None = None, joint: np.ndarray | None = None
                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Kinetic-energy split of shapes (n_modes, n_dof) about the state q by kind.
+        """Kinetic-energy split of shapes (n_modes, n_dof) about the state q by kind (motion: their
+        element coordinates, joint: the shapes on the joint coordinates p, if at hand).
 
         Returns kinds (n_modes, len(ENERGY_KINDS)) absolute (not normalized), span_long and
         span_trans (n_modes, n_span), and the transverse nodal motion b (n_modes, n_elem, 4). The
@@ -1501,33 +1568,47 @@ class System:
         belt = self.belt
         el = belt.elements
         n_modes = shapes.shape[0]
-        if self.arms is not None:
+        if joint is not None:
+            shapes = joint
+        elif self.arms is not None:
             shapes = self.arms.expand_motion(np.zeros(self.n_dof) if q is None else q, shapes)
-        de = (belt.element_coordinates_batch(shapes, offset=False) if motion is None else motion).reshape(
-            n_modes, el.n_elem, 4, 2)
-        t = belt.reference_direction[belt.elem_span]
-        nrm = belt.reference_normal[belt.elem_span]
-        a = np.einsum("kejd,ed->kej", de, t)
-        b = np.einsum("kejd,ed->kej", de, nrm)
-        Ms = el.mass.reshape(el.n_elem, 4, 2, 4, 2)[:, :, 0, :, 0]
-        ka = np.einsum("kei,eij,kej->ke", a, Ms, a)
-        kb = np.einsum("kei,eij,kej->ke", b, Ms, b)
-        span_long = np.zeros((n_modes, belt.n_span))
-        span_trans = np.zeros((n_modes, belt.n_span))
-        np.add.at(span_long.T, belt.elem_span, ka.T)
-        np.add.at(span_trans.T, belt.elem_span, kb.T)
+        if el.n_elem:
+            span_long = np.zeros((n_modes, belt.n_span))
+            span_trans = np.zeros((n_modes, belt.n_span))
+            de = (belt.element_coordinates_batch(shapes, offset=False) if motion is None else motion).reshape(
+                n_modes, el.n_elem, 4, 2)
+            t = belt.reference_direction[belt.elem_span]
+            nrm = belt.reference_normal[belt.elem_span]
+            a = np.einsum("kejd,ed->kej", de, t)
+            b = np.einsum("kejd,ed->kej", de, nrm)
+            Ms = el.mass.reshape(el.n_elem, 4, 2, 4, 2)[:, :, 0, :, 0]
+            ka = np.einsum("kei,eij,kej->ke", a, Ms, a)
+            kb = np.einsum("kei,eij,kej->ke", b, Ms, b)
+            np.add.at(span_long.T, belt.elem_span, ka.T)
+            np.add.at(span_trans.T, belt.elem_span, kb.T)
+        else:  # every span a spring
+            b = np.zeros((n_modes, 0, 4))
         if self.springs is not None:  # the lumped masses of the spring spans, along and across the chord
-            sa, sb = self.springs.kinetic_energy_split(self.springs.positions_batch(shapes, offset=False))
-            span_long[:, self.springs.span] += sa
-            span_trans[:, self.springs.span] += sb
+            sp = self.springs
+            sa, sb = sp.kinetic_energy_split(sp.positions_batch(shapes, offset=False))
+            if el.n_elem:
+                span_long[:, sp.span_rows] += sa
+                span_trans[:, sp.span_rows] += sb
+            else:  # every span a spring
+                span_long, span_trans = sp.scatter(sa), sp.scatter(sb)
         kinds = np.zeros((n_modes, len(ENERGY_KINDS)))
         kinds[:, 2] = span_long.sum(axis=1)
         kinds[:, 3] = span_trans.sum(axis=1)
-        for c in self.components:
-            if c.mass is not None and c.energy_kind:
-                x = shapes[:, c.dofs]
-                kinds[:, ENERGY_KINDS.index(c.energy_kind)] += np.einsum("ki,ij,kj->k", x, c.mass, x)
+        for dofs, mass, kind in self._energy_components:
+            x = shapes[:, dofs]
+            kinds[:, kind] += np.einsum("ki,ij,kj->k", x, mass, x)
         return kinds, span_long, span_trans, b
+
+    @functools.cached_property
+    def _energy_components(self) -> tuple[tuple[np.ndarray, np.ndarray, int], ...]:
+        """(DOFs, mass matrix, index in ENERGY_KINDS) of each component whose mass counts for a kind."""
+        return tuple((c.dofs, c.mass, ENERGY_KINDS.index(c.energy_kind)) for c in self.components
+                     if c.mass is not None and c.energy_kind)
 
 
 def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[LinearComponent, ...], *,
