@@ -113,8 +113,6 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     use_dense = model.dense if solver == "auto" else solver == "dense"
     n_want = min(n, n_modes + 2)  # one rigid mode is expected; more raise a mechanism error
     if use_dense:
-        from scipy.linalg import eigh
-
         Kd = K if model.dense else K.toarray()
         Md = M if model.dense else M.toarray()
         try:
@@ -122,6 +120,8 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
                 w, v = _generalized_eigh(Kd, Md)
                 w, v = w[:n_want], v[:, :n_want]
             else:
+                from scipy.linalg import eigh
+
                 w, v = eigh(Kd, Md, subset_by_index=[0, n_want - 1], check_finite=False)
         except np.linalg.LinAlgError as exc:
             raise SolverError(f"dense eigen-solver failed: {exc}", analysis="modal") from None

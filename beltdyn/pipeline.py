@@ -55,24 +55,19 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
     compiled: belt forces by the compiled kernel, for a process that evaluates them many times (a
     sweep, a transient follows); the numpy reference otherwise, which spares numba's ~0.3 s start-up
     (the two agree to 1e-12, tests/test_belt_kernel.py)."""
-    from .system import build_system
+    from .static import solve_static_on_solved_geometry
+    from .system import DeferredSystem, build_system, check_model_size
 
     def build(lay: Layout, stretch=None, spring_free=None) -> "System":
         system = build_system(cfg, lay, prestrain_stretch=stretch, spring_free=spring_free, belt_speed=belt_speed)
         return system.with_belt(compiled=True) if compiled else system
 
-    from .system import check_model_size
-
     check_model_size(cfg)  # before the L0 fit: an impossible mesh is refused at once
     layout = layout or layout_from_config(cfg)
     if not (static or modal):
         return Analysis(config=cfg, layout=layout, system=build(layout), fit_layout=layout)
-    from .system import DeferredSystem
-
     initial = DeferredSystem(cfg, layout, build)  # built only if the static analysis solves on the L0 fit
     out = Analysis(config=cfg, layout=layout, system=None, fit_layout=layout)
-    from .static import solve_static_on_solved_geometry
-
     try:
         solved = solve_static_on_solved_geometry(initial, build, cfg.static)
         out = Analysis(config=cfg, layout=solved.system.layout, system=solved.system, static=solved.static,

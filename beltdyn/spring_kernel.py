@@ -34,11 +34,13 @@ def no_springs() -> SpringData:
 
 
 def spring_data(springs, eta: float) -> SpringData:
-    """The kernel's data of a `system.SpringSpans` (None: no spring spans)."""
+    """The kernel's data of a `system.SpringSpans` (None: no spring spans); writable copies where the
+    system's arrays are read-only (shared tables): numba types a read-only array apart, which would compile
+    `advance` anew."""
     if springs is None:
         return no_springs()
     T = np.asarray(springs.T, dtype=float)
-    return SpringData(D=np.ascontiguousarray(T[:, 2:4] - T[:, 0:2]), idx=np.ascontiguousarray(springs.idx, dtype=np.int64),
+    return SpringData(D=np.ascontiguousarray(T[:, 2:4] - T[:, 0:2]), idx=np.array(springs.idx, dtype=np.int64),
                       d0=np.ascontiguousarray(springs.x0[:, 2:4] - springs.x0[:, 0:2], dtype=float),
                       L=np.ascontiguousarray(springs.reference_length, dtype=float),
                       span=np.ascontiguousarray(springs.span, dtype=np.int64), EA=float(springs.EA), eta=float(eta))

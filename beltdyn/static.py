@@ -38,7 +38,9 @@ import numpy as np
 
 from .config import StaticOptions
 from .errors import SolverError
-from .system import DOF_GROUPS, System, stretch_for_tension
+from .geometry import GeometryError, Layout, MovingPulley, fit_adjustable, pivot_angle, relay, unwrap_near
+from .slip import required_friction, slip_margin
+from .system import DOF_GROUPS, System, stretch_for_tension, stretch_start
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -679,7 +681,6 @@ def _check_stops(system: System, q: np.ndarray) -> None:
     a = system.arms
     if a is None or a.stops is None:
         return
-    from .geometry import unwrap_near
 
     for k, (lo, hi) in enumerate(a.stops):
         if np.isnan(lo):
@@ -717,7 +718,6 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *
         offset = lay.adjust_offset + float(q[model.dofs.arm_dof[a]])
     else:
         offset = lay.adjust_offset + float(q[model.trans_dof[a][0]])
-    from .slip import required_friction, slip_margin
 
     n = lay.n
     arm_angle = np.full(n, np.nan)
@@ -858,7 +858,6 @@ def _conserved_tension(total_length: float, split: list, reference: list, EA: fl
     which moves chord between neighbouring spans and keeps their sum, so
     sum_s lambda(T_s) reference_s = sum_s L_s (Newton on T_ref). Lists of Python floats (numpy calls
     on 2-12 numbers cost more than the arithmetic)."""
-    from .system import stretch_for_tension as _stretch, stretch_start
 
     L, ref, sp = total_length, reference, split
     total = sum(ref)
@@ -866,7 +865,7 @@ def _conserved_tension(total_length: float, split: list, reference: list, EA: fl
     x = [(T_ref + s) / EA for s in sp]
     T_ref += 1.5 * EA * sum(r * v * v for r, v in zip(ref, x)) / total  # then 1 + x - 3/2 x^2 (one step)
     x = [(T_ref + s) / EA for s in sp]
-    lam = [stretch_start(v) for v in x] if max(map(abs, x)) < 0.05 else [_stretch(T_ref + s, EA) for s in sp]
+    lam = [stretch_start(v) for v in x] if max(map(abs, x)) < 0.05 else [stretch_for_tension(T_ref + s, EA) for s in sp]
     half = 0.5 * EA
     for _ in range(50):  # Newton on T_ref, each stretch first stepped to its span's tension (one Newton step)
         slope = [half * (3.0 * x * x - 1.0) for x in lam]  # dT/dlambda
@@ -892,7 +891,6 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
     moves with the arm, its iterates lay out only the arm pulley's spans, `geometry.MovingPulley`).
     A fixed point over layouts (cheap geometry); the static passes correct what it leaves out (sag,
     bending, the arms' weight)."""
-    from .geometry import MovingPulley, pivot_angle, relay
 
     lay0 = system.layout
     place = fit if fit is not None else (lambda c: relay(lay0, c, check=False))  # checked where laid (lay_out)
@@ -1024,8 +1022,6 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     Bearing springs stay anchored where they were relaxed on the L0 fit (spring_free); the adjustable
     pulley's spring in mode "adjust" carries the preload its slide equation asks for, as before.
     """
-    from .geometry import GeometryError, Layout, fit_adjustable, pivot_angle, relay
-    from .system import stretch_for_tension as _stretch
 
     ts = system.tension
     lay0 = lay = system.layout
@@ -1100,7 +1096,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     if predict:  # predicted first layout
         fit = None
         if ts.mode == "adjust":
-            lam_T = _stretch(float(ts.target), EA)
+            lam_T = stretch_for_tension(float(ts.target), EA)
             j = lay0.adjust_index
 
             pivot = None if lay0.adjust_kind != "arm" else system.arms.pivot[arm_of[d.trans_dof[j][0]]]
@@ -1117,11 +1113,11 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             centers = _predicted_centers(system, anchored, fit, tol_x, span_tension)
             lay, free, built = lay_out(lay0, centers, system.belt.reference_length, "prediction")
             if prestrain:
-                lam_p = _stretch(float(ts.target), EA)
+                lam_p = stretch_for_tension(float(ts.target), EA)
             else:
                 # started with the pulleys turned to the predicted span tensions
                 T = np.array(span_tension(lay.span_angle.tolist(), lay.span_length.tolist()))
-                warm = _predictor(built, _stretch(T, EA), ts.adjust_dof, built.driver_dof)
+                warm = _predictor(built, stretch_for_tension(T, EA), ts.adjust_dof, built.driver_dof)
                 system = built
         except (GeometryError, SolverError, ArithmeticError, ValueError, np.linalg.LinAlgError):
             lay, free, warm = lay0, np.zeros(n_dof), None  # no prediction: start from the L0 fit

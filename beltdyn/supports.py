@@ -20,6 +20,7 @@ from typing import ClassVar
 import numpy as np
 
 from .config import Pulley
+from .geometry import arm_angle, unwrap_near
 
 Dof = tuple[str, str, str]  # label suffix, unit, DOF group
 
@@ -138,14 +139,12 @@ class ArmSupport(Support):
         """The arm angle on a layout, on the branch of its stops (arm_range) when given: angles are taken
         literally then, so a spring wound by more than half a turn is expressed (free angle and stops
         on one branch); without stops, the angle of atan2."""
-        from .geometry import arm_angle, unwrap_near
 
         p = self.pulley
         phi = arm_angle(layout, index, p.arm_pivot)
         return unwrap_near(phi, 0.5 * (p.arm_range[0] + p.arm_range[1])) if p.arm_range is not None else phi
 
     def own_components(self, dof: int, layout, index: int, spring_free: np.ndarray | None = None) -> tuple:
-        from .geometry import unwrap_near
         from .system import LinearComponent
 
         p = self.pulley
@@ -164,7 +163,6 @@ class ArmSupport(Support):
             damping=np.array([[p.arm_damping]]) if p.arm_damping > 0 else None, free=free, energy_kind="tensioner"),)
 
     def fit_motion(self) -> dict:
-        from .geometry import unwrap_near
 
         p = self.pulley
         rng = None

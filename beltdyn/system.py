@@ -1307,13 +1307,13 @@ class System:
 
     def linear_matrix(self):
         """The components' constant stiffness as a matrix (dense or CSR), zeros if none."""
-        from scipy.sparse import csr_matrix
-
         n = self.n_p
         if self.dense:
             return self.linear_stiffness if self.linear_stiffness is not None else np.zeros((n, n))
         A = self.__dict__.get("_linear_csr")
         if A is None:  # constant: built once (callers only read it)
+            from scipy.sparse import csr_matrix
+
             data = self.linear_stiffness if self.linear_stiffness is not None else np.zeros(self.pattern.nnz)
             A = csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=(n, n))
             object.__setattr__(self, "_linear_csr", A)
