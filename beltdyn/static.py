@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from operator import mul, truediv
 
 import numpy as np
 
@@ -861,7 +862,7 @@ def _conserved_tension(total_length: float, split: list, reference: list, EA: fl
 
     L, ref, sp = total_length, reference, split
     total = sum(ref)
-    T_ref = EA * (L / total - 1.0) - sum(r * s for r, s in zip(ref, sp)) / total  # the start: lambda = 1 + x,
+    T_ref = EA * (L / total - 1.0) - sum(map(mul, ref, sp)) / total  # the start: lambda = 1 + x,
     x = [(T_ref + s) / EA for s in sp]
     T_ref += 1.5 * EA * sum(r * v * v for r, v in zip(ref, x)) / total  # then 1 + x - 3/2 x^2 (one step)
     x = [(T_ref + s) / EA for s in sp]
@@ -871,12 +872,16 @@ def _conserved_tension(total_length: float, split: list, reference: list, EA: fl
         slope = [half * (3.0 * x * x - 1.0) for x in lam]  # dT/dlambda
         d_lam = [(half * (x * x * x - x) - (T_ref + s)) / d for x, s, d in zip(lam, sp, slope)]
         lam = [x - d for x, d in zip(lam, d_lam)]
-        step = (sum(x * r for x, r in zip(lam, ref)) - L) / sum(r / d for r, d in zip(ref, slope))
+        step = (sum(map(mul, lam, ref)) - L) / sum(map(truediv, ref, slope))
         T_ref -= step
-        # done when T_ref moved by round-off on stretches that were exact: Newton on the cubic leaves an
-        # error of about 1.5 d^2 after a step d, below 2e-16 for d <= 1e-8
-        if abs(step) <= 1e-12 * EA and max(map(abs, d_lam)) <= 1e-8:
-            break
+        # done when the stretches were exact (Newton on the cubic leaves about 1.5 d^2 after a step d, below
+        # 2e-16 for d <= 1e-8) and what T_ref still lacks is below 1e-12 EA: Newton leaves c step^2 / EA after
+        # a step, c = |g''| EA / (2 g') <= 6 lambda_max / (3 lambda_min^2 - 1)^2 (1.5 at lambda = 1)
+        if max(map(abs, d_lam)) <= 1e-8:
+            lo = min(lam)
+            h = 3.0 * lo * lo - 1.0  # (a float's ** raises on overflow)
+            if abs(step) <= 1e-12 * EA or (h > 0.1 and 6.0 * max(lam) * step * step <= 1e-12 * EA * EA * h * h):
+                break
     return [T_ref + s for s in sp]
 
 
