@@ -394,21 +394,21 @@ def fit_adjustable(
         p = path.prev
         w = arc_weight - 1.0
 
-        def state(s: float) -> tuple[float, float, float]:
-            """(fitted length, slope d length / ds, pulley moved) at offset s."""
+        def state(s: float, base_path: bool = False) -> tuple[float, float]:
+            """(fitted length, slope d length / ds) at offset s (the base layout's path: s = 0)."""
             if arm is None:
                 x, y, vx, vy = cx + s * dx, cy + s * dy, dx, dy
             else:
                 cs, sn = math.cos(s), math.sin(s)
                 vx, vy = -(sn * rx + cs * ry), cs * rx - sn * ry  # d centre / ds
                 x, y = ax + vy, ay - vx
-            angle, length, arc = path.at(x, y)
+            angle, length, arc = (path.angle, path.length, path.arc) if base_path else path.at(x, y)
             total = sum(length) + sum(arc)
             slope = (math.cos(angle[p]) - math.cos(angle[index])) * vx + (math.sin(angle[p]) - math.sin(angle[index])) * vy
             return total + w * sum(arc), slope
 
         s = 0.0
-        ell, slope = length(base), float(belt_length_gradient(base, index) @ offset_point(0.0)[1])
+        ell, slope = state(0.0, base_path=True)
         scale = 1.0 if arm is None else math.hypot(rx, ry)
         for _ in range(max_iter):
             f = ell - target_length
