@@ -33,15 +33,18 @@ def required_friction(span_tension: np.ndarray, wrap: np.ndarray, centrifugal: f
         t_in, t_out = t_in - centrifugal, t_out - centrifugal
     tight, slack = np.maximum(t_in, t_out), np.minimum(t_in, t_out)
     taut = slack > 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(taut, np.log(np.where(taut, tight / np.where(taut, slack, 1.0), 1.0)) / np.asarray(wrap), np.inf)
+    if taut.all():
+        return np.log(tight / slack) / wrap
+    # (the ratio is 1 where slack: no log of a non-positive number; wrap > 0)
+    return np.where(taut, np.log(np.where(taut, tight / np.where(taut, slack, 1.0), 1.0)) / wrap, np.inf)
 
 
 def slip_margin(mu_required: np.ndarray, friction: np.ndarray) -> np.ndarray:
     """friction / mu_required (..., n): inf where no ratio is needed, 0 where slack, NaN without friction."""
     f = np.asarray(friction, dtype=float)
     needed = mu_required > 0.0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        m = np.where(needed, f / np.where(needed, mu_required, 1.0), np.inf)
-    m = np.where(np.isinf(mu_required), 0.0, m)
-    return np.where(np.isnan(f), np.nan, m)
+    if needed.all() and np.abs(f).max() < np.inf:  # (mu_required = inf: 0)
+        return f / mu_required
+    m = np.where(needed, f / np.where(needed, mu_required, 1.0), np.inf)  # (no division by 0: mu_required >= 0)
+    m[mu_required == np.inf] = 0.0
+    return np.where(f != f, np.nan, m)

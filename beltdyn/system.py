@@ -788,6 +788,27 @@ class SpringSpans:
         out[:, self._spans, 1] = np.einsum("bkd,bkd->bk", F[:, :, 1], u)
         return out
 
+    def static_ends(self, p: np.ndarray, gravity: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """At the joint coordinates p (n_dof,), the chord evaluated once: the spring spans' end forces
+        (n_span, 2, 2) (`end_forces` without damping), their end tensions (n_span, 2) (`end_tensions`),
+        zeros for the other spans, and sum_k N_k L_k (N m) (`tension_integral`)."""
+        X = self.positions(p)
+        d = X[:, 2:4] - X[:, 0:2]
+        l = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
+        u = d / l[:, None]
+        lam = l / self.reference_length
+        N = self.EA * (0.5 * (lam * lam - 1.0)) * lam
+        w = (0.5 * self.rho * self.reference_length)[:, None] * gravity  # the lumped ends' weight
+        Nu = N[:, None] * u
+        F = np.zeros((self.n_span, 2, 2))
+        T = np.zeros((self.n_span, 2))
+        rows = self._spans
+        F[rows, 0] = f0 = -Nu - w
+        F[rows, 1] = f1 = Nu - w
+        T[rows, 0] = -(f0[:, 0] * u[:, 0] + f0[:, 1] * u[:, 1])
+        T[rows, 1] = f1[:, 0] * u[:, 0] + f1[:, 1] * u[:, 1]
+        return F, T, float((N * self.reference_length).sum())
+
     def kinetic_energy_split(self, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(B, k) each: the lumped masses' quadratic energy form dX^T M dX along and across the chord
         at p = 0 for end motions dX (B, k, 4) (as the belt's share splits, `System.kinetic_energy_shares`)."""
@@ -1503,12 +1524,38 @@ class System:
         """Static hub loads (n_pulley, 2), N, the force of the belt on each pulley, and span tensions
         (n_span, 2), N, at the start and end of each span, from the joint reactions (exact for the
         discrete equilibrium even where the strain is tiny). p: q on the joint coordinates, if at hand."""
-        p = (self.expand(q) if p is None else p)[None]
-        E = self.belt.element_coordinates(p[0])[None]
-        X = None if self.springs is None else self.springs.positions_batch(p)
-        F = self.span_end_forces(p, None, E, X=X)
-        hub = F if not self.belt_speed else F + self.span_transport_forces(E, None, self.belt_speed, p=p)
-        return self.hub_loads(hub)[0], self.span_end_tensions(p, F, E, X=X)[0]
+        return self.static_span_outputs(q, p=p, mean=False)[:2]
+
+    def static_span_outputs(self, q: np.ndarray, *, p: np.ndarray | None = None, mean: bool = True
+                            ) -> tuple[np.ndarray, np.ndarray, float | None]:
+        """`joint_reactions` (hub loads (n_pulley, 2), span tensions (n_span, 2)) and the mean tension
+        (`mean_tension_and_gradient`, None without mean) at q, each span's state evaluated once."""
+        p = self.expand(q) if p is None else p
+        b, sp = self.belt, self.springs
+        F = T = None
+        NL = L_b = 0.0
+        if b.elements.n_elem:
+            E = b.element_coordinates(p)[None]
+            F = b.end_forces(E, None, self.gravity)[0]
+            T = b.end_tensions(E, F[None])[0]
+            if mean:
+                T_b = b.mean_tension_and_gradient(p)[0]
+                L_b = float(b.elements.length.sum())
+                NL = T_b * L_b
+        else:
+            E = None
+        if sp is not None:
+            F_s, T_s, NL_s = sp.static_ends(p, self.gravity)
+            F, T = _plus(F, F_s), _plus(T, T_s)
+            NL = NL_s + NL if L_b > 0.0 else NL_s
+        hub = F if not self.belt_speed else F + self.span_transport_forces(E, None, self.belt_speed, p=p[None])[0]
+        n = self.layout.n
+        hub = -(hub[:, 0] + hub[np.arange(-1, len(hub) - 1), 1])[:n]  # span s ends on pulley s + 1
+        if not mean:
+            return hub, T, None
+        if sp is None:
+            return hub, T, T_b
+        return hub, T, NL / (L_b + float(sp.reference_length.sum()))
 
     def hub_loads(self, F_end: np.ndarray) -> np.ndarray:
         """(B, n_pulley, 2) force of the belt on each pulley from the span end-node forces."""
@@ -1548,9 +1595,11 @@ class System:
         """(n_pulley, 2) the pulley centres at q (m); p: q on the joint coordinates, if at hand."""
         q = self.expand(q) if p is None else p
         c = self.layout.center.copy()
-        for j, (dofs, dirs) in enumerate(zip(self.trans_dof, self.trans_dir)):
-            for d, v in zip(dofs, dirs):
-                c[j] += q[d] * v
+        dirs = self.dofs.trans_dir
+        for j, dofs in enumerate(self.dofs.trans_dof):
+            if dofs:
+                for d, v in zip(dofs, dirs[j]):
+                    c[j] += q[d] * v
         return c
 
     # -------------------------------------------------------------------- energy
