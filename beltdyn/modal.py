@@ -108,7 +108,8 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     if model.belt_speed:
         return _solve_running(model, q, n_modes=n_modes, solver=solver)
     K = model.equilibrium(q)[1] if tangent is None else tangent
-    M = model.mass_matrix(q)
+    slopes = model.arm_slopes(q)
+    M = model.mass_matrix(q, slopes=slopes)
     n = model.n_dof
     use_dense = model.dense if solver == "auto" else solver == "dense"
     n_want = min(n, n_modes + 2)  # one rigid mode is expected; more raise a mechanism error
@@ -163,18 +164,19 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     elastic = np.flatnonzero(~rigid)[:n_modes]
     freq = np.sqrt(np.maximum(w[elastic], 0.0)) / (2 * np.pi)
     shapes = v.T[elastic]  # (a copy: fancy indexing)
-    kind, order, span, label, share, sshare, mid = _shape_outputs(model, q, shapes, freq)
+    kind, order, span, label, share, sshare, mid = _shape_outputs(model, q, shapes, freq, slopes=slopes)
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order, span=span, label=label, energy_share=share,
         span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid, rigid_frequency=np.sqrt(np.abs(w[rigid])) / (2 * np.pi),
         solver=name)
 
 
-def _shape_outputs(model: System, q: np.ndarray, shapes: np.ndarray, freq: np.ndarray):
+def _shape_outputs(model: System, q: np.ndarray, shapes: np.ndarray, freq: np.ndarray, *,
+                   slopes: np.ndarray | None = None):
     """`classify`'s outputs of the shapes (n_modes, n_dof) about q, and their mid-span displacements
-    (n_modes, n_span)."""
+    (n_modes, n_span) (slopes: `System.arm_slopes` at q, if at hand)."""
     belt = model.belt
-    joint = model.expand_motion(q, shapes)  # (modes, n_p)
+    joint = model.expand_motion(q, shapes, slopes=slopes)  # (modes, n_p)
     motion = belt.element_coordinates_batch(joint, offset=False)  # (modes, n_elem, 8)
     out = classify(model, shapes, freq, q, motion=motion, joint=joint)
     E = belt.element_coordinates(model.expand(q)) if belt.elements.n_elem else belt.e0  # (n_elem, 8)

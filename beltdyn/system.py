@@ -220,6 +220,7 @@ class BearingSprings(LinearComponent):
 
 # ------------------------------------------------------------------------------------ the belt
 _ROTATE = np.array([1.0, 1.0, -1.0, 1.0])  # (t_x, t_y, t_y, t_x) -> (t, z x t)
+_FRAME = np.array([0, 1, 1, 0])  # t (2,) -> (t_x, t_y, t_y, t_x)
 
 
 def _plus(a: np.ndarray | None, b: np.ndarray) -> np.ndarray:
@@ -809,13 +810,19 @@ class SpringSpans:
         T[rows, 1] = f1[:, 0] * u[:, 0] + f1[:, 1] * u[:, 1]
         return F, T, float((N * self.reference_length).sum())
 
-    def kinetic_energy_split(self, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def kinetic_energy_split(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(B, k) each: the lumped masses' quadratic energy form dX^T M dX along and across the chord
-        at p = 0 for end motions dX (B, k, 4) (as the belt's share splits, `System.kinetic_energy_shares`)."""
-        frame = (self.reference_direction[:, [0, 1, 1, 0]] * _ROTATE).reshape(-1, 2, 2)  # (k, t|n, 2): n = z x t
-        ab = np.einsum("bkjd,kcd->bkcj", dX.reshape(dX.shape[0], -1, 2, 2), frame)  # (B, k, t|n, end)
-        e = self.end_mass[:, None] * (ab * ab).sum(axis=3)
-        return e[..., 0], e[..., 1]
+        at p = 0 for joint motions P (B, n_dof) (as the belt's share splits, `System.kinetic_energy_shares`):
+        the end motions' components along t and n = z x t straight from P through the joints
+        (frame x T, (k, end x t|n, m))."""
+        k, m = self.idx.shape
+        frame = (self.reference_direction[:, _FRAME] * _ROTATE).reshape(k, 1, 2, 2)  # (k, 1, t|n, 2)
+        tn = np.matmul(frame, self.T.reshape(k, 2, 2, m)).reshape(k, 4, m)  # rows: end 0 t, n, end 1 t, n
+        Pe = np.concatenate([P, np.zeros((P.shape[0], 1))], axis=1)[:, self.idx]  # (B, k, m)
+        ab = np.matmul(tn, Pe.transpose(1, 2, 0))  # (k, 4, B)
+        ab *= ab
+        mass = (0.5 * self.rho) * self.reference_length[:, None]
+        return (mass * (ab[:, 0] + ab[:, 2])).T, (mass * (ab[:, 1] + ab[:, 3])).T
 
 
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
@@ -1069,9 +1076,9 @@ class ArmJoints:
         """cos and sin (a,) of the arm angles at q = 0."""
         return np.cos(self.angle), np.sin(self.angle)
 
-    def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """J(q) dq (..., n_p): velocities, or mode shapes about q."""
-        du = self.first(self.phi(q)) * dq[..., self.dof, None]
+    def expand_motion(self, q: np.ndarray, dq: np.ndarray, *, slopes: np.ndarray | None = None) -> np.ndarray:
+        """J(q) dq (..., n_p): velocities, or mode shapes about q (slopes: `first` at q, if at hand)."""
+        du = (self.first(self.phi(q)) if slopes is None else slopes) * dq[..., self.dof, None]
         return np.concatenate([dq, du.reshape(*dq.shape[:-1], -1)], axis=-1)
 
     def expand_acceleration(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
@@ -1216,9 +1223,14 @@ class System:
         """The joint coordinates p (..., n_p) of q (..., n_dof)."""
         return q if self.arms is None else self.arms.expand(q)
 
-    def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """Velocities or mode shapes dq (..., n_dof) about q on the joint coordinates."""
-        return dq if self.arms is None else self.arms.expand_motion(q, dq)
+    def expand_motion(self, q: np.ndarray, dq: np.ndarray, *, slopes: np.ndarray | None = None) -> np.ndarray:
+        """Velocities or mode shapes dq (..., n_dof) about q on the joint coordinates (slopes: the arms'
+        dc/dphi at q, `arm_slopes`, if at hand)."""
+        return dq if self.arms is None else self.arms.expand_motion(q, dq, slopes=slopes)
+
+    def arm_slopes(self, q: np.ndarray) -> np.ndarray | None:
+        """dc/dphi (a, 2) of the arm pulleys' centres at q (`ArmJoints.first`); None without arms."""
+        return None if self.arms is None else self.arms.first(self.arms.phi(q))
 
     @property
     def rot_dof(self) -> np.ndarray:
@@ -1437,11 +1449,14 @@ class System:
             return A
         return self.arms.project_matrix(q, A, None, dense=self.dense)
 
-    def mass_matrix(self, q: np.ndarray | None = None):
-        """The mass matrix on q at the state q: J^T M J (constant without arms)."""
+    def mass_matrix(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None):
+        """The mass matrix on q at the state q: J^T M J (constant without arms; slopes: the arms'
+        `arm_slopes` at q, if at hand)."""
         if self.arms is None:
             return self.mass
-        return self.project_matrix(np.zeros(self.n_dof) if q is None else q, self.mass)
+        if slopes is None:
+            slopes = self.arm_slopes(np.zeros(self.n_dof) if q is None else q)
+        return self.arms._project_matrix(slopes, self.mass, None, dense=self.dense)
 
     def mean_tension_and_gradient(self, q: np.ndarray, *, gradient: bool = True, p: np.ndarray | None = None
                                   ) -> tuple[float, np.ndarray | None]:
@@ -1639,7 +1654,7 @@ class System:
             b = np.zeros((n_modes, 0, 4))
         if self.springs is not None:  # the lumped masses of the spring spans, along and across the chord
             sp = self.springs
-            sa, sb = sp.kinetic_energy_split(sp.positions_batch(shapes, offset=False))
+            sa, sb = sp.kinetic_energy_split(shapes)
             if el.n_elem:
                 span_long[:, sp.span_rows] += sa
                 span_trans[:, sp.span_rows] += sb
