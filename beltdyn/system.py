@@ -32,10 +32,9 @@ matrix (large models).
 from __future__ import annotations
 
 import functools
+import math
 import os
 from dataclasses import dataclass, field
-
-import math
 
 import numpy as np
 
@@ -793,22 +792,26 @@ class SpringSpans:
         """At the joint coordinates p (n_dof,), the chord evaluated once: the spring spans' end forces
         (n_span, 2, 2) (`end_forces` without damping), their end tensions (n_span, 2) (`end_tensions`),
         zeros for the other spans, and sum_k N_k L_k (N m) (`tension_integral`)."""
-        X = self.positions(p)
-        d = X[:, 2:4] - X[:, 0:2]
-        l = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])
-        u = d / l[:, None]
-        lam = l / self.reference_length
-        N = self.EA * (0.5 * (lam * lam - 1.0)) * lam
-        w = (0.5 * self.rho * self.reference_length)[:, None] * gravity  # the lumped ends' weight
-        Nu = N[:, None] * u
-        F = np.zeros((self.n_span, 2, 2))
-        T = np.zeros((self.n_span, 2))
-        rows = self._spans
-        F[rows, 0] = f0 = -Nu - w
-        F[rows, 1] = f1 = Nu - w
-        T[rows, 0] = -(f0[:, 0] * u[:, 0] + f0[:, 1] * u[:, 1])
-        T[rows, 1] = f1[:, 0] * u[:, 0] + f1[:, 1] * u[:, 1]
-        return F, T, float((N * self.reference_length).sum())
+        gx, gy = (float(g) for g in gravity)
+        EA, half_rho = self.EA, 0.5 * self.rho
+        F, T, NL = [], [], 0.0
+        for (xa, ya, xb, yb), L in zip(self.positions(p).tolist(), self.reference_length.tolist()):  # (a few spans)
+            dx, dy = xb - xa, yb - ya
+            l = math.sqrt(dx * dx + dy * dy)
+            ux, uy = dx / l, dy / l
+            lam = l / L
+            N = EA * (0.5 * (lam * lam - 1.0)) * lam
+            m = half_rho * L  # the lumped ends' weight m g
+            wx, wy, Nux, Nuy = m * gx, m * gy, N * ux, N * uy
+            f0x, f0y, f1x, f1y = -Nux - wx, -Nuy - wy, Nux - wx, Nuy - wy
+            F.append(((f0x, f0y), (f1x, f1y)))
+            T.append((-(f0x * ux + f0y * uy), f1x * ux + f1y * uy))
+            NL += N * L
+        if isinstance(self._spans, slice):
+            return np.array(F), np.array(T), NL
+        F_all, T_all = np.zeros((self.n_span, 2, 2)), np.zeros((self.n_span, 2))
+        F_all[self.span], T_all[self.span] = F, T
+        return F_all, T_all, NL
 
     def kinetic_energy_split(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(B, k) each: the lumped masses' quadratic energy form dX^T M dX along and across the chord
@@ -821,8 +824,9 @@ class SpringSpans:
         Pe = np.concatenate([P, np.zeros((P.shape[0], 1))], axis=1)[:, self.idx]  # (B, k, m)
         ab = np.matmul(tn, Pe.transpose(1, 2, 0))  # (k, 4, B)
         ab *= ab
-        mass = (0.5 * self.rho) * self.reference_length[:, None]
-        return (mass * (ab[:, 0] + ab[:, 2])).T, (mass * (ab[:, 1] + ab[:, 3])).T
+        e = ab.reshape(k, 2, 2, -1).sum(axis=1)  # (k, t|n, B): both ends
+        e *= (0.5 * self.rho) * self.reference_length[:, None, None]
+        return e[:, 0].T, e[:, 1].T
 
 
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
@@ -1593,16 +1597,17 @@ class System:
         if arms is None:
             return ()
         out = []
-        dofs = [c.dofs.tolist() for c in self.components]
+        comps = [(c, c.dofs.tolist()) for c in self.components]
+        g = self.gravity
         for d, slot in zip(arms.dof.tolist(), arms.slot.tolist()):
             j = next(i for i, dd in enumerate(self.trans_dof) if dd and dd[0] == slot)
-            spring = next((c for c, cd in zip(self.components, dofs) if cd == [d] and c.stiffness is not None), None)
+            spring = next((c for c, cd in comps if cd == [d] and c.stiffness is not None), None)
             weight = np.zeros(2)
-            for c, cd in zip(self.components, dofs):
-                if c.weight is not None:
+            for c, cd in comps:
+                if c.weight is not None and (slot in cd or slot + 1 in cd):
                     for i, dd in enumerate(cd):
-                        if dd in (slot, slot + 1):
-                            weight += c.weight[i] * self.gravity[dd - slot]
+                        if dd == slot or dd == slot + 1:
+                            weight += c.weight[i] * g[dd - slot]
             out.append((j, spring, weight))
         return tuple(out)
 
@@ -1660,19 +1665,33 @@ class System:
                 span_trans[:, sp.span_rows] += sb
             else:  # every span a spring
                 span_long, span_trans = sp.scatter(sa), sp.scatter(sb)
-        kinds = np.zeros((n_modes, len(ENERGY_KINDS)))
-        kinds[:, 2] = span_long.sum(axis=1)
-        kinds[:, 3] = span_trans.sum(axis=1)
-        for dofs, mass, kind in self._energy_components:
+        dofs, mass, kind_of = self._energy_components
+        if dofs is None:
+            kinds = np.zeros((n_modes, len(ENERGY_KINDS)))
+        else:  # x^T M_c x of every component at once, summed by kind
             x = shapes[:, dofs]
-            kinds[:, kind] += np.einsum("ki,ij,kj->k", x, mass, x)
+            kinds = np.matmul(np.matmul(x, mass) * x, kind_of)
+        kinds[:, 2] += span_long.sum(axis=1)
+        kinds[:, 3] += span_trans.sum(axis=1)
         return kinds, span_long, span_trans, b
 
     @functools.cached_property
-    def _energy_components(self) -> tuple[tuple[np.ndarray, np.ndarray, int], ...]:
-        """(DOFs, mass matrix, index in ENERGY_KINDS) of each component whose mass counts for a kind."""
-        return tuple((c.dofs, c.mass, ENERGY_KINDS.index(c.energy_kind)) for c in self.components
-                     if c.mass is not None and c.energy_kind)
+    def _energy_components(self) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+        """The components whose mass counts for a kind, side by side: their DOFs (r,), their mass
+        matrices block-diagonal (r, r) and each DOF's kind (r, len(ENERGY_KINDS)), 1 in the column of its
+        component's kind; Nones without such components."""
+        comps = [c for c in self.components if c.mass is not None and c.energy_kind]
+        if not comps:
+            return None, None, None
+        dofs = np.concatenate([c.dofs for c in comps])
+        mass, kind_of = np.zeros((len(dofs), len(dofs))), np.zeros((len(dofs), len(ENERGY_KINDS)))
+        start = 0
+        for c in comps:
+            end = start + len(c.dofs)
+            mass[start:end, start:end] = c.mass
+            kind_of[start:end, ENERGY_KINDS.index(c.energy_kind)] = 1.0
+            start = end
+        return dofs, mass, kind_of
 
 
 def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[LinearComponent, ...], *,
