@@ -110,7 +110,12 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
         return _solve_running(model, q, n_modes=n_modes, solver=solver)
     K = model.equilibrium(q)[1] if tangent is None else tangent
     slopes = model.arm_slopes(q)
-    M = model.mass_matrix(q, slopes=slopes)
+    J = None  # the arms' jacobian, dense, for a small dense model: J^T M J and the shapes' joint motion J phi
+    if slopes is not None and model.dense and model.n_p <= 64:
+        J = model.arm_jacobian(slopes)
+        M = J.T @ model.mass @ J
+    else:
+        M = model.mass_matrix(q, slopes=slopes)
     n = model.n_dof
     use_dense = model.dense if solver == "auto" else solver == "dense"
     n_want = min(n, n_modes + 2)  # one rigid mode is expected; more raise a mechanism error
@@ -169,7 +174,8 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
         elastic = np.flatnonzero(~rigid)[:n_modes]
         shapes = v.T[elastic]  # (a copy: fancy indexing)
     freq = np.sqrt(np.maximum(w[elastic], 0.0)) / (2 * np.pi)
-    kind, order, span, label, share, sshare, mid = _shape_outputs(model, q, shapes, freq, slopes=slopes)
+    kind, order, span, label, share, sshare, mid = _shape_outputs(
+        model, q, shapes, freq, slopes=slopes, joint=None if J is None else shapes @ J.T)
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order, span=span, label=label, energy_share=share,
         span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid, rigid_frequency=np.sqrt(np.abs(w[rigid])) / (2 * np.pi),
@@ -177,11 +183,13 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
 
 
 def _shape_outputs(model: System, q: np.ndarray, shapes: np.ndarray, freq: np.ndarray, *,
-                   slopes: np.ndarray | None = None):
+                   slopes: np.ndarray | None = None, joint: np.ndarray | None = None):
     """`classify`'s outputs of the shapes (n_modes, n_dof) about q, and their mid-span displacements
-    (n_modes, n_span) (slopes: `System.arm_slopes` at q, if at hand)."""
+    (n_modes, n_span) (slopes: `System.arm_slopes` at q, joint: the shapes on the joint coordinates,
+    if at hand)."""
     belt = model.belt
-    joint = model.expand_motion(q, shapes, slopes=slopes)  # (modes, n_p)
+    if joint is None:
+        joint = model.expand_motion(q, shapes, slopes=slopes)  # (modes, n_p)
     if not belt.elements.n_elem:  # every span a spring: no mid-span motion
         return *classify(model, shapes, freq, q, joint=joint), np.zeros((len(shapes), belt.n_span))
     motion = belt.element_coordinates_batch(joint, offset=False)  # (modes, n_elem, 8)
@@ -195,7 +203,7 @@ def _generalized_eigh(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndar
     its argument checks (a quarter of the modal analysis of an 8-DOF drive). Raises LinAlgError as eigh."""
     from scipy.linalg.lapack import dsygvd
 
-    w, v, info = dsygvd(K, M, itype=1, jobz="V", uplo="L")
+    w, v, info = dsygvd(K, M)  # (defaults: itype=1, jobz="V", uplo="L")
     if info == 0:
         return w, v
     n = K.shape[0]

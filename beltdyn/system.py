@@ -1460,7 +1460,18 @@ class System:
             return self.mass
         if slopes is None:
             slopes = self.arm_slopes(np.zeros(self.n_dof) if q is None else q)
-        return self.arms._project_matrix(slopes, self.mass, None, dense=self.dense)
+        if self.dense:  # J^T M J with the jacobian J, dense (as `ArmJoints.project_matrix`)
+            J = self.arm_jacobian(slopes)
+            return J.T @ self.mass @ J
+        return self.arms._project_matrix(slopes, self.mass, None, dense=False)
+
+    def arm_jacobian(self, slopes: np.ndarray) -> np.ndarray:
+        """J = dp/dq (n_p, n_dof) dense, from the arms' slopes dc/dphi (a, 2) (`arm_slopes`): the
+        identity on q, the slopes in the arm columns."""
+        a = self.arms
+        J = np.eye(a.n_p, a.n_q)
+        J[a.slot, a.dof], J[a.slot + 1, a.dof] = slopes[:, 0], slopes[:, 1]
+        return J
 
     def mean_tension_and_gradient(self, q: np.ndarray, *, gradient: bool = True, p: np.ndarray | None = None
                                   ) -> tuple[float, np.ndarray | None]:
