@@ -72,9 +72,10 @@ def zero_tolerance(lam_max: float) -> float:
     -200 at 160, -32 at 40).
     A fine mesh can put a true mode below it (the FEAD example's 52.8 Hz at 520 eps lam_max at 640
     el/span): `zero_modes` tells them apart by the gap."""
-    return max((2 * np.pi * 1e-4) ** 2, 1000 * np.finfo(float).eps * lam_max)
+    return max((2 * np.pi * 1e-4) ** 2, 1000 * _EPS * lam_max)
 
 
+_EPS = float(np.finfo(float).eps)
 ZERO_GAP = 1e3  # a factor between the zero cluster and the lowest true mode below the tolerance
 
 
@@ -84,9 +85,9 @@ def zero_modes(w: np.ndarray, tol: float) -> np.ndarray:
     true mode that a fine mesh's round-off bound reaches (measured: rigid turn 2.7e-3, first mode 1.1e5,
     tolerance 2.1e5 1/s^2 for the FEAD example at 640 el/span), not a round-off zero."""
     zero = np.abs(w) <= tol
-    idx = np.flatnonzero(zero)
-    if len(idx) < 2:
+    if np.count_nonzero(zero) < 2:
         return zero
+    idx = np.flatnonzero(zero)
     order = idx[np.argsort(np.abs(w[idx]))]
     size = np.maximum(np.abs(w[order]), (2 * np.pi * 1e-4) ** 2)
     jumps = np.flatnonzero(size[1:] > ZERO_GAP * size[:-1])
@@ -108,7 +109,13 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     if model.belt_speed:
         return _solve_running(model, q, n_modes=n_modes, solver=solver)
     K = model.equilibrium(q)[1] if tangent is None else tangent
-    M = model.mass_matrix(q)
+    slopes = model.arm_slopes(q)
+    J = None  # the arms' jacobian, dense, for a small dense model: J^T M J and the shapes' joint motion J phi
+    if slopes is not None and model.dense and model.n_p <= 64:
+        J = model.arm_jacobian(slopes)
+        M = J.T @ model.mass @ J
+    else:
+        M = model.mass_matrix(q, slopes=slopes)
     n = model.n_dof
     use_dense = model.dense if solver == "auto" else solver == "dense"
     n_want = min(n, n_modes + 2)  # one rigid mode is expected; more raise a mechanism error
@@ -150,7 +157,7 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     Kdiag, Mdiag = np.asarray(K.diagonal()), np.asarray(M.diagonal())  # (dense or sparse)
     lam_max = float((Kdiag / Mdiag).max())
     tol = zero_tolerance(lam_max)
-    if (w < -tol).any():
+    if w[0] < -tol:  # (w ascending)
         i = int(np.argmin(w))
         dof = model.dof_labels[int(np.argmax(np.abs(v[:, i])))]
         raise SolverError(
@@ -160,25 +167,34 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     n_rigid = int(rigid.sum())
     if n_rigid > 1:  # beyond the belt turning with the pulleys: a mechanism (no stiffness somewhere)
         _mechanism(model, v[:, rigid], Mdiag)
-    elastic = np.flatnonzero(~rigid)[:n_modes]
+    if n_rigid == 1 and rigid[0]:  # (the common case: the belt's rigid turn first)
+        elastic = slice(1, n_modes + 1)
+        shapes = v.T[elastic].copy()
+    else:
+        elastic = np.flatnonzero(~rigid)[:n_modes]
+        shapes = v.T[elastic]  # (a copy: fancy indexing)
     freq = np.sqrt(np.maximum(w[elastic], 0.0)) / (2 * np.pi)
-    shapes = v.T[elastic]  # (a copy: fancy indexing)
-    kind, order, span, label, share, sshare, mid = _shape_outputs(model, q, shapes, freq)
+    kind, order, span, label, share, sshare, mid = _shape_outputs(
+        model, q, shapes, freq, slopes=slopes, joint=None if J is None else shapes @ J.T)
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order, span=span, label=label, energy_share=share,
         span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid, rigid_frequency=np.sqrt(np.abs(w[rigid])) / (2 * np.pi),
         solver=name)
 
 
-def _shape_outputs(model: System, q: np.ndarray, shapes: np.ndarray, freq: np.ndarray):
+def _shape_outputs(model: System, q: np.ndarray, shapes: np.ndarray, freq: np.ndarray, *,
+                   slopes: np.ndarray | None = None, joint: np.ndarray | None = None):
     """`classify`'s outputs of the shapes (n_modes, n_dof) about q, and their mid-span displacements
-    (n_modes, n_span)."""
+    (n_modes, n_span) (slopes: `System.arm_slopes` at q, joint: the shapes on the joint coordinates,
+    if at hand)."""
     belt = model.belt
-    joint = model.expand_motion(q, shapes)  # (modes, n_p)
+    if joint is None:
+        joint = model.expand_motion(q, shapes, slopes=slopes)  # (modes, n_p)
+    if not belt.elements.n_elem:  # every span a spring: no mid-span motion
+        return *classify(model, shapes, freq, q, joint=joint), np.zeros((len(shapes), belt.n_span))
     motion = belt.element_coordinates_batch(joint, offset=False)  # (modes, n_elem, 8)
     out = classify(model, shapes, freq, q, motion=motion, joint=joint)
-    E = belt.element_coordinates(model.expand(q)) if belt.elements.n_elem else belt.e0  # (n_elem, 8)
-    return *out, belt.midspan_displacement_linear(E, motion)
+    return *out, belt.midspan_displacement_linear(belt.element_coordinates(model.expand(q)), motion)
 
 
 def _generalized_eigh(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -187,7 +203,7 @@ def _generalized_eigh(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndar
     its argument checks (a quarter of the modal analysis of an 8-DOF drive). Raises LinAlgError as eigh."""
     from scipy.linalg.lapack import dsygvd
 
-    w, v, info = dsygvd(K, M, itype=1, jobz="V", uplo="L")
+    w, v, info = dsygvd(K, M)  # (defaults: itype=1, jobz="V", uplo="L")
     if info == 0:
         return w, v
     n = K.shape[0]
@@ -439,7 +455,7 @@ def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None
     Returns shares (n_modes, len(KINDS)), span_long (n_modes, n_span), span_trans (n_modes, n_span)
     (all divided by the total) and the transverse nodal motion (n_modes, n_elem, 4).
     """
-    if np.iscomplexobj(shapes):  # the energy of Re phi and Im phi together (phi^H M phi), in one call
+    if shapes.dtype.kind == "c":  # the energy of Re phi and Im phi together (phi^H M phi), in one call
         k = shapes.shape[0]
         both = lambda x: None if x is None else np.concatenate([x.real, x.imag])  # noqa: E731
         parts = model.kinetic_energy_shares(both(shapes), q, motion=both(motion), joint=both(joint))
@@ -504,7 +520,7 @@ def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray 
     n_modes = shapes.shape[0]
     wsamp = (np.matmul(model.belt.sampling_table(8)[None], b[..., None])[..., 0]  # (k, n_elem, 8) samples
              if model.belt.elements.n_elem else None)
-    kinds, orders, spans, labels = [], np.zeros(n_modes, dtype=int), np.zeros(n_modes, dtype=int), []
+    kinds, orders, spans, labels = [], [], [], []
     rank: dict[str, int] = {}
     names = model.layout
     best = shares.max(axis=1, initial=-np.inf).tolist()
@@ -536,8 +552,8 @@ def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray 
                 if span_long[k, s] >= 0.8 * span_long[k].sum():
                     span = s + 1
         kinds.append(kind)
-        orders[k] = order
-        spans[k] = span
+        orders.append(order)
+        spans.append(span)
         text = f"{ordinal(order)} {kind}"
         if span:
             text += f", span {span} ({names.span_name(span - 1)})"
@@ -545,4 +561,4 @@ def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray 
             text += ": " + " + ".join(_parts(shares[k], span_long[k], span_trans[k], names)[:2])
         labels.append(text)
     span_share = span_long + span_trans
-    return tuple(kinds), orders, spans, tuple(labels), shares, span_share
+    return tuple(kinds), np.array(orders, dtype=int), np.array(spans, dtype=int), tuple(labels), shares, span_share

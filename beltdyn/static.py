@@ -666,6 +666,8 @@ def _check_slack(system: System, st: StaticResult) -> None:
     """A span in compression at equilibrium: the belt would go slack (it carries no compression; the
     model's bending stiffness holds it only numerically). A named failure, never a silent result."""
     T = st.span_tension
+    if T.min() >= 0.0:  # (the common case: no span in compression at all)
+        return
     lowest = T.min(axis=1)
     worst = int(lowest.argmin())
     if lowest[worst] >= -1e-6 * float(np.abs(T).max(initial=1.0)):
@@ -705,13 +707,13 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *
     lay = model.layout
     known = known or {}
     p = model.expand(q)
-    hub, span_tension = model.joint_reactions(q, p=p)
+    hub, span_tension, T_mean = model.static_span_outputs(q, p=p, mean="mean_tension" not in known)
     if "driver_torque" in known:
         driver_torque = known["driver_torque"] - float(preload[driver_dof])
     else:
         driver_torque = float((model.equilibrium(q, tangent=False)[0] - preload)[driver_dof])
-    T_mean = (known["mean_tension"] if "mean_tension" in known else
-              model.mean_tension_and_gradient(q, gradient=False, p=p)[0])
+    if T_mean is None:
+        T_mean = known["mean_tension"]
     a = lay.adjust_index
     if a is None:
         offset = 0.0

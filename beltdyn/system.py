@@ -32,10 +32,9 @@ matrix (large models).
 from __future__ import annotations
 
 import functools
+import math
 import os
 from dataclasses import dataclass, field
-
-import math
 
 import numpy as np
 
@@ -220,6 +219,7 @@ class BearingSprings(LinearComponent):
 
 # ------------------------------------------------------------------------------------ the belt
 _ROTATE = np.array([1.0, 1.0, -1.0, 1.0])  # (t_x, t_y, t_y, t_x) -> (t, z x t)
+_FRAME = np.array([0, 1, 1, 0])  # t (2,) -> (t_x, t_y, t_y, t_x)
 
 
 def _plus(a: np.ndarray | None, b: np.ndarray) -> np.ndarray:
@@ -788,13 +788,45 @@ class SpringSpans:
         out[:, self._spans, 1] = np.einsum("bkd,bkd->bk", F[:, :, 1], u)
         return out
 
-    def kinetic_energy_split(self, dX: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def static_ends(self, p: np.ndarray, gravity: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """At the joint coordinates p (n_dof,), the chord evaluated once: the spring spans' end forces
+        (n_span, 2, 2) (`end_forces` without damping), their end tensions (n_span, 2) (`end_tensions`),
+        zeros for the other spans, and sum_k N_k L_k (N m) (`tension_integral`)."""
+        gx, gy = (float(g) for g in gravity)
+        EA, half_rho = self.EA, 0.5 * self.rho
+        F, T, NL = [], [], 0.0
+        for (xa, ya, xb, yb), L in zip(self.positions(p).tolist(), self.reference_length.tolist()):  # (a few spans)
+            dx, dy = xb - xa, yb - ya
+            l = math.sqrt(dx * dx + dy * dy)
+            ux, uy = dx / l, dy / l
+            lam = l / L
+            N = EA * (0.5 * (lam * lam - 1.0)) * lam
+            m = half_rho * L  # the lumped ends' weight m g
+            wx, wy, Nux, Nuy = m * gx, m * gy, N * ux, N * uy
+            f0x, f0y, f1x, f1y = -Nux - wx, -Nuy - wy, Nux - wx, Nuy - wy
+            F.append(((f0x, f0y), (f1x, f1y)))
+            T.append((-(f0x * ux + f0y * uy), f1x * ux + f1y * uy))
+            NL += N * L
+        if isinstance(self._spans, slice):
+            return np.array(F), np.array(T), NL
+        F_all, T_all = np.zeros((self.n_span, 2, 2)), np.zeros((self.n_span, 2))
+        F_all[self.span], T_all[self.span] = F, T
+        return F_all, T_all, NL
+
+    def kinetic_energy_split(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(B, k) each: the lumped masses' quadratic energy form dX^T M dX along and across the chord
-        at p = 0 for end motions dX (B, k, 4) (as the belt's share splits, `System.kinetic_energy_shares`)."""
-        frame = (self.reference_direction[:, [0, 1, 1, 0]] * _ROTATE).reshape(-1, 2, 2)  # (k, t|n, 2): n = z x t
-        ab = np.einsum("bkjd,kcd->bkcj", dX.reshape(dX.shape[0], -1, 2, 2), frame)  # (B, k, t|n, end)
-        e = self.end_mass[:, None] * (ab * ab).sum(axis=3)
-        return e[..., 0], e[..., 1]
+        at p = 0 for joint motions P (B, n_dof) (as the belt's share splits, `System.kinetic_energy_shares`):
+        the end motions' components along t and n = z x t straight from P through the joints
+        (frame x T, (k, end x t|n, m))."""
+        k, m = self.idx.shape
+        frame = (self.reference_direction[:, _FRAME] * _ROTATE).reshape(k, 1, 2, 2)  # (k, 1, t|n, 2)
+        tn = np.matmul(frame, self.T.reshape(k, 2, 2, m)).reshape(k, 4, m)  # rows: end 0 t, n, end 1 t, n
+        Pe = np.concatenate([P, np.zeros((P.shape[0], 1))], axis=1)[:, self.idx]  # (B, k, m)
+        ab = np.matmul(tn, Pe.transpose(1, 2, 0))  # (k, 4, B)
+        ab *= ab
+        e = ab.reshape(k, 2, 2, -1).sum(axis=1)  # (k, t|n, B): both ends
+        e *= (0.5 * self.rho) * self.reference_length[:, None, None]
+        return e[:, 0].T, e[:, 1].T
 
 
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
@@ -1048,9 +1080,9 @@ class ArmJoints:
         """cos and sin (a,) of the arm angles at q = 0."""
         return np.cos(self.angle), np.sin(self.angle)
 
-    def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """J(q) dq (..., n_p): velocities, or mode shapes about q."""
-        du = self.first(self.phi(q)) * dq[..., self.dof, None]
+    def expand_motion(self, q: np.ndarray, dq: np.ndarray, *, slopes: np.ndarray | None = None) -> np.ndarray:
+        """J(q) dq (..., n_p): velocities, or mode shapes about q (slopes: `first` at q, if at hand)."""
+        du = (self.first(self.phi(q)) if slopes is None else slopes) * dq[..., self.dof, None]
         return np.concatenate([dq, du.reshape(*dq.shape[:-1], -1)], axis=-1)
 
     def expand_acceleration(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
@@ -1195,9 +1227,14 @@ class System:
         """The joint coordinates p (..., n_p) of q (..., n_dof)."""
         return q if self.arms is None else self.arms.expand(q)
 
-    def expand_motion(self, q: np.ndarray, dq: np.ndarray) -> np.ndarray:
-        """Velocities or mode shapes dq (..., n_dof) about q on the joint coordinates."""
-        return dq if self.arms is None else self.arms.expand_motion(q, dq)
+    def expand_motion(self, q: np.ndarray, dq: np.ndarray, *, slopes: np.ndarray | None = None) -> np.ndarray:
+        """Velocities or mode shapes dq (..., n_dof) about q on the joint coordinates (slopes: the arms'
+        dc/dphi at q, `arm_slopes`, if at hand)."""
+        return dq if self.arms is None else self.arms.expand_motion(q, dq, slopes=slopes)
+
+    def arm_slopes(self, q: np.ndarray) -> np.ndarray | None:
+        """dc/dphi (a, 2) of the arm pulleys' centres at q (`ArmJoints.first`); None without arms."""
+        return None if self.arms is None else self.arms.first(self.arms.phi(q))
 
     @property
     def rot_dof(self) -> np.ndarray:
@@ -1416,11 +1453,25 @@ class System:
             return A
         return self.arms.project_matrix(q, A, None, dense=self.dense)
 
-    def mass_matrix(self, q: np.ndarray | None = None):
-        """The mass matrix on q at the state q: J^T M J (constant without arms)."""
+    def mass_matrix(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None):
+        """The mass matrix on q at the state q: J^T M J (constant without arms; slopes: the arms'
+        `arm_slopes` at q, if at hand)."""
         if self.arms is None:
             return self.mass
-        return self.project_matrix(np.zeros(self.n_dof) if q is None else q, self.mass)
+        if slopes is None:
+            slopes = self.arm_slopes(np.zeros(self.n_dof) if q is None else q)
+        if self.dense:  # J^T M J with the jacobian J, dense (as `ArmJoints.project_matrix`)
+            J = self.arm_jacobian(slopes)
+            return J.T @ self.mass @ J
+        return self.arms._project_matrix(slopes, self.mass, None, dense=False)
+
+    def arm_jacobian(self, slopes: np.ndarray) -> np.ndarray:
+        """J = dp/dq (n_p, n_dof) dense, from the arms' slopes dc/dphi (a, 2) (`arm_slopes`): the
+        identity on q, the slopes in the arm columns."""
+        a = self.arms
+        J = np.eye(a.n_p, a.n_q)
+        J[a.slot, a.dof], J[a.slot + 1, a.dof] = slopes[:, 0], slopes[:, 1]
+        return J
 
     def mean_tension_and_gradient(self, q: np.ndarray, *, gradient: bool = True, p: np.ndarray | None = None
                                   ) -> tuple[float, np.ndarray | None]:
@@ -1503,12 +1554,38 @@ class System:
         """Static hub loads (n_pulley, 2), N, the force of the belt on each pulley, and span tensions
         (n_span, 2), N, at the start and end of each span, from the joint reactions (exact for the
         discrete equilibrium even where the strain is tiny). p: q on the joint coordinates, if at hand."""
-        p = (self.expand(q) if p is None else p)[None]
-        E = self.belt.element_coordinates(p[0])[None]
-        X = None if self.springs is None else self.springs.positions_batch(p)
-        F = self.span_end_forces(p, None, E, X=X)
-        hub = F if not self.belt_speed else F + self.span_transport_forces(E, None, self.belt_speed, p=p)
-        return self.hub_loads(hub)[0], self.span_end_tensions(p, F, E, X=X)[0]
+        return self.static_span_outputs(q, p=p, mean=False)[:2]
+
+    def static_span_outputs(self, q: np.ndarray, *, p: np.ndarray | None = None, mean: bool = True
+                            ) -> tuple[np.ndarray, np.ndarray, float | None]:
+        """`joint_reactions` (hub loads (n_pulley, 2), span tensions (n_span, 2)) and the mean tension
+        (`mean_tension_and_gradient`, None without mean) at q, each span's state evaluated once."""
+        p = self.expand(q) if p is None else p
+        b, sp = self.belt, self.springs
+        F = T = None
+        NL = L_b = 0.0
+        if b.elements.n_elem:
+            E = b.element_coordinates(p)[None]
+            F = b.end_forces(E, None, self.gravity)[0]
+            T = b.end_tensions(E, F[None])[0]
+            if mean:
+                T_b = b.mean_tension_and_gradient(p)[0]
+                L_b = float(b.elements.length.sum())
+                NL = T_b * L_b
+        else:
+            E = None
+        if sp is not None:
+            F_s, T_s, NL_s = sp.static_ends(p, self.gravity)
+            F, T = _plus(F, F_s), _plus(T, T_s)
+            NL = NL_s + NL if L_b > 0.0 else NL_s
+        hub = F if not self.belt_speed else F + self.span_transport_forces(E, None, self.belt_speed, p=p[None])[0]
+        n = self.layout.n
+        hub = -(hub[:, 0] + hub[np.arange(-1, len(hub) - 1), 1])[:n]  # span s ends on pulley s + 1
+        if not mean:
+            return hub, T, None
+        if sp is None:
+            return hub, T, T_b
+        return hub, T, NL / (L_b + float(sp.reference_length.sum()))
 
     def hub_loads(self, F_end: np.ndarray) -> np.ndarray:
         """(B, n_pulley, 2) force of the belt on each pulley from the span end-node forces."""
@@ -1531,16 +1608,17 @@ class System:
         if arms is None:
             return ()
         out = []
-        dofs = [c.dofs.tolist() for c in self.components]
+        comps = [(c, c.dofs.tolist()) for c in self.components]
+        g = self.gravity
         for d, slot in zip(arms.dof.tolist(), arms.slot.tolist()):
             j = next(i for i, dd in enumerate(self.trans_dof) if dd and dd[0] == slot)
-            spring = next((c for c, cd in zip(self.components, dofs) if cd == [d] and c.stiffness is not None), None)
+            spring = next((c for c, cd in comps if cd == [d] and c.stiffness is not None), None)
             weight = np.zeros(2)
-            for c, cd in zip(self.components, dofs):
-                if c.weight is not None:
+            for c, cd in comps:
+                if c.weight is not None and (slot in cd or slot + 1 in cd):
                     for i, dd in enumerate(cd):
-                        if dd in (slot, slot + 1):
-                            weight += c.weight[i] * self.gravity[dd - slot]
+                        if dd == slot or dd == slot + 1:
+                            weight += c.weight[i] * g[dd - slot]
             out.append((j, spring, weight))
         return tuple(out)
 
@@ -1548,9 +1626,11 @@ class System:
         """(n_pulley, 2) the pulley centres at q (m); p: q on the joint coordinates, if at hand."""
         q = self.expand(q) if p is None else p
         c = self.layout.center.copy()
-        for j, (dofs, dirs) in enumerate(zip(self.trans_dof, self.trans_dir)):
-            for d, v in zip(dofs, dirs):
-                c[j] += q[d] * v
+        dirs = self.dofs.trans_dir
+        for j, dofs in enumerate(self.dofs.trans_dof):
+            if dofs:
+                for d, v in zip(dofs, dirs[j]):
+                    c[j] += q[d] * v
         return c
 
     # -------------------------------------------------------------------- energy
@@ -1590,25 +1670,39 @@ class System:
             b = np.zeros((n_modes, 0, 4))
         if self.springs is not None:  # the lumped masses of the spring spans, along and across the chord
             sp = self.springs
-            sa, sb = sp.kinetic_energy_split(sp.positions_batch(shapes, offset=False))
+            sa, sb = sp.kinetic_energy_split(shapes)
             if el.n_elem:
                 span_long[:, sp.span_rows] += sa
                 span_trans[:, sp.span_rows] += sb
             else:  # every span a spring
                 span_long, span_trans = sp.scatter(sa), sp.scatter(sb)
-        kinds = np.zeros((n_modes, len(ENERGY_KINDS)))
-        kinds[:, 2] = span_long.sum(axis=1)
-        kinds[:, 3] = span_trans.sum(axis=1)
-        for dofs, mass, kind in self._energy_components:
+        dofs, mass, kind_of = self._energy_components
+        if dofs is None:
+            kinds = np.zeros((n_modes, len(ENERGY_KINDS)))
+        else:  # x^T M_c x of every component at once, summed by kind
             x = shapes[:, dofs]
-            kinds[:, kind] += np.einsum("ki,ij,kj->k", x, mass, x)
+            kinds = np.matmul(np.matmul(x, mass) * x, kind_of)
+        kinds[:, 2] += span_long.sum(axis=1)
+        kinds[:, 3] += span_trans.sum(axis=1)
         return kinds, span_long, span_trans, b
 
     @functools.cached_property
-    def _energy_components(self) -> tuple[tuple[np.ndarray, np.ndarray, int], ...]:
-        """(DOFs, mass matrix, index in ENERGY_KINDS) of each component whose mass counts for a kind."""
-        return tuple((c.dofs, c.mass, ENERGY_KINDS.index(c.energy_kind)) for c in self.components
-                     if c.mass is not None and c.energy_kind)
+    def _energy_components(self) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+        """The components whose mass counts for a kind, side by side: their DOFs (r,), their mass
+        matrices block-diagonal (r, r) and each DOF's kind (r, len(ENERGY_KINDS)), 1 in the column of its
+        component's kind; Nones without such components."""
+        comps = [c for c in self.components if c.mass is not None and c.energy_kind]
+        if not comps:
+            return None, None, None
+        dofs = np.concatenate([c.dofs for c in comps])
+        mass, kind_of = np.zeros((len(dofs), len(dofs))), np.zeros((len(dofs), len(ENERGY_KINDS)))
+        start = 0
+        for c in comps:
+            end = start + len(c.dofs)
+            mass[start:end, start:end] = c.mass
+            kind_of[start:end, ENERGY_KINDS.index(c.energy_kind)] = 1.0
+            start = end
+        return dofs, mass, kind_of
 
 
 def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[LinearComponent, ...], *,
