@@ -1023,6 +1023,7 @@ class ArmJoints:
     friction: np.ndarray | None = None  # (a,) N m, dry friction torque of each arm's pivot damper (transient)
     stops: np.ndarray | None = None  # (a, 2) rad, arm_range (NaN: none)
     names: tuple[str, ...] = ()  # the arm pulleys' names
+    pulleys: tuple[int, ...] = ()  # the arm pulleys' indices
 
     def phi(self, q: np.ndarray) -> np.ndarray:
         """(..., a) arm angles."""
@@ -1821,7 +1822,8 @@ def joint_selection(T: np.ndarray, idx: np.ndarray, n_dof: int) -> np.ndarray:
 
 
 def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = None, *,
-                      spring_free: np.ndarray | None = None) -> tuple[LinearComponent, ...]:
+                      spring_free: np.ndarray | None = None, parts: "PulleyParts | None" = None
+                      ) -> tuple[LinearComponent, ...]:
     """Pulley inertia (rotation DOFs), pulley mass and weight (translation DOFs, paper Eq. 20), the
     bearing springs (Eq. 21): only on the DOFs the supports allow; and each tensioner arm's inertia,
     torsion spring and viscous damper on its angle (the arm pulley's mass sits on its dependent
@@ -1829,14 +1831,34 @@ def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = No
 
     spring_free (n_dof,): the value of each translation DOF at which its bearing spring is relaxed
     (None: 0, the pulley at its layout centre). A layout whose pulleys sit displaced from their given
-    centres (`geometry.relay`) anchors the springs at the given centres with it."""
+    centres (`geometry.relay`) anchors the springs at the given centres with it. parts: the
+    configuration's own share (`pulley_parts` of cfg and dofs), if at hand."""
+    fixed, bearing, own = pulley_parts(cfg, dofs) if parts is None else parts
+    out = list(fixed)
+    if bearing is not None:
+        d, K, supported, names = bearing
+        free = None if spring_free is None or not np.any(spring_free[d]) else np.asarray(spring_free, dtype=float)[d]
+        out.append(BearingSprings(name="bearing springs", dofs=d, stiffness=K, free=free, pulleys=supported,
+                                  pulley_names=names))
+    for sup, first, j in own:
+        out += sup.own_components(first, layout, j, spring_free)
+    return tuple(out)
+
+
+PulleyParts = tuple  # (fixed components, bearing springs' (dofs, K, pulleys, names) or None, ((support, first DOF, j), ...))
+
+
+def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
+    """What `pulley_components` takes from the configuration alone: the pulley inertia and the pulleys'
+    masses (components), the bearing springs' DOFs (k,), stiffness (k, k), pulleys and their names (None
+    without any), and the supports with own components (support, its first DOF, pulley index)."""
     rot = dofs.rot_dof
-    out: list[LinearComponent] = [LinearComponent(
+    fixed: list[LinearComponent] = [LinearComponent(
         name="pulley inertia", dofs=rot.copy(), mass=np.diag([p.inertia for p in cfg.pulleys]),
         energy_kind="rotational")]
     masses: dict[str, tuple[list, list, list]] = {}  # energy kind -> translational DOFs, masses, weights
     t_dofs, k_spring, supported = [], [], []
-    own: list[LinearComponent] = []
+    own = []
     for j, p in enumerate(cfg.pulleys):
         sup = support_of(p)
         d_m, m_m, w_m = masses.setdefault(sup.mass_kind, ([], [], []))
@@ -1851,22 +1873,28 @@ def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = No
         if sup.independent():
             first = dofs.trans_dof[j][0] if dofs.trans_dof[j] and not sup.translation_is_dependent() \
                 else int(dofs.arm_dof[j])
-            own += list(sup.own_components(first, layout, j, spring_free))
+            own.append((sup, first, j))
     names = {"translational": "pulley mass", "tensioner": "arm pulley mass"}
     for kind, (d_m, m_m, w_m) in masses.items():
         if d_m:
-            out.append(LinearComponent(name=names.get(kind, f"{kind} pulley mass"), dofs=np.array(d_m, dtype=np.int64),
-                                       mass=np.diag(m_m), weight=np.array(w_m), energy_kind=kind))
+            fixed.append(LinearComponent(name=names.get(kind, f"{kind} pulley mass"), dofs=np.array(d_m, dtype=np.int64),
+                                         mass=np.diag(m_m), weight=np.array(w_m), energy_kind=kind))
+    bearing = None
     if t_dofs:
-        d = np.array(t_dofs, dtype=np.int64)
-        free = None if spring_free is None or not np.any(spring_free[d]) else np.asarray(spring_free, dtype=float)[d]
-        out.append(BearingSprings(name="bearing springs", dofs=d, stiffness=np.diag(k_spring), free=free,
-                                  pulleys=tuple(supported), pulley_names=tuple(cfg.pulleys[j].name for j in supported)))
-    return tuple(out) + tuple(own)
+        bearing = (np.array(t_dofs, dtype=np.int64), np.diag(k_spring), tuple(supported),
+                   tuple(cfg.pulleys[j].name for j in supported))
+    return tuple(fixed), bearing, tuple(own)
 
 
-def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap) -> ArmJoints | None:
-    """The arms' kinematics about the layout's arm angles (None without arms)."""
+def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoints | None = None) -> ArmJoints | None:
+    """The arms' kinematics about the layout's arm angles (None without arms). like: the same drive's
+    arms on another layout (what the configuration fixes taken from it)."""
+    if like is not None:
+        arms = like.pulleys
+        return ArmJoints(dof=like.dof, slot=like.slot, pivot=like.pivot, length=np.hypot(*(layout.center[arms] - like.pivot).T),
+                         angle=np.array([support_of(cfg.pulleys[j]).working_angle(layout, j) for j in arms]),
+                         n_q=like.n_q, n_p=like.n_p, friction=like.friction, stops=like.stops, names=like.names,
+                         pulleys=arms)
     arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
     if not arms:
         return None
@@ -1877,7 +1905,7 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap) -> ArmJoints | No
                      angle=np.array([support_of(cfg.pulleys[j]).working_angle(layout, j) for j in arms]),
                      n_q=dofs.n_q, n_p=dofs.n, friction=np.array([cfg.pulleys[j].arm_friction for j in arms]),
                      stops=np.array([cfg.pulleys[j].arm_range or (np.nan, np.nan) for j in arms], dtype=float),
-                     names=tuple(cfg.pulleys[j].name for j in arms))
+                     names=tuple(cfg.pulleys[j].name for j in arms), pulleys=tuple(arms))
 
 
 def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
@@ -1987,27 +2015,60 @@ def check_model_size(cfg: DriveConfig) -> None:
                           file=cfg.source, key="mesh.elements_per_span")
 
 
+@dataclass(frozen=True, kw_only=True)
+class DriveFacts:
+    """What a build takes from the configuration alone, whatever the layout: computed once per analysis
+    (`drive_facts`), by `DeferredSystem`, and handed to each `build_system` of that analysis (not kept
+    across analyses). arms: the arms on `layout`, the L0 fit (`arm_joints`; the builds on other layouts
+    take what the configuration fixes from them)."""
+
+    layout: Layout
+    dofs: DofMap
+    tension: TensionSetting
+    loads: np.ndarray | None  # (n_p,) `static_loads`
+    friction: np.ndarray  # (n_pulley,) belt-pulley friction coefficients, NaN if not given
+    pulley_names: tuple[str, ...]
+    gravity: np.ndarray  # (2,) m/s^2
+    pulleys: PulleyParts  # `pulley_parts`
+    arms: ArmJoints | None
+
+
+def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
+    """The `DriveFacts` of a configuration (`layout`: its L0 fit, where the arms are taken)."""
+    dofs = number_dofs(cfg)
+    return DriveFacts(layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs), loads=static_loads(cfg, dofs),
+                      friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]),
+                      pulley_names=tuple(p.name for p in cfg.pulleys), gravity=np.asarray(cfg.model.gravity, dtype=float),
+                      pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs))
+
+
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
                  prestrain_stretch: float | np.ndarray | None = None, spring_free: np.ndarray | None = None,
                  dense: bool | None = None, extra: tuple[LinearComponent, ...] = (),
-                 belt_speed: float | None = None) -> System:
+                 belt_speed: float | None = None, facts: DriveFacts | None = None) -> System:
     """The one place a system is built from a configuration: geometry, DOFs, belt, pulleys, springs.
 
     layout: the belt path (default: the L0 fit of the configuration); prestrain_stretch: the spans'
     stretch at q = 0, one number or one per span (default: what the tension mode asks for,
     `reference_stretch`); spring_free (n_dof,): where the bearing springs are relaxed (default: the
     layout's centres; see `pulley_components`); belt_speed (m/s): the running belt's speed (default:
-    [running] of the configuration, `running.belt_speed_of`)."""
-    check_model_size(cfg)
+    [running] of the configuration, `running.belt_speed_of`); facts: the configuration's `DriveFacts`,
+    if at hand (one analysis's builds share them)."""
+    if facts is None:
+        check_model_size(cfg)
+        layout = layout or layout_from_config(cfg)
+        facts = drive_facts(cfg, layout)
     layout = layout or layout_from_config(cfg)
     lam = reference_stretch(cfg, layout) if prestrain_stretch is None else prestrain_stretch
-    dofs = number_dofs(cfg)
+    dofs = facts.dofs
+    arms = facts.arms
+    if arms is not None and layout is not facts.layout:
+        arms = arm_joints(cfg, layout, dofs, like=arms)
     belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam)
-    system = _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free) + tuple(extra),
-                       pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index,
-                       tension=tension_setting(cfg, dofs), gravity=np.asarray(cfg.model.gravity, dtype=float),
-                       dense=dense, loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
-                       friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]),
+    system = _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free,
+                                                             parts=facts.pulleys) + tuple(extra),
+                       pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
+                       gravity=facts.gravity, dense=dense, loads=facts.loads, arms=arms, friction=facts.friction,
                        springs=build_springs(cfg, layout, dofs, prestrain_stretch=lam))
     if belt_speed is None:
         from .running import belt_speed_of
@@ -2039,20 +2100,22 @@ class DeferredSystem:
     usually never solves on the L0 fit. Cheap facts (tension, DOF map, layout, arms, the belt's
     reference lengths, stretch and EA) come without a build; anything else builds (`full`)."""
 
-    def __init__(self, cfg: DriveConfig, layout: Layout, build) -> None:
+    def __init__(self, cfg: DriveConfig, layout: Layout, build, *, facts: DriveFacts | None = None) -> None:
+        """facts: the configuration's `DriveFacts` on this layout (default: computed here); the `facts`
+        attribute either way, for the builds of the same analysis."""
         from types import SimpleNamespace
 
-        dofs = number_dofs(cfg)
+        facts = drive_facts(cfg, layout) if facts is None else facts
+        dofs = facts.dofs
         lam = reference_stretch(cfg, layout)
         self._facts = {
-            "layout": layout, "dofs": dofs, "tension": tension_setting(cfg, dofs), "arms": arm_joints(cfg, layout, dofs),
+            "layout": layout, "dofs": dofs, "tension": facts.tension, "arms": facts.arms,
             "trans_dof": dofs.trans_dof, "trans_dir": dofs.trans_dir, "rot_dof": dofs.rot_dof,
-            "loads": static_loads(cfg, dofs), "driver_dof": int(dofs.rot_dof[cfg.driver_index]),
+            "loads": facts.loads, "driver_dof": int(dofs.rot_dof[cfg.driver_index]),
             "belt": SimpleNamespace(reference_length=layout.span_length / lam, prestrain_stretch=float(lam),
                                     span_stretch=None, elements=SimpleNamespace(EA=np.array([cfg.belt.EA]))),
             "EA": float(cfg.belt.EA), "dof_labels": dofs.labels[: dofs.n_q],
-            "pulley_friction": np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]),
-            "pulley_index": tuple(p.name for p in cfg.pulleys).index,
+            "pulley_friction": facts.friction, "pulley_index": facts.pulley_names.index, "facts": facts,
         }
         self._build, self._full, self._cfg = build, None, cfg
 
@@ -2070,10 +2133,10 @@ class DeferredSystem:
         if name in facts:
             return facts[name]
         if name == "components" and "_cfg" in self.__dict__:  # the pulleys' own components: cheap, no belt
-            facts[name] = pulley_components(self._cfg, facts["dofs"], facts["layout"])
+            facts[name] = pulley_components(self._cfg, facts["dofs"], facts["layout"], parts=facts["facts"].pulleys)
             return facts[name]
         return getattr(self.full(), name)
 
 
 __all__ = ["System", "DofMap", "BeltSpans", "SpringSpans", "build_springs", "LinearComponent", "BearingSprings", "Observation", "TensionSetting",
-           "build_system", "number_dofs", "stretch_for_tension", "stretch_start", "element_pairs", "DENSE_LIMIT", "ENERGY_KINDS"]
+           "build_system", "DriveFacts", "drive_facts", "number_dofs", "stretch_for_tension", "stretch_start", "element_pairs", "DENSE_LIMIT", "ENERGY_KINDS"]
