@@ -204,36 +204,44 @@ class ResidualScales:
     def __init__(self, system: System, *, EA: float | None = None, external: np.ndarray | None = None) -> None:
         """EA, external: the system's `EA` and `external_force(1.0)` if at hand."""
         d = system.dofs
-        n = system.n_dof
-        group = system.dof_groups
         self.system = system
-        self.span = group == _SPAN
-        self.rotation = group == _ROTATION
-        self.translation = group == _TRANSLATION
-        self.other = ~self.span
-        self.lever = np.ones(n)  # m: converts a force scale into the row's scale
-        self.lever[d.rot_dof] = system.layout.radius
+        self.group = group = d.group[: d.n_q]
+        self.other = group != _SPAN
+        self.lever = lever = np.ones(d.n_q)  # m: converts a force scale into the row's scale
+        lever[d.rot_dof] = system.layout.radius
         a = system.arms
         self._arm_lever = None
         if a is not None:  # an arm's row is a torque about its pivot: the arm length
-            self.lever[a.dof] = a.length
+            lever[a.dof] = a.length
             self._arm_lever = np.abs(a.first(a.angle))  # (a, 2) |dc/dphi| at q = 0
         target = system.tension.target
         EA = system.EA if EA is None else EA
         if target is not None:
             S = abs(float(target))
         else:
-            lam = np.asarray(system.belt.span_stretch if system.belt.span_stretch is not None
-                             else system.belt.prestrain_stretch, dtype=float)
+            lam = system.belt.span_stretch if system.belt.span_stretch is not None else system.belt.prestrain_stretch
+            lam = np.asarray(lam, dtype=float)
             S = float(np.abs(0.5 * EA * (lam**3 - lam)).max(initial=0.0))
         self.tension_scale = max(S, 1e-9 * EA)
         external = system.external_force(1.0) if external is None else external
         self.weight = self._on_q(np.abs(external))  # weight and accessory torques
-        self._span_weight = float(self.weight[self.span].max(initial=0.0))  # the largest weight on a span row
-        self.K_abs = None
+        # the largest weight on a span row
+        self._span_weight = float(self.weight[~self.other].max()) if not self.other.all() else 0.0
+        self._base = (None, None)  # (|load factor|, the scale before |K| |q|) of the last `scale`
+        self.K_abs = None  # |K| of the components' stiffness on the joint coordinates
         if system.linear_stiffness is not None:
             K = system.linear_matrix()
             self.K_abs = np.abs(K) if system.dense else abs(K)
+
+    @property
+    def span(self) -> np.ndarray:
+        """(n,) bool: the span rows."""
+        return ~self.other
+
+    @property
+    def translation(self) -> np.ndarray:
+        """(n,) bool: the translation rows."""
+        return self.group == _TRANSLATION
 
     def _on_q(self, x: np.ndarray) -> np.ndarray:
         """A non-negative scale on the joint coordinates (n_p,) -> on q: |J|^T x at q = 0."""
@@ -244,20 +252,27 @@ class ResidualScales:
         out[a.dof] += (self._arm_lever * x[a.n_q:].reshape(-1, 2)).sum(axis=1)
         return out
 
-    def scale(self, q: np.ndarray, lam: float) -> np.ndarray:
-        """(n,) the force (N) or torque (N m) scale of each row."""
+    def scale(self, q: np.ndarray, lam: float, p: np.ndarray | None = None) -> np.ndarray:
+        """(n,) the force (N) or torque (N m) scale of each row (p: q on the joint coordinates, if at hand)."""
         c = abs(lam)
-        g = c * self.weight
-        S = max(self.tension_scale, c * self._span_weight)  # (= the largest of g on the span rows)
-        out = np.maximum(S * self.lever, g)
-        if self.K_abs is not None:
-            kq = self._on_q(np.asarray(self.K_abs @ np.abs(self.system.expand(q))).ravel())
-            np.maximum(out, kq, out=out, where=self.other)
-        return out
+        c_last, out = self._base
+        if c != c_last:
+            S = max(self.tension_scale, c * self._span_weight)  # (= the largest of c weight on the span rows)
+            out = np.maximum(S * self.lever, c * self.weight)
+            self._base = (c, out)
+        if self.K_abs is None:
+            return out.copy()
+        kq = self.K_abs @ np.abs(self.system.expand(q) if p is None else p)
+        kq = self._on_q(kq if self.system.dense else np.asarray(kq).ravel())
+        return np.maximum(out, kq, out=out.copy(), where=self.other)
 
-    def allowed(self, q: np.ndarray, lam: float, tol: float, floor: float) -> np.ndarray:
-        """(n,) the allowed residual of each row: tol * scale + floor (times the lever arm)."""
-        return tol * self.scale(q, lam) + floor * self.lever
+    def allowed(self, q: np.ndarray, lam: float, tol: float, floor: float, p: np.ndarray | None = None) -> np.ndarray:
+        """(n,) the allowed residual of each row: tol * scale + floor (times the lever arm); p: q on the
+        joint coordinates, if at hand."""
+        out = self.scale(q, lam, p)
+        out *= tol
+        out += floor * self.lever
+        return out
 
 
 _EPS = float(np.finfo(float).eps)
@@ -347,18 +362,18 @@ class _Problem:
         """Allowed error of the mean tension: relative tolerance + round-off of EA eps (~EA * eps)."""
         return self.opts.tolerance * abs(self.target) + 100 * _EPS * self.EA
 
-    def allowed(self, q: np.ndarray, lam: float) -> np.ndarray:
-        return self.scales.allowed(q, lam, self.opts.tolerance, self.noise)
+    def allowed(self, q: np.ndarray, lam: float, p: np.ndarray | None = None) -> np.ndarray:
+        return self.scales.allowed(q, lam, self.opts.tolerance, self.noise, p)
 
     def evaluate(self, q: np.ndarray, lam: float, pinned: np.ndarray, bordered: bool):
         """Residual (pinned rows zero), Jacobian, err = max scaled |R|, and the bordered rank-1 term."""
         m = self.model
         self.budget.spend()
-        R, K = m.equilibrium(q, lam)  # J^T (f - lam F), F the weight and the accessory torques
-        R = R - self.preload
+        R, K, p = m.equilibrium(q, lam, joint=True)  # J^T (f - lam F), F the weight and the accessory torques
+        R -= self.preload
         # what the outputs reuse at the solution (the tangent before bordering and pinning change it in place)
         self.last = (q, lam, float(R[self.driver]), None, K.copy() if self.keep_tangent else None)
-        scaled = np.abs(R) / self.allowed(q, lam)
+        scaled = np.abs(R) / self.allowed(q, lam, p)
         rank1 = None
         if bordered:  # the slide equation of the adjustable pulley becomes T(q) = target
             T, dT = m.mean_tension_and_gradient(q)

@@ -1088,20 +1088,21 @@ class ArmJoints:
 
     def project_both(self, q: np.ndarray, f: np.ndarray, K, *, dense: bool):
         """(`project`(q, f), `project_matrix`(q, K, f)): the arm's sine and cosine evaluated once."""
-        phi = self.phi(q)
-        sin, cos = np.sin(phi), np.cos(phi)
-        dc = self.length[:, None] * _last_pair(-sin, cos)  # `first`
+        phi = self.angle + q[self.dof]
+        L = self.length
+        dx, dy = -(L * np.sin(phi)), L * np.cos(phi)  # dc/dphi (`first`); d2c/dphi2 = (-dy, dx) (`second`)
         fu = f[self.n_q:].reshape(len(self.dof), 2)
+        fx, fy = fu[:, 0], fu[:, 1]
         out = f[: self.n_q].copy()
-        out[self.dof] += np.einsum("kd,kd->k", dc, fu)
-        geo = np.einsum("kd,kd->k", -self.length[:, None] * _last_pair(cos, sin), fu)  # `second`
-        return out, self._project_matrix(dc, K, geo, dense=dense)
+        out[self.dof] += dx * fx + dy * fy
+        return out, self._project_matrix(None, K, (-dy) * fx + dx * fy, dense=dense, dxy=(dx, dy))
 
-    def _project_matrix(self, dc: np.ndarray, K, geo: np.ndarray | None, *, dense: bool):
-        """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`)."""
+    def _project_matrix(self, dc: np.ndarray | None, K, geo: np.ndarray | None, *, dense: bool, dxy=None):
+        """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`; or its columns dxy)."""
+        dx, dy = (dc[:, 0], dc[:, 1]) if dxy is None else dxy
         if dense and not hasattr(K, "tocsr"):
-            J = np.eye(self.n_p, self.n_q)  # the jacobian, dense: identity on q, dc/dphi in the arm columns
-            J[self.slot, self.dof], J[self.slot + 1, self.dof] = dc[:, 0], dc[:, 1]
+            J = self._eye.copy()  # the jacobian, dense: identity on q, dc/dphi in the arm columns
+            J[self.slot, self.dof], J[self.slot + 1, self.dof] = dx, dy
             out = J.T @ np.asarray(K) @ J
             if geo is not None:
                 out[self.dof, self.dof] += geo
@@ -1111,12 +1112,17 @@ class ArmJoints:
         K = csr_matrix(K)
         fold, ptr, idx, diag = self._folding(K)
         w = np.ones(self.n_p)
-        w[self.slot], w[self.slot + 1] = dc[:, 0], dc[:, 1]
+        w[self.slot], w[self.slot + 1] = dx, dy
         rows = np.repeat(np.arange(self.n_p), np.diff(K.indptr))
         data = np.bincount(fold, weights=K.data * w[rows] * w[K.indices], minlength=len(idx))
         if geo is not None:
             data[diag] += geo
         return csr_matrix((data, idx, ptr), shape=(self.n_q, self.n_q))
+
+    @functools.cached_property
+    def _eye(self) -> np.ndarray:
+        """np.eye(n_p, n_q), the dense jacobian's identity part (a copy is taken)."""
+        return np.eye(self.n_p, self.n_q)
 
     def _folding(self, K):
         """For a CSR pattern on p: the slot of each entry in the pattern on q (rows and columns of the
@@ -1386,19 +1392,20 @@ class System:
         F = load_factor * self.gravity_force
         return F + load_factor * self.loads if self.loads is not None else F
 
-    def equilibrium(self, q: np.ndarray, load_factor: float = 1.0, *, tangent: bool = True):
+    def equilibrium(self, q: np.ndarray, load_factor: float = 1.0, *, tangent: bool = True, joint: bool = False):
         """r(q) = J^T (f(p) - F) (n_dof,) and its tangent dr/dq: the static residual before the spring
         preloads, F the static load case scaled by load_factor. Without arms r = f - F, dr/dq = K_t.
-        tangent=False: (r, None)."""
+        tangent=False: (r, None). joint: also p = P(q) (n_p,), (r, dr/dq, p)."""
         p = self.expand(q)
         if not tangent:
             f = self.belt_force(p) + self.linear_force(p) - self.external_force(load_factor)
-            return (f if self.arms is None else self.arms.project(q, f)), None
-        f, K = self.belt_force_and_tangent(p)
-        f = f + self.linear_force(p) - self.external_force(load_factor)
-        if self.arms is None:
-            return f, K
-        return self.arms.project_both(q, f, K, dense=self.dense)
+            r, K = (f if self.arms is None else self.arms.project(q, f)), None
+        else:
+            f, K = self.belt_force_and_tangent(p)
+            f += self.linear_force(p)
+            f -= self.external_force(load_factor)
+            r, K = (f, K) if self.arms is None else self.arms.project_both(q, f, K, dense=self.dense)
+        return (r, K, p) if joint else (r, K)
 
     def tangent_on_joints(self, q: np.ndarray):
         """The internal force's tangent on the joint coordinates p at P(q) (n_p, n_p)."""
