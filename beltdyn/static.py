@@ -92,8 +92,9 @@ def _predictor(system: System, stretch: float | np.ndarray, adjust_dof: int, dri
             np.add.at(A_p, (span, model.idx[els].ravel()), coef.ravel())
     sp = system.springs
     if sp is not None:  # a spring span's ends: the same joints; its chord's map D = dd/dp
-        coef = np.einsum("sdk,sd->sk", sp.chord_map, t[sp.span])
-        np.add.at(A_p, (np.repeat(sp.span, sp.idx.shape[1]), sp.idx.ravel()), coef.ravel())
+        D, ts = sp.chord_map, t[sp.span]
+        # (a span's columns: distinct DOFs, and the padding's zeros; the spans are not the ANCF ones)
+        A_p[sp.span[:, None], sp.idx] += D[:, 0] * ts[:, 0, None] + D[:, 1] * ts[:, 1, None]
     A_p = A_p[:, : system.n_p]
     A_q = A_p if system.arms is None else system.arms.project(np.zeros(system.n_dof), A_p)  # A_p J
     A = A_q[:, unknowns]

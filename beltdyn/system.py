@@ -43,7 +43,7 @@ from . import ancf
 from .config import DriveConfig
 from .errors import ConfigError
 from .geometry import Layout, layout_from_config
-from .supports import SUPPORT_CLASSES, support_of
+from .supports import SUPPORT_CLASSES, Support, support_of
 
 DENSE_LIMIT = 200  # models up to this many DOFs use dense linear algebra
 _EYE2 = np.eye(2)
@@ -748,8 +748,7 @@ class SpringSpans:
 
     @functools.cached_property  # (a "_" name: not a field, which `System.with_belt` copies)
     def _spans(self) -> slice | np.ndarray:
-        every = len(self.span) == self.n_span and np.array_equal(self.span, np.arange(self.n_span))
-        return slice(None) if every else self.span
+        return slice(None) if len(self.span) == self.n_span else self.span  # (span: ascending, distinct)
 
     def scatter(self, x: np.ndarray) -> np.ndarray:
         """(B, k, ...) -> (B, n_span, ...), zeros for the other spans."""
@@ -798,21 +797,27 @@ class SpringSpans:
 
 
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
-                  prestrain_stretch: float | np.ndarray = 1.0) -> SpringSpans | None:
-    """The spring spans of the configuration (None without any), on the layout's tangent points."""
+                  prestrain_stretch: float | np.ndarray = 1.0, direction: np.ndarray | None = None) -> SpringSpans | None:
+    """The spring spans of the configuration (None without any), on the layout's tangent points.
+    direction: the layout's `span_direction`, if at hand."""
     spans = tuple(s for s, m in enumerate(cfg.span_models) if m == "spring")
     if not spans:
         return None
-    idx, T, (at, row, col) = _spring_joints(dofs, spans, layout.n)
-    sp = np.array(spans, dtype=np.int64)
+    n = layout.n
+    idx, T, (at, row, col, ends) = _spring_joints(dofs, spans, n)
+    direction = layout.span_direction if direction is None else direction
+    every = len(spans) == n  # (then sp = 0, 1, ... n - 1: the layout's arrays as they are)
+    sp = slice(None) if every else np.array(spans, dtype=np.int64)
     T = T.copy()  # the rotation columns R (z x n) of each end (`joint_pairs`): the layout's
-    rot = np.concatenate([_joint_rotation(layout, sp, 0), _joint_rotation(layout, sp, 1)])  # (2k, 2)
-    T[at, row, col] = rot[:, 0]
-    T[at, row + 1, col] = rot[:, 1]
-    L = layout.span_length[sp] / _span_stretch(prestrain_stretch, layout.n)[sp]
-    return SpringSpans(span=sp, T=T, idx=idx, x0=np.concatenate([layout.span_start[sp], layout.span_end[sp]], axis=1),
-                       reference_length=L, reference_direction=layout.span_direction[sp], EA=float(cfg.belt.EA),
-                       rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=layout.n, EI=float(cfg.belt.EI),
+    normal = np.concatenate([layout.start_normal[sp], layout.end_normal[sp]])  # (2k, 2)
+    r = layout.radius[ends]
+    T[at, row, col] = -normal[:, 1] * r
+    T[at, row + 1, col] = normal[:, 0] * r
+    L = layout.span_length[sp] / _span_stretch(prestrain_stretch, n)[sp]
+    return SpringSpans(span=np.arange(n) if every else sp, T=T, idx=idx,
+                       x0=np.concatenate([layout.span_start[sp], layout.span_end[sp]], axis=1),
+                       reference_length=L, reference_direction=direction[sp], EA=float(cfg.belt.EA),
+                       rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=n, EI=float(cfg.belt.EI),
                        curvature=cfg.model.curvature)
 
 
@@ -824,20 +829,12 @@ def _span_stretch(prestrain_stretch: float | np.ndarray, n: int) -> np.ndarray:
     return lam if lam.shape == (n,) else np.broadcast_to(lam, (n,)).copy()
 
 
-def _joint_rotation(layout: Layout, spans: np.ndarray, side: int) -> np.ndarray:
-    """(k, 2) d r_end / d theta = R (z x n) of the joints at the start (side 0) or end (side 1) of spans (k,),
-    as `joint_pairs`' first pair."""
-    j = spans if side == 0 else (spans + 1) % layout.n
-    normal = layout.start_normal[spans] if side == 0 else layout.end_normal[spans]
-    return _last_pair(-normal[:, 1], normal[:, 0]) * layout.radius[j][:, None]
-
-
 def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.ndarray, np.ndarray, tuple]:
     """The parts of the spring spans' joints that the DOF map fixes (`joint_pairs`), cached on it (read-only):
     idx (k, m) the joint coordinates of each span, its start's columns (rotation, then the pulley's
     translations) before its end's, padded with n_dof; T (k, 4, m) with the translations' directions and
     zero rotation columns; and where the rotation columns' x rows are ((2k,) span, row, column; the y row
-    below), the k starts, then the k ends."""
+    below) and their pulleys (2k,), the k starts, then the k ends."""
     cache = dofs.__dict__.setdefault("_spring_joints", {})
     hit = cache.get(spans)
     if hit is not None:
@@ -859,7 +856,9 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
             col += 1
     for a in (idx, T):
         a.setflags(write=False)
-    hit = cache[spans] = (idx, T, (np.tile(np.arange(k), 2), np.repeat([0, 2], k), rot_col.ravel()))
+    sp = np.array(spans, dtype=np.int64)
+    hit = cache[spans] = (idx, T, (np.tile(np.arange(k), 2), np.repeat([0, 2], k), rot_col.ravel(),
+                                   np.concatenate([sp, (sp + 1) % n])))
     return hit
 
 
@@ -1066,7 +1065,8 @@ class ArmJoints:
         """J(q)^T f: a force (..., n_p) on the joint coordinates -> (..., n_q)."""
         out = f[..., : self.n_q].copy()
         fu = f[..., self.n_q:].reshape(*f.shape[:-1], len(self.dof), 2)
-        out[..., self.dof] += np.einsum("...kd,...kd->...k", self.first(self.phi(q)), fu)
+        phi = self.phi(q)
+        out[..., self.dof] += -(self.length * np.sin(phi)) * fu[..., 0] + (self.length * np.cos(phi)) * fu[..., 1]
         return out
 
     def jacobian(self, q: np.ndarray):
@@ -1626,7 +1626,7 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
     """Pattern, mass, weight and the components' constant matrices of a system."""
     n = dofs.n
     use_dense = n <= DENSE_LIMIT if dense is None else dense
-    if springs is not None:  # the spring spans' blocks: entries of the pattern like the components'
+    if springs is not None and not use_dense:  # the spring spans' blocks: entries of the pattern like the components'
         s_rows, s_cols = element_pairs(springs.idx)
     extra = None
     if not use_dense:  # (a dense pattern holds every entry)
@@ -1645,16 +1645,11 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
     pattern = make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
 
     def summed(attr: str):
-        """The components' matrices `attr` summed: dense (n, n) for dense systems, else the data (nnz,)
-        of a CSR matrix on the system's pattern."""
+        """The components' matrices `attr` summed: the data (nnz,) of a CSR matrix on the system's
+        pattern (sparse systems; dense ones: `summed_dense`)."""
         mats = [(c.dofs, mat) for c in components if (mat := getattr(c, attr)) is not None]
         if not mats:
             return None
-        if use_dense:
-            A = np.zeros((n, n))
-            for d, mat in mats:
-                A[d[:, None], d] += mat
-            return A
         r = np.concatenate([np.repeat(d, len(d)) for d, _ in mats])
         c = np.concatenate([np.tile(d, len(d)) for d, _ in mats])
         v = np.concatenate([np.asarray(mat, dtype=float).ravel() for _, mat in mats])
@@ -1662,7 +1657,22 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
         np.add.at(data, pattern.slots_of(r, c), v)
         return data
 
-    K_lin, C_lin, M_comp = summed("stiffness"), summed("damping"), summed("mass")
+    def summed_dense() -> list:
+        """[stiffness, damping, mass], each the components' matrices summed (n, n), None without any."""
+        out = [None, None, None]
+        for c in components:
+            flat = None  # row * n + column of the component's entries
+            for i, mat in enumerate((c.stiffness, c.damping, c.mass)):
+                if mat is None:
+                    continue
+                if flat is None:
+                    flat = (c.dofs[:, None] * n + c.dofs).ravel()
+                if out[i] is None:
+                    out[i] = np.zeros((n, n))
+                out[i].ravel()[flat] += np.ravel(mat)  # (a view: the entries of the dense matrix)
+        return out
+
+    K_lin, C_lin, M_comp = summed_dense() if use_dense else (summed("stiffness"), summed("damping"), summed("mass"))
     offset = None
     for c in components:
         if c.free is not None and c.stiffness is not None:
@@ -1670,22 +1680,24 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
             offset[c.dofs] += c.stiffness @ np.asarray(c.free, dtype=float)
     g = np.asarray(gravity, dtype=float)
     has_elements = belt.elements.n_elem > 0
-    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g)) if has_elements else np.zeros(n)
+    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g)) if has_elements else None
     scatter = None
     if springs is not None:
-        fg = fg + springs.gravity_force(g)
-        if use_dense:
-            scatter = s_rows * (n + 1) + s_cols
+        fg = springs.gravity_force(g) if fg is None else fg + springs.gravity_force(g)
+        if use_dense:  # row * (n + 1) + column of each block entry (`element_pairs`)
+            scatter = (springs.idx[:, :, None] * (n + 1) + springs.idx[:, None, :]).ravel()
         else:
             scatter = np.full(s_rows.shape, -1, dtype=np.int64)
             scatter[live] = pattern.slots_of(s_rows[live], s_cols[live])
+    fg = np.zeros(n) if fg is None else fg
     for c in components:
         if c.weight is not None:
             fg[c.dofs] += c.weight @ g
     M = _assembled(n, use_dense, pattern, belt.reduce_blocks(belt.elements.mass) if has_elements else None,
                    None if springs is None else springs.mass_blocks(), scatter, None, None)
     if use_dense:
-        M = M + (M_comp if M_comp is not None else 0.0)
+        if M_comp is not None:
+            M += M_comp
         C = C_lin
     else:
         from scipy.sparse import csr_matrix
@@ -1859,37 +1871,41 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
     """What `pulley_components` takes from the configuration alone: the pulley inertia and the pulleys'
     masses (components), the bearing springs' DOFs (k,), stiffness (k, k), pulleys and their names (None
     without any), and the supports with own components (support, its first DOF, pulley index)."""
-    rot = dofs.rot_dof
+    pulleys = cfg.pulleys
     fixed: list[LinearComponent] = [LinearComponent(
-        name="pulley inertia", dofs=rot.copy(), mass=np.diag([p.inertia for p in cfg.pulleys]),
+        name="pulley inertia", dofs=dofs.rot_dof.copy(), mass=np.diag([p.inertia for p in pulleys]),
         energy_kind="rotational")]
     masses: dict[str, tuple[list, list, list]] = {}  # energy kind -> translational DOFs, masses, weights
     t_dofs, k_spring, supported = [], [], []
     own = []
-    for j, p in enumerate(cfg.pulleys):
+    for j, (p, t_dof) in enumerate(zip(pulleys, dofs.trans_dof)):
+        if not t_dof and SUPPORT_CLASSES[p.support] is Support:  # a fixed centre: nothing of its own (its mass
+            masses.setdefault("translational", ([], [], []))  # kind still takes its place in the order)
+            continue
         sup = support_of(p)
         d_m, m_m, w_m = masses.setdefault(sup.mass_kind, ([], [], []))
-        for d, v in zip(dofs.trans_dof[j], dofs.trans_dir[j]):
-            d_m.append(d)
-            m_m.append(p.mass * float(v @ v))
-            w_m.append(p.mass * v)
-        if sup.springs():
-            t_dofs += list(dofs.trans_dof[j])
-            k_spring += list(sup.springs())
+        if t_dof:
+            d_m += t_dof
+            for v in dofs.trans_dir[j]:
+                m_m.append(p.mass * float(v @ v))
+                w_m.append(p.mass * v)
+        springs = sup.springs()
+        if springs:
+            t_dofs += t_dof
+            k_spring += springs
             supported.append(j)
         if sup.independent():
-            first = dofs.trans_dof[j][0] if dofs.trans_dof[j] and not sup.translation_is_dependent() \
-                else int(dofs.arm_dof[j])
-            own.append((sup, first, j))
+            own.append((sup, t_dof[0] if t_dof and not sup.translation_is_dependent() else int(dofs.arm_dof[j]), j))
     names = {"translational": "pulley mass", "tensioner": "arm pulley mass"}
     for kind, (d_m, m_m, w_m) in masses.items():
         if d_m:
-            fixed.append(LinearComponent(name=names.get(kind, f"{kind} pulley mass"), dofs=np.array(d_m, dtype=np.int64),
-                                         mass=np.diag(m_m), weight=np.array(w_m), energy_kind=kind))
+            fixed.append(LinearComponent(name=names.get(kind, f"{kind} pulley mass"),
+                                         dofs=np.array(d_m, dtype=np.int64), mass=np.diag(m_m), weight=np.array(w_m),
+                                         energy_kind=kind))
     bearing = None
     if t_dofs:
         bearing = (np.array(t_dofs, dtype=np.int64), np.diag(k_spring), tuple(supported),
-                   tuple(cfg.pulleys[j].name for j in supported))
+                   tuple(pulleys[j].name for j in supported))
     return tuple(fixed), bearing, tuple(own)
 
 
