@@ -80,8 +80,10 @@ def _predictor(system: System, stretch: float | np.ndarray, adjust_dof: int, dri
     """
     model = system.belt
     n = system.layout.n
-    unknowns = [d for d in system.rot_dof.tolist() if d != driver_dof]
-    unknowns += [adjust_dof] if adjust_dof >= 0 else []
+    rot = system.rot_dof
+    unknowns = rot[rot != driver_dof]
+    if adjust_dof >= 0:
+        unknowns = np.append(unknowns, adjust_dof)
     A_p = np.zeros((n, system.n_p + 1))  # on the joint coordinates (an arm's centre offsets), padding last
     t = model.reference_direction
     if model.elements.n_elem:
@@ -352,8 +354,8 @@ class _Problem:
         self.noise = 1e3 * _EPS * (EA * math.sqrt(el.n_elem + n_sp) + bend)
         self.history: list[tuple[float, float]] = []
         external = system.external_force(1.0)
-        self.has_load = bool((external != 0.0).any())
-        self.has_weight = bool((system.gravity != 0.0).any())
+        self.has_load = bool(external.any())  # (any entry != 0)
+        self.has_weight = bool(system.gravity.any())
         self.accept = 1.0  # Newton stops at err <= accept (a continuation's intermediate stages: looser)
         self.scales = ResidualScales(system, EA=EA, external=external)
         self.last: tuple = (None, 0.0, 0.0, None, None)  # (q, load factor, driver residual, mean tension, tangent)
@@ -699,8 +701,8 @@ def _check_stops(system: System, q: np.ndarray) -> None:
     if a is None or a.stops is None:
         return
 
-    for k, (lo, hi) in enumerate(a.stops):
-        if np.isnan(lo):
+    for k, (lo, hi) in enumerate(a.stops.tolist()):
+        if lo != lo:  # NaN: no stops
             continue
         phi = unwrap_near(float(a.angle[k] + q[a.dof[k]]), 0.5 * (lo + hi))
         if lo - 1e-12 <= phi <= hi + 1e-12:
