@@ -394,7 +394,7 @@ class _Problem:
         if rank1 is not None:
             rank1[1][pinned] = 0.0
             # the pinned identity row of `a` (if any) is untouched by pinning only other DOFs
-        worst = int(np.argmax(scaled))  # what a spent budget reports
+        worst = int(scaled.argmax())  # what a spent budget reports
         self.budget.err, self.budget.dof = float(scaled[worst]), m.dof_labels[worst]
         return R, K, float(scaled[worst]), rank1
 
