@@ -1913,11 +1913,11 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoint
     """The arms' kinematics about the layout's arm angles (None without arms). like: the same drive's
     arms on another layout (what the configuration fixes taken from it)."""
     if like is not None:
-        arms = like.pulleys
+        arms = list(like.pulleys)  # (a list: a tuple would index rows and columns)
         return ArmJoints(dof=like.dof, slot=like.slot, pivot=like.pivot, length=np.hypot(*(layout.center[arms] - like.pivot).T),
                          angle=np.array([support_of(cfg.pulleys[j]).working_angle(layout, j) for j in arms]),
                          n_q=like.n_q, n_p=like.n_p, friction=like.friction, stops=like.stops, names=like.names,
-                         pulleys=arms)
+                         pulleys=like.pulleys)
     arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
     if not arms:
         return None
