@@ -269,71 +269,24 @@ def test_energy_shares_with_and_without_the_precomputed_motion():
     assert got[0] == md.kind and np.array_equal(got[4], md.energy_share)
 
 
-TWO_ARMS = """
-[belt]
-EA = 1.0e5
-EI = 0.0
-mass_per_length = 0.1
-length = 7.3
-[[pulleys]]
-name = "P0"
-center = [1.0, 0.0]
-radius = 0.25
-driver = true
-mass = 1.0
-inertia = 2.0e-3
-[[pulleys]]
-name = "P1"
-center = [0.5, 0.8660254037844386]
-radius = 0.25
-support = "bearing"
-bearing_stiffness = [1.0e5, 2.0e5]
-mass = 1.0
-inertia = 2.0e-3
-[[pulleys]]
-name = "P2"
-center = [-0.5, 0.8660254037844387]
-radius = 0.25
-support = "arm"
-arm_pivot = [-0.067, 1.116]
-arm_stiffness = 50.0
-arm_inertia = 1.0e-3
-mass = 0.5
-inertia = 2.0e-3
-[[pulleys]]
-name = "P3"
-center = [-1.0, 0.0]
-radius = 0.25
-mass = 1.0
-inertia = 2.0e-3
-[[pulleys]]
-name = "P4"
-center = [-0.5, -0.8660254037844384]
-radius = 0.25
-support = "slide"
-slide_direction = [0.6, 0.8]
-bearing_stiffness = 3.0e4
-mass = 0.7
-inertia = 2.0e-3
-[[pulleys]]
-name = "P5"
-center = [0.5, -0.866025403784439]
-radius = 0.25
-support = "arm"
-arm_pivot = [0.067, -1.116]
-arm_stiffness = 80.0
-arm_damping = 0.1
-mass = 0.5
-inertia = 2.0e-3
-[mesh]
-elements_per_span = 2
-[spans]
-"P1-P2" = { model = "spring" }
-"P4-P5" = { model = "spring" }
-[tension]
-target = 50.0
-mode = "prestrain"
-"""
+def _pulley(name: str, angle: float, **more) -> dict:
+    """A pulley of radius 0.25 m on the unit circle at `angle` (deg)."""
+    c = [math.cos(math.radians(angle)), math.sin(math.radians(angle))]
+    return {"name": name, "center": c, "radius": 0.25, "mass": 1.0, "inertia": 2e-3, **more}
+
+
+TWO_ARMS = {  # six pulleys around a circle: two arms, a bearing, a slide, two spring spans
+    "belt": {"EA": 1.0e5, "EI": 0.0, "mass_per_length": 0.1, "length": 7.3},
+    "pulleys": [_pulley("P0", 0, driver=True),
+                _pulley("P1", 60, support="bearing", bearing_stiffness=[1.0e5, 2.0e5]),
+                _pulley("P2", 120, support="arm", arm_pivot=[-0.067, 1.116], arm_stiffness=50.0, arm_inertia=1e-3),
+                _pulley("P3", 180),
+                _pulley("P4", 240, support="slide", slide_direction=[0.6, 0.8], bearing_stiffness=3.0e4),
+                _pulley("P5", 300, support="arm", arm_pivot=[0.067, -1.116], arm_stiffness=80.0, arm_damping=0.1)],
+    "mesh": {"elements_per_span": 2},
+    "spans": {"P1-P2": {"model": "spring"}, "P4-P5": {"model": "spring"}},
+    "tension": {"target": 50.0, "mode": "prestrain"},
+}
 
 
 def _fields_equal(a, b, path: str = "system") -> None:
@@ -359,7 +312,7 @@ def _fields_equal(a, b, path: str = "system") -> None:
 
 
 @pytest.mark.parametrize("dense", [True, False])
-def test_a_build_from_the_analysis_facts_is_the_build_from_the_configuration(tmp_path, dense):
+def test_a_build_from_the_analysis_facts_is_the_build_from_the_configuration(dense):
     # pipeline.analyse computes the configuration's DriveFacts once, on the L0 fit, and builds every
     # re-laid system from them: a build on another layout (pulleys moved, two arms turned, a bearing and a
     # slide displaced, springs anchored elsewhere) from the facts is the build from the configuration
@@ -367,9 +320,7 @@ def test_a_build_from_the_analysis_facts_is_the_build_from_the_configuration(tmp
     from beltdyn.geometry import layout_from_config, relay
     from beltdyn.system import drive_facts
 
-    path = tmp_path / "two_arms.toml"
-    path.write_text(TWO_ARMS)
-    cfg = load_config(path)
+    cfg = config_from_dict(TWO_ARMS)
     fit = layout_from_config(cfg)
     facts = drive_facts(cfg, fit)
     centers = fit.center + np.array([[0, 0], [1e-3, -2e-3], [2e-3, 1e-3], [0, 0], [3e-3, 4e-3], [-1e-3, 2e-3]])
