@@ -56,17 +56,19 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
     sweep, a transient follows); the numpy reference otherwise, which spares numba's ~0.3 s start-up
     (the two agree to 1e-12, tests/test_belt_kernel.py)."""
     from .static import solve_static_on_solved_geometry
-    from .system import DeferredSystem, build_system, check_model_size
+    from .system import DeferredSystem, build_system, check_model_size, drive_facts
 
     def build(lay: Layout, stretch=None, spring_free=None) -> "System":
-        system = build_system(cfg, lay, prestrain_stretch=stretch, spring_free=spring_free, belt_speed=belt_speed)
+        system = build_system(cfg, lay, prestrain_stretch=stretch, spring_free=spring_free, belt_speed=belt_speed,
+                              facts=facts)
         return system.with_belt(compiled=True) if compiled else system
 
     check_model_size(cfg)  # before the L0 fit: an impossible mesh is refused at once
     layout = layout or layout_from_config(cfg)
+    facts = drive_facts(cfg, layout)  # what every build of this analysis takes from the configuration alone
     if not (static or modal):
         return Analysis(config=cfg, layout=layout, system=build(layout), fit_layout=layout)
-    initial = DeferredSystem(cfg, layout, build)  # built only if the static analysis solves on the L0 fit
+    initial = DeferredSystem(cfg, layout, build, facts=facts)  # built only if the static analysis solves on the L0 fit
     out = Analysis(config=cfg, layout=layout, system=None, fit_layout=layout)
     try:
         solved = solve_static_on_solved_geometry(initial, build, cfg.static)

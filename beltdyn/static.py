@@ -80,8 +80,10 @@ def _predictor(system: System, stretch: float | np.ndarray, adjust_dof: int, dri
     """
     model = system.belt
     n = system.layout.n
-    unknowns = [d for d in system.rot_dof.tolist() if d != driver_dof]
-    unknowns += [adjust_dof] if adjust_dof >= 0 else []
+    rot = system.rot_dof
+    unknowns = rot[rot != driver_dof]
+    if adjust_dof >= 0:
+        unknowns = np.append(unknowns, adjust_dof)
     A_p = np.zeros((n, system.n_p + 1))  # on the joint coordinates (an arm's centre offsets), padding last
     t = model.reference_direction
     if model.elements.n_elem:
@@ -92,8 +94,9 @@ def _predictor(system: System, stretch: float | np.ndarray, adjust_dof: int, dri
             np.add.at(A_p, (span, model.idx[els].ravel()), coef.ravel())
     sp = system.springs
     if sp is not None:  # a spring span's ends: the same joints; its chord's map D = dd/dp
-        coef = np.einsum("sdk,sd->sk", sp.chord_map, t[sp.span])
-        np.add.at(A_p, (np.repeat(sp.span, sp.idx.shape[1]), sp.idx.ravel()), coef.ravel())
+        D, ts = sp.chord_map, t[sp.span]
+        # (a span's columns: distinct DOFs, and the padding's zeros; the spans are not the ANCF ones)
+        A_p[sp.span[:, None], sp.idx] += D[:, 0] * ts[:, 0, None] + D[:, 1] * ts[:, 1, None]
     A_p = A_p[:, : system.n_p]
     A_q = A_p if system.arms is None else system.arms.project(np.zeros(system.n_dof), A_p)  # A_p J
     A = A_q[:, unknowns]
@@ -204,36 +207,44 @@ class ResidualScales:
     def __init__(self, system: System, *, EA: float | None = None, external: np.ndarray | None = None) -> None:
         """EA, external: the system's `EA` and `external_force(1.0)` if at hand."""
         d = system.dofs
-        n = system.n_dof
-        group = system.dof_groups
         self.system = system
-        self.span = group == _SPAN
-        self.rotation = group == _ROTATION
-        self.translation = group == _TRANSLATION
-        self.other = ~self.span
-        self.lever = np.ones(n)  # m: converts a force scale into the row's scale
-        self.lever[d.rot_dof] = system.layout.radius
+        self.group = group = d.group[: d.n_q]
+        self.other = group != _SPAN
+        self.lever = lever = np.ones(d.n_q)  # m: converts a force scale into the row's scale
+        lever[d.rot_dof] = system.layout.radius
         a = system.arms
         self._arm_lever = None
         if a is not None:  # an arm's row is a torque about its pivot: the arm length
-            self.lever[a.dof] = a.length
+            lever[a.dof] = a.length
             self._arm_lever = np.abs(a.first(a.angle))  # (a, 2) |dc/dphi| at q = 0
         target = system.tension.target
         EA = system.EA if EA is None else EA
         if target is not None:
             S = abs(float(target))
         else:
-            lam = np.asarray(system.belt.span_stretch if system.belt.span_stretch is not None
-                             else system.belt.prestrain_stretch, dtype=float)
+            lam = system.belt.span_stretch if system.belt.span_stretch is not None else system.belt.prestrain_stretch
+            lam = np.asarray(lam, dtype=float)
             S = float(np.abs(0.5 * EA * (lam**3 - lam)).max(initial=0.0))
         self.tension_scale = max(S, 1e-9 * EA)
         external = system.external_force(1.0) if external is None else external
         self.weight = self._on_q(np.abs(external))  # weight and accessory torques
-        self._span_weight = float(self.weight[self.span].max(initial=0.0))  # the largest weight on a span row
-        self.K_abs = None
+        # the largest weight on a span row
+        self._span_weight = float(self.weight[~self.other].max()) if not self.other.all() else 0.0
+        self._base = (None, None)  # (|load factor|, the scale before |K| |q|) of the last `scale`
+        self.K_abs = None  # |K| of the components' stiffness on the joint coordinates
         if system.linear_stiffness is not None:
             K = system.linear_matrix()
             self.K_abs = np.abs(K) if system.dense else abs(K)
+
+    @property
+    def span(self) -> np.ndarray:
+        """(n,) bool: the span rows."""
+        return ~self.other
+
+    @property
+    def translation(self) -> np.ndarray:
+        """(n,) bool: the translation rows."""
+        return self.group == _TRANSLATION
 
     def _on_q(self, x: np.ndarray) -> np.ndarray:
         """A non-negative scale on the joint coordinates (n_p,) -> on q: |J|^T x at q = 0."""
@@ -244,20 +255,27 @@ class ResidualScales:
         out[a.dof] += (self._arm_lever * x[a.n_q:].reshape(-1, 2)).sum(axis=1)
         return out
 
-    def scale(self, q: np.ndarray, lam: float) -> np.ndarray:
-        """(n,) the force (N) or torque (N m) scale of each row."""
+    def scale(self, q: np.ndarray, lam: float, p: np.ndarray | None = None) -> np.ndarray:
+        """(n,) the force (N) or torque (N m) scale of each row (p: q on the joint coordinates, if at hand)."""
         c = abs(lam)
-        g = c * self.weight
-        S = max(self.tension_scale, c * self._span_weight)  # (= the largest of g on the span rows)
-        out = np.maximum(S * self.lever, g)
-        if self.K_abs is not None:
-            kq = self._on_q(np.asarray(self.K_abs @ np.abs(self.system.expand(q))).ravel())
-            np.maximum(out, kq, out=out, where=self.other)
-        return out
+        c_last, out = self._base
+        if c != c_last:
+            S = max(self.tension_scale, c * self._span_weight)  # (= the largest of c weight on the span rows)
+            out = np.maximum(S * self.lever, c * self.weight)
+            self._base = (c, out)
+        if self.K_abs is None:
+            return out.copy()
+        kq = self.K_abs @ np.abs(self.system.expand(q) if p is None else p)
+        kq = self._on_q(kq if self.system.dense else np.asarray(kq).ravel())
+        return np.maximum(out, kq, out=out.copy(), where=self.other)
 
-    def allowed(self, q: np.ndarray, lam: float, tol: float, floor: float) -> np.ndarray:
-        """(n,) the allowed residual of each row: tol * scale + floor (times the lever arm)."""
-        return tol * self.scale(q, lam) + floor * self.lever
+    def allowed(self, q: np.ndarray, lam: float, tol: float, floor: float, p: np.ndarray | None = None) -> np.ndarray:
+        """(n,) the allowed residual of each row: tol * scale + floor (times the lever arm); p: q on the
+        joint coordinates, if at hand."""
+        out = self.scale(q, lam, p)
+        out *= tol
+        out += floor * self.lever
+        return out
 
 
 _EPS = float(np.finfo(float).eps)
@@ -336,8 +354,8 @@ class _Problem:
         self.noise = 1e3 * _EPS * (EA * math.sqrt(el.n_elem + n_sp) + bend)
         self.history: list[tuple[float, float]] = []
         external = system.external_force(1.0)
-        self.has_load = bool((external != 0.0).any())
-        self.has_weight = bool((system.gravity != 0.0).any())
+        self.has_load = bool(external.any())  # (any entry != 0)
+        self.has_weight = bool(system.gravity.any())
         self.accept = 1.0  # Newton stops at err <= accept (a continuation's intermediate stages: looser)
         self.scales = ResidualScales(system, EA=EA, external=external)
         self.last: tuple = (None, 0.0, 0.0, None, None)  # (q, load factor, driver residual, mean tension, tangent)
@@ -347,18 +365,18 @@ class _Problem:
         """Allowed error of the mean tension: relative tolerance + round-off of EA eps (~EA * eps)."""
         return self.opts.tolerance * abs(self.target) + 100 * _EPS * self.EA
 
-    def allowed(self, q: np.ndarray, lam: float) -> np.ndarray:
-        return self.scales.allowed(q, lam, self.opts.tolerance, self.noise)
+    def allowed(self, q: np.ndarray, lam: float, p: np.ndarray | None = None) -> np.ndarray:
+        return self.scales.allowed(q, lam, self.opts.tolerance, self.noise, p)
 
     def evaluate(self, q: np.ndarray, lam: float, pinned: np.ndarray, bordered: bool):
         """Residual (pinned rows zero), Jacobian, err = max scaled |R|, and the bordered rank-1 term."""
         m = self.model
         self.budget.spend()
-        R, K = m.equilibrium(q, lam)  # J^T (f - lam F), F the weight and the accessory torques
-        R = R - self.preload
+        R, K, p = m.equilibrium(q, lam, joint=True)  # J^T (f - lam F), F the weight and the accessory torques
+        R -= self.preload
         # what the outputs reuse at the solution (the tangent before bordering and pinning change it in place)
         self.last = (q, lam, float(R[self.driver]), None, K.copy() if self.keep_tangent else None)
-        scaled = np.abs(R) / self.allowed(q, lam)
+        scaled = np.abs(R) / self.allowed(q, lam, p)
         rank1 = None
         if bordered:  # the slide equation of the adjustable pulley becomes T(q) = target
             T, dT = m.mean_tension_and_gradient(q)
@@ -376,7 +394,7 @@ class _Problem:
         if rank1 is not None:
             rank1[1][pinned] = 0.0
             # the pinned identity row of `a` (if any) is untouched by pinning only other DOFs
-        worst = int(np.argmax(scaled))  # what a spent budget reports
+        worst = int(scaled.argmax())  # what a spent budget reports
         self.budget.err, self.budget.dof = float(scaled[worst]), m.dof_labels[worst]
         return R, K, float(scaled[worst]), rank1
 
@@ -685,8 +703,8 @@ def _check_stops(system: System, q: np.ndarray) -> None:
     if a is None or a.stops is None:
         return
 
-    for k, (lo, hi) in enumerate(a.stops):
-        if np.isnan(lo):
+    for k, (lo, hi) in enumerate(a.stops.tolist()):
+        if lo != lo:  # NaN: no stops
             continue
         phi = unwrap_near(float(a.angle[k] + q[a.dof[k]]), 0.5 * (lo + hi))
         if lo - 1e-12 <= phi <= hi + 1e-12:

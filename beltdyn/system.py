@@ -42,7 +42,7 @@ from . import ancf
 from .config import DriveConfig
 from .errors import ConfigError
 from .geometry import Layout, layout_from_config
-from .supports import SUPPORT_CLASSES, support_of
+from .supports import SUPPORT_CLASSES, Support, support_of
 
 DENSE_LIMIT = 200  # models up to this many DOFs use dense linear algebra
 _EYE2 = np.eye(2)
@@ -748,8 +748,7 @@ class SpringSpans:
 
     @functools.cached_property  # (a "_" name: not a field, which `System.with_belt` copies)
     def _spans(self) -> slice | np.ndarray:
-        every = len(self.span) == self.n_span and np.array_equal(self.span, np.arange(self.n_span))
-        return slice(None) if every else self.span
+        return slice(None) if len(self.span) == self.n_span else self.span  # (span: ascending, distinct)
 
     def scatter(self, x: np.ndarray) -> np.ndarray:
         """(B, k, ...) -> (B, n_span, ...), zeros for the other spans."""
@@ -830,21 +829,27 @@ class SpringSpans:
 
 
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
-                  prestrain_stretch: float | np.ndarray = 1.0) -> SpringSpans | None:
-    """The spring spans of the configuration (None without any), on the layout's tangent points."""
+                  prestrain_stretch: float | np.ndarray = 1.0, direction: np.ndarray | None = None) -> SpringSpans | None:
+    """The spring spans of the configuration (None without any), on the layout's tangent points.
+    direction: the layout's `span_direction`, if at hand."""
     spans = tuple(s for s, m in enumerate(cfg.span_models) if m == "spring")
     if not spans:
         return None
-    idx, T, (at, row, col) = _spring_joints(dofs, spans, layout.n)
-    sp = np.array(spans, dtype=np.int64)
+    n = layout.n
+    idx, T, (at, row, col, ends) = _spring_joints(dofs, spans, n)
+    direction = layout.span_direction if direction is None else direction
+    every = len(spans) == n  # (then sp = 0, 1, ... n - 1: the layout's arrays as they are)
+    sp = slice(None) if every else np.array(spans, dtype=np.int64)
     T = T.copy()  # the rotation columns R (z x n) of each end (`joint_pairs`): the layout's
-    rot = np.concatenate([_joint_rotation(layout, sp, 0), _joint_rotation(layout, sp, 1)])  # (2k, 2)
-    T[at, row, col] = rot[:, 0]
-    T[at, row + 1, col] = rot[:, 1]
-    L = layout.span_length[sp] / _span_stretch(prestrain_stretch, layout.n)[sp]
-    return SpringSpans(span=sp, T=T, idx=idx, x0=np.concatenate([layout.span_start[sp], layout.span_end[sp]], axis=1),
-                       reference_length=L, reference_direction=layout.span_direction[sp], EA=float(cfg.belt.EA),
-                       rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=layout.n, EI=float(cfg.belt.EI),
+    normal = np.concatenate([layout.start_normal[sp], layout.end_normal[sp]])  # (2k, 2)
+    r = layout.radius[ends]
+    T[at, row, col] = -normal[:, 1] * r
+    T[at, row + 1, col] = normal[:, 0] * r
+    L = layout.span_length[sp] / _span_stretch(prestrain_stretch, n)[sp]
+    return SpringSpans(span=np.arange(n) if every else sp, T=T, idx=idx,
+                       x0=np.concatenate([layout.span_start[sp], layout.span_end[sp]], axis=1),
+                       reference_length=L, reference_direction=direction[sp], EA=float(cfg.belt.EA),
+                       rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=n, EI=float(cfg.belt.EI),
                        curvature=cfg.model.curvature)
 
 
@@ -856,20 +861,12 @@ def _span_stretch(prestrain_stretch: float | np.ndarray, n: int) -> np.ndarray:
     return lam if lam.shape == (n,) else np.broadcast_to(lam, (n,)).copy()
 
 
-def _joint_rotation(layout: Layout, spans: np.ndarray, side: int) -> np.ndarray:
-    """(k, 2) d r_end / d theta = R (z x n) of the joints at the start (side 0) or end (side 1) of spans (k,),
-    as `joint_pairs`' first pair."""
-    j = spans if side == 0 else (spans + 1) % layout.n
-    normal = layout.start_normal[spans] if side == 0 else layout.end_normal[spans]
-    return _last_pair(-normal[:, 1], normal[:, 0]) * layout.radius[j][:, None]
-
-
 def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.ndarray, np.ndarray, tuple]:
     """The parts of the spring spans' joints that the DOF map fixes (`joint_pairs`), cached on it (read-only):
     idx (k, m) the joint coordinates of each span, its start's columns (rotation, then the pulley's
     translations) before its end's, padded with n_dof; T (k, 4, m) with the translations' directions and
     zero rotation columns; and where the rotation columns' x rows are ((2k,) span, row, column; the y row
-    below), the k starts, then the k ends."""
+    below) and their pulleys (2k,), the k starts, then the k ends."""
     cache = dofs.__dict__.setdefault("_spring_joints", {})
     hit = cache.get(spans)
     if hit is not None:
@@ -891,7 +888,9 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
             col += 1
     for a in (idx, T):
         a.setflags(write=False)
-    hit = cache[spans] = (idx, T, (np.tile(np.arange(k), 2), np.repeat([0, 2], k), rot_col.ravel()))
+    sp = np.array(spans, dtype=np.int64)
+    hit = cache[spans] = (idx, T, (np.tile(np.arange(k), 2), np.repeat([0, 2], k), rot_col.ravel(),
+                                   np.concatenate([sp, (sp + 1) % n])))
     return hit
 
 
@@ -1055,6 +1054,7 @@ class ArmJoints:
     friction: np.ndarray | None = None  # (a,) N m, dry friction torque of each arm's pivot damper (transient)
     stops: np.ndarray | None = None  # (a, 2) rad, arm_range (NaN: none)
     names: tuple[str, ...] = ()  # the arm pulleys' names
+    pulleys: tuple[int, ...] = ()  # the arm pulleys' indices
 
     def phi(self, q: np.ndarray) -> np.ndarray:
         """(..., a) arm angles."""
@@ -1097,7 +1097,8 @@ class ArmJoints:
         """J(q)^T f: a force (..., n_p) on the joint coordinates -> (..., n_q)."""
         out = f[..., : self.n_q].copy()
         fu = f[..., self.n_q:].reshape(*f.shape[:-1], len(self.dof), 2)
-        out[..., self.dof] += np.einsum("...kd,...kd->...k", self.first(self.phi(q)), fu)
+        phi = self.phi(q)
+        out[..., self.dof] += -(self.length * np.sin(phi)) * fu[..., 0] + (self.length * np.cos(phi)) * fu[..., 1]
         return out
 
     def jacobian(self, q: np.ndarray):
@@ -1119,20 +1120,21 @@ class ArmJoints:
 
     def project_both(self, q: np.ndarray, f: np.ndarray, K, *, dense: bool):
         """(`project`(q, f), `project_matrix`(q, K, f)): the arm's sine and cosine evaluated once."""
-        phi = self.phi(q)
-        sin, cos = np.sin(phi), np.cos(phi)
-        dc = self.length[:, None] * _last_pair(-sin, cos)  # `first`
+        phi = self.angle + q[self.dof]
+        L = self.length
+        dx, dy = -(L * np.sin(phi)), L * np.cos(phi)  # dc/dphi (`first`); d2c/dphi2 = (-dy, dx) (`second`)
         fu = f[self.n_q:].reshape(len(self.dof), 2)
+        fx, fy = fu[:, 0], fu[:, 1]
         out = f[: self.n_q].copy()
-        out[self.dof] += np.einsum("kd,kd->k", dc, fu)
-        geo = np.einsum("kd,kd->k", -self.length[:, None] * _last_pair(cos, sin), fu)  # `second`
-        return out, self._project_matrix(dc, K, geo, dense=dense)
+        out[self.dof] += dx * fx + dy * fy
+        return out, self._project_matrix(None, K, (-dy) * fx + dx * fy, dense=dense, dxy=(dx, dy))
 
-    def _project_matrix(self, dc: np.ndarray, K, geo: np.ndarray | None, *, dense: bool):
-        """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`)."""
+    def _project_matrix(self, dc: np.ndarray | None, K, geo: np.ndarray | None, *, dense: bool, dxy=None):
+        """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`; or its columns dxy)."""
+        dx, dy = (dc[:, 0], dc[:, 1]) if dxy is None else dxy
         if dense and not hasattr(K, "tocsr"):
-            J = np.eye(self.n_p, self.n_q)  # the jacobian, dense: identity on q, dc/dphi in the arm columns
-            J[self.slot, self.dof], J[self.slot + 1, self.dof] = dc[:, 0], dc[:, 1]
+            J = self._eye.copy()  # the jacobian, dense: identity on q, dc/dphi in the arm columns
+            J[self.slot, self.dof], J[self.slot + 1, self.dof] = dx, dy
             out = J.T @ np.asarray(K) @ J
             if geo is not None:
                 out[self.dof, self.dof] += geo
@@ -1142,12 +1144,17 @@ class ArmJoints:
         K = csr_matrix(K)
         fold, ptr, idx, diag = self._folding(K)
         w = np.ones(self.n_p)
-        w[self.slot], w[self.slot + 1] = dc[:, 0], dc[:, 1]
+        w[self.slot], w[self.slot + 1] = dx, dy
         rows = np.repeat(np.arange(self.n_p), np.diff(K.indptr))
         data = np.bincount(fold, weights=K.data * w[rows] * w[K.indices], minlength=len(idx))
         if geo is not None:
             data[diag] += geo
         return csr_matrix((data, idx, ptr), shape=(self.n_q, self.n_q))
+
+    @functools.cached_property
+    def _eye(self) -> np.ndarray:
+        """np.eye(n_p, n_q), the dense jacobian's identity part (a copy is taken)."""
+        return np.eye(self.n_p, self.n_q)
 
     def _folding(self, K):
         """For a CSR pattern on p: the slot of each entry in the pattern on q (rows and columns of the
@@ -1422,19 +1429,20 @@ class System:
         F = load_factor * self.gravity_force
         return F + load_factor * self.loads if self.loads is not None else F
 
-    def equilibrium(self, q: np.ndarray, load_factor: float = 1.0, *, tangent: bool = True):
+    def equilibrium(self, q: np.ndarray, load_factor: float = 1.0, *, tangent: bool = True, joint: bool = False):
         """r(q) = J^T (f(p) - F) (n_dof,) and its tangent dr/dq: the static residual before the spring
         preloads, F the static load case scaled by load_factor. Without arms r = f - F, dr/dq = K_t.
-        tangent=False: (r, None)."""
+        tangent=False: (r, None). joint: also p = P(q) (n_p,), (r, dr/dq, p)."""
         p = self.expand(q)
         if not tangent:
             f = self.belt_force(p) + self.linear_force(p) - self.external_force(load_factor)
-            return (f if self.arms is None else self.arms.project(q, f)), None
-        f, K = self.belt_force_and_tangent(p)
-        f = f + self.linear_force(p) - self.external_force(load_factor)
-        if self.arms is None:
-            return f, K
-        return self.arms.project_both(q, f, K, dense=self.dense)
+            r, K = (f if self.arms is None else self.arms.project(q, f)), None
+        else:
+            f, K = self.belt_force_and_tangent(p)
+            f += self.linear_force(p)
+            f -= self.external_force(load_factor)
+            r, K = (f, K) if self.arms is None else self.arms.project_both(q, f, K, dense=self.dense)
+        return (r, K, p) if joint else (r, K)
 
     def tangent_on_joints(self, q: np.ndarray):
         """The internal force's tangent on the joint coordinates p at P(q) (n_p, n_p)."""
@@ -1712,7 +1720,7 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
     """Pattern, mass, weight and the components' constant matrices of a system."""
     n = dofs.n
     use_dense = n <= DENSE_LIMIT if dense is None else dense
-    if springs is not None:  # the spring spans' blocks: entries of the pattern like the components'
+    if springs is not None and not use_dense:  # the spring spans' blocks: entries of the pattern like the components'
         s_rows, s_cols = element_pairs(springs.idx)
     extra = None
     if not use_dense:  # (a dense pattern holds every entry)
@@ -1731,16 +1739,11 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
     pattern = make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
 
     def summed(attr: str):
-        """The components' matrices `attr` summed: dense (n, n) for dense systems, else the data (nnz,)
-        of a CSR matrix on the system's pattern."""
+        """The components' matrices `attr` summed: the data (nnz,) of a CSR matrix on the system's
+        pattern (sparse systems; dense ones: `summed_dense`)."""
         mats = [(c.dofs, mat) for c in components if (mat := getattr(c, attr)) is not None]
         if not mats:
             return None
-        if use_dense:
-            A = np.zeros((n, n))
-            for d, mat in mats:
-                A[d[:, None], d] += mat
-            return A
         r = np.concatenate([np.repeat(d, len(d)) for d, _ in mats])
         c = np.concatenate([np.tile(d, len(d)) for d, _ in mats])
         v = np.concatenate([np.asarray(mat, dtype=float).ravel() for _, mat in mats])
@@ -1748,7 +1751,22 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
         np.add.at(data, pattern.slots_of(r, c), v)
         return data
 
-    K_lin, C_lin, M_comp = summed("stiffness"), summed("damping"), summed("mass")
+    def summed_dense() -> list:
+        """[stiffness, damping, mass], each the components' matrices summed (n, n), None without any."""
+        out = [None, None, None]
+        for c in components:
+            flat = None  # row * n + column of the component's entries
+            for i, mat in enumerate((c.stiffness, c.damping, c.mass)):
+                if mat is None:
+                    continue
+                if flat is None:
+                    flat = (c.dofs[:, None] * n + c.dofs).ravel()
+                if out[i] is None:
+                    out[i] = np.zeros((n, n))
+                out[i].ravel()[flat] += np.ravel(mat)  # (a view: the entries of the dense matrix)
+        return out
+
+    K_lin, C_lin, M_comp = summed_dense() if use_dense else (summed("stiffness"), summed("damping"), summed("mass"))
     offset = None
     for c in components:
         if c.free is not None and c.stiffness is not None:
@@ -1756,22 +1774,24 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
             offset[c.dofs] += c.stiffness @ np.asarray(c.free, dtype=float)
     g = np.asarray(gravity, dtype=float)
     has_elements = belt.elements.n_elem > 0
-    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g)) if has_elements else np.zeros(n)
+    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g)) if has_elements else None
     scatter = None
     if springs is not None:
-        fg = fg + springs.gravity_force(g)
-        if use_dense:
-            scatter = s_rows * (n + 1) + s_cols
+        fg = springs.gravity_force(g) if fg is None else fg + springs.gravity_force(g)
+        if use_dense:  # row * (n + 1) + column of each block entry (`element_pairs`)
+            scatter = (springs.idx[:, :, None] * (n + 1) + springs.idx[:, None, :]).ravel()
         else:
             scatter = np.full(s_rows.shape, -1, dtype=np.int64)
             scatter[live] = pattern.slots_of(s_rows[live], s_cols[live])
+    fg = np.zeros(n) if fg is None else fg
     for c in components:
         if c.weight is not None:
             fg[c.dofs] += c.weight @ g
     M = _assembled(n, use_dense, pattern, belt.reduce_blocks(belt.elements.mass) if has_elements else None,
                    None if springs is None else springs.mass_blocks(), scatter, None, None)
     if use_dense:
-        M = M + (M_comp if M_comp is not None else 0.0)
+        if M_comp is not None:
+            M += M_comp
         C = C_lin
     else:
         from scipy.sparse import csr_matrix
@@ -1915,7 +1935,8 @@ def joint_selection(T: np.ndarray, idx: np.ndarray, n_dof: int) -> np.ndarray:
 
 
 def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = None, *,
-                      spring_free: np.ndarray | None = None) -> tuple[LinearComponent, ...]:
+                      spring_free: np.ndarray | None = None, parts: "PulleyParts | None" = None
+                      ) -> tuple[LinearComponent, ...]:
     """Pulley inertia (rotation DOFs), pulley mass and weight (translation DOFs, paper Eq. 20), the
     bearing springs (Eq. 21): only on the DOFs the supports allow; and each tensioner arm's inertia,
     torsion spring and viscous damper on its angle (the arm pulley's mass sits on its dependent
@@ -1923,44 +1944,74 @@ def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = No
 
     spring_free (n_dof,): the value of each translation DOF at which its bearing spring is relaxed
     (None: 0, the pulley at its layout centre). A layout whose pulleys sit displaced from their given
-    centres (`geometry.relay`) anchors the springs at the given centres with it."""
-    rot = dofs.rot_dof
-    out: list[LinearComponent] = [LinearComponent(
-        name="pulley inertia", dofs=rot.copy(), mass=np.diag([p.inertia for p in cfg.pulleys]),
+    centres (`geometry.relay`) anchors the springs at the given centres with it. parts: the
+    configuration's own share (`pulley_parts` of cfg and dofs), if at hand."""
+    fixed, bearing, own = pulley_parts(cfg, dofs) if parts is None else parts
+    out = list(fixed)
+    if bearing is not None:
+        d, K, supported, names = bearing
+        free = None if spring_free is None or not np.any(spring_free[d]) else np.asarray(spring_free, dtype=float)[d]
+        out.append(BearingSprings(name="bearing springs", dofs=d, stiffness=K, free=free, pulleys=supported,
+                                  pulley_names=names))
+    for sup, first, j in own:
+        out += sup.own_components(first, layout, j, spring_free)
+    return tuple(out)
+
+
+PulleyParts = tuple  # (fixed components, bearing springs' (dofs, K, pulleys, names) or None, ((support, first DOF, j), ...))
+
+
+def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
+    """What `pulley_components` takes from the configuration alone: the pulley inertia and the pulleys'
+    masses (components), the bearing springs' DOFs (k,), stiffness (k, k), pulleys and their names (None
+    without any), and the supports with own components (support, its first DOF, pulley index)."""
+    pulleys = cfg.pulleys
+    fixed: list[LinearComponent] = [LinearComponent(
+        name="pulley inertia", dofs=dofs.rot_dof.copy(), mass=np.diag([p.inertia for p in pulleys]),
         energy_kind="rotational")]
     masses: dict[str, tuple[list, list, list]] = {}  # energy kind -> translational DOFs, masses, weights
     t_dofs, k_spring, supported = [], [], []
-    own: list[LinearComponent] = []
-    for j, p in enumerate(cfg.pulleys):
+    own = []
+    for j, (p, t_dof) in enumerate(zip(pulleys, dofs.trans_dof)):
+        if not t_dof and SUPPORT_CLASSES[p.support] is Support:  # a fixed centre: nothing of its own (its mass
+            masses.setdefault("translational", ([], [], []))  # kind still takes its place in the order)
+            continue
         sup = support_of(p)
         d_m, m_m, w_m = masses.setdefault(sup.mass_kind, ([], [], []))
-        for d, v in zip(dofs.trans_dof[j], dofs.trans_dir[j]):
-            d_m.append(d)
-            m_m.append(p.mass * float(v @ v))
-            w_m.append(p.mass * v)
-        if sup.springs():
-            t_dofs += list(dofs.trans_dof[j])
-            k_spring += list(sup.springs())
+        if t_dof:
+            d_m += t_dof
+            for v in dofs.trans_dir[j]:
+                m_m.append(p.mass * float(v @ v))
+                w_m.append(p.mass * v)
+        springs = sup.springs()
+        if springs:
+            t_dofs += t_dof
+            k_spring += springs
             supported.append(j)
         if sup.independent():
-            first = dofs.trans_dof[j][0] if dofs.trans_dof[j] and not sup.translation_is_dependent() \
-                else int(dofs.arm_dof[j])
-            own += list(sup.own_components(first, layout, j, spring_free))
+            own.append((sup, t_dof[0] if t_dof and not sup.translation_is_dependent() else int(dofs.arm_dof[j]), j))
     names = {"translational": "pulley mass", "tensioner": "arm pulley mass"}
     for kind, (d_m, m_m, w_m) in masses.items():
         if d_m:
-            out.append(LinearComponent(name=names.get(kind, f"{kind} pulley mass"), dofs=np.array(d_m, dtype=np.int64),
-                                       mass=np.diag(m_m), weight=np.array(w_m), energy_kind=kind))
+            fixed.append(LinearComponent(name=names.get(kind, f"{kind} pulley mass"),
+                                         dofs=np.array(d_m, dtype=np.int64), mass=np.diag(m_m), weight=np.array(w_m),
+                                         energy_kind=kind))
+    bearing = None
     if t_dofs:
-        d = np.array(t_dofs, dtype=np.int64)
-        free = None if spring_free is None or not np.any(spring_free[d]) else np.asarray(spring_free, dtype=float)[d]
-        out.append(BearingSprings(name="bearing springs", dofs=d, stiffness=np.diag(k_spring), free=free,
-                                  pulleys=tuple(supported), pulley_names=tuple(cfg.pulleys[j].name for j in supported)))
-    return tuple(out) + tuple(own)
+        bearing = (np.array(t_dofs, dtype=np.int64), np.diag(k_spring), tuple(supported),
+                   tuple(pulleys[j].name for j in supported))
+    return tuple(fixed), bearing, tuple(own)
 
 
-def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap) -> ArmJoints | None:
-    """The arms' kinematics about the layout's arm angles (None without arms)."""
+def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoints | None = None) -> ArmJoints | None:
+    """The arms' kinematics about the layout's arm angles (None without arms). like: the same drive's
+    arms on another layout (what the configuration fixes taken from it)."""
+    if like is not None:
+        arms = list(like.pulleys)  # (a list: a tuple would index rows and columns)
+        return ArmJoints(dof=like.dof, slot=like.slot, pivot=like.pivot, length=np.hypot(*(layout.center[arms] - like.pivot).T),
+                         angle=np.array([support_of(cfg.pulleys[j]).working_angle(layout, j) for j in arms]),
+                         n_q=like.n_q, n_p=like.n_p, friction=like.friction, stops=like.stops, names=like.names,
+                         pulleys=like.pulleys)
     arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
     if not arms:
         return None
@@ -1971,7 +2022,7 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap) -> ArmJoints | No
                      angle=np.array([support_of(cfg.pulleys[j]).working_angle(layout, j) for j in arms]),
                      n_q=dofs.n_q, n_p=dofs.n, friction=np.array([cfg.pulleys[j].arm_friction for j in arms]),
                      stops=np.array([cfg.pulleys[j].arm_range or (np.nan, np.nan) for j in arms], dtype=float),
-                     names=tuple(cfg.pulleys[j].name for j in arms))
+                     names=tuple(cfg.pulleys[j].name for j in arms), pulleys=tuple(arms))
 
 
 def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
@@ -2081,27 +2132,60 @@ def check_model_size(cfg: DriveConfig) -> None:
                           file=cfg.source, key="mesh.elements_per_span")
 
 
+@dataclass(frozen=True, kw_only=True)
+class DriveFacts:
+    """What a build takes from the configuration alone, whatever the layout: computed once per analysis
+    (`drive_facts`), by `DeferredSystem`, and handed to each `build_system` of that analysis (not kept
+    across analyses). arms: the arms on `layout`, the L0 fit (`arm_joints`; the builds on other layouts
+    take what the configuration fixes from them)."""
+
+    layout: Layout
+    dofs: DofMap
+    tension: TensionSetting
+    loads: np.ndarray | None  # (n_p,) `static_loads`
+    friction: np.ndarray  # (n_pulley,) belt-pulley friction coefficients, NaN if not given
+    pulley_names: tuple[str, ...]
+    gravity: np.ndarray  # (2,) m/s^2
+    pulleys: PulleyParts  # `pulley_parts`
+    arms: ArmJoints | None
+
+
+def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
+    """The `DriveFacts` of a configuration (`layout`: its L0 fit, where the arms are taken)."""
+    dofs = number_dofs(cfg)
+    return DriveFacts(layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs), loads=static_loads(cfg, dofs),
+                      friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]),
+                      pulley_names=tuple(p.name for p in cfg.pulleys), gravity=np.asarray(cfg.model.gravity, dtype=float),
+                      pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs))
+
+
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
                  prestrain_stretch: float | np.ndarray | None = None, spring_free: np.ndarray | None = None,
                  dense: bool | None = None, extra: tuple[LinearComponent, ...] = (),
-                 belt_speed: float | None = None) -> System:
+                 belt_speed: float | None = None, facts: DriveFacts | None = None) -> System:
     """The one place a system is built from a configuration: geometry, DOFs, belt, pulleys, springs.
 
     layout: the belt path (default: the L0 fit of the configuration); prestrain_stretch: the spans'
     stretch at q = 0, one number or one per span (default: what the tension mode asks for,
     `reference_stretch`); spring_free (n_dof,): where the bearing springs are relaxed (default: the
     layout's centres; see `pulley_components`); belt_speed (m/s): the running belt's speed (default:
-    [running] of the configuration, `running.belt_speed_of`)."""
-    check_model_size(cfg)
+    [running] of the configuration, `running.belt_speed_of`); facts: the configuration's `DriveFacts`,
+    if at hand (one analysis's builds share them)."""
+    if facts is None:
+        check_model_size(cfg)
+        layout = layout or layout_from_config(cfg)
+        facts = drive_facts(cfg, layout)
     layout = layout or layout_from_config(cfg)
     lam = reference_stretch(cfg, layout) if prestrain_stretch is None else prestrain_stretch
-    dofs = number_dofs(cfg)
+    dofs = facts.dofs
+    arms = facts.arms
+    if arms is not None and layout is not facts.layout:
+        arms = arm_joints(cfg, layout, dofs, like=arms)
     belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam)
-    system = _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free) + tuple(extra),
-                       pulley_names=tuple(p.name for p in cfg.pulleys), driver=cfg.driver_index,
-                       tension=tension_setting(cfg, dofs), gravity=np.asarray(cfg.model.gravity, dtype=float),
-                       dense=dense, loads=static_loads(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
-                       friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]),
+    system = _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free,
+                                                             parts=facts.pulleys) + tuple(extra),
+                       pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
+                       gravity=facts.gravity, dense=dense, loads=facts.loads, arms=arms, friction=facts.friction,
                        springs=build_springs(cfg, layout, dofs, prestrain_stretch=lam))
     if belt_speed is None:
         from .running import belt_speed_of
@@ -2133,20 +2217,22 @@ class DeferredSystem:
     usually never solves on the L0 fit. Cheap facts (tension, DOF map, layout, arms, the belt's
     reference lengths, stretch and EA) come without a build; anything else builds (`full`)."""
 
-    def __init__(self, cfg: DriveConfig, layout: Layout, build) -> None:
+    def __init__(self, cfg: DriveConfig, layout: Layout, build, *, facts: DriveFacts | None = None) -> None:
+        """facts: the configuration's `DriveFacts` on this layout (default: computed here); the `facts`
+        attribute either way, for the builds of the same analysis."""
         from types import SimpleNamespace
 
-        dofs = number_dofs(cfg)
+        facts = drive_facts(cfg, layout) if facts is None else facts
+        dofs = facts.dofs
         lam = reference_stretch(cfg, layout)
         self._facts = {
-            "layout": layout, "dofs": dofs, "tension": tension_setting(cfg, dofs), "arms": arm_joints(cfg, layout, dofs),
+            "layout": layout, "dofs": dofs, "tension": facts.tension, "arms": facts.arms,
             "trans_dof": dofs.trans_dof, "trans_dir": dofs.trans_dir, "rot_dof": dofs.rot_dof,
-            "loads": static_loads(cfg, dofs), "driver_dof": int(dofs.rot_dof[cfg.driver_index]),
+            "loads": facts.loads, "driver_dof": int(dofs.rot_dof[cfg.driver_index]),
             "belt": SimpleNamespace(reference_length=layout.span_length / lam, prestrain_stretch=float(lam),
                                     span_stretch=None, elements=SimpleNamespace(EA=np.array([cfg.belt.EA]))),
             "EA": float(cfg.belt.EA), "dof_labels": dofs.labels[: dofs.n_q],
-            "pulley_friction": np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]),
-            "pulley_index": tuple(p.name for p in cfg.pulleys).index,
+            "pulley_friction": facts.friction, "pulley_index": facts.pulley_names.index, "facts": facts,
         }
         self._build, self._full, self._cfg = build, None, cfg
 
@@ -2164,10 +2250,10 @@ class DeferredSystem:
         if name in facts:
             return facts[name]
         if name == "components" and "_cfg" in self.__dict__:  # the pulleys' own components: cheap, no belt
-            facts[name] = pulley_components(self._cfg, facts["dofs"], facts["layout"])
+            facts[name] = pulley_components(self._cfg, facts["dofs"], facts["layout"], parts=facts["facts"].pulleys)
             return facts[name]
         return getattr(self.full(), name)
 
 
 __all__ = ["System", "DofMap", "BeltSpans", "SpringSpans", "build_springs", "LinearComponent", "BearingSprings", "Observation", "TensionSetting",
-           "build_system", "number_dofs", "stretch_for_tension", "stretch_start", "element_pairs", "DENSE_LIMIT", "ENERGY_KINDS"]
+           "build_system", "DriveFacts", "drive_facts", "number_dofs", "stretch_for_tension", "stretch_start", "element_pairs", "DENSE_LIMIT", "ENERGY_KINDS"]

@@ -267,3 +267,66 @@ def test_energy_shares_with_and_without_the_precomputed_motion():
     md = run.modal
     got = classify(run.system, md.shapes, md.frequency, run.static.q)
     assert got[0] == md.kind and np.array_equal(got[4], md.energy_share)
+
+
+def _pulley(name: str, angle: float, **more) -> dict:
+    """A pulley of radius 0.25 m on the unit circle at `angle` (deg)."""
+    c = [math.cos(math.radians(angle)), math.sin(math.radians(angle))]
+    return {"name": name, "center": c, "radius": 0.25, "mass": 1.0, "inertia": 2e-3, **more}
+
+
+TWO_ARMS = {  # six pulleys around a circle: two arms, a bearing, a slide, two spring spans
+    "belt": {"EA": 1.0e5, "EI": 0.0, "mass_per_length": 0.1, "length": 7.3},
+    "pulleys": [_pulley("P0", 0, driver=True),
+                _pulley("P1", 60, support="bearing", bearing_stiffness=[1.0e5, 2.0e5]),
+                _pulley("P2", 120, support="arm", arm_pivot=[-0.067, 1.116], arm_stiffness=50.0, arm_inertia=1e-3),
+                _pulley("P3", 180),
+                _pulley("P4", 240, support="slide", slide_direction=[0.6, 0.8], bearing_stiffness=3.0e4),
+                _pulley("P5", 300, support="arm", arm_pivot=[0.067, -1.116], arm_stiffness=80.0, arm_damping=0.1)],
+    "mesh": {"elements_per_span": 2},
+    "spans": {"P1-P2": {"model": "spring"}, "P4-P5": {"model": "spring"}},
+    "tension": {"target": 50.0, "mode": "prestrain"},
+}
+
+
+def _fields_equal(a, b, path: str = "system") -> None:
+    """Every dataclass field of a and b equal, to the bit (arrays, components, nested dataclasses)."""
+    assert type(a) is type(b), path
+    if dataclasses.is_dataclass(a):
+        for f in dataclasses.fields(a):
+            _fields_equal(getattr(a, f.name), getattr(b, f.name), f"{path}.{f.name}")
+    elif isinstance(a, np.ndarray):
+        np.testing.assert_array_equal(a, b, err_msg=path)
+    elif isinstance(a, (tuple, list)):
+        assert len(a) == len(b), path
+        for i, (x, y) in enumerate(zip(a, b)):
+            _fields_equal(x, y, f"{path}[{i}]")
+    elif hasattr(a, "__dict__") and not callable(a):
+        _fields_equal(vars(a), vars(b), path)
+    elif isinstance(a, dict):
+        assert a.keys() == b.keys(), path
+        for k in a:
+            _fields_equal(a[k], b[k], f"{path}[{k}]")
+    else:
+        assert a == b or (a != a and b != b), path
+
+
+@pytest.mark.parametrize("dense", [True, False])
+def test_a_build_from_the_analysis_facts_is_the_build_from_the_configuration(dense):
+    # pipeline.analyse computes the configuration's DriveFacts once, on the L0 fit, and builds every
+    # re-laid system from them: a build on another layout (pulleys moved, two arms turned, a bearing and a
+    # slide displaced, springs anchored elsewhere) from the facts is the build from the configuration
+    # alone, field by field to the bit (DOF map, components, arms, belt and spring spans, matrices).
+    from beltdyn.geometry import layout_from_config, relay
+    from beltdyn.system import drive_facts
+
+    cfg = config_from_dict(TWO_ARMS)
+    fit = layout_from_config(cfg)
+    facts = drive_facts(cfg, fit)
+    centers = fit.center + np.array([[0, 0], [1e-3, -2e-3], [2e-3, 1e-3], [0, 0], [3e-3, 4e-3], [-1e-3, 2e-3]])
+    moved = relay(fit, centers)
+    free = np.linspace(-1e-3, 1e-3, facts.dofs.n)
+    stretch = np.linspace(1.001, 1.002, fit.n)
+    kw = dict(prestrain_stretch=stretch, spring_free=free, dense=dense)
+    for lay in (fit, moved):
+        _fields_equal(build_system(cfg, lay, facts=facts, **kw), build_system(cfg, lay, **kw))
