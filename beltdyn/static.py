@@ -858,8 +858,8 @@ def _meet_prestrain(build, layout, lam: float, free: np.ndarray, options: Static
 
 
 def torque_split(layout, loads: np.ndarray | None, rot_dof: np.ndarray, driver: int) -> np.ndarray:
-    """(n,) span tensions relative to the span leaving the driver that the static accessory torques ask
-    for on a rigid belt: the belt's torque on pulley j is rho_j (T_j - T_(j-1)), rho = orientation x
+    """(n,) span tensions relative to the span leaving the driver (its pulley index) that the static
+    accessory torques ask for on a rigid belt: the belt's torque on pulley j is rho_j (T_j - T_(j-1)), rho = orientation x
     side x radius, so every other pulley has T_j = T_(j-1) - tau_j / rho_j (the driver reacts the rest)."""
     n = layout.n
     split = np.zeros(n)
@@ -1103,7 +1103,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     lam_p, slope = float(system.belt.prestrain_stretch), None
     ref0 = system.belt.reference_length
     material = float(ref0.sum() + lay0.arc_length.sum())  # L0, wraps unstretched
-    split = torque_split(lay0, system.loads, d.rot_dof, system.driver_dof)
+    split = torque_split(lay0, system.loads, d.rot_dof, system.driver)
     sp = split.tolist()
     if ts.target is not None:
         def span_tension(angle: list, length: list) -> list:  # the target as the length-weighted mean, split by

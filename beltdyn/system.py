@@ -2228,7 +2228,7 @@ class DeferredSystem:
         self._facts = {
             "layout": layout, "dofs": dofs, "tension": facts.tension, "arms": facts.arms,
             "trans_dof": dofs.trans_dof, "trans_dir": dofs.trans_dir, "rot_dof": dofs.rot_dof,
-            "loads": facts.loads, "driver_dof": int(dofs.rot_dof[cfg.driver_index]),
+            "loads": facts.loads, "driver": cfg.driver_index, "driver_dof": int(dofs.rot_dof[cfg.driver_index]),
             "belt": SimpleNamespace(reference_length=layout.span_length / lam, prestrain_stretch=float(lam),
                                     span_stretch=None, elements=SimpleNamespace(EA=np.array([cfg.belt.EA]))),
             "EA": float(cfg.belt.EA), "dof_labels": dofs.labels[: dofs.n_q],

@@ -480,3 +480,23 @@ def test_a_transient_that_passes_the_arm_stops_is_marked(tmp_path):
     with h5py.File(tmp_path / "s.h5") as f:
         w = [str(x) for x in f["transient"].attrs["warnings"]]
     assert any("beyond its stops" in x and "pulley T" in x for x in w), w
+
+
+@pytest.mark.parametrize("first", [0, 1, 4])
+def test_the_prediction_splits_the_torques_about_the_driver_wherever_it_sits(first):
+    # The all-spring FEAD with its pulley list started at another pulley (the same drive; the crank,
+    # the driver, then sits after the tensioner arm's DOF, so its rotation DOF is not its pulley index):
+    # the rigid-belt prediction splits the accessory torques about the driver, so it is the equilibrium
+    # (no Newton iteration, one layout) in every order, and the span tensions are the same (1e-9 N).
+    from beltdyn.config import config_from_dict, config_to_dict
+    from beltdyn.pipeline import analyse
+
+    fead = load_config(ROOT / "configs/examples/fead_4cyl.toml")
+    cfg = load_config(ROOT / "configs/examples/fead_4cyl.toml", [f'spans.{n}.model="spring"' for n in fead.span_names])
+    d = config_to_dict(cfg)
+    d["pulleys"] = d["pulleys"][first:] + d["pulleys"][:first]
+    run = analyse(config_from_dict(d), modal=False)
+    ref = analyse(cfg, modal=False)
+    assert run.static.iterations == 0 and run.static_passes == 1
+    np.testing.assert_allclose(run.static.span_tension, np.roll(ref.static.span_tension, -first, axis=0), rtol=0,
+                               atol=1e-9)
