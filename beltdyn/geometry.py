@@ -256,16 +256,33 @@ class MovingPulley:
     `compute_layout(check=False)`."""
 
     def __init__(self, base: Layout, j: int) -> None:
-        n = base.n
-        self.j, self.n = j, n
-        self.o = base.orientation
-        self.rho = (base.orientation * base.side_sign * base.radius).tolist()
-        self.turn_sign = (base.orientation * base.side_sign).tolist()  # o sigma of each pulley
-        self.radius = base.radius.tolist()
-        self.center = base.center.tolist()
+        self._set(base.center, base.radius, base.side_sign, base.orientation, j)
         self.angle = base.span_angle.tolist()  # (n,) the base layout's, replaced at j-1 and j by `at`
         self.length = base.span_length.tolist()
         self.arc = base.arc_length.tolist()
+
+    @classmethod
+    def of_centres(cls, center: np.ndarray, radius: np.ndarray, side_sign: np.ndarray, orientation: int,
+                   j: int) -> "MovingPulley":
+        """The same from the pulleys (center (n, 2), radius (n,), side_sign (n,)) without a base layout:
+        every span and wrap in floats (an unchecked `compute_layout`)."""
+        self = cls.__new__(cls)
+        self._set(center, radius, side_sign, orientation, j)
+        c, rho = self.center, self.rho
+        lines = [span_line(*c[i], rho[i], *c[i + 1 - self.n], rho[i + 1 - self.n]) for i in range(self.n)]
+        self.angle = [a for a, _ in lines]
+        self.length = [ell for _, ell in lines]
+        self.arc = [r * ((t * (self.angle[i] - self.angle[i - 1])) % TWO_PI)
+                    for i, (r, t) in enumerate(zip(self.radius, self.turn_sign))]
+        return self
+
+    def _set(self, center: np.ndarray, radius: np.ndarray, side_sign: np.ndarray, orientation: int, j: int) -> None:
+        n = len(radius)
+        self.j, self.n, self.o = j, n, orientation
+        self.turn_sign = (orientation * side_sign).tolist()  # o sigma of each pulley
+        self.radius = radius.tolist()
+        self.rho = [t * r for t, r in zip(self.turn_sign, self.radius)]
+        self.center = center.tolist()
         self.prev, self.next = (j - 1) % n, (j + 1) % n
         self.wrapped = sorted({self.prev, j, self.next})  # pulleys whose wrap changes
 
@@ -333,11 +350,13 @@ def fit_adjustable(
         except GeometryError as exc:
             raise GeometryError(f"at the given centre of the adjustable pulley: {exc}", exc.key) from None
 
-    # base: the layout at `center` if the caller has it; unchecked for the quick way (the drawn centre is only
-    # where the fit starts: the fitted layout is checked), checked before the checked way
-    base = base if base is not None else compute_layout(center, radius, side_sign, names, orientation=orientation,
-                                                         check=False)
-    orientation = base.orientation
+    # base: the layout at `center` if the caller has it; for the quick way the path there in floats, unchecked
+    # (the drawn centre is only where the fit starts: the fitted layout is checked); checked before the checked way
+    if base is not None:
+        orientation, path = base.orientation, MovingPulley(base, index)
+    else:
+        orientation = loop_orientation(center) if orientation is None else orientation
+        path = MovingPulley.of_centres(center, radius, side_sign, orientation, index)
 
     def layout_at(s: float, check: bool) -> Layout:
         c = center.copy()
@@ -386,7 +405,6 @@ def fit_adjustable(
     def quick() -> float | None:
         """Newton's offset as `newton(False)` takes it, the iterates in floats (`MovingPulley`); None
         where the iteration would fail (the checked way then says why)."""
-        path = MovingPulley(base, index)
         cx, cy = (float(v) for v in center[index])
         ax, ay = (cx, cy) if arm is None else (float(arm[0]), float(arm[1]))
         dx, dy = (float(v) for v in direction)
@@ -437,7 +455,7 @@ def fit_adjustable(
         lay = compute_layout(c, radius, side_sign, names, orientation=orientation, adjust_offset=s,
                              adjust_index=index, adjust_kind=kind)
     except GeometryError:
-        base = checked_base()
+        base = checked_base() if base is None else base
         s, lay = newton(True)
         lay = replace(lay, adjust_offset=s, adjust_index=index, adjust_kind=kind)
     if slide_range is not None and not (slide_range[0] <= s <= slide_range[1]):

@@ -199,3 +199,7 @@ def test_moving_pulley_path_equals_the_full_layout(config, data):
     assert np.abs(turn).max() <= 1e-12
     np.testing.assert_allclose(length, full.span_length, rtol=0, atol=1e-12)
     np.testing.assert_allclose(arc, full.arc_length, rtol=0, atol=1e-12)
+    # of_centres lays the whole path in floats: the layout's numbers (1e-14)
+    path = MovingPulley.of_centres(center, lay.radius, lay.side_sign, lay.orientation, j)
+    for got, want in ((path.angle, full.span_angle), (path.length, full.span_length), (path.arc, full.arc_length)):
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-14)
