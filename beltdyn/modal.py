@@ -124,7 +124,7 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
         Md = M if model.dense else M.toarray()
         try:
             if n <= 200:  # divide and conquer on the full problem beats the subset driver here
-                w, v = _generalized_eigh(Kd, Md)
+                w, v = generalized_eigh(Kd, Md)
                 w, v = w[:n_want], v[:, :n_want]
             else:
                 from scipy.linalg import eigh
@@ -197,15 +197,16 @@ def _shape_outputs(model: System, q: np.ndarray, shapes: np.ndarray, freq: np.nd
     return *out, belt.midspan_displacement_linear(belt.element_coordinates(model.expand(q)), motion)
 
 
-def _generalized_eigh(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """All eigenpairs (ascending, x^T M x = 1) of K x = lam M x, K (n, n) symmetric, M positive definite:
-    LAPACK dsygvd (divide and conquer), the call scipy.linalg.eigh(K, M, driver="gvd") makes, without
-    its argument checks (a quarter of the modal analysis of an 8-DOF drive). Raises LinAlgError as eigh."""
+def generalized_eigh(K: np.ndarray, M: np.ndarray, *, vectors: bool = True) -> tuple[np.ndarray, np.ndarray | None]:
+    """All eigenpairs (ascending, x^T M x = 1) of K x = lam M x, K (n, n) symmetric, M positive definite
+    (vectors=False: the eigenvalues, None): LAPACK dsygvd (divide and conquer), the call
+    scipy.linalg.eigh(K, M, driver="gvd") makes, without its argument checks (a quarter of the modal
+    analysis of an 8-DOF drive). Raises LinAlgError as eigh."""
     from scipy.linalg.lapack import dsygvd
 
-    w, v, info = dsygvd(K, M)  # (defaults: itype=1, jobz="V", uplo="L")
+    w, v, info = dsygvd(K, M, jobz="V" if vectors else "N")  # (defaults: itype=1, uplo="L")
     if info == 0:
-        return w, v
+        return w, (v if vectors else None)
     n = K.shape[0]
     if info > n:
         raise np.linalg.LinAlgError(f"The leading minor of order {info - n} of B is not positive definite. The "
