@@ -42,6 +42,7 @@ span by span, the cheapest rung whose modes below fmax are within rtol of the co
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -123,14 +124,9 @@ def span_frequencies(*, length: float, stretch: float, EA: float, EI: float, rho
                                 curvature=curvature, n_gauss=n_gauss)
         blocks = (Kt[0], Mt[0])
     n = 4 * (elements + 1)
-    K = np.zeros((n, n))
-    M = np.zeros((n, n))
-    e_ = np.arange(elements)
-    for A, Ae in ((K, blocks[0]), (M, blocks[1])):  # every element alike: its 4 x 4 node blocks on the node pairs
-        nodes = A.reshape(elements + 1, 4, elements + 1, 4)
-        for a in (0, 1):
-            for b in (0, 1):
-                nodes[e_ + a, :, e_ + b, :] += Ae[4 * a: 4 * a + 4, 4 * b: 4 * b + 4]
+    flat = _chain_slots(elements)  # every element alike: its (8, 8) block on its two nodes' rows and columns
+    K, M = (np.bincount(flat, weights=np.tile(np.asarray(b, dtype=float).ravel(), elements),
+                        minlength=n * n).reshape(n, n) for b in blocks)
     out = []
     for comp, want in ((1, n_t), (0, n_a)):  # y: transverse, x: axial; the end positions held
         keep = np.r_[np.arange(comp, n, 4)[1:-1], np.arange(comp + 2, n, 4)]
@@ -143,6 +139,18 @@ def span_frequencies(*, length: float, stretch: float, EA: float, EI: float, rho
             f[:k] = np.sqrt(np.maximum(w, 0.0)) / (2 * np.pi)
         out.append(f)
     return out[0], out[1]
+
+
+@functools.lru_cache(maxsize=32)
+def _chain_slots(elements: int) -> np.ndarray:
+    """(elements * 64,) flat slot row * n + col of each entry of each element's (8, 8) block in the (n, n)
+    matrix of a chain of `elements` ANCF elements (n = 4 (elements + 1): element e on nodes e, e + 1),
+    element by element, row-major (read-only, cached)."""
+    n = 4 * (elements + 1)
+    dof = 4 * np.arange(elements)[:, None] + np.arange(8)  # (elements, 8)
+    out = (dof[:, :, None] * n + dof[:, None, :]).ravel()
+    out.setflags(write=False)
+    return out
 
 
 def local_error(*, model: str, elements: int, fmax: float, length: float, stretch: float, EA: float, EI: float,
