@@ -228,13 +228,19 @@ def _plus(a: np.ndarray | None, b: np.ndarray) -> np.ndarray:
     return b if a is None else a + b
 
 
+def _cached(obj, key: str, make):
+    """obj's `key` entry, made by make() at first use: a per-object cache on a frozen dataclass (a "_" key,
+    which the field copies of `System.with_belt` and `with_speed` leave out)."""
+    value = obj.__dict__.get(key)
+    if value is None:
+        value = make()
+        object.__setattr__(obj, key, value)
+    return value
+
+
 def _transposed(spans) -> np.ndarray:
     """spans.T (k, r, m) transposed to (k, m, r), contiguous, cached on the (frozen) spans object."""
-    tt = spans.__dict__.get("_Tt")
-    if tt is None:
-        tt = np.ascontiguousarray(spans.T.transpose(0, 2, 1))
-        object.__setattr__(spans, "_Tt", tt)
-    return tt
+    return _cached(spans, "_Tt", lambda: np.ascontiguousarray(spans.T.transpose(0, 2, 1)))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -662,20 +668,12 @@ class SpringSpans:
     @property
     def chord_map(self) -> np.ndarray:
         """D = T[:, 2:4] - T[:, 0:2] (k, 2, m): the chord d = r_b - r_a per joint coordinate (cached)."""
-        D = self.__dict__.get("_D")
-        if D is None:
-            D = self.T[:, 2:4] - self.T[:, 0:2]
-            object.__setattr__(self, "_D", D)
-        return D
+        return _cached(self, "_D", lambda: self.T[:, 2:4] - self.T[:, 0:2])
 
     @property
     def chord_map_t(self) -> np.ndarray:
         """D^T (k, m, 2), contiguous (cached)."""
-        Dt = self.__dict__.get("_Dt")
-        if Dt is None:
-            Dt = np.ascontiguousarray(self.chord_map.transpose(0, 2, 1))
-            object.__setattr__(self, "_Dt", Dt)
-        return Dt
+        return _cached(self, "_Dt", lambda: np.ascontiguousarray(self.chord_map.transpose(0, 2, 1)))
 
     def damping_blocks(self, p: np.ndarray) -> np.ndarray:
         """(k, m, m) the damping matrix dN_d/d(x') through the joints at p (Kelvin-Voigt)."""
