@@ -41,7 +41,7 @@ from .config import StaticOptions
 from .errors import SolverError
 from .geometry import GeometryError, Layout, MovingPulley, fit_adjustable, pivot_angle, relay, unwrap_near
 from .slip import required_friction, slip_margin
-from .system import DOF_GROUPS, System, stretch_for_tension, stretch_start
+from .system import DOF_GROUPS, System, stretch_for_tension
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -886,18 +886,27 @@ def _conserved_tension(total_length: float, split: list, reference: list, EA: fl
     x = [(T_ref + s) / EA for s in sp]
     T_ref += 1.5 * EA * sum(r * v * v for r, v in zip(ref, x)) / total  # then 1 + x - 3/2 x^2 (one step)
     x = [(T_ref + s) / EA for s in sp]
-    lam = [stretch_start(v) for v in x] if max(map(abs, x)) < 0.05 else [stretch_for_tension(T_ref + s, EA) for s in sp]
+    lam = ([1.0 + v * (1.0 - v * (1.5 - 4.0 * v)) for v in x] if max(map(abs, x)) < 0.05  # `stretch_start`'s series
+           else [stretch_for_tension(T_ref + s, EA) for s in sp])
     half = 0.5 * EA
     for _ in range(50):  # Newton on T_ref, each stretch first stepped to its span's tension (one Newton step)
-        slope = [half * (3.0 * x * x - 1.0) for x in lam]  # dT/dlambda
-        d_lam = [(half * (x * x * x - x) - (T_ref + s)) / d for x, s, d in zip(lam, sp, slope)]
-        lam = [x - d for x, d in zip(lam, d_lam)]
-        step = (sum(map(mul, lam, ref)) - L) / sum(map(truediv, ref, slope))
+        stepped, worst, length, compliance = [], 0.0, 0.0, 0.0  # (one pass: lists of 7 cost their loops' overhead)
+        for y, s, r in zip(lam, sp, ref):
+            slope = half * (3.0 * y * y - 1.0)  # dT/dlambda
+            d = (half * (y * y * y - y) - (T_ref + s)) / slope
+            y -= d
+            stepped.append(y)
+            if abs(d) > worst:
+                worst = abs(d)
+            length += y * r
+            compliance += r / slope
+        lam = stepped
+        step = (length - L) / compliance
         T_ref -= step
         # done when the stretches were exact (Newton on the cubic leaves about 1.5 d^2 after a step d, below
         # 2e-16 for d <= 1e-8) and what T_ref still lacks is below 1e-12 EA: Newton leaves c step^2 / EA after
         # a step, c = |g''| EA / (2 g') <= 6 lambda_max / (3 lambda_min^2 - 1)^2 (1.5 at lambda = 1)
-        if max(map(abs, d_lam)) <= 1e-8:
+        if worst <= 1e-8:
             lo = min(lam)
             h = 3.0 * lo * lo - 1.0  # (a float's ** raises on overflow)
             if abs(step) <= 1e-12 * EA or (h > 0.1 and 6.0 * max(lam) * step * step <= 1e-12 * EA * EA * h * h):
