@@ -19,7 +19,7 @@ holds the solved pulley centres.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from .config import DriveConfig
@@ -69,20 +69,25 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
     if not (static or modal):
         return Analysis(config=cfg, layout=layout, system=build(layout), fit_layout=layout)
     initial = DeferredSystem(cfg, layout, build, facts=facts)  # built only if the static analysis solves on the L0 fit
-    out = Analysis(config=cfg, layout=layout, system=None, fit_layout=layout)
+    solved = None
+
+    def reached(modes=None) -> Analysis:  # what the run reached (the partial results of a failure)
+        if solved is None:
+            return Analysis(config=cfg, layout=layout, system=None, fit_layout=layout)
+        return Analysis(config=cfg, layout=solved.system.layout, system=solved.system, static=solved.static,
+                        modal=modes, fit_layout=layout, static_passes=solved.passes)
+
     try:
         solved = solve_static_on_solved_geometry(initial, build, cfg.static)
-        out = Analysis(config=cfg, layout=solved.system.layout, system=solved.system, static=solved.static,
-                       fit_layout=layout, static_passes=solved.passes)
-        if modal:
-            from .modal import solve_modes
+        if not modal:
+            return reached()
+        from .modal import solve_modes
 
-            out = replace(out, modal=solve_modes(out.system, out.static.q, n_modes=n_modes or cfg.modal.modes,
-                                                 solver=cfg.modal.solver, tangent=solved.tangent))
+        return reached(solve_modes(solved.system, solved.static.q, n_modes=n_modes or cfg.modal.modes,
+                                   solver=cfg.modal.solver, tangent=solved.tangent))
     except SolverError as exc:
-        exc.partial = out  # type: ignore[attr-defined]
+        exc.partial = reached()  # type: ignore[attr-defined]
         raise
-    return out
 
 
 def initial_belt_speed(system: "System", opts) -> float:

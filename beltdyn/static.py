@@ -98,16 +98,18 @@ def _predictor(system: System, stretch: float | np.ndarray, adjust_dof: int, dri
         # (a span's columns: distinct DOFs, and the padding's zeros; the spans are not the ANCF ones)
         A_p[sp.span[:, None], sp.idx] += D[:, 0] * ts[:, 0, None] + D[:, 1] * ts[:, 1, None]
     A_p = A_p[:, : system.n_p]
-    A_q = A_p if system.arms is None else system.arms.project(np.zeros(system.n_dof), A_p)  # A_p J
+    A_q = A_p if system.arms is None else system.arms.project(None, A_p)  # A_p J at q = 0
     A = A_q[:, unknowns]
     lam0 = model.span_stretch if model.span_stretch is not None else model.prestrain_stretch
     target = (stretch - lam0) * model.reference_length  # elongation still needed from the stretch at q = 0
-    try:  # the normal equations: a few unknowns, a start for Newton (SVD least squares if singular)
-        x = np.linalg.solve(A.T @ A, A.T @ target)
-    except np.linalg.LinAlgError:
-        x = np.linalg.lstsq(A, target, rcond=None)[0]
+    # the normal equations: a few unknowns, a start for Newton (SVD least squares if singular); LAPACK's
+    # dgesv directly (np.linalg.solve's call, without its gufunc set-up: most of its time on 6 unknowns)
+    from scipy.linalg.lapack import dgesv
+
     q = np.zeros(system.n_dof)
-    q[unknowns] = x
+    if len(unknowns):  # (at least the non-driver pulleys' rotations)
+        _, _, x, info = dgesv(A.T @ A, A.T @ target)
+        q[unknowns] = x if info == 0 else np.linalg.lstsq(A, target, rcond=None)[0]
     return _straight_spans(system, q)
 
 
@@ -216,7 +218,7 @@ class ResidualScales:
         self._arm_lever = None
         if a is not None:  # an arm's row is a torque about its pivot: the arm length
             lever[a.dof] = a.length
-            self._arm_lever = np.abs(a.first(a.angle))  # (a, 2) |dc/dphi| at q = 0
+            self._arm_lever = np.abs(a.reference_slopes)  # (a, 2) |dc/dphi| at q = 0
         target = system.tension.target
         EA = system.EA if EA is None else EA
         if target is not None:

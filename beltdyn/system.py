@@ -1078,6 +1078,14 @@ class ArmJoints:
         """cos and sin (a,) of the arm angles at q = 0."""
         return np.cos(self.angle), np.sin(self.angle)
 
+    @functools.cached_property
+    def reference_slopes(self) -> np.ndarray:
+        """dc/dphi (a, 2) at q = 0 (`first`(angle); read-only)."""
+        cos0, sin0 = self._reference_cos_sin
+        out = self.length[:, None] * _last_pair(-sin0, cos0)
+        out.setflags(write=False)
+        return out
+
     def expand_motion(self, q: np.ndarray, dq: np.ndarray, *, slopes: np.ndarray | None = None) -> np.ndarray:
         """J(q) dq (..., n_p): velocities, or mode shapes about q (slopes: `first` at q, if at hand)."""
         du = (self.first(self.phi(q)) if slopes is None else slopes) * dq[..., self.dof, None]
@@ -1091,10 +1099,14 @@ class ArmJoints:
             np.einsum("...kd,...k->...kd", self.second(phi), w * w)
         return np.concatenate([a, du.reshape(*a.shape[:-1], -1)], axis=-1)
 
-    def project(self, q: np.ndarray, f: np.ndarray) -> np.ndarray:
-        """J(q)^T f: a force (..., n_p) on the joint coordinates -> (..., n_q)."""
+    def project(self, q: np.ndarray | None, f: np.ndarray) -> np.ndarray:
+        """J(q)^T f: a force (..., n_p) on the joint coordinates -> (..., n_q) (q None: at q = 0)."""
         out = f[..., : self.n_q].copy()
         fu = f[..., self.n_q:].reshape(*f.shape[:-1], len(self.dof), 2)
+        if q is None:
+            dc = self.reference_slopes
+            out[..., self.dof] += dc[:, 0] * fu[..., 0] + dc[:, 1] * fu[..., 1]
+            return out
         phi = self.phi(q)
         out[..., self.dof] += -(self.length * np.sin(phi)) * fu[..., 0] + (self.length * np.cos(phi)) * fu[..., 1]
         return out
