@@ -939,7 +939,7 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
                            and c.dofs[0] == dof), None)
             if int(dof) == system.tension.adjust_dof or spring is None:
                 continue
-            j = next(i for i, dd in enumerate(system.trans_dof) if dd and dd[0] == a.slot[k])
+            j = a.pulleys[k]
             free = float(spring.free[0]) if spring.free is not None else 0.0
             arms.append((j, a.pivot[k], float(a.length[k]), float(spring.stiffness[0, 0]), float(a.angle[k]),
                          float(a.angle[k]) + free))
@@ -947,11 +947,9 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
     if not anchored and not arms and fit is not None:  # nothing deflects: the fit alone places the pulleys
         return fit(centers).center
 
-    prv = (np.arange(lay0.n) - 1) % lay0.n
-
     def pull(lay) -> np.ndarray:
         f = np.array(span_tension(lay.span_angle.tolist(), lay.span_length.tolist()))[:, None] * lay.span_direction
-        return f - f[prv]
+        return f - np.roll(f, 1, axis=0)  # (span j - 1 arrives at pulley j)
 
     def arm_moment(j: int, pv: np.ndarray, length: float, k_s: float, phi_f: float):
         """The moment about the pivot on arm pulley j at arm angle phi (spring and belt pull)."""
@@ -962,7 +960,7 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
                 r, f = c[j] - pv, pull(place(c))[j]
                 return float(r[0] * f[1] - r[1] * f[0]) - k_s * (phi - phi_f)
             return moment
-        path = MovingPulley(lay0 if np.array_equal(centers, lay0.center) else place(centers), j)
+        path = MovingPulley(lay0 if not moved else place(centers), j)
         px, py, i = float(pv[0]), float(pv[1]), path.prev
 
         def moment(phi: float) -> float:  # only pulley j moves: its two spans in floats
@@ -974,6 +972,7 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
             return length * (cs * fy - sn * fx) - k_s * (phi - phi_f)
         return moment
 
+    moved = False  # (centers still lay0's)
     for _ in range(50):
         for j, pv, length, k_s, phi_ref, phi_f in arms:  # each arm's balance, the other pulleys where they are
             moment = arm_moment(j, pv, length, k_s, phi_f)
@@ -989,6 +988,7 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
                     break
                 m1 = moment(phi1)
             centers[j] = pv + length * np.array([np.cos(phi1), np.sin(phi1)])
+            moved = True
         if not anchored and len(arms) == 1 and fit is None:  # the one arm balanced, nothing else moves: done
             break
         lay = place(centers)
@@ -1099,7 +1099,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             for k, dof in enumerate(system.arms.dof):
                 if int(dof) == ts.adjust_dof:
                     continue  # the tension step sets its preload
-                j = next(i for i, dd in enumerate(d.trans_dof) if dd and dd[0] == system.arms.slot[k])
+                j = system.arms.pulleys[k]
                 pv = system.arms.pivot[k]
                 turn = pivot_angle(lay0.center[j], pv) - pivot_angle(centers[j], pv)
                 free[int(dof)] = float((turn + np.pi) % (2 * np.pi) - np.pi)
@@ -1192,7 +1192,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                 centers = centers + rho / (1.0 - rho) * step
                 if system.arms is not None:  # an arm pulley stays on its circle about the pivot
                     for k in range(len(system.arms.dof)):
-                        j = next(i for i, dd in enumerate(d.trans_dof) if dd and dd[0] == system.arms.slot[k])
+                        j = system.arms.pulleys[k]
                         pv = system.arms.pivot[k]
                         r = centers[j] - pv
                         centers[j] = pv + r * (np.hypot(*(lay0.center[j] - pv)) / np.hypot(*r))

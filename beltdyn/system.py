@@ -1628,8 +1628,7 @@ class System:
         out = []
         comps = [(c, c.dofs.tolist()) for c in self.components]
         g = self.gravity
-        for d, slot in zip(arms.dof.tolist(), arms.slot.tolist()):
-            j = next(i for i, dd in enumerate(self.trans_dof) if dd and dd[0] == slot)
+        for d, slot, j in zip(arms.dof.tolist(), arms.slot.tolist(), arms.pulleys):
             spring = next((c for c, cd in comps if cd == [d] and c.stiffness is not None), None)
             weight = np.zeros(2)
             for c, cd in comps:
