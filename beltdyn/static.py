@@ -360,7 +360,8 @@ class _Problem:
         self.has_weight = bool(system.gravity.any())
         self.accept = 1.0  # Newton stops at err <= accept (a continuation's intermediate stages: looser)
         self.scales = ResidualScales(system, EA=EA, external=external)
-        self.last: tuple = (None, 0.0, 0.0, None, None)  # (q, load factor, driver residual, mean tension, tangent)
+        # (q, load factor, driver residual, mean tension, tangent, joint coordinates) of the last evaluation
+        self.last: tuple = (None, 0.0, 0.0, None, None, None)
         self.keep_tangent = False  # keep the unpinned tangent of the last evaluation (what the modal analysis reuses)
 
     def tension_tolerance(self) -> float:
@@ -377,12 +378,12 @@ class _Problem:
         R, K, p = m.equilibrium(q, lam, joint=True)  # J^T (f - lam F), F the weight and the accessory torques
         R -= self.preload
         # what the outputs reuse at the solution (the tangent before bordering and pinning change it in place)
-        self.last = (q, lam, float(R[self.driver]), None, K.copy() if self.keep_tangent else None)
+        self.last = (q, lam, float(R[self.driver]), None, K.copy() if self.keep_tangent else None, p)
         scaled = np.abs(R) / self.allowed(q, lam, p)
         rank1 = None
         if bordered:  # the slide equation of the adjustable pulley becomes T(q) = target
             T, dT = m.mean_tension_and_gradient(q)
-            self.last = (q, lam, self.last[2], T, self.last[4])
+            self.last = (q, lam, self.last[2], T, self.last[4], p)
             R[self.a] = T - self.target
             scaled[self.a] = abs(R[self.a]) / self.tension_tolerance()
             if m.dense:
@@ -603,7 +604,8 @@ def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray 
     Newton history (n_iter, 2) of (scaled residual, load factor)). For the re-lay passes, whose
     outputs only the last one needs. known: also what the solve evaluated at q that the outputs reuse
     ({"driver_torque", "mean_tension", "tangent"}, each present only if evaluated at q at full load; the
-    tangent dr/dq of `System.equilibrium`, unpinned, which the modal analysis reuses). budget: the
+    tangent dr/dq of `System.equilibrium`, unpinned, which the modal analysis reuses; "joint": q on the
+    joint coordinates, P(q)). budget: the
     residual evaluations the analysis may still spend (`Budget`; default: a fresh one for this solve)."""
     model = system
     prob = _Problem(system, options, budget)
@@ -655,7 +657,9 @@ def solve_equilibrium(system: System, options: StaticOptions, *, q0: np.ndarray 
     if not known:
         return q, prob.preload, hist
     seen: dict = {}
-    q_l, lam_l, r_driver, T, K = prob.last
+    q_l, lam_l, r_driver, T, K, p = prob.last
+    if q_l is q:
+        seen["joint"] = p
     if q_l is q and lam_l == 1.0:
         seen["driver_torque"] = r_driver + float(prob.preload[prob.driver])
         if T is not None:
@@ -726,7 +730,7 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *
     `solve_equilibrium`)."""
     lay = model.layout
     known = known or {}
-    p = model.expand(q)
+    p = known["joint"] if "joint" in known else model.expand(q)
     hub, span_tension, T_mean = model.static_span_outputs(q, p=p, mean="mean_tension" not in known)
     if "driver_torque" in known:
         driver_torque = known["driver_torque"] - float(preload[driver_dof])
@@ -763,7 +767,8 @@ def _result(model: System, q, preload, hist_r, hist_l, iterations, driver_dof, *
     mu_req = required_friction(span_tension, lay.wrap_angle)
     return StaticResult(
         q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
-        hub_load=hub, pulley_center=model.pulley_centers(q, p=p), pulley_rotation=q[model.rot_dof],
+        hub_load=hub, pulley_center=known["pulley_center"] if "pulley_center" in known else model.pulley_centers(q, p=p),
+        pulley_rotation=q[model.rot_dof],
         driver_torque=driver_torque, adjust_offset=offset,
         residual_history=np.array(hist_r), load_factor_history=np.array(hist_l), iterations=iterations,
         tension_mode=model.tension.mode, arm_angle=arm_angle, arm_torque=arm_torque, arm_free_angle=arm_free,
@@ -1167,19 +1172,19 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         if prestrain:
             system, st, lam_p, slope, k = _meet_prestrain(build, lay, lam_p, free, options, slope, budget)
             solves += k
-            q_p = st.q
+            q_p, known = st.q, {}
             iterations += st.iterations  # (the last prestrain solve's)
         else:
             q_p, preload, hist, known = solve_equilibrium(system, options, q0=warm, known=True, budget=budget)
             solves += 1
             iterations += len(hist)
-        solved_centers = system.pulley_centers(q_p)
+        solved_centers = system.pulley_centers(q_p, p=known.get("joint"))
         step = solved_centers - lay.center
-        movement.append(float(np.linalg.norm(step, axis=1).max(initial=0.0)))
+        movement.append(float(np.sqrt((step * step).sum(axis=1)).max(initial=0.0)))  # (the largest |step|)
         if not moving or movement[-1] <= tol_x:
             if not prestrain:
                 st = _result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
-                             known=known)
+                             known={**known, "pulley_center": solved_centers})
             _check_slack(system, st)
             return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement),
                                newton_iterations=iterations, tangent=None if prestrain else known.get("tangent"))
