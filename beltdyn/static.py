@@ -869,14 +869,15 @@ def torque_split(layout, loads: np.ndarray | None, rot_dof: np.ndarray, driver: 
     accessory torques ask for on a rigid belt: the belt's torque on pulley j is rho_j (T_j - T_(j-1)), rho = orientation x
     side x radius, so every other pulley has T_j = T_(j-1) - tau_j / rho_j (the driver reacts the rest)."""
     n = layout.n
-    split = np.zeros(n)
     if loads is None:
-        return split
-    rho = layout.orientation * layout.side_sign * layout.radius
+        return np.zeros(n)
+    split = [0.0] * n  # (floats: a few pulleys)
+    rho = (layout.orientation * layout.side_sign * layout.radius).tolist()
+    tau = loads[rot_dof].tolist()
     for i in range(1, n):
         j = (driver + i) % n
-        split[j] = split[j - 1] - float(loads[int(rot_dof[j])]) / rho[j]
-    return split
+        split[j] = split[j - 1] - tau[j] / rho[j]
+    return np.array(split)
 
 
 def _conserved_tension(total_length: float, split: list, reference: list, EA: float) -> list:
