@@ -892,7 +892,7 @@ def _conserved_tension(total_length: float, split: list, reference: list, EA: fl
     total = sum(ref)
     T_ref = EA * (L / total - 1.0) - sum(map(mul, ref, sp)) / total  # the start: lambda = 1 + x,
     x = [(T_ref + s) / EA for s in sp]
-    T_ref += 1.5 * EA * sum(r * v * v for r, v in zip(ref, x)) / total  # then 1 + x - 3/2 x^2 (one step)
+    T_ref += 1.5 * EA * sum([r * v * v for r, v in zip(ref, x)]) / total  # then 1 + x - 3/2 x^2 (one step)
     x = [(T_ref + s) / EA for s in sp]
     lam = ([1.0 + v * (1.0 - v * (1.5 - 4.0 * v)) for v in x] if max(map(abs, x)) < 0.05  # `stretch_start`'s series
            else [stretch_for_tension(T_ref + s, EA) for s in sp])

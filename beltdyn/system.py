@@ -2081,7 +2081,7 @@ def stretch_for_tension(tension, EA: float):
                 break
     except ZeroDivisionError:  # a float's 0 / 0 or x / 0 where numpy's would give nan or inf
         return math.nan
-    return float(lam) if np.ndim(lam) == 0 else lam
+    return lam if isinstance(lam, float) or np.ndim(lam) else float(lam)
 
 
 def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
@@ -2244,6 +2244,7 @@ class DeferredSystem:
             "pulley_friction": facts.friction, "pulley_index": facts.pulley_names.index, "facts": facts,
         }
         self._build, self._full, self._cfg = build, None, cfg
+        self.__dict__.update(self._facts)  # (read as plain attributes: `__getattr__` only for the rest)
 
     @property
     def built(self) -> bool:
