@@ -14,13 +14,14 @@ motion per unit of each translational DOF (the ones the belt joints and the pull
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
 from .config import Pulley
-from .geometry import arm_angle, unwrap_near
+from .geometry import unwrap_near
 
 Dof = tuple[str, str, str]  # label suffix, unit, DOF group
 
@@ -141,7 +142,8 @@ class ArmSupport(Support):
         on one branch); without stops, the angle of atan2."""
 
         p = self.pulley
-        phi = arm_angle(layout, index, p.arm_pivot)
+        (x, y), (px, py) = layout.center[index].tolist(), p.arm_pivot
+        phi = math.atan2(y - py, x - px)  # `geometry.arm_angle` on floats
         return unwrap_near(phi, 0.5 * (p.arm_range[0] + p.arm_range[1])) if p.arm_range is not None else phi
 
     def own_components(self, dof: int, layout, index: int, spring_free: np.ndarray | None = None) -> tuple:
@@ -163,16 +165,16 @@ class ArmSupport(Support):
             damping=np.array([[p.arm_damping]]) if p.arm_damping > 0 else None, free=free, energy_kind="tensioner"),)
 
     def fit_motion(self) -> dict:
-
-        p = self.pulley
-        rng = None
-        if p.arm_range is not None:
-            drawn = unwrap_near(p.arm_angle, 0.5 * (p.arm_range[0] + p.arm_range[1]))
-            rng = (p.arm_range[0] - drawn, p.arm_range[1] - drawn)
-        return {"direction": np.zeros(2), "slide_range": rng, "pivot": np.array(p.arm_pivot, dtype=float)}
+        return {"direction": np.zeros(2), "slide_range": self.travel_limits(),
+                "pivot": np.array(self.pulley.arm_pivot, dtype=float)}
 
     def travel_limits(self) -> tuple[float, float] | None:
-        return self.fit_motion()["slide_range"]
+        """The stops (arm_range) about the drawn arm angle, rad (None without stops)."""
+        p = self.pulley
+        if p.arm_range is None:
+            return None
+        drawn = unwrap_near(p.arm_angle, 0.5 * (p.arm_range[0] + p.arm_range[1]))
+        return (p.arm_range[0] - drawn, p.arm_range[1] - drawn)
 
 
 SUPPORT_CLASSES: dict[str, type[Support]] = {c.kind: c for c in (Support, SlideSupport, BearingSupport, ArmSupport)}

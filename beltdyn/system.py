@@ -49,6 +49,13 @@ _EYE2 = np.eye(2)
 _EYE2.setflags(write=False)
 _PAD = np.zeros(1)  # the padding coordinate (index n_dof) appended to p
 _PAD.setflags(write=False)
+_NEG_X = np.array([-1.0, 1.0])  # (a, b) -> (-a, b): z x t = (t_y, t_x) * _NEG_X
+_NEG_X.setflags(write=False)
+# the tables of a belt without elements (every span a spring), shared read-only
+_NO_ELEMENT, _NO_INDEX, _NO_T, _NO_IDX, _NO_E = (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 8, 8)),
+                                                 np.zeros((0, 8), dtype=np.int64), np.zeros((0, 8)))
+for _a in (_NO_ELEMENT, _NO_INDEX, _NO_T, _NO_IDX, _NO_E):
+    _a.setflags(write=False)
 DOF_GROUPS = ("span", "rotation", "translation", "arm")
 ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse", "tensioner")
 
@@ -827,9 +834,11 @@ class SpringSpans:
 
 
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
-                  prestrain_stretch: float | np.ndarray = 1.0, direction: np.ndarray | None = None) -> SpringSpans | None:
+                  prestrain_stretch: float | np.ndarray = 1.0, direction: np.ndarray | None = None,
+                  reference_length: np.ndarray | None = None) -> SpringSpans | None:
     """The spring spans of the configuration (None without any), on the layout's tangent points.
-    direction: the layout's `span_direction`, if at hand."""
+    direction: the layout's `span_direction`; reference_length (n_span,): every span's reference length at
+    this prestrain_stretch (`BeltSpans.reference_length`); each if at hand."""
     spans = tuple(s for s, m in enumerate(cfg.span_models) if m == "spring")
     if not spans:
         return None
@@ -838,12 +847,12 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     direction = layout.span_direction if direction is None else direction
     every = len(spans) == n  # (then sp = 0, 1, ... n - 1: the layout's arrays as they are)
     sp = slice(None) if every else np.array(spans, dtype=np.int64)
-    T = T.copy()  # the rotation columns R (z x n) of each end (`joint_pairs`): the layout's
+    T = T.copy()  # the rotation columns R (z x n) = R (-n_y, n_x) of each end (`joint_pairs`): the layout's
     normal = np.concatenate([layout.start_normal[sp], layout.end_normal[sp]])  # (2k, 2)
-    r = layout.radius[ends]
-    T[at, row, col] = -normal[:, 1] * r
-    T[at, row + 1, col] = normal[:, 0] * r
-    L = layout.span_length[sp] / _span_stretch(prestrain_stretch, n)[sp]
+    T[at, row, col] = (normal[:, ::-1] * _NEG_X * layout.radius[ends][:, None]).ravel()
+    if reference_length is None:
+        reference_length = layout.span_length / _span_stretch(prestrain_stretch, n)
+    L = reference_length[sp]
     return SpringSpans(span=np.arange(n) if every else sp, T=T, idx=idx,
                        x0=np.concatenate([layout.span_start[sp], layout.span_end[sp]], axis=1),
                        reference_length=L, reference_direction=direction[sp], EA=float(cfg.belt.EA),
@@ -853,7 +862,7 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
 
 def _span_stretch(prestrain_stretch: float | np.ndarray, n: int) -> np.ndarray:
     """(n,) the spans' stretch at q = 0 of one number for all or one per span (a new array)."""
-    if np.ndim(prestrain_stretch) == 0:
+    if isinstance(prestrain_stretch, (float, int)) or np.ndim(prestrain_stretch) == 0:
         return np.full(n, float(prestrain_stretch))
     lam = np.array(prestrain_stretch, dtype=float)
     return lam if lam.shape == (n,) else np.broadcast_to(lam, (n,)).copy()
@@ -863,8 +872,8 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
     """The parts of the spring spans' joints that the DOF map fixes (`joint_pairs`), cached on it (read-only):
     idx (k, m) the joint coordinates of each span, its start's columns (rotation, then the pulley's
     translations) before its end's, padded with n_dof; T (k, 4, m) with the translations' directions and
-    zero rotation columns; and where the rotation columns' x rows are ((2k,) span, row, column; the y row
-    below) and their pulleys (2k,), the k starts, then the k ends."""
+    zero rotation columns; and where the rotation columns' entries are ((4k,) span, row, column: the x
+    and y rows of each end) and their pulleys (2k,), the k starts, then the k ends."""
     cache = dofs.__dict__.setdefault("_spring_joints", {})
     hit = cache.get(spans)
     if hit is not None:
@@ -887,8 +896,9 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
     for a in (idx, T):
         a.setflags(write=False)
     sp = np.array(spans, dtype=np.int64)
-    hit = cache[spans] = (idx, T, (np.tile(np.arange(k), 2), np.repeat([0, 2], k), rot_col.ravel(),
-                                   np.concatenate([sp, (sp + 1) % n])))
+    rows = np.repeat([0, 2], k)
+    hit = cache[spans] = (idx, T, (np.repeat(np.tile(np.arange(k), 2), 2), np.stack([rows, rows + 1], axis=1).ravel(),
+                                   np.repeat(rot_col.ravel(), 2), np.concatenate([sp, (sp + 1) % n])))
     return hit
 
 
@@ -1745,42 +1755,9 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
                     rows.append(c.dofs[r])
                     cols.append(c.dofs[cc])
         extra = (np.concatenate(rows), np.concatenate(cols)) if rows else None
-    pattern = make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
-
-    def summed(attr: str):
-        """The components' matrices `attr` summed: the data (nnz,) of a CSR matrix on the system's
-        pattern (sparse systems; dense ones: `summed_dense`)."""
-        mats = [(c.dofs, mat) for c in components if (mat := getattr(c, attr)) is not None]
-        if not mats:
-            return None
-        r = np.concatenate([np.repeat(d, len(d)) for d, _ in mats])
-        c = np.concatenate([np.tile(d, len(d)) for d, _ in mats])
-        v = np.concatenate([np.asarray(mat, dtype=float).ravel() for _, mat in mats])
-        data = np.zeros(pattern.nnz)  # on the system's pattern, which holds every component entry
-        np.add.at(data, pattern.slots_of(r, c), v)
-        return data
-
-    def summed_dense() -> list:
-        """[stiffness, damping, mass], each the components' matrices summed (n, n), None without any."""
-        out = [None, None, None]
-        for c in components:
-            flat = None  # row * n + column of the component's entries
-            for i, mat in enumerate((c.stiffness, c.damping, c.mass)):
-                if mat is None:
-                    continue
-                if flat is None:
-                    flat = (c.dofs[:, None] * n + c.dofs).ravel()
-                if out[i] is None:
-                    out[i] = np.zeros((n, n))
-                out[i].ravel()[flat] += np.ravel(mat)  # (a view: the entries of the dense matrix)
-        return out
-
-    K_lin, C_lin, M_comp = summed_dense() if use_dense else (summed("stiffness"), summed("damping"), summed("mass"))
-    offset = None
-    for c in components:
-        if c.free is not None and c.stiffness is not None:
-            offset = np.zeros(n) if offset is None else offset
-            offset[c.dofs] += c.stiffness @ np.asarray(c.free, dtype=float)
+    # (dense without elements: nothing to scatter but the springs, which bring their own indices)
+    pattern = Pattern(n=n, flat=_NO_INDEX) if use_dense and not len(belt.idx) else \
+        make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
     g = np.asarray(gravity, dtype=float)
     has_elements = belt.elements.n_elem > 0
     fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g)) if has_elements else None
@@ -1788,30 +1765,75 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
     if springs is not None:
         fg = springs.gravity_force(g) if fg is None else fg + springs.gravity_force(g)
         if use_dense:  # row * (n + 1) + column of each block entry (`element_pairs`)
-            scatter = (springs.idx[:, :, None] * (n + 1) + springs.idx[:, None, :]).ravel()
+            idx = springs.idx
+            scatter = (idx[:, :, None] * (n + 1) + idx[:, None, :]).ravel()
         else:
             scatter = np.full(s_rows.shape, -1, dtype=np.int64)
             scatter[live] = pattern.slots_of(s_rows[live], s_cols[live])
     fg = np.zeros(n) if fg is None else fg
-    for c in components:
-        if c.weight is not None:
-            fg[c.dofs] += c.weight @ g
     M = _assembled(n, use_dense, pattern, belt.reduce_blocks(belt.elements.mass) if has_elements else None,
                    None if springs is None else springs.mass_blocks(), scatter, None, None)
-    if use_dense:
-        if M_comp is not None:
-            M += M_comp
-        C = C_lin
+    if use_dense:  # the components' matrices added in place, their weights too
+        K_lin, C, offset = _add_components(components, n, M, fg, g)
     else:
         from scipy.sparse import csr_matrix
 
+        K_lin, C_lin, M_comp = (_summed_sparse(components, pattern, attr) for attr in ("stiffness", "damping", "mass"))
         if M_comp is not None:  # M is already on the pattern: add the components' entries
             M.data += M_comp
         C = csr_matrix((C_lin, pattern.indices, pattern.indptr), shape=(n, n)) if C_lin is not None else None
+        offset = None
+        for c in components:
+            if c.free is not None and c.stiffness is not None:
+                offset = np.zeros(n) if offset is None else offset
+                offset[c.dofs] += c.stiffness @ np.asarray(c.free, dtype=float)
+            if c.weight is not None:
+                fg[c.dofs] += c.weight @ g
     return System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names, driver=driver,
                   tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M, gravity_force=fg,
                   linear_stiffness=K_lin, linear_damping=C, linear_offset=offset, loads=loads, arms=arms,
                   pulley_friction=friction, springs=springs, spring_scatter=scatter)
+
+
+def _add_components(components: tuple[LinearComponent, ...], n: int, M: np.ndarray, fg: np.ndarray, g: np.ndarray):
+    """The components' masses added into the dense mass M (n, n) and their weights into fg (n,) (gravity g
+    (2,)), in place; their stiffness and damping summed (n, n) each (None without any) and the offset
+    sum K_c free_c (n,) (None without any)."""
+    K = C = offset = None
+    for c in components:
+        d = c.dofs
+        rows = d[:, None]  # (the component's rows, its columns d)
+        if c.stiffness is not None:
+            if K is None:
+                K = np.zeros((n, n))
+            K[rows, d] += c.stiffness
+            if c.free is not None:
+                if offset is None:
+                    offset = np.zeros(n)
+                offset[d] += c.stiffness @ np.asarray(c.free, dtype=float)
+        if c.damping is not None:
+            if C is None:
+                C = np.zeros((n, n))
+            C[rows, d] += c.damping
+        if c.mass is not None:
+            M[rows, d] += c.mass
+        if c.weight is not None:
+            fg[d] += c.weight @ g
+    return K, C, offset
+
+
+def _summed_sparse(components: tuple[LinearComponent, ...], pattern: Pattern, attr: str) -> np.ndarray | None:
+    """The components' matrices `attr` summed: the data (nnz,) of a CSR matrix on the system's pattern
+    (which holds every component entry); None without any."""
+    mats = [(c.dofs, mat) for c in components if (mat := getattr(c, attr)) is not None]
+    if not mats:
+        return None
+    r = np.concatenate([np.repeat(d, len(d)) for d, _ in mats])
+    c = np.concatenate([np.tile(d, len(d)) for d, _ in mats])
+    v = np.concatenate([np.asarray(mat, dtype=float).ravel() for _, mat in mats])
+    data = np.zeros(pattern.nnz)
+    np.add.at(data, pattern.slots_of(r, c), v)
+    return data
 
 
 # ------------------------------------------------------------------------------------ building
@@ -1827,18 +1849,19 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     n_dof = dofs.n
     pad = n_dof
     lam_s = _span_stretch(prestrain_stretch, n_p)
-    uniform = bool((lam_s == lam_s[0]).all())
     L_ref = layout.span_length / lam_s
+    if isinstance(prestrain_stretch, (float, int)):  # (one number: uniform)
+        lam = float(prestrain_stretch)
+    else:
+        lam = float(lam_s[0]) if bool((lam_s == lam_s[0]).all()) else float(layout.span_length.sum() / L_ref.sum())
     t_dir = layout.span_direction
-    normals = _last_pair(-t_dir[:, 1], t_dir[:, 0])
-    lam = float(lam_s[0]) if uniform else float(layout.span_length.sum() / L_ref.sum())
+    normals = t_dir[:, ::-1] * _NEG_X  # z x t = (-t_y, t_x)
     n_elem = sum(cfg.span_elements)
     if n_elem == 0:  # every span a spring (`build_springs`): no elements, no joints of the belt's own
-        none = np.zeros(0, dtype=np.int64)
-        return BeltSpans(elements=span_element_set(cfg, np.zeros(0), np.zeros(0)), elem_span=none,
-                         span_elements=(none,) * n_p, T=np.zeros((0, 8, 8)), idx=np.zeros((0, 8), dtype=np.int64),
-                         tsel=none, e0=np.zeros((0, 8)), n_dof=n_dof, reference_length=L_ref, reference_direction=t_dir,
-                         reference_normal=normals, prestrain_stretch=lam, span_stretch=lam_s)
+        return BeltSpans(elements=span_element_set(cfg, _NO_ELEMENT, _NO_ELEMENT), elem_span=_NO_INDEX,
+                         span_elements=(_NO_INDEX,) * n_p, T=_NO_T, idx=_NO_IDX, tsel=_NO_INDEX, e0=_NO_E, n_dof=n_dof,
+                         reference_length=L_ref, reference_direction=t_dir, reference_normal=normals,
+                         prestrain_stretch=lam, span_stretch=lam_s)
     counts = np.array(cfg.span_elements, dtype=np.int64)  # (n_span,) elements of each span
     # Per element, columns 0-3 / 4-7 carry the coordinates of its first / second node, 8-10 / 11-13
     # the joint DOFs of a span end; padding columns are squeezed out afterwards.
@@ -1967,6 +1990,14 @@ def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = No
     return tuple(out)
 
 
+def _diagonal(values: list) -> np.ndarray:
+    """np.diag(values) of floats (k, k) without its generic set-up."""
+    k = len(values)
+    out = np.zeros((k, k))
+    out.ravel()[:: k + 1] = values
+    return out
+
+
 PulleyParts = tuple  # (fixed components, bearing springs' (dofs, K, pulleys, names) or None, ((support, first DOF, j), ...))
 
 
@@ -1976,7 +2007,7 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
     without any), and the supports with own components (support, its first DOF, pulley index)."""
     pulleys = cfg.pulleys
     fixed: list[LinearComponent] = [LinearComponent(
-        name="pulley inertia", dofs=dofs.rot_dof.copy(), mass=np.diag([p.inertia for p in pulleys]),
+        name="pulley inertia", dofs=dofs.rot_dof.copy(), mass=_diagonal([p.inertia for p in pulleys]),
         energy_kind="rotational")]
     masses: dict[str, tuple[list, list, list]] = {}  # energy kind -> translational DOFs, masses, weights
     t_dofs, k_spring, supported = [], [], []
@@ -1989,9 +2020,9 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
         d_m, m_m, w_m = masses.setdefault(sup.mass_kind, ([], [], []))
         if t_dof:
             d_m += t_dof
-            for v in dofs.trans_dir[j]:
-                m_m.append(p.mass * float(v @ v))
-                w_m.append(p.mass * v)
+            dirs = dofs.trans_dir[j]
+            m_m += [p.mass * float(v @ v) for v in dirs]
+            w_m += (p.mass * dirs).tolist()
         springs = sup.springs()
         if springs:
             t_dofs += t_dof
@@ -2003,11 +2034,11 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
     for kind, (d_m, m_m, w_m) in masses.items():
         if d_m:
             fixed.append(LinearComponent(name=names.get(kind, f"{kind} pulley mass"),
-                                         dofs=np.array(d_m, dtype=np.int64), mass=np.diag(m_m), weight=np.array(w_m),
+                                         dofs=np.array(d_m, dtype=np.int64), mass=_diagonal(m_m), weight=np.array(w_m),
                                          energy_kind=kind))
     bearing = None
     if t_dofs:
-        bearing = (np.array(t_dofs, dtype=np.int64), np.diag(k_spring), tuple(supported),
+        bearing = (np.array(t_dofs, dtype=np.int64), _diagonal(k_spring), tuple(supported),
                    tuple(pulleys[j].name for j in supported))
     return tuple(fixed), bearing, tuple(own)
 
@@ -2017,21 +2048,23 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoint
     arms on another layout (what the configuration fixes taken from it)."""
     if like is not None:
         arms = list(like.pulleys)  # (a list: a tuple would index rows and columns)
-        return ArmJoints(dof=like.dof, slot=like.slot, pivot=like.pivot, length=np.hypot(*(layout.center[arms] - like.pivot).T),
+        d = layout.center[arms] - like.pivot
+        return ArmJoints(dof=like.dof, slot=like.slot, pivot=like.pivot, length=np.hypot(d[:, 0], d[:, 1]),
                          angle=np.array([support_of(cfg.pulleys[j]).working_angle(layout, j) for j in arms]),
                          n_q=like.n_q, n_p=like.n_p, friction=like.friction, stops=like.stops, names=like.names,
                          pulleys=like.pulleys)
     arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
     if not arms:
         return None
-    pivot = np.array([cfg.pulleys[j].arm_pivot for j in arms], dtype=float)
-    return ArmJoints(dof=np.array([dofs.arm_dof[j] for j in arms], dtype=np.int64),
-                     slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64), pivot=pivot,
-                     length=np.hypot(*(layout.center[arms] - pivot).T),
-                     angle=np.array([support_of(cfg.pulleys[j]).working_angle(layout, j) for j in arms]),
-                     n_q=dofs.n_q, n_p=dofs.n, friction=np.array([cfg.pulleys[j].arm_friction for j in arms]),
-                     stops=np.array([cfg.pulleys[j].arm_range or (np.nan, np.nan) for j in arms], dtype=float),
-                     names=tuple(cfg.pulleys[j].name for j in arms), pulleys=tuple(arms))
+    ps = [cfg.pulleys[j] for j in arms]
+    pivot = np.array([p.arm_pivot for p in ps], dtype=float)
+    d = layout.center[arms] - pivot
+    return ArmJoints(dof=dofs.arm_dof[arms], slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64),
+                     pivot=pivot, length=np.hypot(d[:, 0], d[:, 1]),
+                     angle=np.array([support_of(p).working_angle(layout, j) for j, p in zip(arms, ps)]),
+                     n_q=dofs.n_q, n_p=dofs.n, friction=np.array([p.arm_friction for p in ps], dtype=float),
+                     stops=np.array([p.arm_range or (np.nan, np.nan) for p in ps], dtype=float),
+                     names=tuple(p.name for p in ps), pulleys=tuple(arms))
 
 
 def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
@@ -2191,11 +2224,13 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
     if arms is not None and layout is not facts.layout:
         arms = arm_joints(cfg, layout, dofs, like=arms)
     belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam)
+    springs = build_springs(cfg, layout, dofs, prestrain_stretch=lam, direction=belt.reference_direction,
+                            reference_length=belt.reference_length)
     system = _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free,
                                                              parts=facts.pulleys) + tuple(extra),
                        pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
                        gravity=facts.gravity, dense=dense, loads=facts.loads, arms=arms, friction=facts.friction,
-                       springs=build_springs(cfg, layout, dofs, prestrain_stretch=lam))
+                       springs=springs)
     if belt_speed is None:
         from .running import belt_speed_of
 
