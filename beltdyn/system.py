@@ -42,6 +42,7 @@ from . import ancf
 from .config import DriveConfig
 from .errors import ConfigError
 from .geometry import Layout, layout_from_config
+from .running import belt_speed_of
 from .supports import SUPPORT_CLASSES, Support, support_of
 
 DENSE_LIMIT = 200  # models up to this many DOFs use dense linear algebra
@@ -690,7 +691,7 @@ class SpringSpans:
 
     def mass_blocks(self) -> np.ndarray:
         """(k, m, m) T^T (rho L / 2 I4) T, constant."""
-        return self.end_mass[:, None, None] * np.matmul(self.Tt, self.T)
+        return self.end_mass[:, None, None] * np.matmul(self.T.transpose(0, 2, 1), self.T)
 
     def transport_end_matrices(self) -> tuple[np.ndarray, np.ndarray]:
         """(A_s, B_s) (k, 4, 4) per unit speed on the end positions (class docstring)."""
@@ -728,8 +729,9 @@ class SpringSpans:
 
     def gravity_force(self, g: np.ndarray) -> np.ndarray:
         """(n_dof,) the generalized weight of the lumped masses for the gravity vector g (2,)."""
-        w = self.end_mass[:, None] * np.asarray(g, dtype=float)[None, :]
-        return self.reduce_vector(np.concatenate([w, w], axis=1))
+        fe = self.end_mass[:, None] * np.concatenate([g, g], dtype=float)  # (k, 4): both ends
+        fr = np.matmul(fe[:, None, :], self.T)  # (k, 1, m): T^T fe
+        return np.bincount(self.idx.ravel(), weights=fr.ravel(), minlength=self.n_dof + 1)[: self.n_dof]
 
     def strain_energy(self, p: np.ndarray) -> float:
         _, _, _, eps, _ = self.axial(self.positions(p))
@@ -839,7 +841,7 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     """The spring spans of the configuration (None without any), on the layout's tangent points.
     direction: the layout's `span_direction`; reference_length (n_span,): every span's reference length at
     this prestrain_stretch (`BeltSpans.reference_length`); each if at hand."""
-    spans = tuple(s for s, m in enumerate(cfg.span_models) if m == "spring")
+    spans = tuple([s for s, m in enumerate(cfg.span_models) if m == "spring"])
     if not spans:
         return None
     n = layout.n
@@ -862,6 +864,8 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
 
 def _span_stretch(prestrain_stretch: float | np.ndarray, n: int) -> np.ndarray:
     """(n,) the spans' stretch at q = 0 of one number for all or one per span (a new array)."""
+    if isinstance(prestrain_stretch, np.ndarray) and prestrain_stretch.shape == (n,):
+        return prestrain_stretch.astype(float)
     if isinstance(prestrain_stretch, (float, int)) or np.ndim(prestrain_stretch) == 0:
         return np.full(n, float(prestrain_stretch))
     lam = np.array(prestrain_stretch, dtype=float)
@@ -1802,23 +1806,27 @@ def _add_components(components: tuple[LinearComponent, ...], n: int, M: np.ndarr
     K = C = offset = None
     for c in components:
         d = c.dofs
-        rows = d[:, None]  # (the component's rows, its columns d)
+        if len(d) == 1:  # one DOF: its entries as scalars, [i, i] of [0, 0] (no fancy indexing)
+            d = int(d[0])
+            at, of = (d, d), (0, 0)
+        else:  # the component's rows and columns, all of each matrix (`[()]`: the array itself)
+            at, of = (d[:, None], d), ()
         if c.stiffness is not None:
             if K is None:
                 K = np.zeros((n, n))
-            K[rows, d] += c.stiffness
+            K[at] += c.stiffness[of]
             if c.free is not None:
                 if offset is None:
                     offset = np.zeros(n)
-                offset[d] += c.stiffness @ np.asarray(c.free, dtype=float)
+                offset[d] += (c.stiffness @ np.asarray(c.free, dtype=float))[of[1:]]
         if c.damping is not None:
             if C is None:
                 C = np.zeros((n, n))
-            C[rows, d] += c.damping
+            C[at] += c.damping[of]
         if c.mass is not None:
-            M[rows, d] += c.mass
+            M[at] += c.mass[of]
         if c.weight is not None:
-            fg[d] += c.weight @ g
+            fg[d] += (c.weight @ g)[of[1:]]
     return K, C, offset
 
 
@@ -1853,7 +1861,9 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     if isinstance(prestrain_stretch, (float, int)):  # (one number: uniform)
         lam = float(prestrain_stretch)
     else:
-        lam = float(lam_s[0]) if bool((lam_s == lam_s[0]).all()) else float(layout.span_length.sum() / L_ref.sum())
+        lam_list = lam_s.tolist()
+        uniform = lam_list.count(lam_list[0]) == n_p  # (the sums by np.add.reduce: ndarray.sum's own)
+        lam = lam_list[0] if uniform else float(np.add.reduce(layout.span_length) / np.add.reduce(L_ref))
     t_dir = layout.span_direction
     normals = t_dir[:, ::-1] * _NEG_X  # z x t = (-t_y, t_x)
     n_elem = sum(cfg.span_elements)
@@ -2232,8 +2242,6 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
                        gravity=facts.gravity, dense=dense, loads=facts.loads, arms=arms, friction=facts.friction,
                        springs=springs)
     if belt_speed is None:
-        from .running import belt_speed_of
-
         belt_speed = belt_speed_of(cfg, layout)
     return system.with_speed(belt_speed) if belt_speed else system
 
