@@ -147,8 +147,6 @@ class ArmSupport(Support):
         return unwrap_near(phi, 0.5 * (p.arm_range[0] + p.arm_range[1])) if p.arm_range is not None else phi
 
     def own_components(self, dof: int, layout, index: int, spring_free: np.ndarray | None = None) -> tuple:
-        from .system import LinearComponent
-
         p = self.pulley
         free = None
         if p.arm_stiffness > 0 and layout is not None:
@@ -158,7 +156,7 @@ class ArmSupport(Support):
                 free = np.array([fa - ref])
             elif spring_free is not None and spring_free[dof] != 0.0:  # relaxed where it was on the L0 fit
                 free = np.array([float(spring_free[dof])])
-        return (LinearComponent(
+        return (_component_class()(
             name=f"tensioner arm {p.name}", dofs=np.array([dof], dtype=np.int64),
             mass=np.array([[p.arm_inertia]]) if p.arm_inertia > 0 else None,
             stiffness=np.array([[p.arm_stiffness]]) if p.arm_stiffness > 0 else None,
@@ -175,6 +173,18 @@ class ArmSupport(Support):
             return None
         drawn = unwrap_near(p.arm_angle, 0.5 * (p.arm_range[0] + p.arm_range[1]))
         return (p.arm_range[0] - drawn, p.arm_range[1] - drawn)
+
+
+_COMPONENT: list = []  # system.LinearComponent, once imported (system imports this module first)
+
+
+def _component_class() -> type:
+    """`system.LinearComponent` (an import statement per call costs more than the component)."""
+    if not _COMPONENT:
+        from .system import LinearComponent
+
+        _COMPONENT.append(LinearComponent)
+    return _COMPONENT[0]
 
 
 SUPPORT_CLASSES: dict[str, type[Support]] = {c.kind: c for c in (Support, SlideSupport, BearingSupport, ArmSupport)}
