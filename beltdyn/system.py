@@ -845,13 +845,13 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     if not spans:
         return None
     n = layout.n
-    idx, T, (at, row, col, ends) = _spring_joints(dofs, spans, n)
+    idx, T, (at, ends) = _spring_joints(dofs, spans, n)
     direction = layout.span_direction if direction is None else direction
     every = len(spans) == n  # (then sp = 0, 1, ... n - 1: the layout's arrays as they are)
     sp = slice(None) if every else np.array(spans, dtype=np.int64)
     T = T.copy()  # the rotation columns R (z x n) = R (-n_y, n_x) of each end (`joint_pairs`): the layout's
     normal = np.concatenate([layout.start_normal[sp], layout.end_normal[sp]])  # (2k, 2)
-    T[at, row, col] = (normal[:, ::-1] * _NEG_X * layout.radius[ends][:, None]).ravel()
+    T.ravel()[at] = (normal[:, ::-1] * _NEG_X * layout.radius[ends][:, None]).ravel()
     if reference_length is None:
         reference_length = layout.span_length / _span_stretch(prestrain_stretch, n)
     L = reference_length[sp]
@@ -876,8 +876,8 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
     """The parts of the spring spans' joints that the DOF map fixes (`joint_pairs`), cached on it (read-only):
     idx (k, m) the joint coordinates of each span, its start's columns (rotation, then the pulley's
     translations) before its end's, padded with n_dof; T (k, 4, m) with the translations' directions and
-    zero rotation columns; and where the rotation columns' entries are ((4k,) span, row, column: the x
-    and y rows of each end) and their pulleys (2k,), the k starts, then the k ends."""
+    zero rotation columns; and where the rotation columns' entries are in T's flat order ((4k,): the x and
+    y rows of each end) and their pulleys (2k,), the k starts, then the k ends."""
     cache = dofs.__dict__.setdefault("_spring_joints", {})
     hit = cache.get(spans)
     if hit is not None:
@@ -901,8 +901,9 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
         a.setflags(write=False)
     sp = np.array(spans, dtype=np.int64)
     rows = np.repeat([0, 2], k)
-    hit = cache[spans] = (idx, T, (np.repeat(np.tile(np.arange(k), 2), 2), np.stack([rows, rows + 1], axis=1).ravel(),
-                                   np.repeat(rot_col.ravel(), 2), np.concatenate([sp, (sp + 1) % n])))
+    at = np.ravel_multi_index((np.repeat(np.tile(np.arange(k), 2), 2), np.stack([rows, rows + 1], axis=1).ravel(),
+                               np.repeat(rot_col.ravel(), 2)), T.shape)
+    hit = cache[spans] = (idx, T, (at, np.concatenate([sp, (sp + 1) % n])))
     return hit
 
 
@@ -2024,14 +2025,15 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
     own = []
     for j, (p, t_dof) in enumerate(zip(pulleys, dofs.trans_dof)):
         if not t_dof and SUPPORT_CLASSES[p.support] is Support:  # a fixed centre: nothing of its own (its mass
-            masses.setdefault("translational", ([], [], []))  # kind still takes its place in the order)
+            if "translational" not in masses:  # kind still takes its place in the order)
+                masses["translational"] = ([], [], [])
             continue
         sup = support_of(p)
         d_m, m_m, w_m = masses.setdefault(sup.mass_kind, ([], [], []))
         if t_dof:
             d_m += t_dof
             dirs = dofs.trans_dir[j]
-            m_m += [p.mass * float(v @ v) for v in dirs]
+            m_m += (p.mass * np.matmul(dirs[:, None, :], dirs[:, :, None]).ravel()).tolist()  # m |v|^2 (v @ v's ddot)
             w_m += (p.mass * dirs).tolist()
         springs = sup.springs()
         if springs:
@@ -2081,11 +2083,11 @@ def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
     """(n_p,) the accessory torques of [[static.torque]] on the pulley rotations (None if none)."""
     if not cfg.static.torque:
         return None
-    F = np.zeros(dofs.n)
-    names = [p.name for p in cfg.pulleys]
+    F = [0.0] * dofs.n  # (floats: a few entries)
+    names, rot = [p.name for p in cfg.pulleys], dofs.rot_dof.tolist()
     for tq in cfg.static.torque:
-        F[dofs.rot_dof[names.index(tq.pulley)]] += tq.value
-    return F
+        F[rot[names.index(tq.pulley)]] += tq.value
+    return np.array(F)
 
 
 def stretch_start(x):
