@@ -14,6 +14,7 @@ motion per unit of each translational DOF (the ones the belt joints and the pull
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import ClassVar
@@ -156,11 +157,20 @@ class ArmSupport(Support):
                 free = np.array([fa - ref])
             elif spring_free is not None and spring_free[dof] != 0.0:  # relaxed where it was on the L0 fit
                 free = np.array([float(spring_free[dof])])
-        return (_component_class()(
-            name=f"tensioner arm {p.name}", dofs=np.array([dof], dtype=np.int64),
-            mass=np.array([[p.arm_inertia]]) if p.arm_inertia > 0 else None,
-            stiffness=np.array([[p.arm_stiffness]]) if p.arm_stiffness > 0 else None,
-            damping=np.array([[p.arm_damping]]) if p.arm_damping > 0 else None, free=free, energy_kind="tensioner"),)
+        mass, stiffness, damping = self._arm_matrices
+        return (_component_class()(name=f"tensioner arm {p.name}", dofs=np.array([dof], dtype=np.int64), mass=mass,
+                                   stiffness=stiffness, damping=damping, free=free, energy_kind="tensioner"),)
+
+    @functools.cached_property
+    def _arm_matrices(self) -> tuple:
+        """The arm's inertia, torsion spring and damper (1, 1) each (None where zero), read-only: one set for
+        the components of every layout (`own_components`)."""
+        p = self.pulley
+        out = tuple(np.array([[v]]) if v > 0 else None for v in (p.arm_inertia, p.arm_stiffness, p.arm_damping))
+        for a in out:
+            if a is not None:
+                a.setflags(write=False)
+        return out
 
     def fit_motion(self) -> dict:
         return {"direction": np.zeros(2), "slide_range": self.travel_limits(),

@@ -986,6 +986,13 @@ def _make_pattern(idx: np.ndarray, n: int, *, sparse: bool, extra: tuple[np.ndar
                    diag_slot=diag_slot, nnz=len(keys))
 
 
+@functools.lru_cache(maxsize=16)
+def _no_element_pattern(n: int) -> Pattern:
+    """The dense pattern of n DOFs without elements (nothing to scatter; the spring spans bring their own
+    indices)."""
+    return Pattern(n=n, flat=_NO_INDEX)
+
+
 def _assembled(n: int, dense: bool, pat: Pattern, blocks: np.ndarray | None, springs: np.ndarray | None,
                scatter: np.ndarray | None, linear, diagonal: np.ndarray | None):
     """`System.assemble` on its pattern: element blocks (n_elem, m, m) (None or empty: none), the spring
@@ -1761,7 +1768,7 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
                     cols.append(c.dofs[cc])
         extra = (np.concatenate(rows), np.concatenate(cols)) if rows else None
     # (dense without elements: nothing to scatter but the springs, which bring their own indices)
-    pattern = Pattern(n=n, flat=_NO_INDEX) if use_dense and not len(belt.idx) else \
+    pattern = _no_element_pattern(n) if use_dense and not len(belt.idx) else \
         make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
     g = np.asarray(gravity, dtype=float)
     has_elements = belt.elements.n_elem > 0
@@ -2059,24 +2066,32 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoint
     """The arms' kinematics about the layout's arm angles (None without arms). like: the same drive's
     arms on another layout (what the configuration fixes taken from it)."""
     if like is not None:
-        arms = list(like.pulleys)  # (a list: a tuple would index rows and columns)
-        d = layout.center[arms] - like.pivot
-        return ArmJoints(dof=like.dof, slot=like.slot, pivot=like.pivot, length=np.hypot(d[:, 0], d[:, 1]),
-                         angle=np.array([support_of(cfg.pulleys[j]).working_angle(layout, j) for j in arms]),
-                         n_q=like.n_q, n_p=like.n_p, friction=like.friction, stops=like.stops, names=like.names,
-                         pulleys=like.pulleys)
+        length, angle = _arm_geometry(cfg, layout, like.pulleys, like.pivot.tolist())
+        return ArmJoints(dof=like.dof, slot=like.slot, pivot=like.pivot, length=length, angle=angle, n_q=like.n_q,
+                         n_p=like.n_p, friction=like.friction, stops=like.stops, names=like.names, pulleys=like.pulleys)
     arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
     if not arms:
         return None
     ps = [cfg.pulleys[j] for j in arms]
-    pivot = np.array([p.arm_pivot for p in ps], dtype=float)
-    d = layout.center[arms] - pivot
+    pivots = [p.arm_pivot for p in ps]
+    length, angle = _arm_geometry(cfg, layout, arms, pivots)
     return ArmJoints(dof=dofs.arm_dof[arms], slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64),
-                     pivot=pivot, length=np.hypot(d[:, 0], d[:, 1]),
-                     angle=np.array([support_of(p).working_angle(layout, j) for j, p in zip(arms, ps)]),
-                     n_q=dofs.n_q, n_p=dofs.n, friction=np.array([p.arm_friction for p in ps], dtype=float),
+                     pivot=np.array(pivots, dtype=float), length=length, angle=angle, n_q=dofs.n_q, n_p=dofs.n,
+                     friction=np.array([p.arm_friction for p in ps], dtype=float),
                      stops=np.array([p.arm_range or (np.nan, np.nan) for p in ps], dtype=float),
                      names=tuple(p.name for p in ps), pulleys=tuple(arms))
+
+
+def _arm_geometry(cfg: DriveConfig, layout: Layout, arms, pivots: list) -> tuple[np.ndarray, np.ndarray]:
+    """The arms' lengths |c - pivot| and working angles (a,) on a layout (pulley indices arms, pivots [(x, y)]),
+    arm by arm on floats."""
+    center = layout.center.tolist()
+    length, angle = [], []
+    for j, (px, py) in zip(arms, pivots):
+        x, y = center[j]
+        length.append(np.hypot(x - px, y - py))
+        angle.append(support_of(cfg.pulleys[j]).working_angle(layout, j))
+    return np.array(length), np.array(angle)
 
 
 def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
