@@ -142,8 +142,13 @@ class ArmSupport(Support):
         literally then, so a spring wound by more than half a turn is expressed (free angle and stops
         on one branch); without stops, the angle of atan2."""
 
+        x, y = layout.center[index].tolist()
+        return self.angle_at(x, y)
+
+    def angle_at(self, x: float, y: float) -> float:
+        """`working_angle` with the pulley's centre at (x, y) (m)."""
         p = self.pulley
-        (x, y), (px, py) = layout.center[index].tolist(), p.arm_pivot
+        px, py = p.arm_pivot
         phi = math.atan2(y - py, x - px)  # `geometry.arm_angle` on floats
         return unwrap_near(phi, 0.5 * (p.arm_range[0] + p.arm_range[1])) if p.arm_range is not None else phi
 

@@ -155,7 +155,10 @@ def _number_dofs(cfg: DriveConfig) -> DofMap:
     for j, (p, sup) in enumerate(zip(cfg.pulleys, supports)):  # dependent DOFs (arm offsets): after q
         if sup.dependent():
             trans_dof[j] = tuple(add(f"pulley {p.name} {suffix}", unit, grp) for suffix, unit, grp in sup.dependent())
-    return DofMap(labels=tuple(labels), units=tuple(units), group=np.array(group, dtype=np.int64), rot_dof=rot_dof,
+    group = np.array(group, dtype=np.int64)
+    for a in (group, rot_dof, arm_dof, *trans_dir):  # (read-only: a DOF map is shared, `number_dofs`)
+        a.setflags(write=False)
+    return DofMap(labels=tuple(labels), units=tuple(units), group=group, rot_dof=rot_dof,
                   trans_dof=tuple(trans_dof), trans_dir=tuple(trans_dir), span_slices=tuple(span_slices),
                   arm_dof=arm_dof, dependent=len(labels) - n_q)
 
@@ -845,19 +848,22 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     if not spans:
         return None
     n = layout.n
-    idx, T, (at, ends) = _spring_joints(dofs, spans, n)
+    idx, T, (at, pulley) = _spring_joints(dofs, spans, n)
     direction = layout.span_direction if direction is None else direction
-    every = len(spans) == n  # (then sp = 0, 1, ... n - 1: the layout's arrays as they are)
-    sp = slice(None) if every else np.array(spans, dtype=np.int64)
-    T = T.copy()  # the rotation columns R (z x n) = R (-n_y, n_x) of each end (`joint_pairs`): the layout's
-    normal = np.concatenate([layout.start_normal[sp], layout.end_normal[sp]])  # (2k, 2)
-    T.ravel()[at] = (normal[:, ::-1] * _NEG_X * layout.radius[ends][:, None]).ravel()
     if reference_length is None:
         reference_length = layout.span_length / _span_stretch(prestrain_stretch, n)
-    L = reference_length[sp]
-    return SpringSpans(span=np.arange(n) if every else sp, T=T, idx=idx,
-                       x0=np.concatenate([layout.span_start[sp], layout.span_end[sp]], axis=1),
-                       reference_length=L, reference_direction=direction[sp], EA=float(cfg.belt.EA),
+    start, end, start_normal, end_normal = layout.span_start, layout.span_end, layout.start_normal, layout.end_normal
+    if len(spans) == n:  # every span a spring: the layout's arrays as they are
+        sp = np.arange(n)
+    else:
+        sp = np.array(spans, dtype=np.int64)
+        reference_length, direction = reference_length[sp], direction[sp]
+        start, end, start_normal, end_normal = start[sp], end[sp], start_normal[sp], end_normal[sp]
+    T = T.copy()  # the rotation columns R (z x n) = R (-n_y, n_x) of each end (`joint_pairs`): the layout's
+    normal = np.concatenate([start_normal, end_normal])  # (2k, 2)
+    T.ravel()[at] = (normal[:, ::-1] * _NEG_X * layout.radius[pulley][:, None]).ravel()
+    return SpringSpans(span=sp, T=T, idx=idx, x0=np.concatenate([start, end], axis=1),
+                       reference_length=reference_length, reference_direction=direction, EA=float(cfg.belt.EA),
                        rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=n, EI=float(cfg.belt.EI),
                        curvature=cfg.model.curvature)
 
@@ -2025,7 +2031,7 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
     without any), and the supports with own components (support, its first DOF, pulley index)."""
     pulleys = cfg.pulleys
     fixed: list[LinearComponent] = [LinearComponent(
-        name="pulley inertia", dofs=dofs.rot_dof.copy(), mass=_diagonal([p.inertia for p in pulleys]),
+        name="pulley inertia", dofs=dofs.rot_dof, mass=_diagonal([p.inertia for p in pulleys]),
         energy_kind="rotational")]
     masses: dict[str, tuple[list, list, list]] = {}  # energy kind -> translational DOFs, masses, weights
     t_dofs, k_spring, supported = [], [], []
@@ -2090,7 +2096,7 @@ def _arm_geometry(cfg: DriveConfig, layout: Layout, arms, pivots: list) -> tuple
     for j, (px, py) in zip(arms, pivots):
         x, y = center[j]
         length.append(np.hypot(x - px, y - py))
-        angle.append(support_of(cfg.pulleys[j]).working_angle(layout, j))
+        angle.append(support_of(cfg.pulleys[j]).angle_at(x, y))  # (its `working_angle`)
     return np.array(length), np.array(angle)
 
 
