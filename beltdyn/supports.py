@@ -171,11 +171,10 @@ class ArmSupport(Support):
         """The arm's inertia, torsion spring and damper (1, 1) each (None where zero), read-only: one set for
         the components of every layout (`own_components`)."""
         p = self.pulley
-        out = tuple(np.array([[v]]) if v > 0 else None for v in (p.arm_inertia, p.arm_stiffness, p.arm_damping))
-        for a in out:
-            if a is not None:
-                a.setflags(write=False)
-        return out
+        values = (p.arm_inertia, p.arm_stiffness, p.arm_damping)
+        every = np.array(values).reshape(3, 1, 1)
+        every.setflags(write=False)
+        return tuple(every[i] if v > 0 else None for i, v in enumerate(values))
 
     def fit_motion(self) -> dict:
         return {"direction": np.zeros(2), "slide_range": self.travel_limits(),

@@ -604,8 +604,8 @@ class SpringSpans:
 
     @property
     def end_mass(self) -> np.ndarray:
-        """(k,) the mass lumped on each end, rho L / 2 (kg)."""
-        return 0.5 * self.rho * self.reference_length
+        """(k,) the mass lumped on each end, rho L / 2 (kg) (cached)."""
+        return _cached(self, "_end_mass", lambda: 0.5 * self.rho * self.reference_length)
 
     @property
     def Tt(self) -> np.ndarray:
@@ -848,15 +848,12 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     if not spans:
         return None
     n = layout.n
-    idx, T, (at, pulley) = _spring_joints(dofs, spans, n)
+    idx, T, (at, pulley, sp) = _spring_joints(dofs, spans, n)
     direction = layout.span_direction if direction is None else direction
     if reference_length is None:
         reference_length = layout.span_length / _span_stretch(prestrain_stretch, n)
     start, end, start_normal, end_normal = layout.span_start, layout.span_end, layout.start_normal, layout.end_normal
-    if len(spans) == n:  # every span a spring: the layout's arrays as they are
-        sp = np.arange(n)
-    else:
-        sp = np.array(spans, dtype=np.int64)
+    if len(spans) < n:  # (every span a spring: the layout's arrays as they are)
         reference_length, direction = reference_length[sp], direction[sp]
         start, end, start_normal, end_normal = start[sp], end[sp], start_normal[sp], end_normal[sp]
     T = T.copy()  # the rotation columns R (z x n) = R (-n_y, n_x) of each end (`joint_pairs`): the layout's
@@ -883,7 +880,7 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
     idx (k, m) the joint coordinates of each span, its start's columns (rotation, then the pulley's
     translations) before its end's, padded with n_dof; T (k, 4, m) with the translations' directions and
     zero rotation columns; and where the rotation columns' entries are in T's flat order ((4k,): the x and
-    y rows of each end) and their pulleys (2k,), the k starts, then the k ends."""
+    y rows of each end), their pulleys (2k,), the k starts, then the k ends, and the spans (k,)."""
     cache = dofs.__dict__.setdefault("_spring_joints", {})
     hit = cache.get(spans)
     if hit is not None:
@@ -909,7 +906,8 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
     rows = np.repeat([0, 2], k)
     at = np.ravel_multi_index((np.repeat(np.tile(np.arange(k), 2), 2), np.stack([rows, rows + 1], axis=1).ravel(),
                                np.repeat(rot_col.ravel(), 2)), T.shape)
-    hit = cache[spans] = (idx, T, (at, np.concatenate([sp, (sp + 1) % n])))
+    sp.setflags(write=False)
+    hit = cache[spans] = (idx, T, (at, np.concatenate([sp, (sp + 1) % n]), sp))
     return hit
 
 
@@ -1832,7 +1830,7 @@ def _add_components(components: tuple[LinearComponent, ...], n: int, M: np.ndarr
             if c.free is not None:
                 if offset is None:
                     offset = np.zeros(n)
-                offset[d] += (c.stiffness @ np.asarray(c.free, dtype=float))[of[1:]]
+                offset[d] += c.stiffness[of] * c.free[0] if of else c.stiffness @ np.asarray(c.free, dtype=float)
         if c.damping is not None:
             if C is None:
                 C = np.zeros((n, n))
@@ -2045,9 +2043,9 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
         d_m, m_m, w_m = masses.setdefault(sup.mass_kind, ([], [], []))
         if t_dof:
             d_m += t_dof
-            dirs = dofs.trans_dir[j]
-            m_m += (p.mass * np.matmul(dirs[:, None, :], dirs[:, :, None]).ravel()).tolist()  # m |v|^2 (v @ v's ddot)
-            w_m += (p.mass * dirs).tolist()
+            for vx, vy in dofs.trans_dir[j].tolist():  # (floats: a direction or two)
+                m_m.append(p.mass * (vx * vx + vy * vy))  # m |v|^2 (1 for the unit directions)
+                w_m.append((p.mass * vx, p.mass * vy))
         springs = sup.springs()
         if springs:
             t_dofs += t_dof
