@@ -14,7 +14,6 @@ motion per unit of each translational DOF (the ones the belt joints and the pull
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 from typing import ClassVar
@@ -162,19 +161,23 @@ class ArmSupport(Support):
                 free = np.array([fa - ref])
             elif spring_free is not None and spring_free[dof] != 0.0:  # relaxed where it was on the L0 fit
                 free = np.array([float(spring_free[dof])])
-        mass, stiffness, damping = self._arm_matrices
-        return (_component_class()(name=f"tensioner arm {p.name}", dofs=np.array([dof], dtype=np.int64), mass=mass,
-                                   stiffness=stiffness, damping=damping, free=free, energy_kind="tensioner"),)
+        name, dofs, mass, stiffness, damping = self._arm_parts(dof)
+        return (_component_class()(name=name, dofs=dofs, mass=mass, stiffness=stiffness, damping=damping, free=free,
+                                   energy_kind="tensioner"),)
 
-    @functools.cached_property
-    def _arm_matrices(self) -> tuple:
-        """The arm's inertia, torsion spring and damper (1, 1) each (None where zero), read-only: one set for
-        the components of every layout (`own_components`)."""
-        p = self.pulley
-        values = (p.arm_inertia, p.arm_stiffness, p.arm_damping)
-        every = np.array(values).reshape(3, 1, 1)
-        every.setflags(write=False)
-        return tuple(every[i] if v > 0 else None for i, v in enumerate(values))
+    def _arm_parts(self, dof: int) -> tuple:
+        """The arm component's name, DOFs (1,) and inertia, torsion spring and damper (1, 1) each (None where
+        zero), read-only: made once per support object (`own_components` on every layout of an analysis)."""
+        hit = self.__dict__.get("_parts")
+        if hit is None or hit[0] != dof:
+            p = self.pulley
+            values = (p.arm_inertia, p.arm_stiffness, p.arm_damping)
+            every, dofs = np.array(values).reshape(3, 1, 1), np.array([dof], dtype=np.int64)
+            every.setflags(write=False)
+            dofs.setflags(write=False)
+            hit = (dof, f"tensioner arm {p.name}", dofs, *(every[i] if v > 0 else None for i, v in enumerate(values)))
+            object.__setattr__(self, "_parts", hit)  # (a frozen dataclass: its cache slot)
+        return hit[1:]
 
     def fit_motion(self) -> dict:
         return {"direction": np.zeros(2), "slide_range": self.travel_limits(),

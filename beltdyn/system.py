@@ -867,8 +867,6 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
 
 def _span_stretch(prestrain_stretch: float | np.ndarray, n: int) -> np.ndarray:
     """(n,) the spans' stretch at q = 0 of one number for all or one per span (a new array)."""
-    if isinstance(prestrain_stretch, np.ndarray) and prestrain_stretch.shape == (n,):
-        return prestrain_stretch.astype(float)
     if isinstance(prestrain_stretch, (float, int)) or np.ndim(prestrain_stretch) == 0:
         return np.full(n, float(prestrain_stretch))
     lam = np.array(prestrain_stretch, dtype=float)
@@ -988,13 +986,6 @@ def _make_pattern(idx: np.ndarray, n: int, *, sparse: bool, extra: tuple[np.ndar
     diag_slot = np.searchsorted(keys, diag_keys)
     return Pattern(n=n, flat=flat, slot=slot, indices=c.astype(np.int32), indptr=indptr.astype(np.int32),
                    diag_slot=diag_slot, nnz=len(keys))
-
-
-@functools.lru_cache(maxsize=16)
-def _no_element_pattern(n: int) -> Pattern:
-    """The dense pattern of n DOFs without elements (nothing to scatter; the spring spans bring their own
-    indices)."""
-    return Pattern(n=n, flat=_NO_INDEX)
 
 
 def _assembled(n: int, dense: bool, pat: Pattern, blocks: np.ndarray | None, springs: np.ndarray | None,
@@ -1772,7 +1763,7 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
                     cols.append(c.dofs[cc])
         extra = (np.concatenate(rows), np.concatenate(cols)) if rows else None
     # (dense without elements: nothing to scatter but the springs, which bring their own indices)
-    pattern = _no_element_pattern(n) if use_dense and not len(belt.idx) else \
+    pattern = Pattern(n=n, flat=_NO_INDEX) if use_dense and not len(belt.idx) else \
         make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
     g = np.asarray(gravity, dtype=float)
     has_elements = belt.elements.n_elem > 0
@@ -1868,7 +1859,8 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     n_p = layout.n
     n_dof = dofs.n
     pad = n_dof
-    lam_s = _span_stretch(prestrain_stretch, n_p)
+    lam_s = prestrain_stretch.astype(float) if isinstance(prestrain_stretch, np.ndarray) and \
+        prestrain_stretch.shape == (n_p,) else _span_stretch(prestrain_stretch, n_p)  # (a new array)
     L_ref = layout.span_length / lam_s
     if isinstance(prestrain_stretch, (float, int)):  # (one number: uniform)
         lam = float(prestrain_stretch)
