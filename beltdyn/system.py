@@ -109,8 +109,8 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
     gradients, interior nodes, end gradients; none for a spring span); the supports' dependent DOFs
     after all of them."""
     # the support's class too: a registered class (tests/test_system.py) may replace a kind's
-    key = (cfg.span_elements, tuple((p.name, p.support, SUPPORT_CLASSES[p.support], tuple(p.slide_direction))
-                                    for p in cfg.pulleys))
+    key = (cfg.span_elements, tuple([(p.name, p.support, SUPPORT_CLASSES[p.support], tuple(p.slide_direction))
+                                     for p in cfg.pulleys]))
     hit = _DOFMAPS.get(key)
     if hit is None:
         if len(_DOFMAPS) > 64:
@@ -2004,6 +2004,9 @@ def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = No
     return tuple(out)
 
 
+_MASS_NAMES = {"translational": "pulley mass", "tensioner": "arm pulley mass"}  # the pulley mass components' names
+
+
 def _diagonal(values: list) -> np.ndarray:
     """np.diag(values) of floats (k, k) without its generic set-up."""
     k = len(values)
@@ -2045,10 +2048,9 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
             supported.append(j)
         if sup.independent():
             own.append((sup, t_dof[0] if t_dof and not sup.translation_is_dependent() else int(dofs.arm_dof[j]), j))
-    names = {"translational": "pulley mass", "tensioner": "arm pulley mass"}
     for kind, (d_m, m_m, w_m) in masses.items():
         if d_m:
-            fixed.append(LinearComponent(name=names.get(kind, f"{kind} pulley mass"),
+            fixed.append(LinearComponent(name=_MASS_NAMES.get(kind) or f"{kind} pulley mass",
                                          dofs=np.array(d_m, dtype=np.int64), mass=_diagonal(m_m), weight=np.array(w_m),
                                          energy_kind=kind))
     bearing = None
@@ -2218,9 +2220,10 @@ class DriveFacts:
 def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
     """The `DriveFacts` of a configuration (`layout`: its L0 fit, where the arms are taken)."""
     dofs = number_dofs(cfg)
+    pulleys = cfg.pulleys
     return DriveFacts(layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs), loads=static_loads(cfg, dofs),
-                      friction=np.array([np.nan if p.friction is None else p.friction for p in cfg.pulleys]),
-                      pulley_names=tuple(p.name for p in cfg.pulleys), gravity=np.asarray(cfg.model.gravity, dtype=float),
+                      friction=np.array([np.nan if p.friction is None else p.friction for p in pulleys]),
+                      pulley_names=tuple([p.name for p in pulleys]), gravity=np.asarray(cfg.model.gravity, dtype=float),
                       pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs))
 
 
