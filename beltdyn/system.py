@@ -271,7 +271,6 @@ class BeltSpans:
     n_dof: int
     reference_length: np.ndarray  # (n_span,) reference (unstretched) length of each span
     reference_direction: np.ndarray  # (n_span, 2) unit direction of each span at q = 0
-    reference_normal: np.ndarray  # (n_span, 2) unit normal (z x t) of each span at q = 0
     prestrain_stretch: float = 1.0  # mean stretch of the spans at q = 0: sum of chord lengths / sum of reference lengths
     span_stretch: np.ndarray | None = None  # (n_span,) stretch of each span at q = 0 (None: prestrain_stretch for all)
     damping_axial: float = 0.0  # Kelvin-Voigt retardation times (s), set by the transient options
@@ -281,6 +280,11 @@ class BeltSpans:
     @property
     def n_span(self) -> int:
         return len(self.span_elements)
+
+    @property
+    def reference_normal(self) -> np.ndarray:
+        """(n_span, 2) unit normal z x t = (-t_y, t_x) of each span at q = 0 (cached)."""
+        return _cached(self, "_normal", lambda: self.reference_direction[:, ::-1] * _NEG_X)
 
     @property
     def flexible(self) -> np.ndarray:
@@ -1869,13 +1873,11 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
         uniform = lam_list.count(lam_list[0]) == n_p  # (the sums by np.add.reduce: ndarray.sum's own)
         lam = lam_list[0] if uniform else float(np.add.reduce(layout.span_length) / np.add.reduce(L_ref))
     t_dir = layout.span_direction
-    normals = t_dir[:, ::-1] * _NEG_X  # z x t = (-t_y, t_x)
     n_elem = sum(cfg.span_elements)
     if n_elem == 0:  # every span a spring (`build_springs`): no elements, no joints of the belt's own
         return BeltSpans(elements=span_element_set(cfg, _NO_ELEMENT, _NO_ELEMENT), elem_span=_NO_INDEX,
                          span_elements=(_NO_INDEX,) * n_p, T=_NO_T, idx=_NO_IDX, tsel=_NO_INDEX, e0=_NO_E, n_dof=n_dof,
-                         reference_length=L_ref, reference_direction=t_dir, reference_normal=normals,
-                         prestrain_stretch=lam, span_stretch=lam_s)
+                         reference_length=L_ref, reference_direction=t_dir, prestrain_stretch=lam, span_stretch=lam_s)
     counts = np.array(cfg.span_elements, dtype=np.int64)  # (n_span,) elements of each span
     # Per element, columns 0-3 / 4-7 carry the coordinates of its first / second node, 8-10 / 11-13
     # the joint DOFs of a span end; padding columns are squeezed out afterwards.
@@ -1921,7 +1923,7 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
                           np.repeat([cfg.belt.EI if m == "ancf" else 0.0 for m in cfg.span_models], counts))
     return BeltSpans(elements=el, elem_span=elem_span, span_elements=span_elements, T=T, idx=idx,
                      tsel=joint_selection(T, idx, n_dof), e0=e0, n_dof=n_dof, reference_length=L_ref,
-                     reference_direction=t_dir, reference_normal=normals, prestrain_stretch=lam, span_stretch=lam_s)
+                     reference_direction=t_dir, prestrain_stretch=lam, span_stretch=lam_s)
 
 
 def joint_pairs(layout: Layout, dofs: DofMap, s: int, side: int) -> list[tuple[int, np.ndarray]]:
