@@ -52,11 +52,10 @@ _PAD = np.zeros(1)  # the padding coordinate (index n_dof) appended to p
 _PAD.setflags(write=False)
 _NEG_X = np.array([-1.0, 1.0])  # (a, b) -> (-a, b): z x t = (t_y, t_x) * _NEG_X
 _NEG_X.setflags(write=False)
-# the tables of a belt without elements (every span a spring), shared read-only
+# the tables of a belt without elements (every span a spring), shared: empty, so nothing can change them (and
+# writable: numba types a read-only array apart, and the transient's kernels would compile anew)
 _NO_ELEMENT, _NO_INDEX, _NO_T, _NO_IDX, _NO_E = (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 8, 8)),
                                                  np.zeros((0, 8), dtype=np.int64), np.zeros((0, 8)))
-for _a in (_NO_ELEMENT, _NO_INDEX, _NO_T, _NO_IDX, _NO_E):
-    _a.setflags(write=False)
 DOF_GROUPS = ("span", "rotation", "translation", "arm")
 ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse", "tensioner")
 
@@ -852,11 +851,12 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     if not spans:
         return None
     n = layout.n
-    idx, T, (at, pulley, sp) = _spring_joints(dofs, spans, n)
+    idx, T, (at, pulley) = _spring_joints(dofs, spans, n)
     direction = layout.span_direction if direction is None else direction
     if reference_length is None:
         reference_length = layout.span_length / _span_stretch(prestrain_stretch, n)
     start, end, start_normal, end_normal = layout.span_start, layout.span_end, layout.start_normal, layout.end_normal
+    sp = np.arange(n) if len(spans) == n else np.array(spans, dtype=np.int64)  # (writable: `spring_kernel`)
     if len(spans) < n:  # (every span a spring: the layout's arrays as they are)
         reference_length, direction = reference_length[sp], direction[sp]
         start, end, start_normal, end_normal = start[sp], end[sp], start_normal[sp], end_normal[sp]
@@ -882,7 +882,7 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
     idx (k, m) the joint coordinates of each span, its start's columns (rotation, then the pulley's
     translations) before its end's, padded with n_dof; T (k, 4, m) with the translations' directions and
     zero rotation columns; and where the rotation columns' entries are in T's flat order ((4k,): the x and
-    y rows of each end), their pulleys (2k,), the k starts, then the k ends, and the spans (k,)."""
+    y rows of each end) and their pulleys (2k,), the k starts, then the k ends."""
     cache = dofs.__dict__.setdefault("_spring_joints", {})
     hit = cache.get(spans)
     if hit is not None:
@@ -908,8 +908,7 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
     rows = np.repeat([0, 2], k)
     at = np.ravel_multi_index((np.repeat(np.tile(np.arange(k), 2), 2), np.stack([rows, rows + 1], axis=1).ravel(),
                                np.repeat(rot_col.ravel(), 2)), T.shape)
-    sp.setflags(write=False)
-    hit = cache[spans] = (idx, T, (at, np.concatenate([sp, (sp + 1) % n]), sp))
+    hit = cache[spans] = (idx, T, (at, np.concatenate([sp, (sp + 1) % n])))
     return hit
 
 
