@@ -330,3 +330,31 @@ def test_a_build_from_the_analysis_facts_is_the_build_from_the_configuration(den
     kw = dict(prestrain_stretch=stretch, spring_free=free, dense=dense)
     for lay in (fit, moved):
         _fields_equal(build_system(cfg, lay, facts=facts, **kw), build_system(cfg, lay, **kw))
+
+
+def test_the_dense_assembly_of_the_components_is_the_sparse_one():
+    # _assemble adds the components into a dense system in place (a one-DOF component's entries as scalars)
+    # and sums them on the CSR pattern of a sparse one: the same mass, stiffness, damping, weight and spring
+    # offsets on the two-arm drive under gravity (arms with springs relaxed off the layout, a bearing, a slide,
+    # spring and ANCF spans). Compared to 1e-14 of each matrix's largest entry: the two paths add an entry's element,
+    # spring-span and component parts in different orders.
+    from scipy.sparse import csr_matrix
+
+    from beltdyn.geometry import layout_from_config
+    from beltdyn.system import number_dofs
+
+    cfg = config_from_dict({**TWO_ARMS, "model": {"gravity": [0.0, -9.81]}})
+    lay = layout_from_config(cfg)
+    n = number_dofs(cfg).n
+    kw = dict(prestrain_stretch=np.linspace(1.001, 1.002, lay.n), spring_free=np.linspace(-1e-3, 1e-3, n))
+    dense, sparse = build_system(cfg, lay, dense=True, **kw), build_system(cfg, lay, dense=False, **kw)
+    assert dense.dense and not sparse.dense
+    assert sum(len(c.dofs) == 1 and c.free is not None for c in dense.components) == 2  # the two sprung arms
+    stiffness = csr_matrix((sparse.linear_stiffness, sparse.pattern.indices, sparse.pattern.indptr),
+                           shape=(n, n)).toarray()
+    pairs = [(dense.mass, sparse.mass.toarray()), (dense.linear_stiffness, stiffness),
+             (dense.linear_damping, sparse.linear_damping.toarray()), (dense.gravity_force, sparse.gravity_force),
+             (dense.linear_offset, sparse.linear_offset)]
+    for a, b in pairs:
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-14 * np.abs(b).max())
+        assert np.abs(b).max() > 0
