@@ -1097,7 +1097,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             raise SolverError(f"no belt path through the solved pulley positions: {exc}", analysis="static",
                               step=step, item=f"pulley {old.names[j]}") from None
         free = np.zeros(n_dof)  # the springs stay relaxed where they were on the L0 fit
-        for j, (dofs, dirs) in enumerate(zip(d.trans_dof, d.trans_dir)):
+        for j, (dofs, dirs) in enumerate(zip(d.trans_dof, d.trans_dir) if anchored else ()):
             for k, v in zip(dofs, dirs):
                 if k in anchored:
                     free[k] = -float((centers[j] - lay0.center[j]) @ v)
@@ -1158,8 +1158,9 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                 lam_p = stretch_for_tension(float(ts.target), EA)
             else:
                 # started with the pulleys turned to the predicted span tensions
-                T = np.array(span_tension(lay.span_angle.tolist(), lay.span_length.tolist()))
-                warm = _predictor(built, stretch_for_tension(T, EA), ts.adjust_dof, built.driver_dof)
+                T = span_tension(lay.span_angle.tolist(), lay.span_length.tolist())
+                warm = _predictor(built, np.array([stretch_for_tension(t, EA) for t in T]), ts.adjust_dof,
+                                  built.driver_dof)
                 system = built
         except (GeometryError, SolverError, ArithmeticError, ValueError, np.linalg.LinAlgError):
             lay, free, warm = lay0, np.zeros(n_dof), None  # no prediction: start from the L0 fit
