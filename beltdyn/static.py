@@ -816,7 +816,7 @@ def _carried(old_angle: list, new_angle: list, rho: list, reference: list, span_
     radii and the old reference lengths; span_name(s) names span s in the error."""
     out = [r - ((b - a + math.pi) % (2.0 * math.pi) - math.pi) * (rho[s] - rho[s + 1 - len(rho)])
            for s, (a, b, r) in enumerate(zip(old_angle, new_angle, reference))]
-    if not min(out) > 0.0:
+    if not all(x > 0.0 for x in out):  # (NaN included: min() of a list skips a NaN after the first)
         s = min(range(len(out)), key=lambda k: out[k] if out[k] == out[k] else -math.inf)
         raise SolverError(f"span {span_name(s)} has no belt left at the solved pulley positions (reference "
                           f"length {out[s]:.3g} m)", analysis="static", step="re-lay", item=f"span {s + 1}")

@@ -287,10 +287,11 @@ class BeltSpans:
         return np.array([s[-1] for s in self.span_elements if len(s)], dtype=np.int64)
 
     def on_spans(self, x: np.ndarray) -> np.ndarray:
-        """(B, n_flex, ...) per flexible span -> (B, n_span, ...), zeros for the spans without elements."""
+        """(B, n_flex, ...) per flexible span -> (B, n_span, ...), zeros for the spans without elements (x's
+        dtype: a running belt's complex mode shapes keep their imaginary part)."""
         if x.shape[1] == self.n_span:
             return x
-        out = np.zeros((x.shape[0], self.n_span) + x.shape[2:])
+        out = np.zeros((x.shape[0], self.n_span) + x.shape[2:], dtype=x.dtype)
         out[:, self.flexible] = x
         return out
 
@@ -749,10 +750,10 @@ class SpringSpans:
         return slice(None) if len(self.span) == self.n_span else self.span  # (span: ascending, distinct)
 
     def scatter(self, x: np.ndarray) -> np.ndarray:
-        """(B, k, ...) -> (B, n_span, ...), zeros for the other spans."""
+        """(B, k, ...) -> (B, n_span, ...), zeros for the other spans (x's dtype)."""
         if isinstance(self._spans, slice):
             return x
-        out = np.zeros((x.shape[0], self.n_span) + x.shape[2:])
+        out = np.zeros((x.shape[0], self.n_span) + x.shape[2:], dtype=x.dtype)
         out[:, self.span] = x
         return out
 
