@@ -109,12 +109,12 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     if model.belt_speed:
         return _solve_running(model, q, n_modes=n_modes, solver=solver)
     K = model.equilibrium(q)[1] if tangent is None else tangent
-    slopes = model.arm_slopes(q)
-    J = None  # the arms' jacobian, dense, for a small dense model: J^T M J and the shapes' joint motion J phi
-    if slopes is not None and model.dense and model.n_p <= 64:
-        J = model.arm_jacobian(slopes)
+    slopes = J = None  # the arms' jacobian, dense, for a small dense model: J^T M J and the shapes' joint motion J phi
+    if model.arms is not None and model.dense and model.n_p <= 64:
+        J = model.arm_jacobian(q)
         M = J.T @ model.mass @ J
     else:
+        slopes = model.arm_slopes(q)
         M = model.mass_matrix(q, slopes=slopes)
     n = model.n_dof
     use_dense = model.dense if solver == "auto" else solver == "dense"

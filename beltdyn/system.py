@@ -1479,16 +1479,23 @@ class System:
         if slopes is None:
             slopes = self.arm_slopes(np.zeros(self.n_dof) if q is None else q)
         if self.dense:  # J^T M J with the jacobian J, dense (as `ArmJoints.project_matrix`)
-            J = self.arm_jacobian(slopes)
+            J = self.arm_jacobian(slopes=slopes)
             return J.T @ self.mass @ J
         return self.arms._project_matrix(slopes, self.mass, None, dense=False)
 
-    def arm_jacobian(self, slopes: np.ndarray) -> np.ndarray:
-        """J = dp/dq (n_p, n_dof) dense, from the arms' slopes dc/dphi (a, 2) (`arm_slopes`): the
-        identity on q, the slopes in the arm columns."""
+    def arm_jacobian(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None) -> np.ndarray:
+        """J = dp/dq (n_p, n_dof) dense at q: the identity on q, the arms' slopes dc/dphi in the arm
+        columns, from `arm_slopes` (a, 2) if given, else from q on Python floats (`ArmJoints.first`'s
+        formula arm by arm: a drive has a few arms)."""
         a = self.arms
         J = np.eye(a.n_p, a.n_q)
-        J[a.slot, a.dof], J[a.slot + 1, a.dof] = slopes[:, 0], slopes[:, 1]
+        if slopes is not None:
+            J[a.slot, a.dof], J[a.slot + 1, a.dof] = slopes[:, 0], slopes[:, 1]
+            return J
+        qs = q.tolist()
+        for slot, dof, length, angle in zip(a.slot.tolist(), a.dof.tolist(), a.length.tolist(), a.angle.tolist()):
+            phi = angle + qs[dof]
+            J[slot, dof], J[slot + 1, dof] = -(length * math.sin(phi)), length * math.cos(phi)
         return J
 
     def mean_tension_and_gradient(self, q: np.ndarray, *, gradient: bool = True, p: np.ndarray | None = None
