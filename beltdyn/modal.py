@@ -154,31 +154,27 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
         order = np.argsort(w)
         w, v = w[order], v[:, order]
         name = "sparse"
-    Kdiag, Mdiag = np.asarray(K.diagonal()), np.asarray(M.diagonal())  # (dense or sparse)
-    lam_max = float((Kdiag / Mdiag).max())
-    tol = zero_tolerance(lam_max)
+    Mdiag = np.asarray(M.diagonal())  # (dense or sparse)
+    tol = zero_tolerance(float(np.maximum.reduce(np.asarray(K.diagonal()) / Mdiag)))
     if w[0] < -tol:  # (w ascending)
         i = int(np.argmin(w))
         dof = model.dof_labels[int(np.argmax(np.abs(v[:, i])))]
         raise SolverError(
             f"the equilibrium is unstable: eigenvalue omega^2 = {w[i]:.4g} 1/s^2 < 0 (a compressed or "
             f"slack span?)", analysis="modal", item=dof)
-    rigid = zero_modes(w, tol)
-    n_rigid = int(rigid.sum())
+    # the zero modes lead: w ascends from above -tol, and `zero_modes` keeps the smallest |w| up to a gap
+    n_rigid = int(np.count_nonzero(zero_modes(w, tol)))
     if n_rigid > 1:  # beyond the belt turning with the pulleys: a mechanism (no stiffness somewhere)
-        _mechanism(model, v[:, rigid], Mdiag)
-    if n_rigid == 1 and rigid[0]:  # (the common case: the belt's rigid turn first)
-        elastic = slice(1, n_modes + 1)
-        shapes = v.T[elastic].copy()
-    else:
-        elastic = np.flatnonzero(~rigid)[:n_modes]
-        shapes = v.T[elastic]  # (a copy: fancy indexing)
-    freq = np.sqrt(np.maximum(w[elastic], 0.0)) / (2 * np.pi)
+        _mechanism(model, v[:, :n_rigid], Mdiag)
+    shapes = v.T[n_rigid: n_rigid + n_modes].copy()
+    # sqrt |omega^2| / 2 pi: the zero modes' round-off and the elastic modes' frequencies (their w > 0)
+    root = np.sqrt(np.abs(w[: n_rigid + n_modes])) / (2 * np.pi)
+    freq = root[n_rigid:]
     kind, order, span, label, share, sshare, mid = _shape_outputs(
         model, q, shapes, freq, slopes=slopes, joint=None if J is None else shapes @ J.T)
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order, span=span, label=label, energy_share=share,
-        span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid, rigid_frequency=np.sqrt(np.abs(w[rigid])) / (2 * np.pi),
+        span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid, rigid_frequency=root[:n_rigid],
         solver=name)
 
 
