@@ -166,7 +166,9 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
             f"slack span?)", analysis="modal", item=dof)
     # the zero modes lead: w ascends from above -tol, so the candidates |w| <= tol come first, and
     # `zero_modes` keeps the smallest of them up to a gap
-    n_rigid = next((i for i, x in enumerate(wl) if abs(x) > tol), len(wl))
+    n_rigid = 0
+    while n_rigid < len(wl) and abs(wl[n_rigid]) <= tol:
+        n_rigid += 1
     if n_rigid > 1:
         n_rigid = int(np.count_nonzero(zero_modes(w, tol)))
         if n_rigid > 1:  # beyond the belt turning with the pulleys: a mechanism (no stiffness somewhere)

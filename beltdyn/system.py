@@ -218,8 +218,7 @@ class BearingSprings(LinearComponent):
 
 
 # ------------------------------------------------------------------------------------ the belt
-_FRAME = np.array([[[0, 1], [1, 0]]])  # t (2,) -> [[t_x, t_y], [t_y, t_x]] (1, 2, 2)
-_ROTATE = np.array([[1.0, 1.0], [-1.0, 1.0]])  # -> [[t_x, t_y], [-t_y, t_x]]: the rows t and z x t
+_NORMAL = np.array([-1.0, 1.0])  # (t_y, t_x) -> z x t = (-t_y, t_x)
 
 
 def _plus(a: np.ndarray | None, b: np.ndarray) -> np.ndarray:
@@ -817,7 +816,8 @@ class SpringSpans:
         (frame x T, (k, end x t|n, m); T is zero in the padding columns, so the padding index may take any
         coordinate of P)."""
         k, m = self.idx.shape
-        frame = self.reference_direction[:, _FRAME] * _ROTATE  # (k, 1, t|n, 2)
+        t = self.reference_direction
+        frame = np.concatenate([t, t[:, ::-1] * _NORMAL], axis=1).reshape(k, 1, 2, 2)  # (k, 1, t|n, 2), n = z x t
         tn = np.matmul(frame, self.T.reshape(k, 2, 2, m)).reshape(k, 4, m)  # rows: end 0 t, n, end 1 t, n
         ab = np.matmul(tn, P.take(self.idx, axis=1, mode="clip").transpose(1, 2, 0))  # (k, 4, B)
         ab *= ab
