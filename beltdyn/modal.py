@@ -468,7 +468,8 @@ def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None
         E, b = model.kinetic_energies(shapes, q, motion=motion, joint=joint)
     nk, n = len(KINDS), model.belt.n_span
     total = np.add.reduce(E[:, :nk], axis=1, keepdims=True)
-    total[total == 0] = 1.0
+    if not total.all():
+        total[total == 0] = 1.0
     E /= total
     return E[:, :nk], E[:, nk: nk + n], E[:, nk + n:], b
 

@@ -1681,7 +1681,7 @@ class System:
         E = np.zeros((n_modes, nk + 2 * belt.n_span))
         dofs, mass, kind_of = self._energy_components
         if dofs is not None:  # x^T M_c x of every component at once, summed by kind
-            x = shapes[:, dofs]
+            x = shapes.take(dofs, axis=1)
             np.matmul(np.matmul(x, mass) * x, kind_of, out=E[:, :nk])
         span = E[:, nk:].reshape(n_modes, 2, belt.n_span)  # (modes, along|across, span), a view of E
         if el.n_elem:
@@ -1700,9 +1700,10 @@ class System:
             b = np.zeros((n_modes, 0, 4))
         if self.springs is not None:  # the lumped masses of the spring spans (the other spans: every span is one or the other)
             sp = self.springs
-            span[:, :, sp.span_rows] = sp.kinetic_energy_split(shapes).T
+            e = sp.kinetic_energy_split(shapes)  # (k, along|across, modes)
+            span[:, :, sp.span_rows] = e.T
         totals = E[:, 2:4]  # (a view: += on it, not on E's slice, which would copy back)
-        totals += np.add.reduce(span, axis=2)
+        totals += np.add.reduce(span, axis=2) if el.n_elem else np.add.reduce(e, axis=0).T  # (contiguous e: all springs)
         return E, b
 
     @functools.cached_property
