@@ -30,6 +30,7 @@ the envelope |w(x)| (a travelling wave has no fixed nodes).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -205,9 +206,7 @@ def generalized_eigh(K: np.ndarray, M: np.ndarray, *, vectors: bool = True) -> t
     (vectors=False: the eigenvalues, None): LAPACK dsygvd (divide and conquer), the call
     scipy.linalg.eigh(K, M, driver="gvd") makes, without its argument checks (a quarter of the modal
     analysis of an 8-DOF drive). Raises LinAlgError as eigh."""
-    from scipy.linalg.lapack import dsygvd
-
-    w, v, info = dsygvd(K, M, jobz="V" if vectors else "N")  # (defaults: itype=1, uplo="L")
+    w, v, info = _dsygvd()(K, M) if vectors else _dsygvd()(K, M, jobz="N")  # (defaults: itype=1, uplo="L", jobz="V")
     if info == 0:
         return w, (v if vectors else None)
     n = K.shape[0]
@@ -217,6 +216,14 @@ def generalized_eigh(K: np.ndarray, M: np.ndarray, *, vectors: bool = True) -> t
                                     f"eigenvectors were computed.")
     raise np.linalg.LinAlgError(f"The algorithm failed to compute an eigenvalue while working on the submatrix "
                                 f"lying in rows and columns {info}/{n + 1} through mod({info},{n + 1}).")
+
+
+@functools.cache
+def _dsygvd():
+    """LAPACK dsygvd from scipy, imported at the first use (not with this module) and kept."""
+    from scipy.linalg.lapack import dsygvd
+
+    return dsygvd
 
 
 def _symmetric_shift_invert(M, lu, sigma: float, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -468,8 +475,7 @@ def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None
         E, b = model.kinetic_energies(shapes, q, motion=motion, joint=joint)
     nk, n = len(KINDS), model.belt.n_span
     total = np.add.reduce(E[:, :nk], axis=1, keepdims=True)
-    if not total.all():
-        total[total == 0] = 1.0
+    total[total == 0] = 1.0
     E /= total
     return E[:, :nk], E[:, nk: nk + n], E[:, nk + n:], b
 
