@@ -464,13 +464,13 @@ def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None
     (motion, joint: the shapes' element coordinates and joint coordinates, if at hand).
 
     Returns shares (n_modes, len(KINDS)), span_long (n_modes, n_span), span_trans (n_modes, n_span)
-    (all divided by the total) and the transverse nodal motion (n_modes, n_elem, 4).
+    (all divided by the total) and the transverse nodal motion (n_modes, n_elem, 4; None without elements).
     """
     if shapes.dtype.kind == "c":  # the energy of Re phi and Im phi together (phi^H M phi), in one call
         k = shapes.shape[0]
         both = lambda x: None if x is None else np.concatenate([x.real, x.imag])  # noqa: E731
         E, b = model.kinetic_energies(both(shapes), q, motion=both(motion), joint=both(joint))
-        E, b = E[:k] + E[k:], b[:k] + 1j * b[k:]
+        E, b = E[:k] + E[k:], (None if b is None else b[:k] + 1j * b[k:])
     else:
         E, b = model.kinetic_energies(shapes, q, motion=motion, joint=joint)
     nk, n = len(KINDS), model.belt.n_span

@@ -1668,7 +1668,7 @@ class System:
 
         Returns E (n_modes, len(ENERGY_KINDS) + 2 n_span) absolute (not normalized): the kinds, then each
         span's motion along its chord, then across it; and the transverse nodal motion b (n_modes, n_elem,
-        4). The belt's share splits exactly into motion along and across each span's chord
+        4; None without elements). The belt's share splits exactly into motion along and across each span's chord
         (M_e = M_s (x) I2); every component's mass counts for its energy kind.
         """
         belt = self.belt
@@ -1697,7 +1697,7 @@ class System:
             np.add.at(span[:, 0].T, belt.elem_span, ka.T)
             np.add.at(span[:, 1].T, belt.elem_span, kb.T)
         else:  # every span a spring
-            b = np.zeros((n_modes, 0, 4))
+            b = None
         if self.springs is not None:  # the lumped masses of the spring spans (the other spans: every span is one or the other)
             sp = self.springs
             e = sp.kinetic_energy_split(shapes)  # (k, along|across, modes)
