@@ -84,9 +84,12 @@ class GeometryError(ValueError):
 def loop_orientation(center: np.ndarray) -> int:
     """+1 if the polygon of centres is counter-clockwise or degenerate, -1 if clockwise."""
     x, y = center[:, 0], center[:, 1]
-    nxt = np.arange(1, len(x) + 1) % len(x)
+    nxt, _ = _neighbours(len(x))
     area2 = float(np.dot(x, y[nxt]) - np.dot(x[nxt], y))
-    scale = float((center.max(axis=0) - center.min(axis=0)).max()) ** 2
+    if area2 >= 0.0:  # counter-clockwise: the size of the drive only decides a negative area
+        return 1
+    xs, ys = center.T.tolist()
+    scale = max(max(xs) - min(xs), max(ys) - min(ys)) ** 2
     return -1 if area2 < -1e-12 * max(scale, 1e-300) else 1
 
 
@@ -126,40 +129,103 @@ def compute_layout(
     check: raise GeometryError (with the key path) for overlapping pulleys, a missing tangent, a span
     that cuts through another pulley, a pulley the belt does not touch, or a path that winds wrongly
     (`check_layout`); False for an iterate whose answer is checked later.
+
+    The arrays of the two ends of every span are laid out together (a few numpy calls on arrays of a
+    handful of numbers: the call count is the cost); the checks first screen the path in one pass with
+    the arithmetic of the checks themselves (`_path_ok`), and only a layout the screen flags runs the
+    checks one by one, in their order, for the error.
     """
-    center = np.asarray(center, dtype=float)
+    center = np.ascontiguousarray(center, dtype=float)
     radius = np.asarray(radius, dtype=float)
     side_sign = np.asarray(side_sign, dtype=float)
     n = len(radius)
     o = loop_orientation(center) if orientation is None else orientation
-    if check:
+    ends, prv, _, _, _ = _tables(n)
+    sigma = side_sign if o == 1 else o * side_sign  # o sigma: the turning sense of each pulley
+    rho = sigma * radius
+    zc = center.view(complex)[:, 0]  # points as x + iy (n,): sums and real multiples are exact per component
+    z_ends, rho_ends = zc[ends], rho[ends]  # (2, n): pulleys i and i + 1 of span i
+    d = z_ends[1] - zc
+    dx, dy = d.real, d.imag
+    dist = np.hypot(dx, dy)
+    if check and not dist.all():  # coincident centres: their overlap before q divides by zero
         _check_apart(center, radius, names)
-    nxt, prv = _neighbours(n)
-    rho = o * side_sign * radius
-    d = center[nxt] - center
-    dist = np.hypot(d[:, 0], d[:, 1])
-    drho = rho - rho[nxt]
+    drho = rho - rho_ends[1]
     q = drho / dist
-    if check:
-        _check_tangents(q, names)
-    alpha = np.arctan2(d[:, 1], d[:, 0]) + np.arcsin(np.minimum(np.maximum(q, -1.0), 1.0))
-    m = np.empty((n, 2))
-    m[:, 0] = np.sin(alpha)
-    m[:, 1] = -np.cos(alpha)
-    side_m = rho[:, None] * m
-    length = np.sqrt(np.maximum(dist * dist - drho * drho, 0.0))
-    wrap = np.mod((o * side_sign) * (alpha - alpha[prv]), TWO_PI)
-    arc = radius * wrap
+    alpha = np.arctan2(dy, dx) + np.arcsin(np.minimum(np.maximum(q, -1.0), 1.0))
+    m = np.empty(n, dtype=complex)  # the right normals sin a - i cos a
+    np.sin(alpha, out=m.real)
+    np.cos(alpha, out=m.imag)
+    np.conjugate(m, out=m)
+    points = np.empty((3, n), dtype=complex)  # the centres, the span starts, the span ends
+    points[0] = zc
+    np.add(z_ends, rho_ends * m, out=points[1:])
+    point_xy, normal = points.view(float).reshape(3, n, 2), (np.sign(rho_ends) * m).view(float).reshape(2, n, 2)
+    sums = np.empty((3, n))  # span lengths, arc lengths, turning angles, summed together
+    length, arc, turn = sums[0], sums[1], sums[2]
+    np.sqrt(np.maximum(dist * dist - drho * drho, 0.0), out=length)
+    wrap = np.mod(sigma * (alpha - alpha[prv]), TWO_PI)
+    np.multiply(radius, wrap, out=arc)
+    np.multiply(sigma, wrap, out=turn)
+    total_length, total_arc, total_turn = sums.sum(axis=1).tolist()
     lay = Layout(
         names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
-        span_start=center + side_m, span_end=center[nxt] + rho[nxt][:, None] * m, span_length=length,
-        span_angle=alpha, start_normal=np.sign(rho)[:, None] * m, end_normal=np.sign(rho[nxt])[:, None] * m,
-        wrap_angle=wrap, arc_length=arc, belt_length=float(length.sum() + arc.sum()),
+        span_start=point_xy[1], span_end=point_xy[2], span_length=length, span_angle=alpha, start_normal=normal[0],
+        end_normal=normal[1], wrap_angle=wrap, arc_length=arc, belt_length=total_length + total_arc,
         adjust_offset=adjust_offset, adjust_index=adjust_index, adjust_kind=adjust_kind,
     )
-    if check:
+    if check and not _path_ok(radius, q, wrap, o, total_turn, points):
+        _check_apart(center, radius, names)
+        _check_tangents(q, names)
         _check_path(lay)
     return lay
+
+
+@functools.lru_cache(maxsize=16)
+def _tables(n: int) -> tuple[np.ndarray, ...]:
+    """Index tables of n pulleys for `compute_layout` (read-only, cached): ends (2, n) the pulleys i and
+    i + 1 of each span; prv (n,) the previous pulley of each; for `_path_ok`, the p pairs that the checks
+    compare: the pulleys (i, k > i) of `_check_apart`, then each span i and the pulleys k not its own of
+    `_check_path`: seg (3, p) the rows of (centres; span starts; span ends) (3n, 2) where the segment
+    begins and ends and the pulley k's centre (a pair's segment: pulley i's centre, of zero length);
+    rad (2, p) the radii subtracted from the distance, indices into (radius, 0) (n + 1,): pulley i's (a
+    pair) or none (a span), then pulley k's; limit (p,) the least gap that passes (0 apart, -1e-12 cut)."""
+    nxt, prv = _neighbours(n)
+    ends = np.stack([np.arange(n), nxt])
+    i_, k_ = _pairs(n)
+    si, sk = np.nonzero(_not_own(n)) if n > 2 else (np.zeros(0, int), np.zeros(0, int))
+    seg = np.stack([np.concatenate([i_, n + si]), np.concatenate([i_, 2 * n + si]), np.concatenate([k_, sk])])
+    rad = np.stack([np.concatenate([i_, np.full(len(si), n)]), np.concatenate([k_, sk])])
+    limit = np.concatenate([np.zeros(len(i_)), np.full(len(si), -1e-12)])
+    out = (ends, prv, seg, rad, limit)
+    for x in out:
+        x.setflags(write=False)
+    return out
+
+
+_ZERO = np.zeros(1)
+_ZERO.setflags(write=False)
+
+
+def _path_ok(radius: np.ndarray, q: np.ndarray, wrap: np.ndarray, o: int, turn: float, points: np.ndarray) -> bool:
+    """True when none of the checks of `compute_layout` fails (`_check_apart`, `_check_tangents`,
+    `_check_path`), computed with their arithmetic in fewer numpy calls: the distance of a pulley's
+    centre from another's and from a span's segment for every pair they compare, in one (p,) array (a
+    centre is a segment of zero length; `_tables`). False when one would fail or a NaN makes it unsure
+    (the checks then run one by one and raise the first failure as they always did). q (n,): as in
+    `_check_tangents`; wrap (n,) the wrap angles, turn their signed sum; points (3, n) complex x + iy: the
+    centres, the span starts and the span ends."""
+    if not (np.abs(q).max() < 1.0 and wrap.min() >= 1e-9 and wrap.max() <= TWO_PI - 1e-9
+            and abs(turn - o * TWO_PI) <= 1e-6):
+        return False
+    _, _, seg, rad, limit = _tables(len(radius))
+    a, b, c = points.ravel()[seg]  # (p,) each: segment start and end, the centre tested
+    r, ab = c - a, b - a
+    rx, ry, ax, ay = r.real, r.imag, ab.real, ab.imag
+    t = np.minimum(np.maximum((rx * ax + ry * ay) / np.maximum(ax * ax + ay * ay, 1e-300), 0.0), 1.0)
+    e = r - t * ab  # a real multiple: exact per component, as (rx - t ax, ry - t ay)
+    own, other = np.concatenate((radius, _ZERO))[rad]
+    return bool((np.hypot(e.real, e.imag) - own - other >= limit).all())
 
 
 def _check_apart(center: np.ndarray, radius: np.ndarray, names: tuple[str, ...]) -> None:
