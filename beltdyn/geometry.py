@@ -310,8 +310,10 @@ def span_line(x0: float, y0: float, rho0: float, x1: float, y1: float, rho1: flo
     if not dist > 0.0:
         return math.nan, math.nan
     drho = rho0 - rho1
-    alpha = math.atan2(dy, dx) + math.asin(min(max(drho / dist, -1.0), 1.0))
-    return alpha, math.sqrt(max(dist * dist - drho * drho, 0.0))
+    q = drho / dist
+    h2 = dist * dist - drho * drho
+    return (math.atan2(dy, dx) + math.asin(-1.0 if q < -1.0 else 1.0 if q > 1.0 else q),
+            math.sqrt(0.0 if h2 < 0.0 else h2))  # the clips of min(max(...)) (NaN passes), without the calls
 
 
 class MovingPulley:
@@ -335,31 +337,34 @@ class MovingPulley:
         self = cls.__new__(cls)
         self._set(center, radius, side_sign, orientation, j)
         c, rho = self.center, self.rho
-        lines = [span_line(*c[i], rho[i], *c[i + 1 - self.n], rho[i + 1 - self.n]) for i in range(self.n)]
+        lines = [span_line(x0, y0, r0, x1, y1, r1)
+                 for (x0, y0), r0, (x1, y1), r1 in zip(c, rho, c[1:] + c[:1], rho[1:] + rho[:1])]
         self.angle = [a for a, _ in lines]
         self.length = [ell for _, ell in lines]
-        self.arc = [r * ((t * (self.angle[i] - self.angle[i - 1])) % TWO_PI)
-                    for i, (r, t) in enumerate(zip(self.radius, self.turn_sign))]
+        self.arc = [r * ((t * (a - b)) % TWO_PI)
+                    for r, t, a, b in zip(self.radius, self.turn_sign, self.angle, self.angle[-1:] + self.angle[:-1])]
         return self
 
     def _set(self, center: np.ndarray, radius: np.ndarray, side_sign: np.ndarray, orientation: int, j: int) -> None:
         n = len(radius)
         self.j, self.n, self.o = j, n, orientation
-        self.turn_sign = (orientation * side_sign).tolist()  # o sigma of each pulley
+        self.turn_sign = [orientation * v for v in side_sign.tolist()]  # o sigma of each pulley
         self.radius = radius.tolist()
         self.rho = [t * r for t, r in zip(self.turn_sign, self.radius)]
         self.center = center.tolist()
         self.prev, self.next = (j - 1) % n, (j + 1) % n
         self.wrapped = sorted({self.prev, j, self.next})  # pulleys whose wrap changes
+        self._wraps = [(i, self.radius[i], self.turn_sign[i]) for i in self.wrapped]
 
     def at(self, x: float, y: float) -> tuple[list[float], list[float], list[float]]:
         """(span angles, span lengths, arc lengths), each (n,) lists, with pulley j's centre at (x, y)."""
-        j, p, nx, c, rho = self.j, self.prev, self.next, self.center, self.rho
+        j, p, nx, rho = self.j, self.prev, self.next, self.rho
+        (px, py), (nxx, nxy) = self.center[p], self.center[nx]
         angle, length, arc = self.angle[:], self.length[:], self.arc[:]
-        angle[p], length[p] = span_line(c[p][0], c[p][1], rho[p], x, y, rho[j])
-        angle[j], length[j] = span_line(x, y, rho[j], c[nx][0], c[nx][1], rho[nx])
-        for i in self.wrapped:
-            arc[i] = self.radius[i] * ((self.turn_sign[i] * (angle[i] - angle[i - 1])) % TWO_PI)
+        angle[p], length[p] = span_line(px, py, rho[p], x, y, rho[j])
+        angle[j], length[j] = span_line(x, y, rho[j], nxx, nxy, rho[nx])
+        for i, r, t in self._wraps:
+            arc[i] = r * ((t * (angle[i] - angle[i - 1])) % TWO_PI)
         return angle, length, arc
 
 
@@ -468,18 +473,19 @@ def fit_adjustable(
             raise GeometryError(f"L0 fit did not converge (belt length {length(lay):.9g} m)", "belt.length")
         return s, lay
 
-    def quick() -> float | None:
-        """Newton's offset as `newton(False)` takes it, the iterates in floats (`MovingPulley`); None
-        where the iteration would fail (the checked way then says why)."""
-        cx, cy = (float(v) for v in center[index])
-        ax, ay = (cx, cy) if arm is None else (float(arm[0]), float(arm[1]))
-        dx, dy = (float(v) for v in direction)
+    def quick() -> tuple[float, float, float] | None:
+        """Newton's offset as `newton(False)` takes it, the iterates in floats (`MovingPulley`), and the
+        pulley's centre there (x, y: `offset_point`'s arithmetic); None where the iteration would fail
+        (the checked way then says why)."""
+        cx, cy = center[index].tolist()
+        ax, ay = (cx, cy) if arm is None else arm.tolist()
+        dx, dy = direction.tolist()
         rx, ry = cx - ax, cy - ay
         p = path.prev
         w = arc_weight - 1.0
 
-        def state(s: float, base_path: bool = False) -> tuple[float, float]:
-            """(fitted length, slope d length / ds) at offset s (the base layout's path: s = 0)."""
+        def state(s: float, base_path: bool = False) -> tuple[float, float, float, float]:
+            """(fitted length, slope d length / ds, x, y) at offset s (the base layout's path: s = 0)."""
             if arm is None:
                 x, y, vx, vy = cx + s * dx, cy + s * dy, dx, dy
             else:
@@ -487,37 +493,38 @@ def fit_adjustable(
                 vx, vy = -(sn * rx + cs * ry), cs * rx - sn * ry  # d centre / ds
                 x, y = ax + vy, ay - vx
             angle, length, arc = (path.angle, path.length, path.arc) if base_path else path.at(x, y)
-            total = sum(length) + sum(arc)
-            slope = (math.cos(angle[p]) - math.cos(angle[index])) * vx + (math.sin(angle[p]) - math.sin(angle[index])) * vy
-            return total + w * sum(arc), slope
+            total_arc, a_in, a_out = sum(arc), angle[p], angle[index]
+            slope = (math.cos(a_in) - math.cos(a_out)) * vx + (math.sin(a_in) - math.sin(a_out)) * vy
+            return sum(length) + total_arc + w * total_arc, slope, x, y
 
         s = 0.0
-        ell, slope = state(0.0, base_path=True)
+        ell, slope, x, y = state(0.0, base_path=True)
         scale = 1.0 if arm is None else math.hypot(rx, ry)
         for _ in range(max_iter):
             f = ell - target_length
             if abs(f) <= tol * target_length:
-                return s
+                return s, x, y
             if not abs(slope) >= 1e-9 * scale:
                 return None
             step = -f / slope
             for _ in range(60):
-                ell_t, slope_t = state(s + step)
+                ell_t, slope_t, x_t, y_t = state(s + step)
                 if abs(ell_t - target_length) < abs(f) or abs(step) < 1e-15:
                     break
                 step *= 0.5
             if not abs(ell_t - target_length) < abs(f):
                 return None
-            s, ell, slope = s + step, ell_t, slope_t
+            s, ell, slope, x, y = s + step, ell_t, slope_t, x_t, y_t
         return None
 
     kind = "slide" if arm is None else "arm"
     try:  # the iterates in floats and unchecked (`quick`), the answer laid out and checked; on any doubt the
-        s = quick()  # checked way
-        if s is None:
+        fitted = quick()  # checked way
+        if fitted is None:
             raise GeometryError("", "")
+        s, x, y = fitted
         c = center.copy()
-        c[index] = offset_point(s)[0]
+        c[index] = x, y
         lay = compute_layout(c, radius, side_sign, names, orientation=orientation, adjust_offset=s,
                              adjust_index=index, adjust_kind=kind)
     except GeometryError:
