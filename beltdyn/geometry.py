@@ -72,6 +72,14 @@ class Layout:
     def span_name(self, i: int) -> str:
         return f"{self.names[i]}-{self.names[(i + 1) % self.n]}"
 
+    @classmethod
+    def _of(cls, **fields) -> "Layout":
+        """The layout of every field given (`compute_layout`), set at once: the frozen dataclass's
+        __init__ sets each through object.__setattr__, a tenth of a small checked layout's time."""
+        lay = object.__new__(cls)
+        lay.__dict__.update(fields)
+        return lay
+
 
 class GeometryError(ValueError):
     """An infeasible layout; `key` is the config key path at fault."""
@@ -152,7 +160,8 @@ def compute_layout(
         _check_apart(center, radius, names)
     drho = rho - rho_ends[1]
     q = drho / dist
-    alpha = np.arctan2(dy, dx) + np.arcsin(np.minimum(np.maximum(q, -1.0), 1.0))
+    tangents = check and np.abs(q).max() < 1.0  # checked: |q| < 1 for every span (else clipped and checked)
+    alpha = np.arctan2(dy, dx) + np.arcsin(q if tangents else np.minimum(np.maximum(q, -1.0), 1.0))
     m = np.empty(n, dtype=complex)  # the right normals sin a - i cos a
     np.sin(alpha, out=m.real)
     np.cos(alpha, out=m.imag)
@@ -163,18 +172,19 @@ def compute_layout(
     point_xy, normal = points.view(float).reshape(3, n, 2), (np.sign(rho_ends) * m).view(float).reshape(2, n, 2)
     sums = np.empty((3, n))  # span lengths, arc lengths, turning angles, summed together
     length, arc, turn = sums[0], sums[1], sums[2]
-    np.sqrt(np.maximum(dist * dist - drho * drho, 0.0), out=length)
+    h2 = dist * dist - drho * drho  # >= +0 where |q| < 1 (|drho| < dist: rounding keeps the order)
+    np.sqrt(h2 if tangents else np.maximum(h2, 0.0), out=length)
     wrap = np.mod(sigma * (alpha - alpha[prv]), TWO_PI)
     np.multiply(radius, wrap, out=arc)
     np.multiply(sigma, wrap, out=turn)
     total_length, total_arc, total_turn = sums.sum(axis=1).tolist()
-    lay = Layout(
+    lay = Layout._of(
         names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
         span_start=point_xy[1], span_end=point_xy[2], span_length=length, span_angle=alpha, start_normal=normal[0],
         end_normal=normal[1], wrap_angle=wrap, arc_length=arc, belt_length=total_length + total_arc,
         adjust_offset=adjust_offset, adjust_index=adjust_index, adjust_kind=adjust_kind,
     )
-    if check and not _path_ok(radius, q, wrap, o, total_turn, points):
+    if check and not (tangents and _path_ok(radius, wrap, o, total_turn, points)):
         _check_apart(center, radius, names)
         _check_tangents(q, names)
         _check_path(lay)
@@ -207,16 +217,15 @@ _ZERO = np.zeros(1)
 _ZERO.setflags(write=False)
 
 
-def _path_ok(radius: np.ndarray, q: np.ndarray, wrap: np.ndarray, o: int, turn: float, points: np.ndarray) -> bool:
-    """True when none of the checks of `compute_layout` fails (`_check_apart`, `_check_tangents`,
-    `_check_path`), computed with their arithmetic in fewer numpy calls: the distance of a pulley's
-    centre from another's and from a span's segment for every pair they compare, in one (p,) array (a
-    centre is a segment of zero length; `_tables`). False when one would fail or a NaN makes it unsure
-    (the checks then run one by one and raise the first failure as they always did). q (n,): as in
-    `_check_tangents`; wrap (n,) the wrap angles, turn their signed sum; points (3, n) complex x + iy: the
-    centres, the span starts and the span ends."""
-    if not (np.abs(q).max() < 1.0 and wrap.min() >= 1e-9 and wrap.max() <= TWO_PI - 1e-9
-            and abs(turn - o * TWO_PI) <= 1e-6):
+def _path_ok(radius: np.ndarray, wrap: np.ndarray, o: int, turn: float, points: np.ndarray) -> bool:
+    """True when none of the checks of `_check_apart` and `_check_path` fails (on a layout whose spans
+    all have their tangent: `_check_tangents`), computed with their arithmetic in fewer numpy calls: the
+    distance of a pulley's centre from another's and from a span's segment for every pair they compare,
+    in one (p,) array (a centre is a segment of zero length; `_tables`). False when one would fail or a
+    NaN makes it unsure (the checks then run one by one and raise the first failure as they always did).
+    wrap (n,) the wrap angles, turn their signed sum; points (3, n) complex x + iy: the centres, the span
+    starts and the span ends."""
+    if not (wrap.min() >= 1e-9 and wrap.max() <= TWO_PI - 1e-9 and abs(turn - o * TWO_PI) <= 1e-6):
         return False
     _, _, seg, rad, limit = _tables(len(radius))
     a, b, c = points.ravel()[seg]  # (p,) each: segment start and end, the centre tested
