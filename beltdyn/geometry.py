@@ -567,10 +567,11 @@ def relay(layout: Layout, center: np.ndarray, *, adjust_offset: float | None = N
 
 def layout_from_config(cfg: DriveConfig) -> Layout:
     """The geometry of a drive: L0 fit when a pulley is adjustable, else the given centres."""
-    center = np.array([p.center for p in cfg.pulleys], dtype=float)
-    radius = np.array([p.radius for p in cfg.pulleys])
-    side = np.array([1.0 if p.side == "inside" else -1.0 for p in cfg.pulleys])
-    names = tuple(p.name for p in cfg.pulleys)
+    pulleys = cfg.pulleys
+    center = np.array([v for p in pulleys for v in p.center], dtype=float).reshape(len(pulleys), 2)
+    radius = np.array([p.radius for p in pulleys], dtype=float)
+    side = np.array([1.0 if p.side == "inside" else -1.0 for p in pulleys])
+    names = tuple([p.name for p in pulleys])
     try:
         a = cfg.adjustable_index
         if a is None:
@@ -604,5 +605,5 @@ def arm_angle(layout: Layout, j: int, pivot) -> float:
 
 def pivot_angle(point, pivot) -> float:
     """The angle (rad, counter-clockwise from +x) of pivot -> point, both (2,)."""
-    (x, y), (px, py) = (float(v) for v in point), (float(v) for v in pivot)
-    return math.atan2(y - py, x - px)
+    (x, y), (px, py) = point, pivot
+    return math.atan2(float(y) - float(py), float(x) - float(px))
