@@ -75,7 +75,7 @@ class Layout:
     @classmethod
     def _of(cls, **fields) -> "Layout":
         """The layout of every field given (`compute_layout`), set at once: the frozen dataclass's
-        __init__ sets each through object.__setattr__, a tenth of a small checked layout's time."""
+        __init__ sets them one by one through object.__setattr__ (17 calls a layout)."""
         lay = object.__new__(cls)
         lay.__dict__.update(fields)
         return lay
@@ -196,14 +196,15 @@ def _tables(n: int) -> tuple[np.ndarray, ...]:
     """Index tables of n pulleys for `compute_layout` (read-only, cached): ends (2, n) the pulleys i and
     i + 1 of each span; prv (n,) the previous pulley of each; for `_path_ok`, the p pairs that the checks
     compare: the pulleys (i, k > i) of `_check_apart`, then each span i and the pulleys k not its own of
-    `_check_path`: seg (3, p) the rows of (centres; span starts; span ends) (3n, 2) where the segment
-    begins and ends and the pulley k's centre (a pair's segment: pulley i's centre, of zero length);
-    rad (2, p) the radii subtracted from the distance, indices into (radius, 0) (n + 1,): pulley i's (a
-    pair) or none (a span), then pulley k's; limit (p,) the least gap that passes (0 apart, -1e-12 cut)."""
+    `_check_path`: seg (3, p) indices into the points (centres; span starts; span ends) (3n,) of where
+    the segment begins and ends and of pulley k's centre (a pair's segment: pulley i's centre, of zero
+    length); rad (2, p) the radii subtracted from the distance, indices into (radius, 0) (n + 1,): pulley
+    i's (a pair) or none (a span), then pulley k's; limit (p,) the least gap that passes (0 apart,
+    -1e-12 cut)."""
     nxt, prv = _neighbours(n)
     ends = np.stack([np.arange(n), nxt])
     i_, k_ = _pairs(n)
-    si, sk = np.nonzero(_not_own(n)) if n > 2 else (np.zeros(0, int), np.zeros(0, int))
+    si, sk = np.nonzero(_not_own(n))  # none for two pulleys
     seg = np.stack([np.concatenate([i_, n + si]), np.concatenate([i_, 2 * n + si]), np.concatenate([k_, sk])])
     rad = np.stack([np.concatenate([i_, np.full(len(si), n)]), np.concatenate([k_, sk])])
     limit = np.concatenate([np.zeros(len(i_)), np.full(len(si), -1e-12)])
