@@ -72,6 +72,14 @@ class Layout:
     def span_name(self, i: int) -> str:
         return f"{self.names[i]}-{self.names[(i + 1) % self.n]}"
 
+    @classmethod
+    def _of(cls, **fields) -> "Layout":
+        """The layout of every field given (`compute_layout`), set at once: the frozen dataclass's
+        __init__ sets them one by one through object.__setattr__ (17 calls a layout)."""
+        lay = object.__new__(cls)
+        lay.__dict__.update(fields)
+        return lay
+
 
 class GeometryError(ValueError):
     """An infeasible layout; `key` is the config key path at fault."""
@@ -84,9 +92,12 @@ class GeometryError(ValueError):
 def loop_orientation(center: np.ndarray) -> int:
     """+1 if the polygon of centres is counter-clockwise or degenerate, -1 if clockwise."""
     x, y = center[:, 0], center[:, 1]
-    nxt = np.arange(1, len(x) + 1) % len(x)
+    nxt, _ = _neighbours(len(x))
     area2 = float(np.dot(x, y[nxt]) - np.dot(x[nxt], y))
-    scale = float((center.max(axis=0) - center.min(axis=0)).max()) ** 2
+    if area2 >= 0.0:  # counter-clockwise: the size of the drive only decides a negative area
+        return 1
+    xs, ys = center.T.tolist()
+    scale = max(max(xs) - min(xs), max(ys) - min(ys)) ** 2
     return -1 if area2 < -1e-12 * max(scale, 1e-300) else 1
 
 
@@ -126,40 +137,105 @@ def compute_layout(
     check: raise GeometryError (with the key path) for overlapping pulleys, a missing tangent, a span
     that cuts through another pulley, a pulley the belt does not touch, or a path that winds wrongly
     (`check_layout`); False for an iterate whose answer is checked later.
+
+    The arrays of the two ends of every span are laid out together (a few numpy calls on arrays of a
+    handful of numbers: the call count is the cost); the checks first screen the path in one pass with
+    the arithmetic of the checks themselves (`_path_ok`), and only a layout the screen flags runs the
+    checks one by one, in their order, for the error.
     """
-    center = np.asarray(center, dtype=float)
+    center = np.ascontiguousarray(center, dtype=float)
     radius = np.asarray(radius, dtype=float)
     side_sign = np.asarray(side_sign, dtype=float)
     n = len(radius)
     o = loop_orientation(center) if orientation is None else orientation
-    if check:
+    ends, prv, _, _, _ = _tables(n)
+    sigma = side_sign if o == 1 else o * side_sign  # o sigma: the turning sense of each pulley
+    rho = sigma * radius
+    zc = center.view(complex)[:, 0]  # points as x + iy (n,): sums and real multiples are exact per component
+    z_ends, rho_ends = zc[ends], rho[ends]  # (2, n): pulleys i and i + 1 of span i
+    d = z_ends[1] - zc
+    dx, dy = d.real, d.imag
+    dist = np.hypot(dx, dy)
+    if check and not dist.all():  # coincident centres: their overlap before q divides by zero
         _check_apart(center, radius, names)
-    nxt, prv = _neighbours(n)
-    rho = o * side_sign * radius
-    d = center[nxt] - center
-    dist = np.hypot(d[:, 0], d[:, 1])
-    drho = rho - rho[nxt]
+    drho = rho - rho_ends[1]
     q = drho / dist
-    if check:
-        _check_tangents(q, names)
-    alpha = np.arctan2(d[:, 1], d[:, 0]) + np.arcsin(np.minimum(np.maximum(q, -1.0), 1.0))
-    m = np.empty((n, 2))
-    m[:, 0] = np.sin(alpha)
-    m[:, 1] = -np.cos(alpha)
-    side_m = rho[:, None] * m
-    length = np.sqrt(np.maximum(dist * dist - drho * drho, 0.0))
-    wrap = np.mod((o * side_sign) * (alpha - alpha[prv]), TWO_PI)
-    arc = radius * wrap
-    lay = Layout(
+    tangents = check and np.abs(q).max() < 1.0  # checked: |q| < 1 for every span (else clipped and checked)
+    alpha = np.arctan2(dy, dx) + np.arcsin(q if tangents else np.minimum(np.maximum(q, -1.0), 1.0))
+    m = np.empty(n, dtype=complex)  # the right normals sin a - i cos a
+    np.sin(alpha, out=m.real)
+    np.cos(alpha, out=m.imag)
+    np.conjugate(m, out=m)
+    points = np.empty((3, n), dtype=complex)  # the centres, the span starts, the span ends
+    points[0] = zc
+    np.add(z_ends, rho_ends * m, out=points[1:])
+    point_xy, normal = points.view(float).reshape(3, n, 2), (np.sign(rho_ends) * m).view(float).reshape(2, n, 2)
+    sums = np.empty((3, n))  # span lengths, arc lengths, turning angles, summed together
+    length, arc, turn = sums[0], sums[1], sums[2]
+    h2 = dist * dist - drho * drho  # >= +0 where |q| < 1 (|drho| < dist: rounding keeps the order)
+    np.sqrt(h2 if tangents else np.maximum(h2, 0.0), out=length)
+    wrap = np.mod(sigma * (alpha - alpha[prv]), TWO_PI)
+    np.multiply(radius, wrap, out=arc)
+    np.multiply(sigma, wrap, out=turn)
+    total_length, total_arc, total_turn = sums.sum(axis=1).tolist()
+    lay = Layout._of(
         names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
-        span_start=center + side_m, span_end=center[nxt] + rho[nxt][:, None] * m, span_length=length,
-        span_angle=alpha, start_normal=np.sign(rho)[:, None] * m, end_normal=np.sign(rho[nxt])[:, None] * m,
-        wrap_angle=wrap, arc_length=arc, belt_length=float(length.sum() + arc.sum()),
+        span_start=point_xy[1], span_end=point_xy[2], span_length=length, span_angle=alpha, start_normal=normal[0],
+        end_normal=normal[1], wrap_angle=wrap, arc_length=arc, belt_length=total_length + total_arc,
         adjust_offset=adjust_offset, adjust_index=adjust_index, adjust_kind=adjust_kind,
     )
-    if check:
+    if check and not (tangents and _path_ok(radius, wrap, o, total_turn, points)):
+        _check_apart(center, radius, names)
+        _check_tangents(q, names)
         _check_path(lay)
     return lay
+
+
+@functools.lru_cache(maxsize=16)
+def _tables(n: int) -> tuple[np.ndarray, ...]:
+    """Index tables of n pulleys for `compute_layout` (read-only, cached): ends (2, n) the pulleys i and
+    i + 1 of each span; prv (n,) the previous pulley of each; for `_path_ok`, the p pairs that the checks
+    compare: the pulleys (i, k > i) of `_check_apart`, then each span i and the pulleys k not its own of
+    `_check_path`: seg (3, p) indices into the points (centres; span starts; span ends) (3n,) of where
+    the segment begins and ends and of pulley k's centre (a pair's segment: pulley i's centre, of zero
+    length); rad (2, p) the radii subtracted from the distance, indices into (radius, 0) (n + 1,): pulley
+    i's (a pair) or none (a span), then pulley k's; limit (p,) the least gap that passes (0 apart,
+    -1e-12 cut)."""
+    nxt, prv = _neighbours(n)
+    ends = np.stack([np.arange(n), nxt])
+    i_, k_ = _pairs(n)
+    si, sk = np.nonzero(_not_own(n))  # none for two pulleys
+    seg = np.stack([np.concatenate([i_, n + si]), np.concatenate([i_, 2 * n + si]), np.concatenate([k_, sk])])
+    rad = np.stack([np.concatenate([i_, np.full(len(si), n)]), np.concatenate([k_, sk])])
+    limit = np.concatenate([np.zeros(len(i_)), np.full(len(si), -1e-12)])
+    out = (ends, prv, seg, rad, limit)
+    for x in out:
+        x.setflags(write=False)
+    return out
+
+
+_ZERO = np.zeros(1)
+_ZERO.setflags(write=False)
+
+
+def _path_ok(radius: np.ndarray, wrap: np.ndarray, o: int, turn: float, points: np.ndarray) -> bool:
+    """True when none of the checks of `_check_apart` and `_check_path` fails (on a layout whose spans
+    all have their tangent: `_check_tangents`), computed with their arithmetic in fewer numpy calls: the
+    distance of a pulley's centre from another's and from a span's segment for every pair they compare,
+    in one (p,) array (a centre is a segment of zero length; `_tables`). False when one would fail or a
+    NaN makes it unsure (the checks then run one by one and raise the first failure as they always did).
+    wrap (n,) the wrap angles, turn their signed sum; points (3, n) complex x + iy: the centres, the span
+    starts and the span ends."""
+    if not (wrap.min() >= 1e-9 and wrap.max() <= TWO_PI - 1e-9 and abs(turn - o * TWO_PI) <= 1e-6):
+        return False
+    _, _, seg, rad, limit = _tables(len(radius))
+    a, b, c = points.ravel()[seg]  # (p,) each: segment start and end, the centre tested
+    r, ab = c - a, b - a
+    rx, ry, ax, ay = r.real, r.imag, ab.real, ab.imag
+    t = np.minimum(np.maximum((rx * ax + ry * ay) / np.maximum(ax * ax + ay * ay, 1e-300), 0.0), 1.0)
+    e = r - t * ab  # a real multiple: exact per component, as (rx - t ax, ry - t ay)
+    own, other = np.concatenate((radius, _ZERO))[rad]
+    return bool((np.hypot(e.real, e.imag) - own - other >= limit).all())
 
 
 def _check_apart(center: np.ndarray, radius: np.ndarray, names: tuple[str, ...]) -> None:
@@ -244,8 +320,10 @@ def span_line(x0: float, y0: float, rho0: float, x1: float, y1: float, rho1: flo
     if not dist > 0.0:
         return math.nan, math.nan
     drho = rho0 - rho1
-    alpha = math.atan2(dy, dx) + math.asin(min(max(drho / dist, -1.0), 1.0))
-    return alpha, math.sqrt(max(dist * dist - drho * drho, 0.0))
+    q = drho / dist
+    h2 = dist * dist - drho * drho
+    return (math.atan2(dy, dx) + math.asin(-1.0 if q < -1.0 else 1.0 if q > 1.0 else q),
+            math.sqrt(0.0 if h2 < 0.0 else h2))  # the clips of min(max(...)) (NaN passes), without the calls
 
 
 class MovingPulley:
@@ -269,31 +347,34 @@ class MovingPulley:
         self = cls.__new__(cls)
         self._set(center, radius, side_sign, orientation, j)
         c, rho = self.center, self.rho
-        lines = [span_line(*c[i], rho[i], *c[i + 1 - self.n], rho[i + 1 - self.n]) for i in range(self.n)]
+        lines = [span_line(x0, y0, r0, x1, y1, r1)
+                 for (x0, y0), r0, (x1, y1), r1 in zip(c, rho, c[1:] + c[:1], rho[1:] + rho[:1])]
         self.angle = [a for a, _ in lines]
         self.length = [ell for _, ell in lines]
-        self.arc = [r * ((t * (self.angle[i] - self.angle[i - 1])) % TWO_PI)
-                    for i, (r, t) in enumerate(zip(self.radius, self.turn_sign))]
+        self.arc = [r * ((t * (a - b)) % TWO_PI)
+                    for r, t, a, b in zip(self.radius, self.turn_sign, self.angle, self.angle[-1:] + self.angle[:-1])]
         return self
 
     def _set(self, center: np.ndarray, radius: np.ndarray, side_sign: np.ndarray, orientation: int, j: int) -> None:
         n = len(radius)
         self.j, self.n, self.o = j, n, orientation
-        self.turn_sign = (orientation * side_sign).tolist()  # o sigma of each pulley
+        self.turn_sign = [orientation * v for v in side_sign.tolist()]  # o sigma of each pulley
         self.radius = radius.tolist()
         self.rho = [t * r for t, r in zip(self.turn_sign, self.radius)]
         self.center = center.tolist()
         self.prev, self.next = (j - 1) % n, (j + 1) % n
         self.wrapped = sorted({self.prev, j, self.next})  # pulleys whose wrap changes
+        self._wraps = [(i, self.radius[i], self.turn_sign[i]) for i in self.wrapped]
 
     def at(self, x: float, y: float) -> tuple[list[float], list[float], list[float]]:
         """(span angles, span lengths, arc lengths), each (n,) lists, with pulley j's centre at (x, y)."""
-        j, p, nx, c, rho = self.j, self.prev, self.next, self.center, self.rho
+        j, p, nx, rho = self.j, self.prev, self.next, self.rho
+        (px, py), (nxx, nxy) = self.center[p], self.center[nx]
         angle, length, arc = self.angle[:], self.length[:], self.arc[:]
-        angle[p], length[p] = span_line(c[p][0], c[p][1], rho[p], x, y, rho[j])
-        angle[j], length[j] = span_line(x, y, rho[j], c[nx][0], c[nx][1], rho[nx])
-        for i in self.wrapped:
-            arc[i] = self.radius[i] * ((self.turn_sign[i] * (angle[i] - angle[i - 1])) % TWO_PI)
+        angle[p], length[p] = span_line(px, py, rho[p], x, y, rho[j])
+        angle[j], length[j] = span_line(x, y, rho[j], nxx, nxy, rho[nx])
+        for i, r, t in self._wraps:
+            arc[i] = r * ((t * (angle[i] - angle[i - 1])) % TWO_PI)
         return angle, length, arc
 
 
@@ -402,18 +483,19 @@ def fit_adjustable(
             raise GeometryError(f"L0 fit did not converge (belt length {length(lay):.9g} m)", "belt.length")
         return s, lay
 
-    def quick() -> float | None:
-        """Newton's offset as `newton(False)` takes it, the iterates in floats (`MovingPulley`); None
-        where the iteration would fail (the checked way then says why)."""
-        cx, cy = (float(v) for v in center[index])
-        ax, ay = (cx, cy) if arm is None else (float(arm[0]), float(arm[1]))
-        dx, dy = (float(v) for v in direction)
+    def quick() -> tuple[float, float, float] | None:
+        """Newton's offset as `newton(False)` takes it, the iterates in floats (`MovingPulley`), and the
+        pulley's centre there (x, y: `offset_point`'s arithmetic); None where the iteration would fail
+        (the checked way then says why)."""
+        cx, cy = center[index].tolist()
+        ax, ay = (cx, cy) if arm is None else arm.tolist()
+        dx, dy = direction.tolist()
         rx, ry = cx - ax, cy - ay
         p = path.prev
         w = arc_weight - 1.0
 
-        def state(s: float, base_path: bool = False) -> tuple[float, float]:
-            """(fitted length, slope d length / ds) at offset s (the base layout's path: s = 0)."""
+        def state(s: float, base_path: bool = False) -> tuple[float, float, float, float]:
+            """(fitted length, slope d length / ds, x, y) at offset s (the base layout's path: s = 0)."""
             if arm is None:
                 x, y, vx, vy = cx + s * dx, cy + s * dy, dx, dy
             else:
@@ -421,37 +503,38 @@ def fit_adjustable(
                 vx, vy = -(sn * rx + cs * ry), cs * rx - sn * ry  # d centre / ds
                 x, y = ax + vy, ay - vx
             angle, length, arc = (path.angle, path.length, path.arc) if base_path else path.at(x, y)
-            total = sum(length) + sum(arc)
-            slope = (math.cos(angle[p]) - math.cos(angle[index])) * vx + (math.sin(angle[p]) - math.sin(angle[index])) * vy
-            return total + w * sum(arc), slope
+            total_arc, a_in, a_out = sum(arc), angle[p], angle[index]
+            slope = (math.cos(a_in) - math.cos(a_out)) * vx + (math.sin(a_in) - math.sin(a_out)) * vy
+            return sum(length) + total_arc + w * total_arc, slope, x, y
 
         s = 0.0
-        ell, slope = state(0.0, base_path=True)
+        ell, slope, x, y = state(0.0, base_path=True)
         scale = 1.0 if arm is None else math.hypot(rx, ry)
         for _ in range(max_iter):
             f = ell - target_length
             if abs(f) <= tol * target_length:
-                return s
+                return s, x, y
             if not abs(slope) >= 1e-9 * scale:
                 return None
             step = -f / slope
             for _ in range(60):
-                ell_t, slope_t = state(s + step)
+                ell_t, slope_t, x_t, y_t = state(s + step)
                 if abs(ell_t - target_length) < abs(f) or abs(step) < 1e-15:
                     break
                 step *= 0.5
             if not abs(ell_t - target_length) < abs(f):
                 return None
-            s, ell, slope = s + step, ell_t, slope_t
+            s, ell, slope, x, y = s + step, ell_t, slope_t, x_t, y_t
         return None
 
     kind = "slide" if arm is None else "arm"
     try:  # the iterates in floats and unchecked (`quick`), the answer laid out and checked; on any doubt the
-        s = quick()  # checked way
-        if s is None:
+        fitted = quick()  # checked way
+        if fitted is None:
             raise GeometryError("", "")
+        s, x, y = fitted
         c = center.copy()
-        c[index] = offset_point(s)[0]
+        c[index] = x, y
         lay = compute_layout(c, radius, side_sign, names, orientation=orientation, adjust_offset=s,
                              adjust_index=index, adjust_kind=kind)
     except GeometryError:
@@ -485,10 +568,11 @@ def relay(layout: Layout, center: np.ndarray, *, adjust_offset: float | None = N
 
 def layout_from_config(cfg: DriveConfig) -> Layout:
     """The geometry of a drive: L0 fit when a pulley is adjustable, else the given centres."""
-    center = np.array([p.center for p in cfg.pulleys], dtype=float)
-    radius = np.array([p.radius for p in cfg.pulleys])
-    side = np.array([1.0 if p.side == "inside" else -1.0 for p in cfg.pulleys])
-    names = tuple(p.name for p in cfg.pulleys)
+    pulleys = cfg.pulleys
+    center = np.array([v for p in pulleys for v in p.center], dtype=float).reshape(len(pulleys), 2)
+    radius = np.array([p.radius for p in pulleys], dtype=float)
+    side = np.array([1.0 if p.side == "inside" else -1.0 for p in pulleys])
+    names = tuple([p.name for p in pulleys])
     try:
         a = cfg.adjustable_index
         if a is None:
@@ -522,5 +606,5 @@ def arm_angle(layout: Layout, j: int, pivot) -> float:
 
 def pivot_angle(point, pivot) -> float:
     """The angle (rad, counter-clockwise from +x) of pivot -> point, both (2,)."""
-    (x, y), (px, py) = (float(v) for v in point), (float(v) for v in pivot)
-    return math.atan2(y - py, x - px)
+    (x, y), (px, py) = point, pivot
+    return math.atan2(float(y) - float(py), float(x) - float(px))

@@ -30,6 +30,8 @@ the envelope |w(x)| (a travelling wave has no fixed nodes).
 
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,6 +41,7 @@ from .system import ENERGY_KINDS, System
 
 KINDS = ENERGY_KINDS
 ORDINAL = {1: "st", 2: "nd", 3: "rd"}
+_TWO_PI = 2 * math.pi
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -109,12 +112,12 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     if model.belt_speed:
         return _solve_running(model, q, n_modes=n_modes, solver=solver)
     K = model.equilibrium(q)[1] if tangent is None else tangent
-    slopes = model.arm_slopes(q)
-    J = None  # the arms' jacobian, dense, for a small dense model: J^T M J and the shapes' joint motion J phi
-    if slopes is not None and model.dense and model.n_p <= 64:
-        J = model.arm_jacobian(slopes)
+    slopes = J = None  # the arms' jacobian, dense, for a small dense model: J^T M J and the shapes' joint motion J phi
+    if model.arms is not None and model.dense and model.n_p <= 64:
+        J = model.arm_jacobian(q)
         M = J.T @ model.mass @ J
     else:
+        slopes = model.arm_slopes(q)
         M = model.mass_matrix(q, slopes=slopes)
     n = model.n_dof
     use_dense = model.dense if solver == "auto" else solver == "dense"
@@ -125,7 +128,7 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
         try:
             if n <= 200:  # divide and conquer on the full problem beats the subset driver here
                 w, v = generalized_eigh(Kd, Md)
-                w, v = w[:n_want], v[:, :n_want]
+                w = w[:n_want]  # (v: the columns used below are among the first n_want)
             else:
                 from scipy.linalg import eigh
 
@@ -148,37 +151,39 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
             except np.linalg.LinAlgError:  # M not positive definite (a massless DOF): the generalized mode
                 op = LinearOperator((n, n), matvec=lu.solve, dtype=float)
                 m_op = LinearOperator((n, n), matvec=Ms.dot, dtype=float)
-                w, v = eigsh(Ks, k=n_want, M=m_op, sigma=sigma, which="LM", OPinv=op, tol=1e-12)
+                w, v = eigsh(Ks, k=n_want, M=m_op, sigma=sigma, which="LM", OPinv=op, tol=1e-12,
+                             v0=_start_vector(n))
         except Exception as exc:  # ArpackNoConvergence and friends
             raise SolverError(f"sparse shift-invert eigen-solver failed: {exc}", analysis="modal") from None
         order = np.argsort(w)
         w, v = w[order], v[:, order]
         name = "sparse"
-    Kdiag, Mdiag = np.asarray(K.diagonal()), np.asarray(M.diagonal())  # (dense or sparse)
-    lam_max = float((Kdiag / Mdiag).max())
-    tol = zero_tolerance(lam_max)
-    if w[0] < -tol:  # (w ascending)
+    tol = zero_tolerance(float(np.maximum.reduce(K.diagonal() / M.diagonal())))  # (dense or sparse)
+    wl = w.tolist()  # (a few numbers: Python floats)
+    if wl[0] < -tol:  # (w ascending)
         i = int(np.argmin(w))
         dof = model.dof_labels[int(np.argmax(np.abs(v[:, i])))]
         raise SolverError(
             f"the equilibrium is unstable: eigenvalue omega^2 = {w[i]:.4g} 1/s^2 < 0 (a compressed or "
             f"slack span?)", analysis="modal", item=dof)
-    rigid = zero_modes(w, tol)
-    n_rigid = int(rigid.sum())
-    if n_rigid > 1:  # beyond the belt turning with the pulleys: a mechanism (no stiffness somewhere)
-        _mechanism(model, v[:, rigid], Mdiag)
-    if n_rigid == 1 and rigid[0]:  # (the common case: the belt's rigid turn first)
-        elastic = slice(1, n_modes + 1)
-        shapes = v.T[elastic].copy()
-    else:
-        elastic = np.flatnonzero(~rigid)[:n_modes]
-        shapes = v.T[elastic]  # (a copy: fancy indexing)
-    freq = np.sqrt(np.maximum(w[elastic], 0.0)) / (2 * np.pi)
+    # the zero modes lead: w ascends from above -tol, so the candidates |w| <= tol come first, and
+    # `zero_modes` keeps the smallest of them up to a gap
+    n_rigid = 0
+    while n_rigid < len(wl) and abs(wl[n_rigid]) <= tol:
+        n_rigid += 1
+    if n_rigid > 1:
+        n_rigid = int(np.count_nonzero(zero_modes(w, tol)))
+        if n_rigid > 1:  # beyond the belt turning with the pulleys: a mechanism (no stiffness somewhere)
+            _mechanism(model, v[:, :n_rigid], np.asarray(M.diagonal()))
+    shapes = v.T[n_rigid: n_rigid + n_modes].copy()
+    # sqrt |omega^2| / 2 pi: the zero modes' round-off and the elastic modes' frequencies (their w > 0)
+    root = np.array([math.sqrt(abs(x)) / _TWO_PI for x in wl[: n_rigid + n_modes]])
+    freq = root[n_rigid:]
     kind, order, span, label, share, sshare, mid = _shape_outputs(
         model, q, shapes, freq, slopes=slopes, joint=None if J is None else shapes @ J.T)
     return ModalResult(
         frequency=freq, shapes=shapes, kind=kind, order=order, span=span, label=label, energy_share=share,
-        span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid, rigid_frequency=np.sqrt(np.abs(w[rigid])) / (2 * np.pi),
+        span_share=sshare, midspan_displacement=mid, n_rigid=n_rigid, rigid_frequency=root[:n_rigid],
         solver=name)
 
 
@@ -202,9 +207,7 @@ def generalized_eigh(K: np.ndarray, M: np.ndarray, *, vectors: bool = True) -> t
     (vectors=False: the eigenvalues, None): LAPACK dsygvd (divide and conquer), the call
     scipy.linalg.eigh(K, M, driver="gvd") makes, without its argument checks (a quarter of the modal
     analysis of an 8-DOF drive). Raises LinAlgError as eigh."""
-    from scipy.linalg.lapack import dsygvd
-
-    w, v, info = dsygvd(K, M, jobz="V" if vectors else "N")  # (defaults: itype=1, uplo="L")
+    w, v, info = _dsygvd()(K, M) if vectors else _dsygvd()(K, M, jobz="N")  # (defaults: itype=1, uplo="L", jobz="V")
     if info == 0:
         return w, (v if vectors else None)
     n = K.shape[0]
@@ -214,6 +217,14 @@ def generalized_eigh(K: np.ndarray, M: np.ndarray, *, vectors: bool = True) -> t
                                     f"eigenvectors were computed.")
     raise np.linalg.LinAlgError(f"The algorithm failed to compute an eigenvalue while working on the submatrix "
                                 f"lying in rows and columns {info}/{n + 1} through mod({info},{n + 1}).")
+
+
+@functools.cache
+def _dsygvd():
+    """LAPACK dsygvd from scipy, imported at the first use (not with this module) and kept."""
+    from scipy.linalg.lapack import dsygvd
+
+    return dsygvd
 
 
 def _symmetric_shift_invert(M, lu, sigma: float, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -370,10 +381,18 @@ def _gyroscopic_sparse(K, G, M, tol: float, n_want: int):
 
     k = min(2 * n - 2, 2 * n_want + 4)
     try:
-        nu, Z = eigs(LinearOperator((2 * n, 2 * n), matvec=op, dtype=float), k=k, which="LM", tol=1e-12)
+        nu, Z = eigs(LinearOperator((2 * n, 2 * n), matvec=op, dtype=float), k=k, which="LM", tol=1e-12,
+                     v0=_start_vector(2 * n))
     except Exception as exc:  # ArpackNoConvergence and friends
         raise SolverError(f"sparse gyroscopic eigen-solver failed: {exc}", analysis="modal") from None
     return sigma + 1.0 / nu, Z[:n], "sparse gyroscopic"
+
+
+def _start_vector(n: int) -> np.ndarray:
+    """ARPACK's start vector (n,): fixed pseudo-random numbers, so that a run repeats to the bit (ARPACK's
+    own random start made two runs of one sparse gyroscopic problem differ by 1e-6 in a frequency), and
+    with no symmetry a mode shape could be orthogonal to."""
+    return np.random.default_rng(20261123).standard_normal(n)
 
 
 def _normalized(phi: np.ndarray, M) -> np.ndarray:
@@ -454,19 +473,20 @@ def energy_shares(model: System, shapes: np.ndarray, q: np.ndarray | None = None
     (motion, joint: the shapes' element coordinates and joint coordinates, if at hand).
 
     Returns shares (n_modes, len(KINDS)), span_long (n_modes, n_span), span_trans (n_modes, n_span)
-    (all divided by the total) and the transverse nodal motion (n_modes, n_elem, 4).
+    (all divided by the total) and the transverse nodal motion (n_modes, n_elem, 4; None without elements).
     """
     if shapes.dtype.kind == "c":  # the energy of Re phi and Im phi together (phi^H M phi), in one call
         k = shapes.shape[0]
         both = lambda x: None if x is None else np.concatenate([x.real, x.imag])  # noqa: E731
-        parts = model.kinetic_energy_shares(both(shapes), q, motion=both(motion), joint=both(joint))
-        kinds, span_long, span_trans = (x[:k] + x[k:] for x in parts[:3])
-        b = parts[3][:k] + 1j * parts[3][k:]
+        E, b = model.kinetic_energies(both(shapes), q, motion=both(motion), joint=both(joint))
+        E, b = E[:k] + E[k:], (None if b is None else b[:k] + 1j * b[k:])
     else:
-        kinds, span_long, span_trans, b = model.kinetic_energy_shares(shapes, q, motion=motion, joint=joint)
-    total = kinds.sum(axis=1, keepdims=True)
+        E, b = model.kinetic_energies(shapes, q, motion=motion, joint=joint)
+    nk, n = len(KINDS), model.belt.n_span
+    total = np.add.reduce(E[:, :nk], axis=1, keepdims=True)
     total[total == 0] = 1.0
-    return kinds / total, span_long / total, span_trans / total, b
+    E /= total
+    return E[:, :nk], E[:, nk: nk + n], E[:, nk + n:], b
 
 
 def _parts(shares: np.ndarray, span_long: np.ndarray, span_trans: np.ndarray, layout) -> list[str]:
@@ -521,11 +541,13 @@ def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray 
     n_modes = shapes.shape[0]
     wsamp = (np.matmul(model.belt.sampling_table(8)[None], b[..., None])[..., 0]  # (k, n_elem, 8) samples
              if model.belt.elements.n_elem else None)
-    kinds, orders, spans, labels = [], [], [], []
+    orders, spans, labels = [], [], []
     rank: dict[str, int] = {}
     names = model.layout
-    best = shares.max(axis=1, initial=-np.inf).tolist()
-    kind_of = [KINDS[b] if x >= 0.5 else "mixed" for b, x in zip(np.argmax(shares, axis=1).tolist(), best)]
+    kind_of = []  # the largest share's kind (the first of equal ones), "mixed" below 1/2
+    for row in shares.tolist():
+        x = max(row)
+        kind_of.append(KINDS[row.index(x)] if x >= 0.5 else "mixed")
     waves = [1] * n_modes  # a spring span has no transverse shape of its own: its lumped end masses swing with the pulleys
     if "transverse" in kind_of:
         trans_span = np.argmax(span_trans, axis=1)
@@ -539,20 +561,17 @@ def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray 
             got = [half_waves(w) for w in W] if np.iscomplexobj(W) else half_waves_real(W).tolist()  # travelling: envelopes
             for k, w in zip(ks.tolist(), got):
                 waves[k] = w
-    for k in range(n_modes):
-        kind = kind_of[k]
+    for k, kind in enumerate(kind_of):
         span = 0
         if kind == "transverse":
             span = int(trans_span[k]) + 1
             order = int(waves[k])
         else:
-            rank[kind] = rank.get(kind, 0) + 1
-            order = rank[kind]
+            order = rank[kind] = rank.get(kind, 0) + 1
             if kind == "longitudinal":
                 s = int(np.argmax(span_long[k]))
                 if span_long[k, s] >= 0.8 * span_long[k].sum():
                     span = s + 1
-        kinds.append(kind)
         orders.append(order)
         spans.append(span)
         text = f"{ordinal(order)} {kind}"
@@ -561,5 +580,5 @@ def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray 
         if kind == "mixed":
             text += ": " + " + ".join(_parts(shares[k], span_long[k], span_trans[k], names)[:2])
         labels.append(text)
-    span_share = span_long + span_trans
-    return tuple(kinds), np.array(orders, dtype=int), np.array(spans, dtype=int), tuple(labels), shares, span_share
+    order_span = np.array([orders, spans], dtype=int)
+    return tuple(kind_of), order_span[0], order_span[1], tuple(labels), shares, span_long + span_trans

@@ -281,6 +281,7 @@ class ResidualScales:
 
 
 _EPS = float(np.finfo(float).eps)
+_TWO_PI = 2.0 * math.pi
 _SPAN, _ROTATION, _TRANSLATION = (DOF_GROUPS.index(g) for g in ("span", "rotation", "translation"))
 
 
@@ -806,17 +807,24 @@ def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
     so dpsi = a_s(new) - a_s(old) (wrapped to [-pi, pi)) at both ends, and with the signed radii
     rho = orientation x side x R the span leaves rho_s dpsi onto pulley s and takes rho_(s+1) dpsi
     from pulley s+1: reference_s - dpsi_s (rho_s - rho_(s+1))."""
-    rho = (new.orientation * new.side_sign * new.radius).tolist()
-    return np.array(_carried(old.span_angle.tolist(), new.span_angle.tolist(), rho, reference_length.tolist(),
-                             new.span_name))
+    return np.array(_carried(old.span_angle.tolist(), new.span_angle.tolist(), _radius_steps(new),
+                             reference_length.tolist(), new.span_name))
 
 
-def _carried(old_angle: list, new_angle: list, rho: list, reference: list, span_name) -> list:
-    """`carried_reference` on Python floats: lists (n,) of the old and new span angles, the signed
-    radii and the old reference lengths; span_name(s) names span s in the error."""
-    out = [r - ((b - a + math.pi) % (2.0 * math.pi) - math.pi) * (rho[s] - rho[s + 1 - len(rho)])
-           for s, (a, b, r) in enumerate(zip(old_angle, new_angle, reference))]
-    if not min(out) > 0.0:
+def _radius_steps(layout) -> list:
+    """rho_s - rho_(s+1) (n,) of each span s, rho = orientation x side x radius (`carried_reference`)."""
+    rho = (layout.orientation * layout.side_sign * layout.radius).tolist()
+    return [rho[s] - rho[s + 1 - len(rho)] for s in range(len(rho))]
+
+
+def _carried(old_angle: list, new_angle: list, radius_step: list, reference: list, span_name) -> list:
+    """`carried_reference` on Python floats: lists (n,) of the old and new span angles, the spans'
+    `_radius_steps` and the old reference lengths; span_name(s) names span s in the error. (A span
+    whose angle is unchanged keeps its length: the formula's term is an exact 0 there.)"""
+    out = [r if a == b else r - ((b - a + math.pi) % _TWO_PI - math.pi) * d
+           for a, b, d, r in zip(old_angle, new_angle, radius_step, reference)]
+    total = sum(out)  # (NaN if any is: min() of a list skips a NaN after the first)
+    if not (min(out) > 0.0 and total == total):
         s = min(range(len(out)), key=lambda k: out[k] if out[k] == out[k] else -math.inf)
         raise SolverError(f"span {span_name(s)} has no belt left at the solved pulley positions (reference "
                           f"length {out[s]:.3g} m)", analysis="static", step="re-lay", item=f"span {s + 1}")
@@ -1097,7 +1105,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             raise SolverError(f"no belt path through the solved pulley positions: {exc}", analysis="static",
                               step=step, item=f"pulley {old.names[j]}") from None
         free = np.zeros(n_dof)  # the springs stay relaxed where they were on the L0 fit
-        for j, (dofs, dirs) in enumerate(zip(d.trans_dof, d.trans_dir)):
+        for j, (dofs, dirs) in enumerate(zip(d.trans_dof, d.trans_dir) if anchored else ()):
             for k, v in zip(dofs, dirs):
                 if k in anchored:
                     free[k] = -float((centers[j] - lay0.center[j]) @ v)
@@ -1127,11 +1135,10 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
             mean = float(ts.target) - sum(x * y for x, y in zip(length, sp)) / sum(length)  # the torques
             return [mean + y for y in sp]
     elif conserve and ts.mode != "adjust":
-        angle0, ref0_, rho0 = lay0.span_angle.tolist(), ref0.tolist(), (lay0.orientation * lay0.side_sign
-                                                                          * lay0.radius).tolist()
+        angle0, ref0_, step0 = lay0.span_angle.tolist(), ref0.tolist(), _radius_steps(lay0)
 
         def span_tension(angle: list, length: list) -> list:  # what the belt's length gives on that path
-            return _conserved_tension(sum(length), sp, _carried(angle0, angle, rho0, ref0_, lay0.span_name), EA)
+            return _conserved_tension(sum(length), sp, _carried(angle0, angle, step0, ref0_, lay0.span_name), EA)
     else:
         span_tension = None
     predict = span_tension is not None and (moving or ts.mode == "adjust")
@@ -1158,8 +1165,9 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                 lam_p = stretch_for_tension(float(ts.target), EA)
             else:
                 # started with the pulleys turned to the predicted span tensions
-                T = np.array(span_tension(lay.span_angle.tolist(), lay.span_length.tolist()))
-                warm = _predictor(built, stretch_for_tension(T, EA), ts.adjust_dof, built.driver_dof)
+                T = span_tension(lay.span_angle.tolist(), lay.span_length.tolist())
+                warm = _predictor(built, np.array([stretch_for_tension(t, EA) for t in T]), ts.adjust_dof,
+                                  built.driver_dof)
                 system = built
         except (GeometryError, SolverError, ArithmeticError, ValueError, np.linalg.LinAlgError):
             lay, free, warm = lay0, np.zeros(n_dof), None  # no prediction: start from the L0 fit

@@ -228,8 +228,7 @@ class BearingSprings(LinearComponent):
 
 
 # ------------------------------------------------------------------------------------ the belt
-_ROTATE = np.array([1.0, 1.0, -1.0, 1.0])  # (t_x, t_y, t_y, t_x) -> (t, z x t)
-_FRAME = np.array([0, 1, 1, 0])  # t (2,) -> (t_x, t_y, t_y, t_x)
+_NORMAL = np.array([-1.0, 1.0])  # (t_y, t_x) -> z x t = (-t_y, t_x)
 
 
 def _plus(a: np.ndarray | None, b: np.ndarray) -> np.ndarray:
@@ -301,10 +300,11 @@ class BeltSpans:
         return np.array([s[-1] for s in self.span_elements if len(s)], dtype=np.int64)
 
     def on_spans(self, x: np.ndarray) -> np.ndarray:
-        """(B, n_flex, ...) per flexible span -> (B, n_span, ...), zeros for the spans without elements."""
+        """(B, n_flex, ...) per flexible span -> (B, n_span, ...), zeros for the spans without elements (x's
+        dtype: a running belt's complex mode shapes keep their imaginary part)."""
         if x.shape[1] == self.n_span:
             return x
-        out = np.zeros((x.shape[0], self.n_span) + x.shape[2:])
+        out = np.zeros((x.shape[0], self.n_span) + x.shape[2:], dtype=x.dtype)
         out[:, self.flexible] = x
         return out
 
@@ -764,10 +764,10 @@ class SpringSpans:
         return slice(None) if len(self.span) == self.n_span else self.span  # (span: ascending, distinct)
 
     def scatter(self, x: np.ndarray) -> np.ndarray:
-        """(B, k, ...) -> (B, n_span, ...), zeros for the other spans."""
+        """(B, k, ...) -> (B, n_span, ...), zeros for the other spans (x's dtype)."""
         if isinstance(self._spans, slice):
             return x
-        out = np.zeros((x.shape[0], self.n_span) + x.shape[2:])
+        out = np.zeros((x.shape[0], self.n_span) + x.shape[2:], dtype=x.dtype)
         out[:, self.span] = x
         return out
 
@@ -825,20 +825,21 @@ class SpringSpans:
         F_all[self.span], T_all[self.span] = F, T
         return F_all, T_all, NL
 
-    def kinetic_energy_split(self, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(B, k) each: the lumped masses' quadratic energy form dX^T M dX along and across the chord
-        at p = 0 for joint motions P (B, n_dof) (as the belt's share splits, `System.kinetic_energy_shares`):
+    def kinetic_energy_split(self, P: np.ndarray) -> np.ndarray:
+        """(k, 2, B): the lumped masses' quadratic energy form dX^T M dX along (0) and across (1) the chord
+        at p = 0 for joint motions P (B, n_dof) (as the belt's share splits, `System.kinetic_energies`):
         the end motions' components along t and n = z x t straight from P through the joints
-        (frame x T, (k, end x t|n, m))."""
+        (frame x T, (k, end x t|n, m); T is zero in the padding columns, so the padding index may take any
+        coordinate of P)."""
         k, m = self.idx.shape
-        frame = (self.reference_direction[:, _FRAME] * _ROTATE).reshape(k, 1, 2, 2)  # (k, 1, t|n, 2)
+        t = self.reference_direction
+        frame = np.concatenate([t, t[:, ::-1] * _NORMAL], axis=1).reshape(k, 1, 2, 2)  # (k, 1, t|n, 2), n = z x t
         tn = np.matmul(frame, self.T.reshape(k, 2, 2, m)).reshape(k, 4, m)  # rows: end 0 t, n, end 1 t, n
-        Pe = np.concatenate([P, np.zeros((P.shape[0], 1))], axis=1)[:, self.idx]  # (B, k, m)
-        ab = np.matmul(tn, Pe.transpose(1, 2, 0))  # (k, 4, B)
+        ab = np.matmul(tn, P.take(self.idx, axis=1, mode="clip").transpose(1, 2, 0))  # (k, 4, B)
         ab *= ab
-        e = ab.reshape(k, 2, 2, -1).sum(axis=1)  # (k, t|n, B): both ends
-        e *= (0.5 * self.rho) * self.reference_length[:, None, None]
-        return e[:, 0].T, e[:, 1].T
+        e = ab[:, 0:2] + ab[:, 2:4]  # (k, t|n, B): both ends
+        e *= self.end_mass[:, None, None]
+        return e
 
 
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
@@ -1499,16 +1500,25 @@ class System:
         if slopes is None:
             slopes = self.arm_slopes(np.zeros(self.n_dof) if q is None else q)
         if self.dense:  # J^T M J with the jacobian J, dense (as `ArmJoints.project_matrix`)
-            J = self.arm_jacobian(slopes)
+            J = self.arm_jacobian(slopes=slopes)
             return J.T @ self.mass @ J
         return self.arms._project_matrix(slopes, self.mass, None, dense=False)
 
-    def arm_jacobian(self, slopes: np.ndarray) -> np.ndarray:
-        """J = dp/dq (n_p, n_dof) dense, from the arms' slopes dc/dphi (a, 2) (`arm_slopes`): the
-        identity on q, the slopes in the arm columns."""
+    def arm_jacobian(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None) -> np.ndarray:
+        """J = dp/dq (n_p, n_dof) dense at q: the identity on q, the arms' slopes dc/dphi in the arm
+        columns, from `arm_slopes` (a, 2) if given, else from q on Python floats (`ArmJoints.first`'s
+        formula arm by arm: a drive has a few arms)."""
         a = self.arms
-        J = np.eye(a.n_p, a.n_q)
-        J[a.slot, a.dof], J[a.slot + 1, a.dof] = slopes[:, 0], slopes[:, 1]
+        n_q = a.n_q
+        J = np.zeros((a.n_p, n_q))
+        J.ravel()[: n_q * (n_q + 1): n_q + 1] = 1.0  # the identity on q
+        if slopes is not None:
+            J[a.slot, a.dof], J[a.slot + 1, a.dof] = slopes[:, 0], slopes[:, 1]
+            return J
+        for k in range(len(a.dof)):
+            slot, dof, length = a.slot.item(k), a.dof.item(k), a.length.item(k)
+            phi = a.angle.item(k) + q.item(dof)
+            J[slot, dof], J[slot + 1, dof] = -(length * math.sin(phi)), length * math.cos(phi)
         return J
 
     def mean_tension_and_gradient(self, q: np.ndarray, *, gradient: bool = True, p: np.ndarray | None = None
@@ -1671,27 +1681,31 @@ class System:
         return c
 
     # -------------------------------------------------------------------- energy
-    def kinetic_energy_shares(self, shapes: np.ndarray, q: np.ndarray | None = None, *,
-                              motion: np.ndarray | None = None, joint: np.ndarray | None = None
-                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Kinetic-energy split of shapes (n_modes, n_dof) about the state q by kind (motion: their
-        element coordinates, joint: the shapes on the joint coordinates p, if at hand).
+    def kinetic_energies(self, shapes: np.ndarray, q: np.ndarray | None = None, *,
+                         motion: np.ndarray | None = None, joint: np.ndarray | None = None
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """Kinetic-energy split of shapes (n_modes, n_dof) about the state q by kind and span (motion:
+        their element coordinates, joint: the shapes on the joint coordinates p, if at hand).
 
-        Returns kinds (n_modes, len(ENERGY_KINDS)) absolute (not normalized), span_long and
-        span_trans (n_modes, n_span), and the transverse nodal motion b (n_modes, n_elem, 4). The
-        belt's share splits exactly into motion along and across each span's chord (M_e = M_s (x) I2);
-        every component's mass counts for its energy kind.
+        Returns E (n_modes, len(ENERGY_KINDS) + 2 n_span) absolute (not normalized): the kinds, then each
+        span's motion along its chord, then across it; and the transverse nodal motion b (n_modes, n_elem,
+        4; None without elements). The belt's share splits exactly into motion along and across each span's chord
+        (M_e = M_s (x) I2); every component's mass counts for its energy kind.
         """
         belt = self.belt
         el = belt.elements
-        n_modes = shapes.shape[0]
+        n_modes, nk = shapes.shape[0], len(ENERGY_KINDS)
         if joint is not None:
             shapes = joint
         elif self.arms is not None:
             shapes = self.arms.expand_motion(np.zeros(self.n_dof) if q is None else q, shapes)
+        E = np.zeros((n_modes, nk + 2 * belt.n_span))
+        dofs, mass, kind_of = self._energy_components
+        if dofs is not None:  # x^T M_c x of every component at once, summed by kind
+            x = shapes.take(dofs, axis=1)
+            np.matmul(np.matmul(x, mass) * x, kind_of, out=E[:, :nk])
+        span = E[:, nk:].reshape(n_modes, 2, belt.n_span)  # (modes, along|across, span), a view of E
         if el.n_elem:
-            span_long = np.zeros((n_modes, belt.n_span))
-            span_trans = np.zeros((n_modes, belt.n_span))
             de = (belt.element_coordinates_batch(shapes, offset=False) if motion is None else motion).reshape(
                 n_modes, el.n_elem, 4, 2)
             t = belt.reference_direction[belt.elem_span]
@@ -1701,27 +1715,17 @@ class System:
             Ms = el.mass.reshape(el.n_elem, 4, 2, 4, 2)[:, :, 0, :, 0]
             ka = np.einsum("kei,eij,kej->ke", a, Ms, a)
             kb = np.einsum("kei,eij,kej->ke", b, Ms, b)
-            np.add.at(span_long.T, belt.elem_span, ka.T)
-            np.add.at(span_trans.T, belt.elem_span, kb.T)
+            np.add.at(span[:, 0].T, belt.elem_span, ka.T)
+            np.add.at(span[:, 1].T, belt.elem_span, kb.T)
         else:  # every span a spring
-            b = np.zeros((n_modes, 0, 4))
-        if self.springs is not None:  # the lumped masses of the spring spans, along and across the chord
+            b = None
+        if self.springs is not None:  # the lumped masses of the spring spans (the other spans: every span is one or the other)
             sp = self.springs
-            sa, sb = sp.kinetic_energy_split(shapes)
-            if el.n_elem:
-                span_long[:, sp.span_rows] += sa
-                span_trans[:, sp.span_rows] += sb
-            else:  # every span a spring
-                span_long, span_trans = sp.scatter(sa), sp.scatter(sb)
-        dofs, mass, kind_of = self._energy_components
-        if dofs is None:
-            kinds = np.zeros((n_modes, len(ENERGY_KINDS)))
-        else:  # x^T M_c x of every component at once, summed by kind
-            x = shapes[:, dofs]
-            kinds = np.matmul(np.matmul(x, mass) * x, kind_of)
-        kinds[:, 2] += span_long.sum(axis=1)
-        kinds[:, 3] += span_trans.sum(axis=1)
-        return kinds, span_long, span_trans, b
+            e = sp.kinetic_energy_split(shapes)  # (k, along|across, modes)
+            span[:, :, sp.span_rows] = e.T
+        totals = E[:, 2:4]  # (a view: += on it, not on E's slice, which would copy back)
+        totals += np.add.reduce(span, axis=2) if el.n_elem else np.add.reduce(e, axis=0).T  # (contiguous e: all springs)
+        return E, b
 
     @functools.cached_property
     def _energy_components(self) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:

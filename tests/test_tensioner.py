@@ -64,6 +64,11 @@ def test_arm_kinematics_are_exact():
     assert np.allclose(system.expand_motion(q, dq), fd, rtol=0, atol=1e-7)
     f = np.random.default_rng(2).standard_normal(system.n_p)
     assert np.isclose(f @ system.expand_motion(q, dq), system.arms.project(q, f) @ dq, rtol=1e-13)
+    # The dense jacobian from q on floats (modal's) is the one from the arrays' slopes: the same formula,
+    # math's sin/cos for numpy's (equal to the last bit here; 1 ulp allowed elsewhere), and J dq = expand_motion.
+    J = system.arm_jacobian(q)
+    assert np.allclose(J, system.arm_jacobian(slopes=system.arm_slopes(q)), rtol=2.3e-16, atol=0)
+    assert np.allclose(J @ dq, system.expand_motion(q, dq), rtol=1e-15, atol=1e-15)
 
 
 def test_arm_mass_is_arm_inertia_plus_m_l_squared():
