@@ -50,8 +50,6 @@ _EYE2 = np.eye(2)
 _EYE2.setflags(write=False)
 _PAD = np.zeros(1)  # the padding coordinate (index n_dof) appended to p
 _PAD.setflags(write=False)
-_NEG_X = np.array([-1.0, 1.0])  # (a, b) -> (-a, b): z x t = (t_y, t_x) * _NEG_X
-_NEG_X.setflags(write=False)
 # the tables of a belt without elements (every span a spring), shared: empty, so nothing can change them (and
 # writable: numba types a read-only array apart, and the transient's kernels would compile anew)
 _NO_ELEMENT, _NO_INDEX, _NO_T, _NO_IDX, _NO_E = (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 8, 8)),
@@ -282,7 +280,7 @@ class BeltSpans:
     @property
     def reference_normal(self) -> np.ndarray:
         """(n_span, 2) unit normal z x t = (-t_y, t_x) of each span at q = 0 (cached)."""
-        return _cached(self, "_normal", lambda: self.reference_direction[:, ::-1] * _NEG_X)
+        return _cached(self, "_normal", lambda: self.reference_direction[:, ::-1] * _NORMAL)
 
     @property
     def flexible(self) -> np.ndarray:
@@ -863,7 +861,7 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
         start, end, start_normal, end_normal = start[sp], end[sp], start_normal[sp], end_normal[sp]
     T = T.copy()  # the rotation columns R (z x n) = R (-n_y, n_x) of each end (`joint_pairs`): the layout's
     normal = np.concatenate([start_normal, end_normal])  # (2k, 2)
-    T.ravel()[at] = (normal[:, ::-1] * _NEG_X * layout.radius[pulley][:, None]).ravel()
+    T.ravel()[at] = (normal[:, ::-1] * _NORMAL * layout.radius[pulley][:, None]).ravel()
     return SpringSpans(span=sp, T=T, idx=idx, x0=np.concatenate([start, end], axis=1),
                        reference_length=reference_length, reference_direction=direction, EA=float(cfg.belt.EA),
                        rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=n, EI=float(cfg.belt.EI),
