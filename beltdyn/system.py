@@ -58,6 +58,15 @@ DOF_GROUPS = ("span", "rotation", "translation", "arm")
 ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse", "tensioner")
 
 
+def _set_at_once(cls, **fields):
+    """An instance of the frozen dataclass `cls` from every one of its fields (no default filled in), set at
+    once: the dataclass's __init__ sets them one by one through object.__setattr__ (as `geometry.Layout._of`;
+    tests/test_system.py: the objects of a build hold every field, nothing else)."""
+    obj = object.__new__(cls)
+    obj.__dict__.update(fields)
+    return obj
+
+
 def _z_cross(n: np.ndarray) -> np.ndarray:
     return np.array([-n[1], n[0]])
 
@@ -862,10 +871,10 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     T = T.copy()  # the rotation columns R (z x n) = R (-n_y, n_x) of each end (`joint_pairs`): the layout's
     normal = np.concatenate([start_normal, end_normal])  # (2k, 2)
     T.ravel()[at] = (normal[:, ::-1] * _NORMAL * layout.radius[pulley][:, None]).ravel()
-    return SpringSpans(span=sp, T=T, idx=idx, x0=np.concatenate([start, end], axis=1),
-                       reference_length=reference_length, reference_direction=direction, EA=float(cfg.belt.EA),
-                       rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=n, EI=float(cfg.belt.EI),
-                       curvature=cfg.model.curvature)
+    return _set_at_once(SpringSpans, span=sp, T=T, idx=idx, x0=np.concatenate([start, end], axis=1),
+                        reference_length=reference_length, reference_direction=direction, EA=float(cfg.belt.EA),
+                        rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=n, damping_axial=0.0,
+                        EI=float(cfg.belt.EI), curvature=cfg.model.curvature)
 
 
 def _span_stretch(prestrain_stretch: float | np.ndarray, n: int) -> np.ndarray:
@@ -1801,10 +1810,10 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
                 offset[c.dofs] += c.stiffness @ np.asarray(c.free, dtype=float)
             if c.weight is not None:
                 fg[c.dofs] += c.weight @ g
-    return System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names, driver=driver,
-                  tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M, gravity_force=fg,
-                  linear_stiffness=K_lin, linear_damping=C, linear_offset=offset, loads=loads, arms=arms,
-                  pulley_friction=friction, springs=springs, spring_scatter=scatter)
+    return _set_at_once(System, layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names,
+                        driver=driver, tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M,
+                        gravity_force=fg, linear_stiffness=K_lin, linear_damping=C, linear_offset=offset, loads=loads,
+                        arms=arms, pulley_friction=friction, belt_speed=0.0, springs=springs, spring_scatter=scatter)
 
 
 def _add_components(components: tuple[LinearComponent, ...], n: int, M: np.ndarray, fg: np.ndarray, g: np.ndarray):
@@ -1876,9 +1885,10 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     t_dir = layout.span_direction
     n_elem = sum(cfg.span_elements)
     if n_elem == 0:  # every span a spring (`build_springs`): no elements, no joints of the belt's own
-        return BeltSpans(elements=span_element_set(cfg, _NO_ELEMENT, _NO_ELEMENT), elem_span=_NO_INDEX,
-                         span_elements=(_NO_INDEX,) * n_p, T=_NO_T, idx=_NO_IDX, tsel=_NO_INDEX, e0=_NO_E, n_dof=n_dof,
-                         reference_length=L_ref, reference_direction=t_dir, prestrain_stretch=lam, span_stretch=lam_s)
+        return _set_at_once(BeltSpans, elements=span_element_set(cfg, _NO_ELEMENT, _NO_ELEMENT), elem_span=_NO_INDEX,
+                            span_elements=(_NO_INDEX,) * n_p, T=_NO_T, idx=_NO_IDX, tsel=_NO_INDEX, e0=_NO_E,
+                            n_dof=n_dof, reference_length=L_ref, reference_direction=t_dir, prestrain_stretch=lam,
+                            span_stretch=lam_s, damping_axial=0.0, damping_bending=0.0, compiled=False)
     counts = np.array(cfg.span_elements, dtype=np.int64)  # (n_span,) elements of each span
     # Per element, columns 0-3 / 4-7 carry the coordinates of its first / second node, 8-10 / 11-13
     # the joint DOFs of a span end; padding columns are squeezed out afterwards.
@@ -2026,9 +2036,9 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
     masses (components), the bearing springs' DOFs (k,), stiffness (k, k), pulleys and their names (None
     without any), and the supports with own components (support, its first DOF, pulley index)."""
     pulleys = cfg.pulleys
-    fixed: list[LinearComponent] = [LinearComponent(
-        name="pulley inertia", dofs=dofs.rot_dof, mass=_diagonal([p.inertia for p in pulleys]),
-        energy_kind="rotational")]
+    fixed: list[LinearComponent] = [_set_at_once(
+        LinearComponent, name="pulley inertia", dofs=dofs.rot_dof, stiffness=None, damping=None,
+        mass=_diagonal([p.inertia for p in pulleys]), weight=None, free=None, energy_kind="rotational")]
     masses: dict[str, tuple[list, list, list]] = {}  # energy kind -> translational DOFs, masses, weights
     t_dofs, k_spring, supported = [], [], []
     own = []
@@ -2053,9 +2063,9 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
             own.append((sup, t_dof[0] if t_dof and not sup.translation_is_dependent() else int(dofs.arm_dof[j]), j))
     for kind, (d_m, m_m, w_m) in masses.items():
         if d_m:
-            fixed.append(LinearComponent(name=_MASS_NAMES.get(kind) or f"{kind} pulley mass",
-                                         dofs=np.array(d_m, dtype=np.int64), mass=_diagonal(m_m), weight=np.array(w_m),
-                                         energy_kind=kind))
+            fixed.append(_set_at_once(LinearComponent, name=_MASS_NAMES.get(kind) or f"{kind} pulley mass",
+                                      dofs=np.array(d_m, dtype=np.int64), stiffness=None, damping=None,
+                                      mass=_diagonal(m_m), weight=np.array(w_m), free=None, energy_kind=kind))
     bearing = None
     if t_dofs:
         bearing = (np.array(t_dofs, dtype=np.int64), _diagonal(k_spring), tuple(supported),
@@ -2068,19 +2078,21 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoint
     arms on another layout (what the configuration fixes taken from it)."""
     if like is not None:
         length, angle = _arm_geometry(cfg, layout, like.pulleys, like.pivot.tolist())
-        return ArmJoints(dof=like.dof, slot=like.slot, pivot=like.pivot, length=length, angle=angle, n_q=like.n_q,
-                         n_p=like.n_p, friction=like.friction, stops=like.stops, names=like.names, pulleys=like.pulleys)
+        return _set_at_once(ArmJoints, dof=like.dof, slot=like.slot, pivot=like.pivot, length=length, angle=angle,
+                            n_q=like.n_q, n_p=like.n_p, friction=like.friction, stops=like.stops, names=like.names,
+                            pulleys=like.pulleys)
     arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
     if not arms:
         return None
     ps = [cfg.pulleys[j] for j in arms]
     pivots = [p.arm_pivot for p in ps]
     length, angle = _arm_geometry(cfg, layout, arms, pivots)
-    return ArmJoints(dof=dofs.arm_dof[arms], slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64),
-                     pivot=np.array(pivots, dtype=float), length=length, angle=angle, n_q=dofs.n_q, n_p=dofs.n,
-                     friction=np.array([p.arm_friction for p in ps], dtype=float),
-                     stops=np.array([p.arm_range or (np.nan, np.nan) for p in ps], dtype=float),
-                     names=tuple(p.name for p in ps), pulleys=tuple(arms))
+    return _set_at_once(ArmJoints, dof=dofs.arm_dof[arms],
+                        slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64),
+                        pivot=np.array(pivots, dtype=float), length=length, angle=angle, n_q=dofs.n_q, n_p=dofs.n,
+                        friction=np.array([p.arm_friction for p in ps], dtype=float),
+                        stops=np.array([p.arm_range or (np.nan, np.nan) for p in ps], dtype=float),
+                        names=tuple(p.name for p in ps), pulleys=tuple(arms))
 
 
 def _arm_geometry(cfg: DriveConfig, layout: Layout, arms, pivots: list) -> tuple[np.ndarray, np.ndarray]:
@@ -2224,10 +2236,11 @@ def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
     """The `DriveFacts` of a configuration (`layout`: its L0 fit, where the arms are taken)."""
     dofs = number_dofs(cfg)
     pulleys = cfg.pulleys
-    return DriveFacts(layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs), loads=static_loads(cfg, dofs),
-                      friction=np.array([np.nan if p.friction is None else p.friction for p in pulleys]),
-                      pulley_names=tuple([p.name for p in pulleys]), gravity=np.asarray(cfg.model.gravity, dtype=float),
-                      pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs))
+    return _set_at_once(DriveFacts, layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs),
+                        loads=static_loads(cfg, dofs),
+                        friction=np.array([np.nan if p.friction is None else p.friction for p in pulleys]),
+                        pulley_names=tuple([p.name for p in pulleys]), gravity=np.asarray(cfg.model.gravity, dtype=float),
+                        pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs))
 
 
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
@@ -2278,8 +2291,8 @@ def tension_setting(cfg: DriveConfig, dofs: DofMap) -> TensionSetting:
             adjust_dof = int(dofs.arm_dof[a]) if dofs.arm_dof[a] >= 0 else int(dofs.trans_dof[a][0])
         adjust_range = sup.travel_limits()
     mode = "spring" if cfg.tension.mode == "spring" else (cfg.tension.mode if target is not None else "geometry")
-    return TensionSetting(target=target, mode=mode, adjust_dof=adjust_dof, adjust_range=adjust_range,
-                          adjust_name=cfg.pulleys[a].name if a is not None else "")
+    return _set_at_once(TensionSetting, target=target, mode=mode, adjust_dof=adjust_dof, adjust_range=adjust_range,
+                        adjust_name=cfg.pulleys[a].name if a is not None else "")
 
 
 class DeferredSystem:

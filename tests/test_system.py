@@ -332,6 +332,25 @@ def test_a_build_from_the_analysis_facts_is_the_build_from_the_configuration(den
         _fields_equal(build_system(cfg, lay, facts=facts, **kw), build_system(cfg, lay, **kw))
 
 
+@pytest.mark.parametrize("dense", [True, False])
+def test_the_objects_of_a_build_hold_every_field(dense):
+    # drive_facts and build_system make their frozen dataclasses field by field at once (system._set_at_once,
+    # no default filled in): each holds every field of its class, nothing else (a field left out would be
+    # missing, not defaulted), on the two-arm drive and on the all-spring example drive.
+    from beltdyn.geometry import layout_from_config
+    from beltdyn.system import drive_facts
+
+    fead = ROOT / "configs" / "examples" / "fead_4cyl.toml"
+    springs = load_config(fead, [f'spans.{n}.model="spring"' for n in load_config(fead).span_names])
+    for cfg in (config_from_dict(TWO_ARMS), springs):
+        lay = layout_from_config(cfg)
+        facts = drive_facts(cfg, lay)
+        system = build_system(cfg, lay, facts=facts, dense=dense)
+        made = [facts, facts.tension, facts.arms, *facts.pulleys[0], system, system.belt, system.springs, system.arms]
+        for obj in made:
+            assert {k for k in vars(obj) if not k.startswith("_")} == {f.name for f in dataclasses.fields(obj)}, obj
+
+
 def test_the_dense_assembly_of_the_components_is_the_sparse_one():
     # _assemble adds the components into a dense system in place (a one-DOF component's entries as scalars)
     # and sums them on the CSR pattern of a sparse one: the same mass, stiffness, damping, weight and spring
