@@ -162,8 +162,9 @@ class ArmSupport(Support):
             elif spring_free is not None and spring_free[dof] != 0.0:  # relaxed where it was on the L0 fit
                 free = np.array([float(spring_free[dof])])
         name, dofs, mass, stiffness, damping = self._arm_parts(dof)
-        return (_component_class()(name=name, dofs=dofs, mass=mass, stiffness=stiffness, damping=damping, free=free,
-                                   energy_kind="tensioner"),)
+        make, component = _component_factory()
+        return (make(component, name=name, dofs=dofs, stiffness=stiffness, damping=damping, mass=mass, weight=None,
+                     free=free, energy_kind="tensioner"),)
 
     def _arm_parts(self, dof: int) -> tuple:
         """The arm component's name, DOFs (1,) and inertia, torsion spring and damper (1, 1) each (None where
@@ -192,16 +193,17 @@ class ArmSupport(Support):
         return (p.arm_range[0] - drawn, p.arm_range[1] - drawn)
 
 
-_COMPONENT: list = []  # system.LinearComponent, once imported (system imports this module first)
+_COMPONENT: list = []  # system._set_at_once and system.LinearComponent, once imported (system imports this module)
 
 
-def _component_class() -> type:
-    """`system.LinearComponent` (an import statement per call costs more than the component)."""
+def _component_factory() -> tuple:
+    """(`system._set_at_once`, `system.LinearComponent`): an import statement per call costs more than the
+    component."""
     if not _COMPONENT:
-        from .system import LinearComponent
+        from .system import LinearComponent, _set_at_once
 
-        _COMPONENT.append(LinearComponent)
-    return _COMPONENT[0]
+        _COMPONENT.extend((_set_at_once, LinearComponent))
+    return tuple(_COMPONENT)
 
 
 SUPPORT_CLASSES: dict[str, type[Support]] = {c.kind: c for c in (Support, SlideSupport, BearingSupport, ArmSupport)}

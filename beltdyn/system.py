@@ -1777,7 +1777,8 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
                     cols.append(c.dofs[cc])
         extra = (np.concatenate(rows), np.concatenate(cols)) if rows else None
     # (dense without elements: nothing to scatter but the springs, which bring their own indices)
-    pattern = Pattern(n=n, flat=_NO_INDEX) if use_dense and not len(belt.idx) else \
+    pattern = _set_at_once(Pattern, n=n, flat=_NO_INDEX, slot=None, indices=None, indptr=None, diag_slot=None, nnz=0) \
+        if use_dense and not len(belt.idx) else \
         make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
     g = np.asarray(gravity, dtype=float)
     has_elements = belt.elements.n_elem > 0

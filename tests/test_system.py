@@ -346,7 +346,8 @@ def test_the_objects_of_a_build_hold_every_field(dense):
         lay = layout_from_config(cfg)
         facts = drive_facts(cfg, lay)
         system = build_system(cfg, lay, facts=facts, dense=dense)
-        made = [facts, facts.tension, facts.arms, *facts.pulleys[0], system, system.belt, system.springs, system.arms]
+        made = [facts, facts.tension, facts.arms, system, system.belt, system.springs, system.arms, system.pattern,
+                *system.components]
         for obj in made:
             assert {k for k in vars(obj) if not k.startswith("_")} == {f.name for f in dataclasses.fields(obj)}, obj
 
