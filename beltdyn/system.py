@@ -879,6 +879,8 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
 
 def _span_stretch(prestrain_stretch: float | np.ndarray, n: int) -> np.ndarray:
     """(n,) the spans' stretch at q = 0 of one number for all or one per span (a new array)."""
+    if isinstance(prestrain_stretch, np.ndarray) and prestrain_stretch.shape == (n,):
+        return prestrain_stretch.astype(float)
     if isinstance(prestrain_stretch, (float, int)) or np.ndim(prestrain_stretch) == 0:
         return np.full(n, float(prestrain_stretch))
     lam = np.array(prestrain_stretch, dtype=float)
@@ -1874,8 +1876,7 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     n_p = layout.n
     n_dof = dofs.n
     pad = n_dof
-    lam_s = prestrain_stretch.astype(float) if isinstance(prestrain_stretch, np.ndarray) and \
-        prestrain_stretch.shape == (n_p,) else _span_stretch(prestrain_stretch, n_p)  # (a new array)
+    lam_s = _span_stretch(prestrain_stretch, n_p)
     L_ref = layout.span_length / lam_s
     if isinstance(prestrain_stretch, (float, int)):  # (one number: uniform)
         lam = float(prestrain_stretch)
