@@ -110,7 +110,7 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
     gyroscopic modes (module docstring). tangent: that tangent, if the static solve evaluated it at q
     (`SolvedDrive.tangent`), else it is evaluated here."""
     if model.belt_speed:
-        return _solve_running(model, q, n_modes=n_modes, solver=solver)
+        return _solve_running(model, q, n_modes=n_modes, solver=solver, tangent=tangent)
     K = model.equilibrium(q)[1] if tangent is None else tangent
     slopes = J = None  # the arms' jacobian, dense, for a small dense model: J^T M J and the shapes' joint motion J phi
     if model.arms is not None and model.dense and model.n_p <= 64:
@@ -404,9 +404,10 @@ def _normalized(phi: np.ndarray, M) -> np.ndarray:
     return phi * (np.conj(big) / np.where(np.abs(big) > 0, np.abs(big), 1.0))
 
 
-def _solve_running(model: System, q: np.ndarray, *, n_modes: int, solver: str) -> ModalResult:
-    """`solve_modes` of the running belt: the gyroscopic eigenproblem about q (module docstring)."""
-    _, K = model.equilibrium(q)
+def _solve_running(model: System, q: np.ndarray, *, n_modes: int, solver: str, tangent=None) -> ModalResult:
+    """`solve_modes` of the running belt: the gyroscopic eigenproblem about q (module docstring);
+    tangent: as `solve_modes`."""
+    K = model.equilibrium(q)[1] if tangent is None else tangent
     M = model.mass_matrix(q)
     G = model.gyroscopic_matrix(q)
     n = model.n_dof
@@ -505,20 +506,33 @@ def half_waves(w: np.ndarray, threshold: float = 0.05) -> int:
     A complex (travelling) shape: the humps of its envelope |w|, i.e. 1 + the interior minima of |w| that
     dip below half of the smaller neighbouring maximum."""
     if np.iscomplexobj(w):
-        env = np.abs(w)
-        floor = threshold * env.max()
-        slope = np.sign(np.diff(env))
-        turns = env[np.concatenate(([0], np.flatnonzero(slope[1:] != slope[:-1]) + 1, [len(env) - 1]))]  # extrema
+        return half_waves_envelope(w[None], threshold)[0]
+    return int(half_waves_real(w[None], threshold)[0])
+
+
+def half_waves_envelope(W: np.ndarray, threshold: float = 0.05) -> list[int]:
+    """`half_waves` of each row of complex samples W (m, P): the humps of each envelope |w| (the array
+    work for all rows at once, the count on each row's extrema)."""
+    env = np.abs(W)
+    floor = (threshold * env.max(axis=1)).tolist()
+    slope = np.sign(np.diff(env, axis=1))
+    rows, cols = np.nonzero(slope[:, 1:] != slope[:, :-1])  # row-major: each row's turning points in order
+    turning = [[0] for _ in range(len(env))]
+    for i, c in zip(rows.tolist(), cols.tolist()):
+        turning[i].append(c + 1)
+    out = []
+    for values, at, fl in zip(env.tolist(), turning, floor):
+        turns = [values[k] for k in at] + [values[-1]]  # extrema
         humps, top, low = 1, turns[0], turns[0]  # the current hump's maximum and the lowest value after it
         for x in turns[1:]:
-            if low < 0.5 * top and x > 2.0 * low and x > floor:  # a rise after a deep dip: a new hump
+            if low < 0.5 * top and x > 2.0 * low and x > fl:  # a rise after a deep dip: a new hump
                 humps, top, low = humps + 1, x, x
             elif x > top and low >= 0.5 * top:  # still climbing the same hump
                 top = low = x
             else:
                 low = min(low, x)
-        return humps
-    return int(half_waves_real(w[None], threshold)[0])
+        out.append(humps)
+    return out
 
 
 def half_waves_real(W: np.ndarray, threshold: float = 0.05) -> np.ndarray:
@@ -558,7 +572,7 @@ def classify(model: System, shapes: np.ndarray, freq: np.ndarray, q: np.ndarray 
             if not len(els):
                 continue
             W = wsamp[ks][:, els].reshape(len(ks), -1)
-            got = [half_waves(w) for w in W] if np.iscomplexobj(W) else half_waves_real(W).tolist()  # travelling: envelopes
+            got = half_waves_envelope(W) if np.iscomplexobj(W) else half_waves_real(W).tolist()  # travelling: envelopes
             for k, w in zip(ks.tolist(), got):
                 waves[k] = w
     for k, kind in enumerate(kind_of):

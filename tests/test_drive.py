@@ -428,3 +428,38 @@ def test_vectorized_half_waves_count_as_the_definition(seed):
     assert half_waves_real(W).tolist() == [definition(w) for w in W]
     clean = np.vstack([np.sin(np.pi * k * x) + 0.005 * rng.standard_normal(80) for k in range(1, 9)])
     assert half_waves_real(clean).tolist() == list(range(1, 9))  # the k-th sine (noise under 5 %): k half-waves
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_batched_envelope_half_waves_count_as_row_by_row(seed):
+    # Travelling (complex) shapes: `half_waves_envelope` counts the humps of every row's envelope |w| at
+    # once; reference: the count row by row on the envelope's extrema (the rule of `half_waves`: a new hump
+    # where the envelope rises above twice a dip below half the hump's top and above 5 % of its largest),
+    # on standing waves sin(k pi x) e^(i theta), travelling waves e^(i k pi x) with a standing part, and
+    # random rows; the standing sine of order k has k humps.
+    from beltdyn.modal import half_waves_envelope
+
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0.0, 1.0, 80)
+    rows = [np.sin(np.pi * k * x) * np.exp(1j * rng.uniform(0, 6)) for k in range(1, 9)]
+    rows += [np.exp(1j * np.pi * k * x) * 0.2 + np.sin(np.pi * k * x) for k in range(1, 9)]
+    rows += [rng.standard_normal(80) + 1j * rng.standard_normal(80) for _ in range(20)]
+    W = np.vstack(rows)
+
+    def row_by_row(w):
+        env = np.abs(w)
+        slope = np.sign(np.diff(env))
+        turns = env[np.concatenate(([0], np.flatnonzero(slope[1:] != slope[:-1]) + 1, [len(env) - 1]))]
+        humps, top, low = 1, turns[0], turns[0]
+        for v in turns[1:]:
+            if low < 0.5 * top and v > 2.0 * low and v > 0.05 * env.max():
+                humps, top, low = humps + 1, v, v
+            elif v > top and low >= 0.5 * top:
+                top = low = v
+            else:
+                low = min(low, v)
+        return humps
+
+    got = half_waves_envelope(W)
+    assert got == [row_by_row(w) for w in W]
+    assert got[:8] == list(range(1, 9))
