@@ -516,13 +516,12 @@ def half_waves_envelope(W: np.ndarray, threshold: float = 0.05) -> list[int]:
     env = np.abs(W)
     floor = (threshold * env.max(axis=1)).tolist()
     slope = np.sign(np.diff(env, axis=1))
-    rows, cols = np.nonzero(slope[:, 1:] != slope[:, :-1])  # row-major: each row's turning points in order
-    turning = [[0] for _ in range(len(env))]
-    for i, c in zip(rows.tolist(), cols.tolist()):
-        turning[i].append(c + 1)
+    turn = np.zeros(env.shape, dtype=bool)  # each row's extrema: its ends and where the slope's sign changes
+    turn[:, 0] = turn[:, -1] = True
+    turn[:, 1:-1] = slope[:, 1:] != slope[:, :-1]
     out = []
-    for values, at, fl in zip(env.tolist(), turning, floor):
-        turns = [values[k] for k in at] + [values[-1]]  # extrema
+    for row, fl in zip(np.split(env[turn], np.cumsum(turn.sum(axis=1))[:-1]), floor):
+        turns = row.tolist()
         humps, top, low = 1, turns[0], turns[0]  # the current hump's maximum and the lowest value after it
         for x in turns[1:]:
             if low < 0.5 * top and x > 2.0 * low and x > fl:  # a rise after a deep dip: a new hump
