@@ -1159,7 +1159,19 @@ class ArmJoints:
         return self.project_both(q, f, K, dense=dense)[1]
 
     def project_both(self, q: np.ndarray, f: np.ndarray, K, *, dense: bool):
-        """(`project`(q, f), `project_matrix`(q, K, f)): the arm's sine and cosine evaluated once."""
+        """(`project`(q, f), `project_matrix`(q, K, f)): the arm's sine and cosine evaluated once (a dense
+        K: arm by arm on Python floats, from the dense jacobian's `dense_jacobian`)."""
+        if dense and not hasattr(K, "tocsr"):
+            J = self.dense_jacobian(q)
+            out = f[: self.n_q].copy()
+            geo = []
+            for slot, dof in zip(self.slot.tolist(), self.dof.tolist()):
+                dx, dy, fx, fy = J.item(slot, dof), J.item(slot + 1, dof), f.item(slot), f.item(slot + 1)
+                out[dof] += dx * fx + dy * fy
+                geo.append((-dy) * fx + dx * fy)  # f_u . d2c/dphi2, d2c/dphi2 = (-dy, dx)
+            Kq = J.T @ np.asarray(K) @ J
+            Kq[self.dof, self.dof] += geo
+            return out, Kq
         phi = self.angle + q[self.dof]
         L = self.length
         dx, dy = -(L * np.sin(phi)), L * np.cos(phi)  # dc/dphi (`first`); d2c/dphi2 = (-dy, dx) (`second`)
@@ -1190,6 +1202,23 @@ class ArmJoints:
         if geo is not None:
             data[diag] += geo
         return csr_matrix((data, idx, ptr), shape=(self.n_q, self.n_q))
+
+    def dense_jacobian(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None) -> np.ndarray:
+        """J = dp/dq (n_p, n_q) dense at q: the identity on q, the arms' slopes dc/dphi in the arm columns,
+        from `first` (a, 2) at q if given (slopes), else from q arm by arm on Python floats (`first`'s
+        formula: a drive has a few arms)."""
+        if slopes is not None:
+            J = self._eye.copy()
+            J[self.slot, self.dof], J[self.slot + 1, self.dof] = slopes[:, 0], slopes[:, 1]
+            return J
+        n_q = self.n_q
+        J = np.zeros((self.n_p, n_q))
+        J.ravel()[: n_q * (n_q + 1): n_q + 1] = 1.0  # the identity on q
+        for slot, dof, length, angle in zip(self.slot.tolist(), self.dof.tolist(), self.length.tolist(),
+                                            self.angle.tolist()):
+            phi = angle + q.item(dof)
+            J[slot, dof], J[slot + 1, dof] = -(length * math.sin(phi)), length * math.cos(phi)
+        return J
 
     @functools.cached_property
     def _eye(self) -> np.ndarray:
@@ -1517,18 +1546,7 @@ class System:
         """J = dp/dq (n_p, n_dof) dense at q: the identity on q, the arms' slopes dc/dphi in the arm
         columns, from `arm_slopes` (a, 2) if given, else from q on Python floats (`ArmJoints.first`'s
         formula arm by arm: a drive has a few arms)."""
-        a = self.arms
-        n_q = a.n_q
-        J = np.zeros((a.n_p, n_q))
-        J.ravel()[: n_q * (n_q + 1): n_q + 1] = 1.0  # the identity on q
-        if slopes is not None:
-            J[a.slot, a.dof], J[a.slot + 1, a.dof] = slopes[:, 0], slopes[:, 1]
-            return J
-        for k in range(len(a.dof)):
-            slot, dof, length = a.slot.item(k), a.dof.item(k), a.length.item(k)
-            phi = a.angle.item(k) + q.item(dof)
-            J[slot, dof], J[slot + 1, dof] = -(length * math.sin(phi)), length * math.cos(phi)
-        return J
+        return self.arms.dense_jacobian(q, slopes=slopes)
 
     def mean_tension_and_gradient(self, q: np.ndarray, *, gradient: bool = True, p: np.ndarray | None = None
                                   ) -> tuple[float, np.ndarray | None]:
