@@ -1097,11 +1097,26 @@ class ArmJoints:
         return -self.length[:, None] * _last_pair(np.cos(phi), np.sin(phi))
 
     def expand(self, q: np.ndarray) -> np.ndarray:
-        """p (..., n_p) from q (..., n_q)."""
+        """p (..., n_p) from q (..., n_q) (one state: arm by arm on Python floats)."""
+        if q.ndim == 1:
+            out = np.empty(self.n_p)
+            out[: self.n_q] = q
+            i = self.n_q
+            for dof, length, angle, cos0, sin0 in self._arm_floats:
+                phi = angle + q.item(dof)
+                out[i], out[i + 1] = length * (math.cos(phi) - cos0), length * (math.sin(phi) - sin0)
+                i += 2
+            return out
         phi = self.phi(q)
         cos0, sin0 = self._reference_cos_sin
         u = self.length[:, None] * _last_pair(np.cos(phi) - cos0, np.sin(phi) - sin0)
         return np.concatenate([q, u.reshape(*q.shape[:-1], -1)], axis=-1)
+
+    @functools.cached_property
+    def _arm_floats(self) -> list[tuple[int, float, float, float, float]]:
+        """(dof, length, angle, cos angle, sin angle) of each arm, Python numbers (`expand`)."""
+        return list(zip(self.dof.tolist(), self.length.tolist(), self.angle.tolist(),
+                        *(x.tolist() for x in self._reference_cos_sin)))
 
     @functools.cached_property
     def _reference_cos_sin(self) -> tuple[np.ndarray, np.ndarray]:
