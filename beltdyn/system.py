@@ -1817,10 +1817,12 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
         make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
     g = np.asarray(gravity, dtype=float)
     has_elements = belt.elements.n_elem > 0
-    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g)) if has_elements else None
+    weighs = bool(g.any())  # (without gravity the belt's weight is zeros)
+    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g)) if has_elements and weighs else None
     scatter = None
     if springs is not None:
-        fg = springs.gravity_force(g) if fg is None else fg + springs.gravity_force(g)
+        if weighs:
+            fg = springs.gravity_force(g) if fg is None else fg + springs.gravity_force(g)
         if use_dense:  # row * (n + 1) + column of each block entry (`element_pairs`)
             idx = springs.idx
             scatter = (idx[:, :, None] * (n + 1) + idx[:, None, :]).ravel()
