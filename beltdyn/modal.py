@@ -324,7 +324,7 @@ def _gyroscopic_dense(K, G, M, tol: float, n_want: int):
     schur = Kt[np.ix_(rest, rest)] - R[:, rest].T @ R[:, rest]
     if np.abs(schur).max(initial=0.0) <= 10.0 * tol and r > 0:
         N = r + n
-        S = np.empty((N, N))
+        S = np.empty((N, N), order="F")  # (LAPACK's order: no copy on the way in)
         S[:r, :r] = R @ R.T
         S[:r, r:] = R @ Gt
         S[r:, :r] = S[:r, r:].T
