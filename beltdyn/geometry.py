@@ -26,6 +26,7 @@ import numpy as np
 
 from .config import DriveConfig
 from .errors import ConfigError
+from .frozen import set_at_once
 
 TWO_PI = 2.0 * math.pi
 
@@ -71,14 +72,6 @@ class Layout:
 
     def span_name(self, i: int) -> str:
         return f"{self.names[i]}-{self.names[(i + 1) % self.n]}"
-
-    @classmethod
-    def _of(cls, **fields) -> "Layout":
-        """The layout of every field given (`compute_layout`), set at once: the frozen dataclass's
-        __init__ sets them one by one through object.__setattr__ (17 calls a layout)."""
-        lay = object.__new__(cls)
-        lay.__dict__.update(fields)
-        return lay
 
 
 class GeometryError(ValueError):
@@ -178,8 +171,8 @@ def compute_layout(
     np.multiply(radius, wrap, out=arc)
     np.multiply(sigma, wrap, out=turn)
     total_length, total_arc, total_turn = sums.sum(axis=1).tolist()
-    lay = Layout._of(
-        names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
+    lay = set_at_once(
+        Layout, names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
         span_start=point_xy[1], span_end=point_xy[2], span_length=length, span_angle=alpha, start_normal=normal[0],
         end_normal=normal[1], wrap_angle=wrap, arc_length=arc, belt_length=total_length + total_arc,
         adjust_offset=adjust_offset, adjust_index=adjust_index, adjust_kind=adjust_kind,

@@ -14,14 +14,15 @@ motion per unit of each translational DOF (the ones the belt joints and the pull
 
 from __future__ import annotations
 
-import math
+import functools
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
 from .config import Pulley
-from .geometry import unwrap_near
+from .frozen import set_at_once
+from .geometry import pivot_angle, unwrap_near
 
 Dof = tuple[str, str, str]  # label suffix, unit, DOF group
 
@@ -147,8 +148,7 @@ class ArmSupport(Support):
     def angle_at(self, x: float, y: float) -> float:
         """`working_angle` with the pulley's centre at (x, y) (m)."""
         p = self.pulley
-        px, py = p.arm_pivot
-        phi = math.atan2(y - py, x - px)  # `geometry.arm_angle` on floats
+        phi = pivot_angle((x, y), p.arm_pivot)
         return unwrap_near(phi, 0.5 * (p.arm_range[0] + p.arm_range[1])) if p.arm_range is not None else phi
 
     def own_components(self, dof: int, layout, index: int, spring_free: np.ndarray | None = None) -> tuple:
@@ -162,9 +162,8 @@ class ArmSupport(Support):
             elif spring_free is not None and spring_free[dof] != 0.0:  # relaxed where it was on the L0 fit
                 free = np.array([float(spring_free[dof])])
         name, dofs, mass, stiffness, damping = self._arm_parts(dof)
-        make, component = _component_factory()
-        return (make(component, name=name, dofs=dofs, stiffness=stiffness, damping=damping, mass=mass, weight=None,
-                     free=free, energy_kind="tensioner"),)
+        return (set_at_once(_linear_component(), name=name, dofs=dofs, stiffness=stiffness, damping=damping,
+                            mass=mass, weight=None, free=free, energy_kind="tensioner"),)
 
     def _arm_parts(self, dof: int) -> tuple:
         """The arm component's name, DOFs (1,) and inertia, torsion spring and damper (1, 1) each (None where
@@ -193,17 +192,13 @@ class ArmSupport(Support):
         return (p.arm_range[0] - drawn, p.arm_range[1] - drawn)
 
 
-_COMPONENT: list = []  # system._set_at_once and system.LinearComponent, once imported (system imports this module)
+@functools.cache
+def _linear_component() -> type:
+    """`system.LinearComponent`, imported at the first use (system imports this module; an import statement
+    per call costs more than the component)."""
+    from .system import LinearComponent
 
-
-def _component_factory() -> tuple:
-    """(`system._set_at_once`, `system.LinearComponent`): an import statement per call costs more than the
-    component."""
-    if not _COMPONENT:
-        from .system import LinearComponent, _set_at_once
-
-        _COMPONENT.extend((_set_at_once, LinearComponent))
-    return tuple(_COMPONENT)
+    return LinearComponent
 
 
 SUPPORT_CLASSES: dict[str, type[Support]] = {c.kind: c for c in (Support, SlideSupport, BearingSupport, ArmSupport)}

@@ -41,6 +41,7 @@ import numpy as np
 from . import ancf
 from .config import DriveConfig
 from .errors import ConfigError
+from .frozen import set_at_once
 from .geometry import Layout, layout_from_config
 from .running import belt_speed_of
 from .supports import SUPPORT_CLASSES, Support, support_of
@@ -56,15 +57,6 @@ _NO_ELEMENT, _NO_INDEX, _NO_T, _NO_IDX, _NO_E = (np.zeros(0), np.zeros(0, dtype=
                                                  np.zeros((0, 8), dtype=np.int64), np.zeros((0, 8)))
 DOF_GROUPS = ("span", "rotation", "translation", "arm")
 ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse", "tensioner")
-
-
-def _set_at_once(cls, **fields):
-    """An instance of the frozen dataclass `cls` from every one of its fields (no default filled in), set at
-    once: the dataclass's __init__ sets them one by one through object.__setattr__ (as `geometry.Layout._of`;
-    tests/test_system.py: the objects of a build hold every field, nothing else)."""
-    obj = object.__new__(cls)
-    obj.__dict__.update(fields)
-    return obj
 
 
 def _z_cross(n: np.ndarray) -> np.ndarray:
@@ -871,7 +863,7 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     T = T.copy()  # the rotation columns R (z x n) = R (-n_y, n_x) of each end (`joint_pairs`): the layout's
     normal = np.concatenate([start_normal, end_normal])  # (2k, 2)
     T.ravel()[at] = (normal[:, ::-1] * _NORMAL * layout.radius[pulley][:, None]).ravel()
-    return _set_at_once(SpringSpans, span=sp, T=T, idx=idx, x0=np.concatenate([start, end], axis=1),
+    return set_at_once(SpringSpans, span=sp, T=T, idx=idx, x0=np.concatenate([start, end], axis=1),
                         reference_length=reference_length, reference_direction=direction, EA=float(cfg.belt.EA),
                         rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=n, damping_axial=0.0,
                         EI=float(cfg.belt.EI), curvature=cfg.model.curvature)
@@ -1812,7 +1804,7 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
                     cols.append(c.dofs[cc])
         extra = (np.concatenate(rows), np.concatenate(cols)) if rows else None
     # (dense without elements: nothing to scatter but the springs, which bring their own indices)
-    pattern = _set_at_once(Pattern, n=n, flat=_NO_INDEX, slot=None, indices=None, indptr=None, diag_slot=None, nnz=0) \
+    pattern = set_at_once(Pattern, n=n, flat=_NO_INDEX, slot=None, indices=None, indptr=None, diag_slot=None, nnz=0) \
         if use_dense and not len(belt.idx) else \
         make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
     g = np.asarray(gravity, dtype=float)
@@ -1848,7 +1840,7 @@ def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[L
                 offset[c.dofs] += c.stiffness @ np.asarray(c.free, dtype=float)
             if c.weight is not None:
                 fg[c.dofs] += c.weight @ g
-    return _set_at_once(System, layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names,
+    return set_at_once(System, layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names,
                         driver=driver, tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M,
                         gravity_force=fg, linear_stiffness=K_lin, linear_damping=C, linear_offset=offset, loads=loads,
                         arms=arms, pulley_friction=friction, belt_speed=0.0, springs=springs, spring_scatter=scatter)
@@ -1922,7 +1914,7 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     t_dir = layout.span_direction
     n_elem = sum(cfg.span_elements)
     if n_elem == 0:  # every span a spring (`build_springs`): no elements, no joints of the belt's own
-        return _set_at_once(BeltSpans, elements=span_element_set(cfg, _NO_ELEMENT, _NO_ELEMENT), elem_span=_NO_INDEX,
+        return set_at_once(BeltSpans, elements=span_element_set(cfg, _NO_ELEMENT, _NO_ELEMENT), elem_span=_NO_INDEX,
                             span_elements=(_NO_INDEX,) * n_p, T=_NO_T, idx=_NO_IDX, tsel=_NO_INDEX, e0=_NO_E,
                             n_dof=n_dof, reference_length=L_ref, reference_direction=t_dir, prestrain_stretch=lam,
                             span_stretch=lam_s, damping_axial=0.0, damping_bending=0.0, compiled=False)
@@ -2073,7 +2065,7 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
     masses (components), the bearing springs' DOFs (k,), stiffness (k, k), pulleys and their names (None
     without any), and the supports with own components (support, its first DOF, pulley index)."""
     pulleys = cfg.pulleys
-    fixed: list[LinearComponent] = [_set_at_once(
+    fixed: list[LinearComponent] = [set_at_once(
         LinearComponent, name="pulley inertia", dofs=dofs.rot_dof, stiffness=None, damping=None,
         mass=_diagonal([p.inertia for p in pulleys]), weight=None, free=None, energy_kind="rotational")]
     masses: dict[str, tuple[list, list, list]] = {}  # energy kind -> translational DOFs, masses, weights
@@ -2100,7 +2092,7 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
             own.append((sup, t_dof[0] if t_dof and not sup.translation_is_dependent() else int(dofs.arm_dof[j]), j))
     for kind, (d_m, m_m, w_m) in masses.items():
         if d_m:
-            fixed.append(_set_at_once(LinearComponent, name=_MASS_NAMES.get(kind) or f"{kind} pulley mass",
+            fixed.append(set_at_once(LinearComponent, name=_MASS_NAMES.get(kind) or f"{kind} pulley mass",
                                       dofs=np.array(d_m, dtype=np.int64), stiffness=None, damping=None,
                                       mass=_diagonal(m_m), weight=np.array(w_m), free=None, energy_kind=kind))
     bearing = None
@@ -2115,7 +2107,7 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoint
     arms on another layout (what the configuration fixes taken from it)."""
     if like is not None:
         length, angle = _arm_geometry(cfg, layout, like.pulleys, like.pivot.tolist())
-        return _set_at_once(ArmJoints, dof=like.dof, slot=like.slot, pivot=like.pivot, length=length, angle=angle,
+        return set_at_once(ArmJoints, dof=like.dof, slot=like.slot, pivot=like.pivot, length=length, angle=angle,
                             n_q=like.n_q, n_p=like.n_p, friction=like.friction, stops=like.stops, names=like.names,
                             pulleys=like.pulleys)
     arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
@@ -2124,7 +2116,7 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoint
     ps = [cfg.pulleys[j] for j in arms]
     pivots = [p.arm_pivot for p in ps]
     length, angle = _arm_geometry(cfg, layout, arms, pivots)
-    return _set_at_once(ArmJoints, dof=dofs.arm_dof[arms],
+    return set_at_once(ArmJoints, dof=dofs.arm_dof[arms],
                         slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64),
                         pivot=np.array(pivots, dtype=float), length=length, angle=angle, n_q=dofs.n_q, n_p=dofs.n,
                         friction=np.array([p.arm_friction for p in ps], dtype=float),
@@ -2273,7 +2265,7 @@ def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
     """The `DriveFacts` of a configuration (`layout`: its L0 fit, where the arms are taken)."""
     dofs = number_dofs(cfg)
     pulleys = cfg.pulleys
-    return _set_at_once(DriveFacts, layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs),
+    return set_at_once(DriveFacts, layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs),
                         loads=static_loads(cfg, dofs),
                         friction=np.array([np.nan if p.friction is None else p.friction for p in pulleys]),
                         pulley_names=tuple([p.name for p in pulleys]), gravity=np.asarray(cfg.model.gravity, dtype=float),
@@ -2328,7 +2320,7 @@ def tension_setting(cfg: DriveConfig, dofs: DofMap) -> TensionSetting:
             adjust_dof = int(dofs.arm_dof[a]) if dofs.arm_dof[a] >= 0 else int(dofs.trans_dof[a][0])
         adjust_range = sup.travel_limits()
     mode = "spring" if cfg.tension.mode == "spring" else (cfg.tension.mode if target is not None else "geometry")
-    return _set_at_once(TensionSetting, target=target, mode=mode, adjust_dof=adjust_dof, adjust_range=adjust_range,
+    return set_at_once(TensionSetting, target=target, mode=mode, adjust_dof=adjust_dof, adjust_range=adjust_range,
                         adjust_name=cfg.pulleys[a].name if a is not None else "")
 
 

@@ -80,7 +80,7 @@ def assert_same(got, want):
         assert got[1:] == want[1:]
         return
     a, b = got[1], want[1]
-    assert set(vars(a)) == {f.name for f in dataclasses.fields(Layout)}  # Layout._of: every field, nothing else
+    assert set(vars(a)) == {f.name for f in dataclasses.fields(Layout)}  # frozen.set_at_once: every field, nothing else
     for name in FIELDS:
         x, y = getattr(a, name), getattr(b, name)
         assert x.shape == y.shape and x.dtype == y.dtype, name

@@ -334,7 +334,7 @@ def test_a_build_from_the_analysis_facts_is_the_build_from_the_configuration(den
 
 @pytest.mark.parametrize("dense", [True, False])
 def test_the_objects_of_a_build_hold_every_field(dense):
-    # drive_facts and build_system make their frozen dataclasses field by field at once (system._set_at_once,
+    # drive_facts and build_system make their frozen dataclasses field by field at once (frozen.set_at_once,
     # no default filled in): each holds every field of its class, nothing else (a field left out would be
     # missing, not defaulted), on the two-arm drive and on the all-spring example drive.
     from beltdyn.geometry import layout_from_config
