@@ -1093,11 +1093,9 @@ class ArmJoints:
         if q.ndim == 1:
             out = np.empty(self.n_p)
             out[: self.n_q] = q
-            i = self.n_q
-            for dof, length, angle, cos0, sin0 in self._arm_floats:
+            for slot, dof, length, angle, cos0, sin0 in self._arm_floats:
                 phi = angle + q.item(dof)
-                out[i], out[i + 1] = length * (math.cos(phi) - cos0), length * (math.sin(phi) - sin0)
-                i += 2
+                out[slot], out[slot + 1] = length * (math.cos(phi) - cos0), length * (math.sin(phi) - sin0)
             return out
         phi = self.phi(q)
         cos0, sin0 = self._reference_cos_sin
@@ -1105,9 +1103,10 @@ class ArmJoints:
         return np.concatenate([q, u.reshape(*q.shape[:-1], -1)], axis=-1)
 
     @functools.cached_property
-    def _arm_floats(self) -> list[tuple[int, float, float, float, float]]:
-        """(dof, length, angle, cos angle, sin angle) of each arm, Python numbers (`expand`)."""
-        return list(zip(self.dof.tolist(), self.length.tolist(), self.angle.tolist(),
+    def _arm_floats(self) -> list[tuple[int, int, float, float, float, float]]:
+        """(slot, dof, length, angle, cos angle, sin angle) of each arm, Python numbers (the one-state paths
+        `expand`, `dense_jacobian`, `project_both`)."""
+        return list(zip(self.slot.tolist(), self.dof.tolist(), self.length.tolist(), self.angle.tolist(),
                         *(x.tolist() for x in self._reference_cos_sin)))
 
     @functools.cached_property
@@ -1172,7 +1171,7 @@ class ArmJoints:
             J = self.dense_jacobian(q)
             out = f[: self.n_q].copy()
             geo = []
-            for slot, dof in zip(self.slot.tolist(), self.dof.tolist()):
+            for slot, dof, *_ in self._arm_floats:
                 dx, dy, fx, fy = J.item(slot, dof), J.item(slot + 1, dof), f.item(slot), f.item(slot + 1)
                 out[dof] += dx * fx + dy * fy
                 geo.append((-dy) * fx + dx * fy)  # f_u . d2c/dphi2, d2c/dphi2 = (-dy, dx)
@@ -1192,8 +1191,7 @@ class ArmJoints:
         """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`; or its columns dxy)."""
         dx, dy = (dc[:, 0], dc[:, 1]) if dxy is None else dxy
         if dense and not hasattr(K, "tocsr"):
-            J = self._eye.copy()  # the jacobian, dense: identity on q, dc/dphi in the arm columns
-            J[self.slot, self.dof], J[self.slot + 1, self.dof] = dx, dy
+            J = self._jacobian_of(dx, dy)
             out = J.T @ np.asarray(K) @ J
             if geo is not None:
                 out[self.dof, self.dof] += geo
@@ -1215,16 +1213,19 @@ class ArmJoints:
         from `first` (a, 2) at q if given (slopes), else from q arm by arm on Python floats (`first`'s
         formula: a drive has a few arms)."""
         if slopes is not None:
-            J = self._eye.copy()
-            J[self.slot, self.dof], J[self.slot + 1, self.dof] = slopes[:, 0], slopes[:, 1]
-            return J
+            return self._jacobian_of(slopes[:, 0], slopes[:, 1])
         n_q = self.n_q
         J = np.zeros((self.n_p, n_q))
         J.ravel()[: n_q * (n_q + 1): n_q + 1] = 1.0  # the identity on q
-        for slot, dof, length, angle in zip(self.slot.tolist(), self.dof.tolist(), self.length.tolist(),
-                                            self.angle.tolist()):
+        for slot, dof, length, angle, _, _ in self._arm_floats:
             phi = angle + q.item(dof)
             J[slot, dof], J[slot + 1, dof] = -(length * math.sin(phi)), length * math.cos(phi)
+        return J
+
+    def _jacobian_of(self, dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
+        """The dense jacobian (n_p, n_q) of the arms' slopes dc/dphi = (dx, dy) (a,) each."""
+        J = self._eye.copy()
+        J[self.slot, self.dof], J[self.slot + 1, self.dof] = dx, dy
         return J
 
     @functools.cached_property
@@ -1544,10 +1545,7 @@ class System:
             return self.mass
         if slopes is None:
             slopes = self.arm_slopes(np.zeros(self.n_dof) if q is None else q)
-        if self.dense:  # J^T M J with the jacobian J, dense (as `ArmJoints.project_matrix`)
-            J = self.arm_jacobian(slopes=slopes)
-            return J.T @ self.mass @ J
-        return self.arms._project_matrix(slopes, self.mass, None, dense=False)
+        return self.arms._project_matrix(slopes, self.mass, None, dense=self.dense)
 
     def arm_jacobian(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None) -> np.ndarray:
         """J = dp/dq (n_p, n_dof) dense at q: the identity on q, the arms' slopes dc/dphi in the arm
