@@ -2336,7 +2336,7 @@ class DeferredSystem:
         facts = drive_facts(cfg, layout) if facts is None else facts
         dofs = facts.dofs
         lam = reference_stretch(cfg, layout)
-        self._facts = {
+        self.__dict__.update({  # the facts as plain attributes (`__getattr__` only for the rest)
             "layout": layout, "dofs": dofs, "tension": facts.tension, "arms": facts.arms,
             "trans_dof": dofs.trans_dof, "trans_dir": dofs.trans_dir, "rot_dof": dofs.rot_dof,
             "loads": facts.loads, "driver": cfg.driver_index, "driver_dof": int(dofs.rot_dof[cfg.driver_index]),
@@ -2344,9 +2344,8 @@ class DeferredSystem:
                                     span_stretch=None, elements=SimpleNamespace(EA=np.array([cfg.belt.EA]))),
             "EA": float(cfg.belt.EA), "dof_labels": dofs.labels[: dofs.n_q],
             "pulley_friction": facts.friction, "pulley_index": facts.pulley_names.index, "facts": facts,
-        }
+        })
         self._build, self._full, self._cfg = build, None, cfg
-        self.__dict__.update(self._facts)  # (read as plain attributes: `__getattr__` only for the rest)
 
     @property
     def built(self) -> bool:
@@ -2354,16 +2353,15 @@ class DeferredSystem:
 
     def full(self) -> System:
         if self._full is None:
-            self._full = self._build(self._facts["layout"])
+            self._full = self._build(self.layout)
         return self._full
 
-    def __getattr__(self, name: str):
-        facts = self.__dict__.get("_facts", {})
-        if name in facts:
-            return facts[name]
-        if name == "components" and "_cfg" in self.__dict__:  # the pulleys' own components: cheap, no belt
-            facts[name] = pulley_components(self._cfg, facts["dofs"], facts["layout"], parts=facts["facts"].pulleys)
-            return facts[name]
+    def __getattr__(self, name: str):  # (only for what __init__ did not set)
+        if name in ("_build", "_full", "_cfg"):  # (its own state, before __init__ set it: no build)
+            raise AttributeError(name)
+        if name == "components":  # the pulleys' own components: cheap, no belt
+            self.components = pulley_components(self._cfg, self.dofs, self.layout, parts=self.facts.pulleys)
+            return self.components
         return getattr(self.full(), name)
 
 
