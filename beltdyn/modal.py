@@ -37,11 +37,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import SolverError
+from .geometry import TWO_PI
 from .system import ENERGY_KINDS, System
 
 KINDS = ENERGY_KINDS
 ORDINAL = {1: "st", 2: "nd", 3: "rd"}
-_TWO_PI = 2 * math.pi
+_EPS = float(np.finfo(float).eps)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -78,7 +79,6 @@ def zero_tolerance(lam_max: float) -> float:
     return max((2 * np.pi * 1e-4) ** 2, 1000 * _EPS * lam_max)
 
 
-_EPS = float(np.finfo(float).eps)
 ZERO_GAP = 1e3  # a factor between the zero cluster and the lowest true mode below the tolerance
 
 
@@ -177,7 +177,7 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
             _mechanism(model, v[:, :n_rigid], np.asarray(M.diagonal()))
     shapes = v.T[n_rigid: n_rigid + n_modes].copy()
     # sqrt |omega^2| / 2 pi: the zero modes' round-off and the elastic modes' frequencies (their w > 0)
-    root = np.array([math.sqrt(abs(x)) / _TWO_PI for x in wl[: n_rigid + n_modes]])
+    root = np.array([math.sqrt(abs(x)) / TWO_PI for x in wl[: n_rigid + n_modes]])
     freq = root[n_rigid:]
     kind, order, span, label, share, sshare, mid = _shape_outputs(
         model, q, shapes, freq, slopes=slopes, joint=None if J is None else shapes @ J.T)

@@ -39,9 +39,9 @@ import numpy as np
 
 from .config import StaticOptions
 from .errors import SolverError
-from .geometry import GeometryError, Layout, MovingPulley, fit_adjustable, pivot_angle, relay, unwrap_near
+from .geometry import TWO_PI, GeometryError, Layout, MovingPulley, fit_adjustable, pivot_angle, relay, unwrap_near
 from .slip import required_friction, slip_margin
-from .system import DOF_GROUPS, System, stretch_for_tension
+from .system import DOF_GROUPS, System, stretch_for_tension, stretch_start
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -281,7 +281,6 @@ class ResidualScales:
 
 
 _EPS = float(np.finfo(float).eps)
-_TWO_PI = 2.0 * math.pi
 _SPAN, _ROTATION, _TRANSLATION = (DOF_GROUPS.index(g) for g in ("span", "rotation", "translation"))
 
 
@@ -821,7 +820,7 @@ def _carried(old_angle: list, new_angle: list, radius_step: list, reference: lis
     """`carried_reference` on Python floats: lists (n,) of the old and new span angles, the spans'
     `_radius_steps` and the old reference lengths; span_name(s) names span s in the error. (A span
     whose angle is unchanged keeps its length: the formula's term is an exact 0 there.)"""
-    out = [r if a == b else r - ((b - a + math.pi) % _TWO_PI - math.pi) * d
+    out = [r if a == b else r - ((b - a + math.pi) % TWO_PI - math.pi) * d
            for a, b, d, r in zip(old_angle, new_angle, radius_step, reference)]
     total = sum(out)  # (NaN if any is: min() of a list skips a NaN after the first)
     if not (min(out) > 0.0 and total == total):
@@ -902,8 +901,8 @@ def _conserved_tension(total_length: float, split: list, reference: list, EA: fl
     x = [(T_ref + s) / EA for s in sp]
     T_ref += 1.5 * EA * sum([r * v * v for r, v in zip(ref, x)]) / total  # then 1 + x - 3/2 x^2 (one step)
     x = [(T_ref + s) / EA for s in sp]
-    lam = ([1.0 + v * (1.0 - v * (1.5 - 4.0 * v)) for v in x] if max(map(abs, x)) < 0.05  # `stretch_start`'s series
-           else [stretch_for_tension(T_ref + s, EA) for s in sp])
+    lam = ([stretch_start(v) for v in x] if max(map(abs, x)) < 0.05 else
+           [stretch_for_tension(T_ref + s, EA) for s in sp])
     half = 0.5 * EA
     for _ in range(50):  # Newton on T_ref, each stretch first stepped to its span's tension (one Newton step)
         stepped, worst, length, compliance = [], 0.0, 0.0, 0.0  # (one pass: lists of 7 cost their loops' overhead)
