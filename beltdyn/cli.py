@@ -19,7 +19,8 @@ from typing import List, Optional  # noqa: E402
 
 import typer  # noqa: E402
 
-from . import __version__, cliparams  # noqa: E402
+from beltdyn import __version__  # noqa: E402
+from beltdyn import cliparams
 
 cliparams.install()  # command-line values coerced without importing pydantic (typer's common case)
 
@@ -130,7 +131,7 @@ def _one_line(text: str) -> str:
 def _fail(exc: BaseException) -> None:
     from rich.text import Text
 
-    from .errors import BeltdynError, Terminated
+    from beltdyn.errors import BeltdynError, Terminated
 
     err = _console(stderr=True)
     exc = _interruption(exc) or exc
@@ -181,8 +182,8 @@ class _Job:
     """One command's pipeline state: config, layout, output path, hash."""
 
     def __init__(self, config: Path, output: Optional[Path], sets: Optional[List[str]], force: bool) -> None:
-        from .config import config_hash, load_config, resolved_toml
-        from .geometry import layout_from_config
+        from beltdyn.config import config_hash, load_config, resolved_toml
+        from beltdyn.model.geometry import layout_from_config
 
         self.cfg = load_config(config, sets or [])
         self.layout = layout_from_config(self.cfg)  # geometric config errors come before the output check
@@ -194,15 +195,15 @@ class _Job:
         self.force = force
         self.ladder = None  # the automatic choice of the span models (--fmax/--rtol), if made
         self.output = output if output is not None else Path("results") / f"{config.stem}.h5"
-        from .results_io import check_target
+        from beltdyn.results.io import check_target
 
         # early check (before any analysis); a file of a derived configuration (from this base) passes
         # here and is checked strictly, against the configuration actually written, by `write`
         check_target(self.output, config_sha256=self.sha, force=force, base_config_sha256=self.base_sha)
-        from .results_io import lock_output
+        from beltdyn.results.io import lock_output
 
         lock_output(self.output)  # held until this command ends: no other beltdyn command writes it meanwhile
-        from .results_io import recover
+        from beltdyn.results.io import recover
 
         _notes(recover(self.output))  # what a killed earlier command left: its samples recovered, leftovers removed
         self.groups: list = []
@@ -211,7 +212,7 @@ class _Job:
         self.groups.append(group)
 
     def write(self) -> None:
-        from .results_io import write_groups
+        from beltdyn.results.io import write_groups
 
         _notes(write_groups(self.output, self.groups, config_toml=self.toml, config_sha256=self.sha,
                             force=self.force, base_config_sha256=self.base_sha))
@@ -226,7 +227,7 @@ def _notes(notes: list[str]) -> None:
 
 
 def _on_sigterm(signum, frame) -> None:
-    from .errors import Terminated
+    from beltdyn.errors import Terminated
 
     _STATE["signal"] = signum
     raise Terminated()
@@ -244,7 +245,7 @@ def _interruption(exc: BaseException) -> KeyboardInterrupt | None:
     failed": a sweep interrupted while scipy imported); else None."""
     import signal
 
-    from .errors import Terminated
+    from beltdyn.errors import Terminated
 
     if isinstance(exc, KeyboardInterrupt):
         return exc
@@ -269,7 +270,7 @@ def _run(body) -> None:
     import rich.console  # noqa: F401 - loaded before the body, so the handlers below need no memory to import
     import rich.text  # noqa: F401
 
-    from . import errors  # noqa: F401
+    from beltdyn import errors  # noqa: F401
 
     memory_error = None
     try:
@@ -295,7 +296,7 @@ def _run(body) -> None:
 
 
 def _failed_group(name: str, exc: BaseException):
-    from .results_io import GroupData
+    from beltdyn.results.io import GroupData
 
     return GroupData(name=name, coords={}, variables=(), status="failed", error=str(exc))
 
@@ -306,7 +307,7 @@ def geometry(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Op
     """Tangent points, spans, wrap angles, belt length and the L0 fit of the adjustable pulley."""
 
     def body() -> None:
-        from .export import geometry_group
+        from beltdyn.results.export import geometry_group
 
         job = _Job(config, output, set_, force)
         layout = job.layout
@@ -322,16 +323,16 @@ def _refined_modal(job: "_Job", n_modes: int, rtol: float) -> None:
     import numpy as np
     from rich.table import Table
 
-    from .config import config_hash, resolved_toml
-    from .export import geometry_group, modal_group, static_group
-    from .sweep import refine_mesh
+    from beltdyn.config import config_hash, resolved_toml
+    from beltdyn.results.export import geometry_group, modal_group, static_group
+    from beltdyn.study.sweep import refine_mesh
 
     replace = _rtol_target(job)  # before the refinement: may its result replace what the output holds?
     (cfg, model, st, md), ref = refine_mesh(job.cfg, n_modes=n_modes, rtol=rtol)
     # the results belong to the chosen mesh: record that configuration
     job.cfg, job.toml, job.sha = cfg, resolved_toml(cfg), config_hash(cfg)
     job.force = job.force or replace
-    from .results_io import check_target
+    from beltdyn.results.io import check_target
 
     check_target(job.output, config_sha256=job.sha, force=job.force)
     job.add(geometry_group(job.layout))  # the L0 fit (the mesh does not change it); /static: the solved layout
@@ -369,14 +370,14 @@ def _rtol_target(job: "_Job") -> bool:
     (True: they are all written anew, for the mesh chosen); one holding more (a /transient, a /sweep)
     is refused now (exit 2), since the chosen mesh may not be theirs, unless --force. False: no file,
     or --force."""
-    from .results_io import group_names
+    from beltdyn.results.io import group_names
 
     if job.force or not job.output.exists():
         return False
     others = sorted(set(group_names(job.output)) - REFINED_GROUPS)
     if not others:
         return True
-    from .errors import OutputError
+    from beltdyn.errors import OutputError
 
     raise OutputError(f"{job.output}: holds /{', /'.join(others)} of this configuration; modal --rtol may choose "
                       f"another mesh, whose /static and /modal would not belong with them: use --force to start "
@@ -388,7 +389,7 @@ def _rtol_not_met(ref, rtol: float, output) -> None:
     after the table and the file (its /modal has mesh_converged = 0) are written."""
     import numpy as np
 
-    from .errors import SolverError
+    from beltdyn.errors import SolverError
 
     raise SolverError(f"the modes do NOT meet rtol = {rtol:g}: largest estimated relative error "
                       f"{np.nanmax(ref.estimate[ref.chosen]):.2e} at {ref.elements[ref.chosen]} elements per span, "
@@ -399,9 +400,9 @@ def _rtol_not_met(ref, rtol: float, output) -> None:
 def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None, compiled: bool = False):
     """geometry -> system -> static (-> modal) through the library pipeline; writes the groups reached,
     and a failed group for the stage that failed."""
-    from .errors import SolverError
-    from .export import geometry_group, modal_group, static_group
-    from .pipeline import analyse
+    from beltdyn.errors import SolverError
+    from beltdyn.results.export import geometry_group, modal_group, static_group
+    from beltdyn.pipeline import analyse
 
     job.add(geometry_group(job.layout))
     try:
@@ -421,7 +422,7 @@ def _static_pipeline(job: "_Job", *, modal: bool, n_modes: int | None = None, co
 def _add_results(job: "_Job", run) -> None:
     """/static (with the automatic span choice, if made) and /modal (with the modes that spring spans
     leave out) of a finished run."""
-    from .export import ladder_attrs, ladder_variables, modal_group, static_group
+    from beltdyn.results.export import ladder_attrs, ladder_variables, modal_group, static_group
 
     group = static_group(run.system, run.static, job.cfg.tension.target)
     if job.ladder is not None:
@@ -438,7 +439,7 @@ def _unrepresented(job: "_Job", run) -> tuple:
     kept on the job for `_print_unrepresented`."""
     if run.system.springs is None:
         return ()
-    from .ladder import unrepresented_modes
+    from beltdyn.analysis.ladder import unrepresented_modes
 
     band = job.ladder.fmax if job.ladder is not None else float(run.modal.frequency.max(initial=0.0))
     job.unrepresented = (band, run.system.layout, unrepresented_modes(run.system, run.static, band))
@@ -459,24 +460,24 @@ def _choose_spans(job: "_Job", fmax: Optional[float], rtol: Optional[float], *, 
     chosen drive's Analysis (static and modal), or None without --fmax."""
     if fmax is None:
         if rtol is not None and command != "modal":
-            from .errors import ConfigError
+            from beltdyn.errors import ConfigError
 
             raise ConfigError("--rtol needs --fmax here (the band whose modes the span models must get within "
                               "RTOL)", file=job.cfg.source, key="--fmax")
         return None
     if rtol is None:
-        from .errors import ConfigError
+        from beltdyn.errors import ConfigError
 
         raise ConfigError("--fmax needs --rtol (the relative tolerance of the modes below FMAX)", file=job.cfg.source,
                           key="--rtol")
     if not fmax > 0 or not rtol > 0:
-        from .errors import ConfigError
+        from beltdyn.errors import ConfigError
 
         raise ConfigError(f"--fmax and --rtol must be > 0, got {fmax:g} and {rtol:g}", file=job.cfg.source,
                           key="--fmax" if not fmax > 0 else "--rtol")
-    from .config import config_hash, resolved_toml
-    from .ladder import choose_models
-    from .results_io import check_target
+    from beltdyn.config import config_hash, resolved_toml
+    from beltdyn.study.fidelity import choose_models
+    from beltdyn.results.io import check_target
 
     choice, run = choose_models(job.cfg, fmax=fmax, rtol=rtol)
     job.ladder = choice
@@ -508,7 +509,7 @@ def _ladder_not_met(job: "_Job") -> None:
     """The span choice could not meet rtol even with the richest rung: exit 1 after the results are written."""
     if job.ladder is None or job.ladder.met:
         return
-    from .errors import SolverError
+    from beltdyn.errors import SolverError
 
     raise SolverError(f"the span models do NOT meet rtol = {job.ladder.rtol:g} below {job.ladder.fmax:g} Hz: largest "
                       f"estimated relative error {job.ladder.estimate:.2e} with the finest meshes tried; the results "
@@ -550,7 +551,7 @@ def modal(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
             return
         chosen = _choose_spans(job, fmax, rtol, command="modal")
         if chosen is not None:  # the choice solved the chosen drive already
-            from .export import geometry_group
+            from beltdyn.results.export import geometry_group
 
             job.add(geometry_group(job.layout))
             _add_results(job, chosen)
@@ -591,11 +592,11 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
         job = _Job(config, output, sets, force)
         cfg = job.cfg
         if cfg.transient is None:
-            from .errors import ConfigError
+            from beltdyn.errors import ConfigError
 
             raise ConfigError("no [transient] table: add one (duration, step, excitations)", file=cfg.source,
                               key="transient")
-        from .timestep import resolve_step
+        from beltdyn.analysis.timestep import resolve_step
 
         resolved, origin = resolve_step(cfg.transient, manual=step)
         if resolved.step != cfg.transient.step:  # the chosen step goes into the resolved configuration
@@ -623,14 +624,14 @@ def response(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Op
         job = _Job(config, output, set_, force)
         cfg = job.cfg
         if cfg.response is None:
-            from .errors import ConfigError
+            from beltdyn.errors import ConfigError
 
             raise ConfigError("no [response] table: add one (speed range, orders, [[response.excitation]])",
                               file=cfg.source, key="response")
         run = _static_pipeline(job, modal=False)
-        from .errors import SolverError
-        from .export import response_group
-        from .response import response_of
+        from beltdyn.errors import SolverError
+        from beltdyn.results.export import response_group
+        from beltdyn.pipeline import response_of
 
         try:
             res = response_of(cfg, run)
@@ -680,14 +681,14 @@ def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5).
     histories and spectra, forced response (needs the plot extra: pip install 'beltdyn[plot]')."""
 
     def body() -> None:
-        from .errors import ConfigError, OutputError
+        from beltdyn.errors import ConfigError, OutputError
 
         try:
             import matplotlib  # noqa: F401
         except ImportError:
             raise ConfigError("matplotlib is not installed: pip install 'beltdyn[plot]'", file=str(result),
                               key="plot") from None
-        from . import plot as P
+        from beltdyn import plot as P
 
         if what is not None and what not in P.KINDS:
             raise ConfigError(f"unknown figure {what!r}; one of {', '.join(P.KINDS)}", file=str(result), key="WHAT")
@@ -726,7 +727,7 @@ def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5).
 
 def _announce_cost(cfg, transient=None) -> None:
     """Before any work: a run estimated to take long says so, with its DOFs and steps (`guards`)."""
-    from .guards import cost_note, estimate_cost
+    from beltdyn.analysis.guards import cost_note, estimate_cost
 
     note = cost_note(estimate_cost(cfg, transient))
     if note:
@@ -735,15 +736,15 @@ def _announce_cost(cfg, transient=None) -> None:
 
 def _check_output_volume(job: "_Job", force_large: bool) -> None:
     """Before any work: histories above transient.max_output_mb need --force-large (exit 2)."""
-    from .system import DeferredSystem, build_system
-    from .transient import output_volume
+    from beltdyn.model.system import DeferredSystem, build_system
+    from beltdyn.analysis.transient import output_volume
 
     opts = job.cfg.transient
     # the DOF map and the pulleys' components answer it without a belt built (anything else would build)
     facts = DeferredSystem(job.cfg, job.layout, build=lambda lay: build_system(job.cfg, lay))
     n_samples, volume = output_volume(facts, opts)
     if volume > opts.max_output_mb * 1e6 and not force_large:
-        from .errors import ConfigError
+        from beltdyn.errors import ConfigError
 
         raise ConfigError(f"the histories would take {volume / 1e6:.4g} MB ({n_samples:,} samples every "
                           f"{opts.output_interval:g} s over {opts.duration:g} s), above transient.max_output_mb = "
@@ -762,8 +763,9 @@ def _warm_kernels(con) -> None:
     left a half-written cache entry). Cached kernels are loaded as the run first calls them."""
     import signal
 
-    from . import jitcache
-    from .transient import entry_kernels, warm_up
+    from beltdyn import jitcache
+    from beltdyn.analysis.transient import entry_kernels
+    from beltdyn.pipeline import warm_up
 
     if jitcache.is_warm(*entry_kernels()):
         return  # in numba's cache: loaded as the run first calls them (~0.2 s)
@@ -783,7 +785,7 @@ def _warm_kernels(con) -> None:
         for sig, handler in olds.items():
             signal.signal(sig, handler)
     if signal.SIGTERM in got:
-        from .errors import Terminated
+        from beltdyn.errors import Terminated
 
         raise Terminated()
     if got:
@@ -793,16 +795,16 @@ def _warm_kernels(con) -> None:
 def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
     import numpy as np
 
-    from .results_io import GroupData, StreamWriter, Variable
-    from .transient import prepare, run_transient
+    from beltdyn.results.io import GroupData, StreamWriter, Variable
+    from beltdyn.analysis.transient import prepare, run_transient
 
     cfg = job.cfg
     opts = cfg.transient
-    from .pipeline import transient_start
+    from beltdyn.pipeline import transient_start
 
     (model, res), mres = transient_start(run), run.modal
     if mres is not None and model.belt_speed != run.system.belt_speed:  # the peaks against the modes at the start speed
-        from .modal import solve_modes
+        from beltdyn.analysis.modal import solve_modes
 
         mres = solve_modes(model, res.q, n_modes=len(mres.frequency), solver=cfg.modal.solver)
     setup = prepare(model, res, opts)
@@ -814,7 +816,7 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
     series = {s.name: (tuple(shapes[d] for d in s.dims), s.units, s.dims) for s in setup.series}
     keep = {s.name for s in setup.series if s.name in SPECTRUM_SERIES} if opts.spectrum.enabled else set()
     con = _console()
-    from .timestep import describe, frequency_error
+    from beltdyn.analysis.timestep import describe, frequency_error
 
     step_text, band, band_acc = describe(opts.step, accuracy=opts.accuracy, fmax=opts.fmax, rho_inf=opts.rho_inf)
     attrs = {"rho_inf": opts.rho_inf, "step_s": opts.step, "duration_s": opts.duration,
@@ -827,7 +829,7 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
                       config_toml=job.toml, config_sha256=job.sha, force=True) as writer:
         _notes(writer.notes)
         if "dof" in setup.coords:  # full state recorded: the unit of each DOF beside q and v
-            from .export import dof_unit_variable
+            from beltdyn.results.export import dof_unit_variable
 
             writer.add_variables((dof_unit_variable(model),))
 
@@ -889,8 +891,8 @@ def _progress_bar(con, duration: float):
 
 
 def _spectra(writer, setup, t, kept, mres, opts):
-    from .results_io import GroupData, Variable
-    from .spectrum import amplitude_spectrum, find_peaks
+    from beltdyn.results.io import GroupData, Variable
+    from beltdyn.analysis.spectrum import amplitude_spectrum, find_peaks
 
     variables, peaks, freq = [], [], None
     modal_f = mres.frequency if mres is not None else None
@@ -939,7 +941,7 @@ def store_peaks(writer, peaks, f_exc=None) -> None:
     Called by `_spectra`, so `_run_transient` needs no change."""
     import numpy as np
 
-    from .results_io import GroupData, Variable
+    from beltdyn.results.io import GroupData, Variable
 
     rows = _shown_peaks(peaks)
     if not rows:
@@ -981,7 +983,7 @@ def _channel_labels(series, coords) -> list[str]:
 def _step_warnings(opts, setup, mres) -> tuple[str, ...]:
     """The step against the excitation and the highest mode the run is meant to resolve:
     transient.fmax if given, else the highest of the modes computed for the spectra (modal.modes)."""
-    from .timestep import step_warnings
+    from beltdyn.analysis.timestep import step_warnings
 
     f_mode, source = None, ""
     if opts.fmax is not None:
@@ -1040,14 +1042,14 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
     """A grid (or zip) of cases in parallel, modes tracked across the grid by MAC."""
 
     def body() -> None:
-        from .sweep import Journal, assemble, available_cores, make_spec
+        from beltdyn.study.sweep import Journal, assemble, available_cores, make_spec
 
         job = _Job(config, output, set_, force)
         cfg = job.cfg
         params = []
         for item in param or []:
             if "=" not in item:
-                from .errors import ConfigError
+                from beltdyn.errors import ConfigError
 
                 raise ConfigError("expected KEY=SPEC", file=cfg.source, key=f"--param {item}")
             k, v = item.split("=", 1)
@@ -1056,7 +1058,7 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
         kind = analysis
         if cfg.sweep is not None and cfg.sweep.params:
             if params:
-                from .errors import ConfigError
+                from beltdyn.errors import ConfigError
 
                 raise ConfigError("give the parameters either in [sweep.params] ("
                                   + ", ".join(k for k, _ in cfg.sweep.params) + ") or with --param ("
@@ -1076,7 +1078,7 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
             assembly = _sweep_cases(con, cfg, spec, journal, resume=resume, workers=workers, scheduler=scheduler,
                                     force=force)
             result = assemble(spec, journal, assembly)
-            from .export import sweep_group
+            from beltdyn.results.export import sweep_group
 
             job.add(sweep_group(cfg, result))
             job.write()
@@ -1084,7 +1086,7 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
         _print_sweep(con, result)
         _print_campbell(con, cfg, result)
         if result.failed.all():
-            from .errors import SolverError
+            from beltdyn.errors import SolverError
 
             raise SolverError(f"all {spec.n_cases} cases failed (first: {result.errors[0]})", analysis="sweep")
         con.print(f"wrote [bold]/sweep[/] ({spec.n_cases} cases, {int(result.failed.sum())} failed) to {job.output}")
@@ -1097,8 +1099,8 @@ def _sweep_cases(con, cfg, spec, journal, *, resume, workers, scheduler, force):
     what is journaled."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
-    from .errors import Terminated
-    from .sweep import run_sweep
+    from beltdyn.errors import Terminated
+    from beltdyn.study.sweep import run_sweep
 
     bar = Progress(TextColumn("sweep"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(), console=con,
                    disable=not con.is_terminal, transient=True)
@@ -1124,7 +1126,7 @@ def _print_sweep(con, result) -> None:
     import numpy as np
     from rich.table import Table
 
-    from .sweep import richardson
+    from beltdyn.study.sweep import richardson
 
     spec = result.spec
     keys = [p.key for p in spec.params]
@@ -1180,7 +1182,7 @@ def _print_campbell(con, cfg, result) -> None:
     speeds (`running.campbell`)."""
     from rich.table import Table
 
-    from .running import campbell, speed_axis
+    from beltdyn.analysis.running import campbell, speed_axis
 
     if not speed_axis(result):
         return
@@ -1210,7 +1212,7 @@ def paper(outdir: Path = typer.Option(Path("results/paper"), "--outdir", help="F
     """Reproduce the paper's Tables 1 and 2: ours beside the paper's values."""
 
     def body() -> None:
-        from .paper import CASES, compare, markdown_table
+        from beltdyn.study.paper import CASES, compare, markdown_table
 
         rows = []
         for case in CASES:
@@ -1287,7 +1289,7 @@ def _print_static(layout, model, res) -> None:
     cols += ["tight (N)", "slack (N)", "mu required", "slip margin"] if slip else []
     for col in cols:
         h.add_column(col, justify="right" if col != "pulley" else "left")
-    from .slip import pulley_tensions
+    from beltdyn.model.slip import pulley_tensions
 
     t_in, t_out = pulley_tensions(res.span_tension)
     for j, name in enumerate(layout.names):
@@ -1317,7 +1319,7 @@ def _print_static(layout, model, res) -> None:
     else:
         moved = f"adjustable pulley offset {res.adjust_offset * 1e3:.4f} mm"
     con.print(f"mean span tension {res.mean_tension:.6f} N; driver torque {res.driver_torque:.4g} N m; {moved}")
-    from .export import static_warnings
+    from beltdyn.results.export import static_warnings
 
     for w in static_warnings(model, res):
         con.print(f"[bold yellow]warning:[/] {w}")

@@ -28,7 +28,7 @@ from dataclasses import MISSING, Field, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, NamedTuple
 
-from .errors import ConfigError
+from beltdyn.errors import ConfigError
 
 DEFAULT_STEP = 1e-4  # s: transient.step when neither it nor transient.accuracy and fmax are given
 
@@ -37,7 +37,7 @@ SUPPORTS = ("fixed", "slide", "bearing", "arm")
 TENSION_MODES = ("adjust", "prestrain", "spring")
 CURVATURES = ("linear", "exact", "none")
 SPAN_MODELS = ("ancf", "string", "spring")  # the fidelity ladder of one span, richest first
-MAX_GAUSS_POINTS = 64  # beltdyn.ancf's quadrature table (not imported: it would load numba at start-up)
+MAX_GAUSS_POINTS = 64  # beltdyn.model.ancf's quadrature table (not imported: it would load numba at start-up)
 
 
 # ------------------------------------------------------------------------------- the value kinds
@@ -691,7 +691,7 @@ class TransientOptions:
     numerical damping); start "static" (equilibrium) or "rest" (the stress-free reference state).
     accuracy and fmax (given together or not at all): the time step must resolve frequencies up to
     fmax with a relative frequency error |e| <= accuracy, e the exact generalized-alpha error of a
-    free oscillation (beltdyn.timestep; about -c(rho_inf) (2 pi f step)^2, c = 0.084 at rho_inf = 0.9).
+    free oscillation (beltdyn.analysis.timestep; about -c(rho_inf) (2 pi f step)^2, c = 0.084 at rho_inf = 0.9).
     The step a run uses (`timestep.resolve_step`, called by the CLI, the sweeps and
     `pipeline.transient`):
       - `--step` on the command line: that step (a warning in /transient `warnings` if it misses the
@@ -740,7 +740,7 @@ class TransientOptions:
 @dataclass(frozen=True, kw_only=True)
 class RunningOptions:
     """[running]: the belt running at a constant speed (static, modal and the transient's start; see
-    `beltdyn.running`). One of belt_speed (m/s: undeformed belt length per second, the mass flow over
+    `beltdyn.analysis.running`). One of belt_speed (m/s: undeformed belt length per second, the mass flow over
     rho; positive along the belt's direction of travel A -> B -> ...) or driver_speed (rad/s of the
     driver pulley, counter-clockwise; belt speed = omega R_driver with the sign of the travel); none:
     at rest. orders: engine orders whose lines a speed sweep crosses with the modes (the Campbell

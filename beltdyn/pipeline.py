@@ -22,14 +22,17 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from .config import DriveConfig
-from .errors import SolverError
-from .geometry import Layout, layout_from_config
+import numpy as np
+
+from beltdyn.config import DriveConfig
+from beltdyn.errors import SolverError
+from beltdyn.model.geometry import Layout, layout_from_config
 
 if TYPE_CHECKING:
-    from .modal import ModalResult
-    from .static import StaticResult
-    from .system import System
+    from beltdyn.analysis.response import ResponseResult
+    from beltdyn.analysis.modal import ModalResult
+    from beltdyn.analysis.static import StaticResult
+    from beltdyn.model.system import System
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -55,8 +58,8 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
     compiled: belt forces by the compiled kernel, for a process that evaluates them many times (a
     sweep, a transient follows); the numpy reference otherwise, which spares numba's ~0.3 s start-up
     (the two agree to 1e-12, tests/test_belt_kernel.py)."""
-    from .static import solve_static_on_solved_geometry
-    from .system import DeferredSystem, build_system, check_model_size, drive_facts
+    from beltdyn.analysis.static import solve_static_on_solved_geometry
+    from beltdyn.model.system import DeferredSystem, build_system, check_model_size, drive_facts
 
     def build(lay: Layout, stretch=None, spring_free=None) -> "System":
         system = build_system(cfg, lay, prestrain_stretch=stretch, spring_free=spring_free, belt_speed=belt_speed,
@@ -81,7 +84,7 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
         solved = solve_static_on_solved_geometry(initial, build, cfg.static)
         if not modal:
             return reached()
-        from .modal import solve_modes
+        from beltdyn.analysis.modal import solve_modes
 
         return reached(solve_modes(solved.system, solved.static.q, n_modes=n_modes or cfg.modal.modes,
                                    solver=cfg.modal.solver, tangent=solved.tangent))
@@ -101,7 +104,7 @@ def initial_belt_speed(system: "System", opts) -> float:
         if r.speed != 0.0:
             if r.ramp_time > 0.0:
                 return 0.0
-            from .transient import belt_travel
+            from beltdyn.analysis.transient import belt_travel
 
             return float(r.speed / belt_travel(system)[system.rot_dof[system.pulley_index(r.pulley)]])
     return float(system.belt_speed)
@@ -117,8 +120,8 @@ def transient_start(run: Analysis):
     speed = initial_belt_speed(run.system, cfg.transient) if cfg.transient is not None else run.system.belt_speed
     if cfg.transient is not None and cfg.transient.start == "rest" and run.fit_layout is not None \
             and run.fit_layout is not run.layout:
-        from .static import solve_static
-        from .system import build_system
+        from beltdyn.analysis.static import solve_static
+        from beltdyn.model.system import build_system
 
         system = build_system(cfg, run.fit_layout, belt_speed=speed)
         return system, solve_static(system, cfg.static)
@@ -131,10 +134,58 @@ def transient_start(run: Analysis):
 def transient(run: Analysis, *, sink, progress=None, status=None):
     """The transient analysis from a static result (see `transient.run_transient`), with the step
     resolved from the configuration (`timestep.resolve_step`: transient.accuracy and fmax, or step)."""
-    from .timestep import resolve_step
-    from .transient import run_transient
+    from beltdyn.analysis.timestep import resolve_step
+    from beltdyn.analysis.transient import run_transient
 
     assert run.system is not None and run.static is not None and run.config.transient is not None
     opts, _ = resolve_step(run.config.transient)
     system, static = transient_start(run)
     return run_transient(system, static, opts, sink=sink, progress=progress, status=status)
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) every kernel a transient runs, with the signatures it
+    runs them with: a few steps of a small drive (slide, backside arm with friction, belt and Rayleigh
+    damping, a prescribed rotation and a load, gravity) through `run_transient` (the band Cholesky
+    and band LU factors share one signature: both column-major). `make` calls it at install; the CLI
+    before a transient's output is opened."""
+    from beltdyn.analysis.transient import WARM_DRIVE, run_transient
+    from beltdyn.config import config_from_dict
+
+    cfg = config_from_dict(WARM_DRIVE, file="<warm-up drive>")
+    run = analyse(cfg, compiled=True)
+    run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)
+
+
+def response_of(cfg: DriveConfig, run: Analysis) -> "ResponseResult":
+    """The response of an analysed drive (`pipeline.analyse`) to cfg.response: with response.transport
+    (default) linearized at each speed about the running equilibrium at the belt speed
+    speed x R_driver (one static solve per speed, warm from the L0 fit), else once about `run`."""
+    from dataclasses import replace
+
+    from beltdyn.analysis.response import solve_response, speeds_of
+    from beltdyn.model.geometry import travel_sense
+
+    opts = cfg.response
+    assert opts is not None
+    d = opts.damping
+
+    def damped(system: "System") -> "System":
+        return system.with_belt_damping(d.belt_axial, d.belt_bending) if (d.belt_axial or d.belt_bending) else system
+
+    if not opts.transport:
+        return solve_response(damped(run.system), run.static, opts)
+
+    lay = run.fit_layout if run.fit_layout is not None else run.layout
+    driver = cfg.driver_index
+    per_metre = float(lay.radius[driver]) * travel_sense(lay, driver)
+    parts = []
+    for omega in speeds_of(opts):
+        at = analyse(cfg, belt_speed=float(omega) * per_metre, layout=lay)
+        parts.append(solve_response(damped(at.system), at.static, opts, np.array([omega])))
+    first = parts[0]
+    outputs = {k: np.concatenate([p.outputs[k] for p in parts]) for k in first.outputs}
+    warnings = tuple(dict.fromkeys(w for p in parts for w in p.warnings))
+    return replace(first, speed=np.concatenate([p.speed for p in parts]),
+                   frequency=np.concatenate([p.frequency for p in parts]),
+                   belt_speed=np.concatenate([p.belt_speed for p in parts]), outputs=outputs, warnings=warnings)

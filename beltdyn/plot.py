@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import OutputError
+from beltdyn.errors import OutputError
 
 KINDS = ("layout", "modes", "sweep", "transient", "response")
 OKABE_ITO = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#F0E442", "#000000")
@@ -64,7 +64,7 @@ def read_results(path: Path) -> Results:
     file)."""
     import h5py
 
-    from .results_io import read_group, read_root_attrs
+    from beltdyn.results.io import read_group, read_root_attrs
 
     path = Path(path)
     if not path.exists():

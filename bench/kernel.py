@@ -31,8 +31,8 @@ import time  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from beltdyn import ancf  # noqa: E402
-from beltdyn import belt_kernel as bk  # noqa: E402
+from beltdyn.model import ancf  # noqa: E402
+from beltdyn.model import belt_kernel as bk  # noqa: E402
 
 L_EL, EA, EI, RHO = 0.067, 1.2e5, 0.02, 0.119
 

@@ -70,9 +70,9 @@ def pipeline(cfg):
 
 def compiled_pipeline(cfg):
     """Static + modal with the belt forces of the compiled kernel (what the transient uses)."""
-    from beltdyn.modal import solve_modes
-    from beltdyn.static import solve_static
-    from beltdyn.system import build_system
+    from beltdyn.analysis.modal import solve_modes
+    from beltdyn.analysis.static import solve_static
+    from beltdyn.model.system import build_system
 
     system = build_system(cfg).with_belt(compiled=True)
     st = solve_static(system, cfg.static)
@@ -92,7 +92,7 @@ def step_study() -> list[tuple[str, ...]]:
     import numpy as np
 
     from beltdyn.config import load_config
-    from beltdyn.transient import run_transient
+    from beltdyn.analysis.transient import run_transient
 
     small = ROOT / "configs" / "examples" / "bench_transient_small.toml"
 
@@ -123,7 +123,7 @@ def add_group_next_to_large_transient() -> float:
     of 131072 rows x 1024 floats (1.07 GB), in process; the transient is written once beforehand."""
     import numpy as np
 
-    from beltdyn.results_io import GroupData, StreamWriter, Variable, write_group
+    from beltdyn.results.io import GroupData, StreamWriter, Variable, write_group
 
     sha, toml = "b" * 64, "bench = true\n"
     modal = GroupData(name="modal", coords={"mode": np.arange(1, 21)},
@@ -189,7 +189,7 @@ def main() -> None:
     t = median_time(lambda: pipeline(cfg), repeats=10)
     add(f"FEAD example static + modal ({model.n_dof} DOFs, {len(modes.frequency)} modes, re-laid solved geometry)",
         f"{t * 1e3:.1f} ms", "<= 15 ms", t <= 15e-3)
-    from beltdyn.transient import run_transient as _rt
+    from beltdyn.analysis.transient import run_transient as _rt
 
     model, st = static_of(cfg)
     _rt(model, st, cfg.transient, sink=lambda t, b: None)
@@ -207,7 +207,7 @@ def main() -> None:
     _rt(model, st, spring.transient, sink=lambda t, b: None)
     t = median_time(lambda: _rt(model, st, spring.transient, sink=lambda t, b: None), repeats=5, warmup=0)
     add(f"all-spring FEAD transient 1 s at dt = 1e-4 s ({model.n_dof} DOFs)", f"{t:.3f} s", "<= 0.05 s", t <= 0.05)
-    from beltdyn.ladder import choose_models
+    from beltdyn.study.fidelity import choose_models
 
     choice, run = choose_models(cfg, fmax=300.0, rtol=5e-3)
     n_modes = len(run.modal.frequency)
@@ -221,7 +221,7 @@ def main() -> None:
     import tomllib
 
     from beltdyn.config import config_from_dict
-    from beltdyn.response import response_of
+    from beltdyn.pipeline import response_of
 
     raw = tomllib.loads(PAPER.read_text())
     raw["response"] = {"speed": [20.0, 600.0], "points": 100, "orders": [1.0, 2.0, 4.0],
@@ -283,7 +283,7 @@ def main() -> None:
         f"{peaks[2000]:.0f} / {peaks[8000]:.0f} MB -> {at:.0f} MB", "<= 500 MB at 100 000", at <= 500)
 
     # --- transient (issue 4): 1 s simulated at dt = 1e-4 s, in process after the numba warm-up
-    from beltdyn.transient import run_transient
+    from beltdyn.analysis.transient import run_transient
 
     for n_el, target in ((10, 0.4), (40, 1.5)):
         cfg = load_config(small, [f"mesh.elements_per_span={n_el}", "transient.duration=1.0", "transient.step=1e-4",

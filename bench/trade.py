@@ -4,7 +4,7 @@ Knobs a user turns: the mesh (elements per span), the model fidelity (bending on
 curvature "linear" or "none"; the fidelity ladder of the spans: spring, string, ANCF, chosen span by
 span), and the transient time step. For each: the error against a converged
 reference and the wall time; for the step also its frequency error against f dt, measured on the bench's
-modes beside the formula of beltdyn.timestep. Usage: python bench/trade.py README.md
+modes beside the formula of beltdyn.analysis.timestep. Usage: python bench/trade.py README.md
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def keyed(md):
 
 def mesh_table(n_modes: int = 12) -> list[str]:
     from beltdyn.config import load_config
-    from beltdyn.sweep import richardson
+    from beltdyn.study.sweep import richardson
 
     base = load_config(PAPER / "bench_T200.toml")
     ref = modal_run(load_config(PAPER / "bench_T200.toml", ["mesh.elements_per_span=320"]), n_modes + 8)
@@ -115,13 +115,13 @@ def step_table() -> list[str]:
 def frequency_table(rho_inf: float = 0.9) -> list[str]:
     """The step's frequency error: measured on the paper bench's own modes through the nonlinear
     production transient (free vibration along one mode, tests/test_timestep.bench_mode_errors) beside
-    the exact formula of beltdyn.timestep and its series."""
+    the exact formula of beltdyn.analysis.timestep and its series."""
     import math
 
     sys.path.insert(0, str(ROOT / "tests"))
     from test_timestep import bench_mode_errors
 
-    from beltdyn.timestep import frequency_error, resolved_band, series_coefficient
+    from beltdyn.analysis.timestep import frequency_error, resolved_band, series_coefficient
 
     c = series_coefficient(rho_inf)
     rows = []
@@ -131,7 +131,7 @@ def frequency_table(rho_inf: float = 0.9) -> list[str]:
     lines = ["", f"Transient frequency error e = f_numerical / f - 1 against f dt (generalized-alpha, rho_inf = "
              f"{rho_inf}): measured on the paper bench's modes (free vibration along one mode through the "
              f"nonlinear transient, the phase advance per step of the modal coordinate) beside the exact formula "
-             f"of beltdyn.timestep and its series -{c:.4f} (2 pi f dt)^2 (transient.accuracy and transient.fmax "
+             f"of beltdyn.analysis.timestep and its series -{c:.4f} (2 pi f dt)^2 (transient.accuracy and transient.fmax "
              f"choose the step from it). At dt = 1e-4 s: {e190:+.3%} at 190 Hz, {e300:+.3%} at 300 Hz, "
              f"|e| <= 1e-3 up to {resolved_band(1e-4, 1e-3, rho_inf):.0f} Hz.", "",
              "| f dt | mode | dt (s) | measured | formula | series |", "|---:|---:|---:|---:|---:|---:|"]
@@ -172,9 +172,9 @@ def ladder_table(rtol: float = 5e-3, duration: float = 0.2) -> list[str]:
     worst error of the modes below fmax against 64 el/span ANCF, static + modal wall, transient wall per
     simulated second (dt = 1e-4 s, `duration` s simulated)."""
     from beltdyn.config import load_config
-    from beltdyn.ladder import choose_models
+    from beltdyn.study.fidelity import choose_models
     from beltdyn.pipeline import analyse
-    from beltdyn.transient import run_transient
+    from beltdyn.analysis.transient import run_transient
 
     lines = []
     for title, path, fmax in LADDER_CASES:

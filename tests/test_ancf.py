@@ -1,4 +1,4 @@
-"""Tests of the planar ANCF beam element (beltdyn.ancf).
+"""Tests of the planar ANCF beam element (beltdyn.model.ancf).
 
 Every numerical test states what it compares against and with which tolerance.
 """
@@ -10,8 +10,8 @@ import pytest
 from scipy.integrate import quad, solve_ivp
 from scipy.optimize import brentq
 
-from beltdyn import ancf
-from beltdyn.ancf import (
+from beltdyn.model import ancf
+from beltdyn.model.ancf import (
     CURVATURE_MODELS,
     axial_force,
     axial_force_gradient,

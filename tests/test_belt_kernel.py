@@ -1,4 +1,4 @@
-"""Tests of the compiled belt kernel (beltdyn.belt_kernel) against the numpy reference `ancf`.
+"""Tests of the compiled belt kernel (beltdyn.model.belt_kernel) against the numpy reference `ancf`.
 
 Every numerical test states what it compares against and with which tolerance.  Relative errors
 are per element: norm of the difference / norm of the reference (Frobenius over the trailing axes),
@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from beltdyn import ancf
-from beltdyn import belt_kernel as bk
+from beltdyn.model import ancf
+from beltdyn.model import belt_kernel as bk
 
 CURVATURES = ("none", "linear", "exact")
 N_GAUSS = (3, 5)

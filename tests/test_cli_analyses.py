@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from beltdyn.results_io import read_group
+from beltdyn.results.io import read_group
 from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -49,7 +49,7 @@ def test_solver_failure_exit_1_and_failed_group(tmp_path):
     # A slack belt without bending stiffness is a mechanism: exit 1, a one-line message naming the
     # analysis and a DOF, /modal marked failed (no frequencies), /geometry and /static complete.
     from beltdyn.config import load_config
-    from beltdyn.geometry import layout_from_config
+    from beltdyn.model.geometry import layout_from_config
 
     cfg = load_config(ROOT / "configs/smoke/two_pulley.toml", ["pulleys[0].adjustable=false"])
     length = layout_from_config(cfg).belt_length

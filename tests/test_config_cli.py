@@ -25,8 +25,8 @@ from hypothesis import strategies as st
 import beltdyn
 from beltdyn.config import config_from_dict, config_hash, load_config, resolved_toml, with_overrides
 from beltdyn.errors import ConfigError
-from beltdyn.geometry import layout_from_config
-from beltdyn.results_io import read_root_attrs
+from beltdyn.model.geometry import layout_from_config
+from beltdyn.results.io import read_root_attrs
 from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -576,9 +576,9 @@ def test_pulley_name_white_space_cli(tmp_path):
 
 
 def test_gauss_points_bound_is_the_quadrature_table():
-    # Checks: model.gauss_points is bounded by what beltdyn.ancf can integrate (it used to pass the
+    # Checks: model.gauss_points is bounded by what beltdyn.model.ancf can integrate (it used to pass the
     # config and fail later with a ValueError traceback), with the key path in the message.
-    from beltdyn import ancf
+    from beltdyn.model import ancf
     from beltdyn.config import MAX_GAUSS_POINTS
 
     assert MAX_GAUSS_POINTS == ancf._MAX_GAUSS

@@ -10,10 +10,11 @@ import pytest
 
 from beltdyn.config import config_from_dict, load_config
 from beltdyn.errors import SolverError
-from beltdyn.modal import solve_modes
-from beltdyn.paper import CASES, compare
-from beltdyn.static import solve_static
-from beltdyn.system import build_system, stretch_for_tension
+from beltdyn.analysis.modal import solve_modes
+from beltdyn.study.paper import CASES, compare
+from beltdyn.analysis.static import solve_static
+from beltdyn.model.barlaw import stretch_for_tension
+from beltdyn.model.system import build_system
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
@@ -124,7 +125,7 @@ def test_symmetric_shift_invert_against_dense_lapack():
     from scipy.sparse import csr_matrix
     from scipy.sparse.linalg import splu
 
-    from beltdyn.modal import _symmetric_shift_invert
+    from beltdyn.analysis.modal import _symmetric_shift_invert
 
     _, model, st, _ = run(CONFIGS / "paper" / "bench_T200.toml", ["mesh.elements_per_span=30"], n_modes=4)
     _, K = model.equilibrium(st.q)
@@ -278,7 +279,7 @@ def test_slack_free_belt_fails_clearly():
     # state is the stress-free one, and the modal analysis must fail with a SolverError naming the
     # analysis and a span DOF (not zero frequencies or NaN).
     from beltdyn.config import config_to_dict
-    from beltdyn.geometry import layout_from_config
+    from beltdyn.model.geometry import layout_from_config
 
     raw = config_to_dict(load_config(CONFIGS / "paper" / "bench_T200.toml"))
     raw["pulleys"][0]["adjustable"] = False
@@ -305,7 +306,7 @@ def test_zero_modes_split_at_the_gap(w, zeros):
     # Candidates |w| <= tol (here 2.1e5 1/s^2, 1000 eps lam_max of the FEAD example at 640 el/span) are
     # zero below the first gap of more than 1e3 between consecutive |w|; positive ones above it are
     # true modes that the round-off bound reached. The cases use the measured magnitudes.
-    from beltdyn.modal import zero_modes
+    from beltdyn.analysis.modal import zero_modes
 
     assert zero_modes(np.array(w), 2.1e5).tolist() == zeros
 
@@ -316,7 +317,7 @@ def test_slack_string_is_a_mechanism_on_any_mesh(elements):
     # out at up to 200 eps lam_max (negative) at 160 el/span; they stay one cluster of zeros there
     # (a tolerance of 100 eps lam_max called them an unstable equilibrium).
     from beltdyn.config import config_to_dict
-    from beltdyn.geometry import layout_from_config
+    from beltdyn.model.geometry import layout_from_config
 
     raw = config_to_dict(load_config(CONFIGS / "paper" / "bench_T200.toml", [f"mesh.elements_per_span={elements}"]))
     raw["pulleys"][0]["adjustable"] = False
@@ -412,7 +413,7 @@ def test_vectorized_half_waves_count_as_the_definition(seed):
     # The classification counts half-waves of all of a span's transverse modes at once
     # (`half_waves_real`); reference: the definition, row by row (sign changes between the samples
     # above 5 % of the row's largest, + 1), on sine shapes with noise, random rows and rows with zeros.
-    from beltdyn.modal import half_waves_real
+    from beltdyn.analysis.modal import half_waves_real
 
     rng = np.random.default_rng(seed)
     x = np.linspace(0.0, 1.0, 80)
@@ -437,7 +438,7 @@ def test_batched_envelope_half_waves_count_as_row_by_row(seed):
     # where the envelope rises above twice a dip below half the hump's top and above 5 % of its largest),
     # on standing waves sin(k pi x) e^(i theta), travelling waves e^(i k pi x) with a standing part, and
     # random rows; the standing sine of order k has k humps.
-    from beltdyn.modal import half_waves_envelope
+    from beltdyn.analysis.modal import half_waves_envelope
 
     rng = np.random.default_rng(seed)
     x = np.linspace(0.0, 1.0, 80)

@@ -149,9 +149,9 @@ def drives(draw) -> dict:
 
 
 def _path_length(pulleys: list[dict]) -> float:
-    """The length of the belt path around the drawn pulleys (beltdyn.geometry, idlers included); a
+    """The length of the belt path around the drawn pulleys (beltdyn.model.geometry, idlers included); a
     drawing with no valid path (it fails by name in the run) gets its hull's perimeter plus a turn."""
-    from beltdyn.geometry import GeometryError, compute_layout
+    from beltdyn.model.geometry import GeometryError, compute_layout
 
     c = np.array([p["center"] for p in pulleys], dtype=float)
     r = np.array([p["radius"] for p in pulleys])

@@ -11,7 +11,7 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from beltdyn.config import load_config
-from beltdyn.geometry import GeometryError, compute_layout, fit_adjustable, layout_from_config
+from beltdyn.model.geometry import GeometryError, compute_layout, fit_adjustable, layout_from_config
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 
@@ -186,7 +186,7 @@ def test_moving_pulley_path_equals_the_full_layout(config, data):
     # MovingPulley recomputes only pulley j's two spans and three wraps in floats: against the whole
     # layout laid anew (`relay`, unchecked) with pulley j moved up to 5 mm, angles, lengths and arcs
     # agree to 1e-12 (rad, m).
-    from beltdyn.geometry import MovingPulley, relay
+    from beltdyn.model.geometry import MovingPulley, relay
 
     lay = layout_from_config(load_config(CONFIGS / config))
     j = data.draw(st.integers(0, lay.n - 1))

@@ -13,7 +13,7 @@ import warnings
 import numpy as np
 import pytest
 
-from beltdyn.geometry import (TWO_PI, GeometryError, Layout, _check_apart, _check_path, _check_tangents,
+from beltdyn.model.geometry import (TWO_PI, GeometryError, Layout, _check_apart, _check_path, _check_tangents,
                               compute_layout, span_line)
 
 FIELDS = ("center", "radius", "side_sign", "span_start", "span_end", "span_length", "span_angle", "start_normal",

@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from beltdyn.config import load_config
-from beltdyn.guards import cost_note, estimate_cost
-from beltdyn.system import build_system, model_dofs
-from beltdyn.timestep import step_warnings
+from beltdyn.analysis.guards import cost_note, estimate_cost
+from beltdyn.model.system import build_system, model_dofs
+from beltdyn.analysis.timestep import step_warnings
 from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -100,7 +100,7 @@ def test_a_long_run_is_announced_before_any_work(tmp_path):
     # 2000 s at 1e-5 s: 2e8 steps, hours of work: announced with its step count before anything runs
     # (here the output-volume guard then refuses the histories, exit 2, before any analysis)
     cfg = load_config(SMALL)
-    from beltdyn.timestep import resolve_step
+    from beltdyn.analysis.timestep import resolve_step
 
     opts, _ = resolve_step(cfg.transient, manual=1e-5)
     est = estimate_cost(cfg, opts)

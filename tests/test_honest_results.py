@@ -53,7 +53,7 @@ def run_patched(patch: str, *args, cwd, debug=False) -> subprocess.CompletedProc
 
 # ----------------------------------------------------------------------------- 1. no traceback
 BOOM = """
-import beltdyn.geometry as g
+import beltdyn.model.geometry as g
 def boom(*a, **k):
     raise RuntimeError("boom\\nsecond line")
 g.layout_from_config = boom
@@ -84,7 +84,7 @@ def test_memory_error_is_one_line_suggesting_a_smaller_mesh(tmp_path):
         resource.setrlimit(resource.RLIMIT_AS, (900 << 20, 900 << 20))
 
     # a mesh that passes the size guard (below half the machine's memory) but not the 900 MiB limit
-    from beltdyn.system import BYTES_PER_DOF, memory_limit
+    from beltdyn.model.system import BYTES_PER_DOF, memory_limit
 
     n_e = min(100_000, int(0.4 * memory_limit() / BYTES_PER_DOF / 2 / 4))
     assert n_e * 8 * 4400 > 2 * (900 << 20)  # the measured ~4.4 kB per DOF: well above the limit
@@ -185,7 +185,7 @@ def test_sweep_workers_die_with_their_parent(tmp_path, sig):
     assert "Traceback" not in stderr
     assert "sweep terminated (SIGTERM)" in stderr and "continue with --resume" in stderr
     assert (journal / "spec.json").exists() and not (tmp_path / "k.h5").exists()
-    from beltdyn.sweep import Journal
+    from beltdyn.study.sweep import Journal
 
     kept = len(Journal(journal.parent / journal.name[: -len(".sweep")]).done())
     assert 1 <= kept < 200
@@ -197,7 +197,7 @@ def test_sweep_workers_die_with_their_parent(tmp_path, sig):
 def test_workers_beyond_the_cores_are_capped(tmp_path, monkeypatch):
     # --workers 64 on this machine: a note naming the core count, and the pool gets at most that
     # many processes (in-process check of what the pool is given).
-    from beltdyn import sweep as sw
+    from beltdyn.study import sweep as sw
 
     r = run("sweep", SMOKE, "--param", "tension.target=200,250,300,350", "--analysis", "static", "--workers", "64",
             "-o", "w.h5", cwd=tmp_path)
@@ -255,7 +255,7 @@ def test_every_sweep_value_is_validated_before_any_case_runs(tmp_path, enabled):
 def test_a_later_bad_value_of_a_grid_is_named(tmp_path):
     from beltdyn.config import load_config
     from beltdyn.errors import ConfigError
-    from beltdyn.sweep import make_spec
+    from beltdyn.study.sweep import make_spec
 
     with pytest.raises(ConfigError) as err:
         make_spec(load_config(BENCH), [("belt.EI", "0.02,1"), ("pulleys[1].radius", "0.1016,-0.1")],
@@ -269,7 +269,7 @@ def test_journal_writes_are_fsynced(tmp_path, monkeypatch):
     # cases.log and fsync'ed (the folder once, when the log is created).
     import stat
 
-    from beltdyn.sweep import Journal
+    from beltdyn.study.sweep import Journal
 
     synced = []
     real = os.fsync
@@ -316,7 +316,7 @@ def test_force_replaces_a_foreign_or_corrupt_output(tmp_path, kind):
     # Without --force: exit 2, the message says --force replaces it, the file untouched. With --force:
     # exit 0 and a beltdyn results file in its place.
     from beltdyn.config import config_hash, load_config
-    from beltdyn.results_io import read_root_attrs
+    from beltdyn.results.io import read_root_attrs
 
     out = tmp_path / "out.h5"
     if kind == "text":
@@ -358,7 +358,7 @@ def test_rtol_rerun_on_its_own_output_is_accepted(tmp_path):
     # (base_config_sha256): the same `modal --rtol` command on it again is accepted (exit 0, same
     # choice); a plain `static` of the given configuration is still refused (other mesh) unless --force.
     from beltdyn.config import config_hash, load_config
-    from beltdyn.results_io import read_root_attrs
+    from beltdyn.results.io import read_root_attrs
 
     args = ["modal", SMOKE, "--rtol", "1e-3", "--modes", "4", "-o", "r.h5"]
     first = run(*args, cwd=tmp_path)
@@ -441,7 +441,7 @@ def test_transient_full_state_carries_dof_units(tmp_path):
 
 
 def test_swept_parameters_carry_their_units(tmp_path):
-    from beltdyn.export import param_units
+    from beltdyn.results.export import param_units
 
     r = run("sweep", SMOKE, "--analysis", "static", "--param", "tension.target=200,300", "--param",
             "pulleys.A.radius=0.0375,0.04", "--param", "static.load_steps=1,2", "-o", "s.h5", cwd=tmp_path)
@@ -553,8 +553,8 @@ def test_output_volume_estimate_is_the_written_volume(tmp_path):
     # The estimate that guards --force-large counts every float64 value the histories will hold: it
     # equals the bytes of the time-dependent datasets actually written (exactly).
     from beltdyn.config import load_config
-    from beltdyn.system import build_system
-    from beltdyn.transient import output_volume
+    from beltdyn.model.system import build_system
+    from beltdyn.analysis.transient import output_volume
 
     sets = ["transient.duration=0.01", "transient.output_interval=1e-4", "transient.spectrum.enabled=false"]
     r = run("transient", TRANSIENT, "-o", "t.h5", *[a for s in sets for a in ("--set", s)], cwd=tmp_path, timeout=300)
@@ -603,7 +603,7 @@ def test_sigterm_during_the_kernel_compile_is_deferred(tmp_path):
     # (the static groups written before it stay, complete).
     patch = f"""
 import os, signal, time
-import beltdyn.transient as t
+import beltdyn.pipeline as t
 def slow_warm_up():
     os.kill(os.getpid(), signal.SIGTERM)
     time.sleep(0.2)
@@ -674,7 +674,7 @@ def test_a_span_close_to_slack_is_flagged():
     # would slacken it the static result says so (the span's smaller end tension below 10 % of the
     # mean); the unloaded bench has no such warning.
     from beltdyn.config import load_config
-    from beltdyn.export import static_warnings
+    from beltdyn.results.export import static_warnings
     from beltdyn.pipeline import analyse
 
     base = analyse(load_config(BENCH))

@@ -16,7 +16,8 @@ import pytest
 
 from beltdyn.config import config_from_dict, config_hash, load_config, resolved_toml
 from beltdyn.pipeline import analyse
-from beltdyn.system import build_system, stretch_for_tension
+from beltdyn.model.barlaw import stretch_for_tension
+from beltdyn.model.system import build_system
 from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -100,7 +101,7 @@ def test_spring_force_and_tangent_against_finite_differences():
 def test_spring_kernel_equals_numpy():
     """The compiled spring forces, damping and energy (`spring_kernel`) equal the numpy SpringSpans
     (1e-12 relative), and the energy's derivative is the force (central differences, 1e-7)."""
-    from beltdyn import spring_kernel as sk
+    from beltdyn.model import spring_kernel as sk
 
     cfg = load_config(FEAD, springs(*FEAD_SPANS))
     system = build_system(cfg).with_belt(damping_axial=3e-5)
@@ -156,7 +157,7 @@ def test_all_spring_rotational_mode_against_ancf_within_the_span_mass_effect():
     within what the span mass explains (the spring model with and without its lumped span mass
     bracket the ANCF frequency), and the first-order dynamic-stiffness estimate of `ladder.spring_errors`
     (the lumped mass misses a sixth of the span's inertia in stretching) predicts it within 5 % of itself."""
-    from beltdyn.ladder import spring_errors
+    from beltdyn.analysis.ladder import spring_errors
 
     run = analyse(load_config(BENCH, BENCH_SPRINGS), modal=True)
     f_s = rotational(run)
@@ -223,7 +224,7 @@ def test_string_and_ancf_span_converge_to_the_same_modes_as_EI_vanishes():
 def test_unrepresented_modes_are_the_spans_own_modes():
     """The modes a spring span leaves out (`ladder.unrepresented_modes`: the converged span pinned at
     its ends) against the ANCF drive's transverse modes of that span (40 el/span): within 0.1 %."""
-    from beltdyn.ladder import unrepresented_modes
+    from beltdyn.analysis.ladder import unrepresented_modes
 
     run = analyse(load_config(BENCH, springs("A-C")), modal=True)
     left = unrepresented_modes(run.system, run.static, 160.0)
@@ -238,7 +239,7 @@ def test_all_spring_transient_conserves_energy_and_starts_at_the_static_state():
     """All-spring FEAD transient without damping (rho_inf = 1, no arm friction, no damping): the energy
     balance error stays below 1e-4 of the energy moved, and the first span tensions equal the static
     ones (1e-9 relative)."""
-    from beltdyn.transient import run_transient
+    from beltdyn.analysis.transient import run_transient
 
     cfg = load_config(FEAD, springs(*FEAD_SPANS) + ["transient.rho_inf=1.0", "transient.duration=0.2", "transient.spectrum.enabled=false",
                                                     "pulleys[3].arm_friction=0.0", "pulleys[3].arm_damping=0.0"])
@@ -257,7 +258,7 @@ def test_mixed_transient_follows_the_ancf_transient(transport):
     the mean tension (the springs' missing transverse dynamics above 350 Hz and their lumped mass), in
     the travelling frame (transient.transport = false) and with the running belt's transport terms at
     the crank's 6 m/s (the spring spans' own, `SpringSpans`)."""
-    from beltdyn.transient import run_transient
+    from beltdyn.analysis.transient import run_transient
 
     def tensions(sets):
         cfg = load_config(FEAD, sets + ["transient.duration=0.3", "transient.spectrum.enabled=false",
@@ -283,7 +284,7 @@ def test_choice_meets_rtol_against_the_64_element_reference(path, fmax):
     """`choose_models(fmax, rtol = 5e-3)`: every mode below fmax of the chosen drive is within rtol of
     the all-ANCF drive at 64 el/span (the same count of modes below fmax), its estimate bounds the
     actual error, and the choice is cheaper than the reference."""
-    from beltdyn.ladder import choose_models
+    from beltdyn.study.fidelity import choose_models
 
     rtol = 5e-3
     cfg = load_config(path)
@@ -302,7 +303,7 @@ def test_fead_choice_puts_springs_where_no_span_mode_lies_in_the_band():
     """FEAD at 300 Hz: the spans whose own first mode lies below the band (CRK-AC 100 Hz, AC-ALT 129 Hz,
     WP-PS 168 Hz in the ANCF drive) are never springs; at 60 Hz every span is a spring (the
     rotational model)."""
-    from beltdyn.ladder import choose_models
+    from beltdyn.study.fidelity import choose_models
 
     cfg = load_config(FEAD)
     hi, _ = choose_models(cfg, fmax=300.0, rtol=5e-3)
@@ -315,7 +316,7 @@ def test_fead_choice_puts_springs_where_no_span_mode_lies_in_the_band():
 def test_a_band_the_cheapest_rung_cannot_meet_raises_the_rung():
     """The bench at 60 Hz: rtol 5e-3 takes strings; rtol 1e-5 raises the rung (ANCF, more elements);
     an rtol that 4 elements cannot meet is reported as not met, never returned as met."""
-    from beltdyn.ladder import choose_models
+    from beltdyn.study.fidelity import choose_models
 
     cfg = load_config(BENCH)
     loose, _ = choose_models(cfg, fmax=60.0, rtol=5e-3)

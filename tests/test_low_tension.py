@@ -19,8 +19,8 @@ import pytest
 from scipy.optimize import brentq, minimize_scalar
 
 from beltdyn.config import config_from_dict, load_config
-from beltdyn.static import solve_static_on_solved_geometry
-from beltdyn.system import build_system
+from beltdyn.analysis.static import solve_static_on_solved_geometry
+from beltdyn.model.system import build_system
 
 BENCH = Path(__file__).resolve().parents[1] / "configs" / "paper" / "bench_T200.toml"
 R = 0.05  # m, both pulleys: the spans are horizontal, at y = +-R

@@ -15,8 +15,8 @@ import tomli_w
 
 from beltdyn.config import load_config
 from beltdyn.pipeline import analyse
-from beltdyn.response import response_of
-from beltdyn.static import solve_static
+from beltdyn.pipeline import response_of
+from beltdyn.analysis.static import solve_static
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
@@ -62,8 +62,8 @@ def test_response_equals_the_transient_steady_state(tmp_path, omega, what, trans
     # 3 % damping). Rayleigh damping 20 M in both, so that the start has died out. With transport the
     # response is linearized about the running equilibrium at 7.5 / 12.6 m/s (gyroscopic and centripetal
     # terms, momentum flux in the hub loads) and the transient runs at that speed.
-    from beltdyn.timestep import resolve_step
-    from beltdyn.transient import run_transient
+    from beltdyn.analysis.timestep import resolve_step
+    from beltdyn.analysis.transient import run_transient
 
     cfg = load_config(_bench_with_response(tmp_path, omega=omega, order=1.0, B=0.01, alpha=20.0,
                                            transport=transport))
@@ -123,7 +123,7 @@ def _cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
 
 def test_cli_writes_the_response_group(tmp_path):
     # The command's /response equals the library's result; axes speed x order, amplitude and phase.
-    from beltdyn.results_io import read_group
+    from beltdyn.results.io import read_group
 
     path = _bench_with_response(tmp_path, omega=100.0, order=1.0, B=1.0, alpha=5.0)
     raw = tomllib.loads(path.read_text())

@@ -23,9 +23,9 @@ import h5py
 import numpy as np
 import pytest
 
-from beltdyn import results_write as rwrite
+from beltdyn.results import write as rwrite
 from beltdyn.errors import OutputError
-from beltdyn.results_io import (
+from beltdyn.results.io import (
     GroupData,
     StreamWriter,
     Variable,
@@ -34,7 +34,7 @@ from beltdyn.results_io import (
     recover,
     write_group,
 )
-from beltdyn.results_journal import JournalLayout, JournalWriter, read_journal
+from beltdyn.results.journal import JournalLayout, JournalWriter, read_journal
 
 import processes  # tests/processes.py
 from processes import BELTDYN
@@ -259,8 +259,8 @@ def test_readers_see_the_old_or_the_new_group_never_a_mix(tmp_path, monkeypatch)
     writer = subprocess.Popen([sys.executable, "-c", textwrap.dedent(f"""
         import sys
         sys.path.insert(0, {str(ROOT / 'tests')!r})
-        from beltdyn import results_write as rwrite
-        from beltdyn.results_io import write_group
+        from beltdyn.results import write as rwrite
+        from beltdyn.results.io import write_group
         from test_results_crash import big_group, TOML, SHA
         rwrite.INLINE_BYTES = 1024
         for k in range(1, 31):
@@ -311,8 +311,8 @@ def test_kill_9_at_each_stage_of_a_commit(tmp_path, monkeypatch, stage, fresh):
     code = textwrap.dedent(f"""
         import os, signal
         import numpy as np
-        from beltdyn import results_write as rwrite
-        from beltdyn.results_io import write_group, GroupData, Variable
+        from beltdyn.results import write as rwrite
+        from beltdyn.results.io import write_group, GroupData, Variable
         rwrite.INLINE_BYTES = 1024
         def die(*args, **kwargs):
             os.kill(os.getpid(), signal.SIGKILL)

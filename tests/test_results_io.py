@@ -1,4 +1,4 @@
-"""Tests of beltdyn.results_io: the HDF5 results contract (layout, xarray compatibility, atomicity)."""
+"""Tests of beltdyn.results.io: the HDF5 results contract (layout, xarray compatibility, atomicity)."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 import beltdyn
-from beltdyn import results_write as rwrite
+from beltdyn.results import write as rwrite
 from beltdyn.errors import OutputError
-from beltdyn.results_io import (
+from beltdyn.results.io import (
     GroupData,
     StreamWriter,
     Variable,
@@ -332,7 +332,7 @@ def test_base_config_hash_is_recorded_and_accepted(tmp_path):
     whose base is the given one (modal --rtol's re-run), and write_groups itself stays strict."""
     path = tmp_path / "results.h5"
     write_group(path, geometry_group(), config_toml=TOML, config_sha256=OTHER_SHA)
-    from beltdyn.results_io import write_groups
+    from beltdyn.results.io import write_groups
 
     write_groups(path, [geometry_group()], config_toml=TOML, config_sha256=OTHER_SHA, base_config_sha256=SHA)
     assert read_root_attrs(path)["base_config_sha256"] == SHA
@@ -500,7 +500,7 @@ def test_stream_writer_running_group_is_visible_and_readable_until_close(tmp_pat
     t = np.arange(50) * 0.1
     w.append(t, rows(t))
     assert w.journal_path.is_file() and w.journal_path.parent.name == "results.h5.parts"
-    code = ("import sys, os, h5py; from beltdyn.results_io import read_group, group_states\n"
+    code = ("import sys, os, h5py; from beltdyn.results.io import read_group, group_states\n"
             "f = h5py.File(sys.argv[1], 'r'); g = f['transient']\n"
             "assert g.attrs['status'] == 'running' and int(g.attrs['writer_pid']) == int(sys.argv[2])\n"
             "assert 'time' not in g and 'center' in f['geometry']\n"
@@ -560,8 +560,8 @@ def test_stream_writer_subgroup_and_late_variables(tmp_path):
 
 
 def test_h5py_is_imported_lazily():
-    """Importing beltdyn.results_io does not import h5py (CLI start-up time)."""
-    code = "import sys, beltdyn.results_io; assert 'h5py' not in sys.modules, 'h5py imported'"
+    """Importing beltdyn.results.io does not import h5py (CLI start-up time)."""
+    code = "import sys, beltdyn.results.io; assert 'h5py' not in sys.modules, 'h5py imported'"
     root = Path(__file__).resolve().parents[1]
     subprocess.run([sys.executable, "-c", code], check=True, cwd=root)
 

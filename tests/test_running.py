@@ -1,4 +1,4 @@
-"""The running belt (`beltdyn.running`): transport matrices, running tension, gyroscopic modes against
+"""The running belt (`beltdyn.analysis.running`): transport matrices, running tension, gyroscopic modes against
 the moving string and the moving pinned beam, the transient at speed, the Campbell sweep."""
 
 from __future__ import annotations
@@ -12,14 +12,15 @@ import h5py
 import numpy as np
 import pytest
 
-from beltdyn import ancf
+from beltdyn.model import ancf
 from beltdyn.config import config_from_dict, load_config
-from beltdyn.modal import critical_speed, solve_modes
-from beltdyn.paper import CASES, compare
+from beltdyn.analysis.modal import critical_speed, solve_modes
+from beltdyn.study.paper import CASES, compare
 from beltdyn.pipeline import analyse, transient_start
-from beltdyn.running import linearized_matrices
-from beltdyn.system import build_system, stretch_for_tension
-from beltdyn.transient import prepare, run_transient
+from beltdyn.analysis.running import linearized_matrices
+from beltdyn.model.barlaw import stretch_for_tension
+from beltdyn.model.system import build_system
+from beltdyn.analysis.transient import prepare, run_transient
 from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]

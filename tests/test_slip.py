@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from beltdyn.slip import pulley_tensions, required_friction, slip_margin
+from beltdyn.model.slip import pulley_tensions, required_friction, slip_margin
 
 
 def test_pulley_tensions_take_the_arriving_span_end_and_the_departing_span_start():

@@ -19,11 +19,11 @@ import pytest
 
 from beltdyn.config import config_from_dict, config_to_dict, load_config
 from beltdyn.errors import SolverError
-from beltdyn.modal import solve_modes
-from beltdyn.paper import CASES, compare
+from beltdyn.analysis.modal import solve_modes
+from beltdyn.study.paper import CASES, compare
 from beltdyn.pipeline import analyse
-from beltdyn.static import ResidualScales, solve_static
-from beltdyn.system import build_system
+from beltdyn.analysis.static import ResidualScales, solve_static
+from beltdyn.model.system import build_system
 from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -125,8 +125,8 @@ def test_modal_reuses_the_static_tangent(path, sets):
     cfg = load_config(path)
     if sets:
         cfg = load_config(path, [f'spans.{n}.model="spring"' for n in cfg.span_names])
-    from beltdyn.static import solve_static_on_solved_geometry
-    from beltdyn.system import build_system as _build
+    from beltdyn.analysis.static import solve_static_on_solved_geometry
+    from beltdyn.model.system import build_system as _build
 
     solved = solve_static_on_solved_geometry(build_system(cfg), lambda lay, s=None, f=None: _build(
         cfg, lay, prestrain_stretch=s, spring_free=f), cfg.static)
@@ -398,7 +398,7 @@ def test_carried_reference_refuses_a_span_without_a_length(where):
     # floats): a span whose carried length is not a positive number (NaN: the angle of an iterate's span
     # between coincident centres) is refused by name (SolverError, which the prediction catches and
     # starts from the L0 fit), wherever it sits in the loop; as the array version (`np.all(out > 0)`).
-    from beltdyn.static import _carried
+    from beltdyn.analysis.static import _carried
 
     old = [0.1, 1.7, 3.5]
     new = old.copy()
@@ -413,8 +413,8 @@ def test_conserved_tension_meets_its_definition(shrink):
     # _conserved_tension: span tensions T_ref + split whose stretches lambda(T) (EA eps lambda = T) on
     # the reference lengths fill the path: sum_s lambda_s reference_s = sum_s L_s (relative 1e-14), the
     # split kept exactly, from small strains (the series start) to 20 % (the solved stretches start).
-    from beltdyn.static import _conserved_tension
-    from beltdyn.system import stretch_for_tension
+    from beltdyn.analysis.static import _conserved_tension
+    from beltdyn.model.barlaw import stretch_for_tension
 
     EA, L = 1.2e5, [0.30, 0.25, 0.12, 0.08, 0.21]
     ref = [x * shrink for x in L]

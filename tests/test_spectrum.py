@@ -1,4 +1,4 @@
-"""Tests for beltdyn.spectrum: amplitude spectra of histories and their dominant peaks.
+"""Tests for beltdyn.analysis.spectrum: amplitude spectra of histories and their dominant peaks.
 
 Every test states the reference it compares against and the tolerance.  References are either
 closed-form (a sinusoid of known amplitude and frequency, the Hann kernel value at half a bin,
@@ -15,7 +15,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from beltdyn.spectrum import (
+from beltdyn.analysis.spectrum import (
     WINDOWS,
     Peak,
     Spectrum,
@@ -391,7 +391,7 @@ def test_refinement_inverts_the_window_vertex_to_round_off(window):
     # 1e-12 bin, for offsets across [-1/2, 1/2] and at the ends, and the scalloping-corrected amplitude
     # within 1e-12 relative. Near offset 0 the map itself is flat to its round-off (rect: ~1e-8 bin),
     # there both land within 1e-7 bin of the true offset.
-    from beltdyn.spectrum import _kernel, _model_vertex, _refine
+    from beltdyn.analysis.spectrum import _kernel, _model_vertex, _refine
 
     n = 1000
     delta = np.r_[np.linspace(-0.5, 0.5, 41), [-0.4999999, 0.4999999, 1e-9]]

@@ -51,7 +51,7 @@ def test_read_only_installation_caches_in_the_user_folder(tmp_path):
     prefix = _read_only_namespace()
     if prefix is None:
         pytest.skip("no mount namespace here to make the package folder read-only")
-    code = ("import os, beltdyn.integrator, numba.core.config as c; "
+    code = ("import os, beltdyn.analysis.integrator, numba.core.config as c; "
             "print(os.environ['NUMBA_CACHE_DIR']); print(c.CACHE_DIR)")
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
     env["XDG_CACHE_HOME"] = str(tmp_path / "cache")
@@ -68,7 +68,7 @@ def test_a_fresh_cache_is_cold():
 
     with tempfile.TemporaryDirectory() as empty:
         env = dict(os.environ, NUMBA_CACHE_DIR=empty)
-        r = subprocess.run([sys.executable, "-c", "from beltdyn import jitcache; from beltdyn.transient import "
+        r = subprocess.run([sys.executable, "-c", "from beltdyn import jitcache; from beltdyn.analysis.transient import "
                             "entry_kernels; print(jitcache.is_warm(*entry_kernels()))"], capture_output=True, text=True,
                            env=env, timeout=120)
         assert r.returncode == 0 and r.stdout.strip() == "False", r.stderr
@@ -79,10 +79,13 @@ def test_warm_up_compiles_every_signature_a_transient_uses():
     # (arm with friction, many pulleys, running belt; with a spring span) and a backside idler with belt
     # damping add no signature to any
     # compiled kernel: a user's first run loads them, none is compiled on the way.
-    from beltdyn import belt_kernel, integrator, spring_kernel
+    from beltdyn.model import belt_kernel
+    from beltdyn.analysis import integrator
+    from beltdyn.model import spring_kernel
     from beltdyn.config import load_config
     from beltdyn.pipeline import analyse
-    from beltdyn.transient import entry_kernels, run_transient, warm_up
+    from beltdyn.analysis.transient import entry_kernels, run_transient
+    from beltdyn.pipeline import warm_up
 
     warm_up()
     assert jitcache.is_warm(*entry_kernels())
@@ -108,7 +111,7 @@ TRANSIENTS = [  # (example, overrides): every kind of drive the stepper knows
     ("fead_4cyl.toml", ['spans.ALT-TEN.model="spring"']),  # a spring span
 ]
 _RUN_ALL = ("from beltdyn.config import load_config; from beltdyn.pipeline import analyse; "
-            "from beltdyn.transient import run_transient\n"
+            "from beltdyn.analysis.transient import run_transient\n"
             "for name, sets in {cases!r}:\n"
             "    cfg = load_config({root!r} + '/configs/examples/' + name, ['transient.duration=0.002', "
             "'transient.spectrum.enabled=false', *sets]); run = analyse(cfg)\n"
@@ -126,12 +129,15 @@ def test_entry_kernels_are_the_kernels_transients_call_from_python():
     # In a fresh process with the cache warm, the compiled functions that transients of every kind of drive
     # dispatch (a cache hit each; the kernels they call run inside them and are never dispatched) are
     # exactly `entry_kernels`, the list `is_warm` checks.
-    from beltdyn.transient import warm_up
+    from beltdyn.pipeline import warm_up
 
     warm_up()
     dispatched, entries, all_hits = _python(_RUN_ALL.format(cases=TRANSIENTS, root=str(ROOT)) + textwrap.dedent("""
-        from beltdyn import jitcache, integrator, belt_kernel, spring_kernel
-        from beltdyn.transient import entry_kernels
+        from beltdyn import jitcache
+        from beltdyn.analysis import integrator
+        from beltdyn.model import belt_kernel
+        from beltdyn.model import spring_kernel
+        from beltdyn.analysis.transient import entry_kernels
         got = [k for m in (integrator, belt_kernel, spring_kernel) for k in jitcache._kernels(m) if k.signatures]
         print(sorted(k.__name__ for k in got))
         print(sorted(k.__name__ for k in entry_kernels()))
@@ -147,20 +153,22 @@ def test_a_stale_helper_kernel_does_not_make_the_cache_cold(tmp_path):
     # nothing (every dispatched kernel a cache hit). Checking every kernel of the modules, as before, said
     # cold: every run announced "compiling the transient kernels" and ran warm_up for nothing. A stale
     # `advance` or a missing `band_lu_nopivot` is cold.
-    from beltdyn.transient import warm_up
+    from beltdyn.pipeline import warm_up
 
     warm_up()
     code = textwrap.dedent(f"""
         import pickle, shutil
         from pathlib import Path
-        from beltdyn import jitcache, integrator, belt_kernel, spring_kernel
-        from beltdyn.transient import entry_kernels
+        from beltdyn import jitcache
+        from beltdyn.analysis import integrator
+        from beltdyn.model import belt_kernel
+        from beltdyn.model import spring_kernel
+        from beltdyn.analysis.transient import entry_kernels
         modules = (integrator, belt_kernel, spring_kernel)
-        cache = Path(integrator.advance._cache._cache_path)
-        cache.mkdir(parents=True, exist_ok=True)
-        assert not any(cache.iterdir())
-        for f in Path({str(PACKAGE / "__pycache__")!r}).iterdir():
-            if f.suffix in (".nbi", ".nbc"):
+        for m in modules:  # each module's kernels into the folder numba keeps for its source folder
+            cache = Path(next(iter(jitcache._kernels(m)))._cache._cache_path)
+            cache.mkdir(parents=True, exist_ok=True)
+            for f in (Path(m.__file__).parent / "__pycache__").glob(Path(m.__file__).stem + ".*.nb[ic]"):
                 shutil.copy(f, cache)
 
         def index(k):
@@ -202,7 +210,7 @@ def test_a_transient_enters_the_stepper_through_one_kernel(example, loaded):
     # loaded from numba's cache instead of one per kernel (each load parses its own copy of the
     # callees' code).
     code = ("from beltdyn.config import load_config; from beltdyn.pipeline import analyse; "
-            "from beltdyn.transient import run_transient; from beltdyn import integrator as i; "
+            "from beltdyn.analysis.transient import run_transient; from beltdyn.analysis import integrator as i; "
             f"cfg = load_config({str(ROOT / 'configs' / 'examples' / example)!r}, "
             "['transient.duration=0.002', 'transient.spectrum.enabled=false']); run = analyse(cfg); "
             "run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None); "
@@ -217,7 +225,7 @@ def test_cache_hits_skip_the_full_context_refresh():
     # the lean way (jitcache.lean_loads): numba's lowering of things the kernels never use (typed dicts,
     # random generators, polynomials), which its full context refresh imports, stays unimported; the
     # results are those of the other tests (same kernels, same code).
-    from beltdyn.transient import warm_up
+    from beltdyn.pipeline import warm_up
 
     # Nor does it import numba's array modules (the kernels allocate nothing, so no function environment
     # names them) or start numba's runtime (NRT: kernels compiled with jitcache.KERNEL never call it).
@@ -225,7 +233,7 @@ def test_cache_hits_skip_the_full_context_refresh():
     unused = ["numba.typed.typeddict", "numba.np.random.generator_methods", "numba.np.polynomial.polynomial_functions",
               "numba.np.arrayobj", "numba.np.arraymath"]
     code = ("import sys; from beltdyn.config import load_config; from beltdyn.pipeline import analyse; "
-            "from beltdyn.transient import run_transient; from numba.core.runtime import rtsys; "
+            "from beltdyn.analysis.transient import run_transient; from numba.core.runtime import rtsys; "
             f"cfg = load_config({str(ROOT / 'configs' / 'examples' / 'fead_4cyl.toml')!r}, "
             "['transient.duration=0.002', 'transient.spectrum.enabled=false']); run = analyse(cfg); "
             "s = run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None); "

@@ -14,9 +14,9 @@ import pytest
 
 from beltdyn.config import load_config, with_overrides
 from beltdyn.errors import ConfigError
-from beltdyn.modal import solve_modes
+from beltdyn.analysis.modal import solve_modes
 from beltdyn.pipeline import analyse
-from beltdyn.sweep import Journal, _keys, assemble, make_spec, parse_values, refine_mesh, richardson, run_sweep
+from beltdyn.study.sweep import Journal, _keys, assemble, make_spec, parse_values, refine_mesh, richardson, run_sweep
 from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -122,7 +122,7 @@ def h5_dump(path):
 
 def _journaled(journal: Path) -> int:
     """Cases in a sweep journal's log (valid records only)."""
-    from beltdyn.sweep import Journal
+    from beltdyn.study.sweep import Journal
 
     j = Journal(journal.parent / journal.name[: -len(".sweep")])
     return len(j.done()) if (journal / "cases.log").exists() else 0
@@ -270,7 +270,7 @@ def test_a_torn_journal_record_is_cut_off_and_the_case_recomputed(tmp_path):
     # A crash in the middle of appending a case: the log ends in half a record. The next lock cuts it off
     # (the CRC and the length say where the valid log ends), that case counts as not done, --resume
     # recomputes it, and /sweep equals an uninterrupted run's (wall times aside), to the bit.
-    from beltdyn.sweep import Journal
+    from beltdyn.study.sweep import Journal
 
     args = ["sweep", str(BENCH), "--param", "tension.target=150:300:6", "--workers", "1"]
     full = subprocess.run([*BELTDYN, *args, "-o", str(tmp_path / "full.h5")], cwd=tmp_path, capture_output=True,
@@ -278,13 +278,13 @@ def test_a_torn_journal_record_is_cut_off_and_the_case_recomputed(tmp_path):
     assert full.returncode == 0, full.stderr
     # a journal of cases 0-3 written by the library, the last record torn
     from beltdyn.config import load_config
-    from beltdyn.sweep import make_spec, run_case, spec_hash
+    from beltdyn.study.sweep import make_spec, run_case, spec_hash
 
     cfg = load_config(BENCH)
     spec = make_spec(cfg, [("tension.target", "150:300:6")], analysis="modal", zip_=False)
     out = tmp_path / "cut.h5"
     from beltdyn.config import resolved_toml
-    from beltdyn.sweep import _assign
+    from beltdyn.study.sweep import _assign
 
     with Journal(out) as j:
         j.start(spec.to_json(), spec_hash(cfg, spec))
@@ -313,7 +313,7 @@ def _reference_tracking(spec, cases):
     case): each case from its parent, past failed ones, else from the latest tracked case."""
     from scipy.optimize import linear_sum_assignment
 
-    from beltdyn.sweep import MAC_LOST
+    from beltdyn.study.sweep import MAC_LOST
 
     n, k = spec.n_cases, spec.n_modes
     freq, mac = np.full((n, k), np.nan), np.full((n, k), np.nan)
@@ -368,7 +368,7 @@ def test_streamed_assembly_equals_tracking_all_cases_at_once(tmp_path, monkeypat
     # journal when their turn comes), failed ones included: the same tracked modes, MACs and per-case
     # quantities as the tracking of all cases at once, exactly. In case order, the assembly holds the
     # shapes of at most one case per swept parameter between cases, however many cases there are.
-    from beltdyn.sweep import Assembly, Param, SweepSpec
+    from beltdyn.study.sweep import Assembly, Param, SweepSpec
 
     monkeypatch.setattr(Assembly, "BUFFER", 3)
     rng = np.random.default_rng(len(shape) + int(10 * p_fail))
@@ -493,7 +493,7 @@ def test_sweep_file_equals_the_analysis_of_each_case(tmp_path):
     # spans, labels, the static quantities, and which cases failed (the middle row: overlapping pulleys).
     from beltdyn.config import with_overrides
     from beltdyn.errors import BeltdynError
-    from beltdyn.sweep import _assign
+    from beltdyn.study.sweep import _assign
 
     n_modes = 8
     out = tmp_path / "grid.h5"
@@ -543,7 +543,7 @@ def test_the_journal_is_fsynced_at_the_end_and_on_an_interrupt(tmp_path, monkeyp
     # when the run ends, and when it is interrupted (Ctrl-C after the first batch: those cases are kept).
     import stat
 
-    from beltdyn import sweep as sw
+    from beltdyn.study import sweep as sw
 
     synced = []
     real = os.fsync
@@ -590,7 +590,7 @@ def test_csv_tables_travel_with_the_case(tmp_path):
     # (config.table_bytes), and the worker parses the configuration from them (same static result as
     # a local parse, to round-off); without them the case fails naming the table it could not read.
     from beltdyn.config import resolved_toml, table_bytes
-    from beltdyn.sweep import run_case
+    from beltdyn.study.sweep import run_case
 
     path = _drive_with_tables(tmp_path, {"torque.csv": 2.0})
     cfg = load_config(path)
@@ -612,7 +612,7 @@ def test_swept_csv_tables_travel_and_are_pinned(tmp_path):
     # the two tables give different runs, and changing a swept table changes the sweep's identity
     # (a journal of the old table is not resumed with the new one).
     from beltdyn.config import resolved_toml
-    from beltdyn.sweep import case_assignments, run_case, spec_hash, sweep_tables
+    from beltdyn.study.sweep import case_assignments, run_case, spec_hash, sweep_tables
 
     path = _drive_with_tables(tmp_path, {"a.csv": 2.0, "b.csv": 4.0})
     cfg = load_config(path)

@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 
 from beltdyn.config import config_from_dict, config_to_dict, load_config
-from beltdyn.modal import solve_modes
-from beltdyn.static import solve_static
-from beltdyn.system import LinearComponent, build_system
-from beltdyn.transient import prepare, run_transient
+from beltdyn.analysis.modal import solve_modes
+from beltdyn.analysis.static import solve_static
+from beltdyn.model.components import LinearComponent
+from beltdyn.model.system import build_system
+from beltdyn.analysis.transient import prepare, run_transient
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
@@ -102,7 +103,7 @@ def test_torsion_spring_transient_oscillates_at_closed_form():
     k = 0.5
     s = system.with_components(rotational_spring(system, k, pulleys=("A", "C")))
     st = solve_static(s, cfg.static)
-    from beltdyn.transient import belt_travel
+    from beltdyn.analysis.transient import belt_travel
 
     setup = dataclasses.replace(prepare(s, st, cfg.transient), v0=1e-3 * belt_travel(s))
     got = []
@@ -225,12 +226,12 @@ def test_static_and_modal_do_not_load_numba():
 
 
 def test_a_new_support_is_one_class(monkeypatch):
-    # The supports are classes (beltdyn.supports): a support written here, a slide along a fixed
+    # The supports are classes (beltdyn.model.supports): a support written here, a slide along a fixed
     # direction with its own spring, registered in place of "bearing", builds through the unchanged
     # system, statics and modes, and reproduces the built-in slide with that direction: frequencies
     # within 1e-12.
-    from beltdyn import supports
-    from beltdyn.modal import solve_modes
+    from beltdyn.model import supports
+    from beltdyn.analysis.modal import solve_modes
     from beltdyn.pipeline import analyse
 
     d = np.array([math.cos(0.3), math.sin(0.3)])
@@ -260,7 +261,7 @@ def test_a_new_support_is_one_class(monkeypatch):
 def test_energy_shares_with_and_without_the_precomputed_motion():
     # solve_modes hands the shapes' element motion to the classification; computed inside it is the
     # same (to the bit).
-    from beltdyn.modal import classify
+    from beltdyn.analysis.modal import classify
     from beltdyn.pipeline import analyse
 
     run = analyse(load_config(BENCH), modal=True)
@@ -317,8 +318,8 @@ def test_a_build_from_the_analysis_facts_is_the_build_from_the_configuration(den
     # re-laid system from them: a build on another layout (pulleys moved, two arms turned, a bearing and a
     # slide displaced, springs anchored elsewhere) from the facts is the build from the configuration
     # alone, field by field to the bit (DOF map, components, arms, belt and spring spans, matrices).
-    from beltdyn.geometry import layout_from_config, relay
-    from beltdyn.system import drive_facts
+    from beltdyn.model.geometry import layout_from_config, relay
+    from beltdyn.model.system import drive_facts
 
     cfg = config_from_dict(TWO_ARMS)
     fit = layout_from_config(cfg)
@@ -337,8 +338,8 @@ def test_the_objects_of_a_build_hold_every_field(dense):
     # drive_facts and build_system make their frozen dataclasses field by field at once (frozen.set_at_once,
     # no default filled in): each holds every field of its class, nothing else (a field left out would be
     # missing, not defaulted), on the two-arm drive and on the all-spring example drive.
-    from beltdyn.geometry import layout_from_config
-    from beltdyn.system import drive_facts
+    from beltdyn.model.geometry import layout_from_config
+    from beltdyn.model.system import drive_facts
 
     fead = ROOT / "configs" / "examples" / "fead_4cyl.toml"
     springs = load_config(fead, [f'spans.{n}.model="spring"' for n in load_config(fead).span_names])
@@ -360,8 +361,8 @@ def test_the_dense_assembly_of_the_components_is_the_sparse_one():
     # spring-span and component parts in different orders.
     from scipy.sparse import csr_matrix
 
-    from beltdyn.geometry import layout_from_config
-    from beltdyn.system import number_dofs
+    from beltdyn.model.geometry import layout_from_config
+    from beltdyn.model.system import number_dofs
 
     cfg = config_from_dict({**TWO_ARMS, "model": {"gravity": [0.0, -9.81]}})
     lay = layout_from_config(cfg)

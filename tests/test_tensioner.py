@@ -12,7 +12,7 @@ import pytest
 
 from beltdyn.config import load_config
 from beltdyn.errors import ConfigError
-from beltdyn.system import build_system
+from beltdyn.model.system import build_system
 
 ROOT = Path(__file__).resolve().parents[1]
 ARM = ROOT / "configs" / "examples" / "three_pulley_tensioner.toml"
@@ -91,7 +91,7 @@ def test_arm_mass_is_arm_inertia_plus_m_l_squared():
 
 def test_l0_fit_turns_the_arm():
     # The geometry fits L0 by turning the arm about its pivot: belt length L0 to 1e-12, arm length kept.
-    from beltdyn.geometry import layout_from_config
+    from beltdyn.model.geometry import layout_from_config
 
     cfg = load_config(ARM)
     lay = layout_from_config(cfg)
@@ -109,7 +109,7 @@ def test_l0_fit_turns_the_arm():
     (["static.torque=[{pulley='A', value=5.0}]"], "static.torque[0].pulley"),  # the driver reacts torques
 ])
 def test_bad_arm_input_names_the_key(sets, key):
-    from beltdyn.geometry import layout_from_config
+    from beltdyn.model.geometry import layout_from_config
 
     with pytest.raises(ConfigError) as err:
         layout_from_config(load_config(ARM, sets))  # the stops are checked against the fitted angle
@@ -256,7 +256,7 @@ def test_dry_friction_gives_a_hysteresis_loop_of_width_twice_the_friction_torque
     # (a cubic in phi plus a sign(phi') term, sliding samples) gives the half-width T_f within 2 %
     # (measured 0.12 %); the energy balance holds (the friction work is dissipated, less the bristle's stored energy).
     from beltdyn.pipeline import analyse
-    from beltdyn.transient import run_transient
+    from beltdyn.analysis.transient import run_transient
 
     Tf = 0.3
     cfg = load_config(ARM, [
@@ -414,7 +414,7 @@ def test_every_group_has_warnings_and_static_names_a_slipping_pulley(tmp_path):
 def test_an_arm_spring_without_free_angle_stays_anchored_across_re_lays():
     # No arm_free_angle: the spring is relaxed at the arm's L0-fit angle on every re-laid system (it
     # used to be re-anchored at each pass and crept until the stops). Same result as giving that angle.
-    from beltdyn.geometry import layout_from_config
+    from beltdyn.model.geometry import layout_from_config
 
     sets = ["pulleys[2].adjustable=false", "tension={target=200.0, mode='prestrain'}", "pulleys[2].arm_range=[2.0, 4.0]"]
     fit = layout_from_config(load_config(ARM, sets))

@@ -1,4 +1,4 @@
-"""The time step's frequency error (beltdyn.timestep) against free vibrations integrated by the
+"""The time step's frequency error (beltdyn.analysis.timestep) against free vibrations integrated by the
 production stepper, its series, its inversion, and `transient.accuracy` / `transient.fmax` in use."""
 
 from __future__ import annotations
@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from beltdyn.timestep import (frequency_error, resolve_step, resolved_band, series_coefficient, series_coefficients,
+from beltdyn.analysis.timestep import (frequency_error, resolve_step, resolved_band, series_coefficient, series_coefficients,
                               step_for_accuracy)
-from beltdyn.transient import integrate_linear
+from beltdyn.analysis.transient import integrate_linear
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -48,7 +48,7 @@ def bench_mode_errors(step: float, modes, rho_inf: float = 0.9, duration: float 
 
     from beltdyn.config import config_from_dict, config_to_dict, load_config
     from beltdyn.pipeline import analyse
-    from beltdyn.transient import prepare, run_transient
+    from beltdyn.analysis.transient import prepare, run_transient
 
     raw = config_to_dict(load_config(ROOT / "configs" / "examples" / "bench_transient_small.toml"))
     raw["transient"] = {"duration": duration, "step": step, "output_interval": step, "rho_inf": rho_inf,
@@ -213,7 +213,7 @@ def test_pipeline_transient_resolves_the_step():
     # options whose step was never resolved (ValueError naming resolve_step).
     from beltdyn.config import config_from_dict, config_to_dict, load_config
     from beltdyn.pipeline import analyse, transient
-    from beltdyn.transient import run_transient
+    from beltdyn.analysis.transient import run_transient
 
     raw = config_to_dict(load_config(ROOT / "configs" / "examples" / "bench_transient_small.toml"))
     del raw["transient"]["step"]

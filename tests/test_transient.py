@@ -17,11 +17,11 @@ import scipy.linalg as sl
 
 from beltdyn.config import config_from_dict, config_to_dict, load_config
 from beltdyn.errors import SolverError
-from beltdyn.integrator import alpha_parameters
-from beltdyn.modal import solve_modes
+from beltdyn.analysis.integrator import alpha_parameters
+from beltdyn.analysis.modal import solve_modes
 from beltdyn.pipeline import analyse
-from beltdyn.spectrum import amplitude_spectrum, harmonic_content
-from beltdyn.transient import integrate_linear, prepare, run_transient
+from beltdyn.analysis.spectrum import amplitude_spectrum, harmonic_content
+from beltdyn.analysis.transient import integrate_linear, prepare, run_transient
 from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -356,7 +356,7 @@ def test_table_value_is_numpys_interp(n_points):
     # The stepper's table interpolation (integrator.table_value, compiled) against np.interp, exactly
     # (tolerance 0: the same formula): before, at, between and after the sample times of a table
     # stored after another one in the shared arrays (the offsets a:b).
-    from beltdyn.integrator import table_value
+    from beltdyn.analysis.integrator import table_value
 
     rng = np.random.default_rng(n_points)
     xp = np.cumsum(rng.uniform(0.1, 1.0, n_points))
@@ -375,7 +375,7 @@ def test_split_product_is_the_csr_product(shape):
     # closing on itself), scattered entries, the diagonal, one entry, none, a dense matrix.
     import scipy.sparse as sp
 
-    from beltdyn import integrator as itg
+    from beltdyn.analysis import integrator as itg
 
     n = 41
     rng = np.random.default_rng(len(shape))
@@ -426,7 +426,7 @@ def _law(**kw):
 def test_rotation_law_derivatives_are_consistent(law):
     # Speed and acceleration of the nominal and fluctuation parts against central differences of the
     # angle (h = 1e-6 s, within 1e-5 of the largest value), in and after the ramp and the fade-in.
-    from beltdyn.integrator import rotation_state
+    from beltdyn.analysis.integrator import rotation_state
 
     rot, h = _law(**law), 1e-6
     for t in (0.013, 0.07, 0.18, 0.31, 0.5):
@@ -442,7 +442,7 @@ def test_rotation_law_derivatives_are_consistent(law):
 def test_engine_order_at_constant_speed_is_the_harmonic_at_order_times_speed(kind):
     # At a constant mean speed Omega (no ramp) order k is the fluctuation at f = k Omega / (2 pi) with
     # the same phase: identical laws to 1e-12.
-    from beltdyn.integrator import rotation_state
+    from beltdyn.analysis.integrator import rotation_state
 
     om, k = 83.0, 2.0
     by_order = _law(speed=om, phi=0.3, order=k, **{kind: 0.01})
@@ -455,7 +455,7 @@ def test_engine_order_at_constant_speed_is_the_harmonic_at_order_times_speed(kin
 def test_engine_order_follows_the_speed_ramp():
     # During a linear ramp theta_nom = Omega t^2 / (2 T_r): the fluctuation's phase is k theta_nom, so its
     # zero crossings sit where k theta_nom = m pi (the frequency rises with the speed).
-    from beltdyn.integrator import rotation_state
+    from beltdyn.analysis.integrator import rotation_state
 
     om, tr, k = 100.0, 1.0, 2.0
     rot = _law(speed=om, ramp=tr, A=0.01, order=k)
@@ -484,7 +484,7 @@ def test_refreshed_factor_gives_the_same_history(monkeypatch):
     # changes only the Newton path, not the converged steps: span tensions and hub loads agree with a
     # run on one factor within 1e-6 of the mean tension (each step converged to 1e-8 of its forces;
     # measured 1e-9), with fewer Newton iterations (8 factors: 9306 instead of 9636 over 0.3 s).
-    import beltdyn.transient as tr
+    import beltdyn.analysis.transient as tr
 
     cfg = load_config(ROOT / "configs" / "examples" / "fead_4cyl.toml",
                       ["transient.duration=0.3", "transient.spectrum.enabled=false"])
@@ -527,8 +527,8 @@ def test_band_factor_solves_the_held_system(skew, shift, symmetric, kind):
     # Against numpy's dense solve of the same system: S (in a random order, half-bandwidth 3 in the
     # order perm), a diagonal added, DOFs 2 and 7 held (rows and columns replaced by the identity); the
     # factor's solve (integrator.factor_solve, the stepper's) agrees within 1e-10 relative.
-    from beltdyn.integrator import factor_solve
-    from beltdyn.transient import band_factor
+    from beltdyn.analysis.integrator import factor_solve
+    from beltdyn.analysis.transient import band_factor
 
     n, u = 24, 3
     B = _banded(n, u, seed=3, skew=skew, shift=shift)
@@ -562,8 +562,8 @@ def test_iteration_plan_factors_the_iteration_matrix(example, sets):
     # Against the reference assembly (band_factor of _iteration_matrix: scipy sums, J^T S J, held DOFs):
     # at a perturbed state, mid-run (the belt running, the arm's bristle set), the plan's factor solves
     # S x = b to the same x within 1e-10 relative (the same matrix summed in another order).
-    from beltdyn.transient import factorizer, stepper_arms, stepper_system
-    from beltdyn.integrator import factor_solve
+    from beltdyn.analysis.transient import factorizer, stepper_arms, stepper_system
+    from beltdyn.analysis.integrator import factor_solve
 
     cfg = load_config(ROOT / "configs" / "examples" / example, ["transient.spectrum.enabled=false", *sets])
     run = analyse(cfg)

@@ -24,8 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import OutputError
-from .results_schema import h5py_module
+from beltdyn.errors import OutputError
+from beltdyn.results.schema import h5py_module
 
 _LABELS = b"REFERENCE_LIST"
 _SCALES = b"DIMENSION_LIST"

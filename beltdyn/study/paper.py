@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .modal import ModalResult, ordinal
+from beltdyn.analysis.modal import ModalResult, ordinal
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import SCHEMA_VERSION
-from .errors import OutputError
-from .results_files import (
+from beltdyn import SCHEMA_VERSION
+from beltdyn.errors import OutputError
+from beltdyn.results.files import (
     parts_folder,
     remove_leftovers,
     resolve_target,
@@ -27,8 +27,8 @@ from .results_files import (
     writer_identity,
     writing,
 )
-from .results_journal import JournalLayout, JournalView, JournalWriter, read_journal
-from .results_schema import (
+from beltdyn.results.journal import JournalLayout, JournalView, JournalWriter, read_journal
+from beltdyn.results.schema import (
     CHUNK_ROWS,
     FINAL_STATUSES,
     PROVENANCE,
@@ -46,7 +46,7 @@ from .results_schema import (
     same_values,
     to_array,
 )
-from .results_write import (
+from beltdyn.results.write import (
     Transaction,
     new_group,
     now_utc,

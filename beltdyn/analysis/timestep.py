@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from .config import TransientOptions
+    from beltdyn.config import TransientOptions
 
 TWO_PI = 2.0 * math.pi
 DEFAULT_ACCURACY = 1e-3  # the frequency error the console reports the resolved band at, when none is asked
@@ -201,7 +201,7 @@ def resolve_step(t: "TransientOptions", manual: float | None = None) -> tuple["T
     else:
         h, origin = t.step, "config"  # TransientOptions fills in the default
     if h < t.min_step:
-        from .errors import ConfigError
+        from beltdyn.errors import ConfigError
 
         key = "transient.accuracy" if origin == "accuracy" else "transient.step"
         raise ConfigError(f"the step {h:.4g} s ({origin}) is below transient.min_step = {t.min_step:g} s", key=key)

@@ -27,10 +27,11 @@ from typing import Callable, Collection
 
 import numpy as np
 
-from . import SCHEMA_VERSION, __version__
-from .errors import OutputError
-from .results_copy import copy_attrs, copy_group
-from .results_files import (
+from beltdyn import SCHEMA_VERSION
+from beltdyn import __version__
+from beltdyn.errors import OutputError
+from beltdyn.results.copy import copy_attrs, copy_group
+from beltdyn.results.files import (
     fsync_dir,
     fsync_file,
     inspect_target,
@@ -43,7 +44,7 @@ from .results_files import (
     unlink_quietly,
     writing,
 )
-from .results_schema import (
+from beltdyn.results.schema import (
     CHUNK_BYTES,
     CHUNK_ROWS,
     MAX_ERROR_CHARS,

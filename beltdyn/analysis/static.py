@@ -37,11 +37,13 @@ from operator import mul, truediv
 
 import numpy as np
 
-from .config import StaticOptions
-from .errors import SolverError
-from .geometry import TWO_PI, GeometryError, Layout, MovingPulley, fit_adjustable, pivot_angle, relay, unwrap_near
-from .slip import required_friction, slip_margin
-from .system import DOF_GROUPS, System, stretch_for_tension, stretch_start
+from beltdyn.config import StaticOptions
+from beltdyn.errors import SolverError
+from beltdyn.model.angles import TWO_PI, pivot_angle, unwrap_near
+from beltdyn.model.geometry import GeometryError, Layout, MovingPulley, fit_adjustable, relay
+from beltdyn.model.slip import required_friction, slip_margin
+from beltdyn.model.barlaw import stretch_for_tension, stretch_start
+from beltdyn.model.system import DOF_GROUPS, System
 
 
 @dataclass(frozen=True, kw_only=True)

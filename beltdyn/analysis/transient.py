@@ -31,11 +31,11 @@ from typing import Callable
 
 import numpy as np
 
-from .config import TransientOptions
-from .errors import SolverError
-from .static import StaticResult
-from .system import Observation as Series  # one declaration of a recorded series
-from .system import System, element_pairs
+from beltdyn.config import TransientOptions
+from beltdyn.errors import SolverError
+from beltdyn.analysis.static import StaticResult
+from beltdyn.model.components import Observation as Series  # one declaration of a recorded series
+from beltdyn.model.system import System, element_pairs
 
 ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
 
@@ -95,11 +95,11 @@ def accuracy_warnings(opts: TransientOptions, *, energy_error: float, excitation
     if energy_error > ENERGY_WARNING:
         out.append(f"energy balance error {energy_error:.2e} of the energy moved exceeds {ENERGY_WARNING:.0%}: "
                    f"the step {opts.step:g} s is too long for this run; reduce transient.step")
-    from .timestep import step_warnings
+    from beltdyn.analysis.timestep import step_warnings
 
     out += step_warnings(opts.step, excitation_frequency=excitation_frequency)
     if opts.accuracy is not None and opts.fmax is not None:
-        from .timestep import frequency_error
+        from beltdyn.analysis.timestep import frequency_error
 
         e = frequency_error(opts.fmax, opts.step, opts.rho_inf)
         if not abs(e) <= opts.accuracy * (1.0 + 1e-9):
@@ -156,7 +156,7 @@ def p_to_q(system: System) -> np.ndarray:
 
 def stepper_arms(system: System):
     """integrator.Arms of the system (no arms: the identity map)."""
-    from . import integrator as itg
+    from beltdyn.analysis import integrator as itg
 
     a = system.arms
     if a is None:
@@ -201,9 +201,9 @@ def band_order(system: System) -> tuple[np.ndarray, int]:
 
 def prepare(system: System, static: StaticResult, opts: TransientOptions) -> TransientSetup:
     """The stepper's structures for the run: only the loads, damping and outputs the options ask for."""
-    from . import integrator as itg
-    from .belt_kernel import CURVATURE_CODE
-    from .spring_kernel import spring_data
+    from beltdyn.analysis import integrator as itg
+    from beltdyn.model.belt_kernel import CURVATURE_CODE
+    from beltdyn.model.spring_kernel import spring_data
 
     n = system.n_p
     u_nom = belt_travel(system)
@@ -389,7 +389,7 @@ def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool, hold: np.ndarra
     from scipy.linalg.lapack import dgbtrf
     from scipy.sparse import issparse
 
-    from .integrator import Factor
+    from beltdyn.analysis.integrator import Factor
 
     n = S.shape[0]
     if issparse(S):
@@ -423,7 +423,7 @@ def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool, hold: np.ndarra
                           piv=none, perm=perm, kl=0, ku=u)
         except np.linalg.LinAlgError:
             pass
-    from .integrator import band_lu_nopivot
+    from beltdyn.analysis.integrator import band_lu_nopivot
 
     ab = np.zeros((2 * u + 1, n), order="F")  # without row exchanges: U keeps the band (module docstring)
     ab[u + r - c, c] = val
@@ -445,7 +445,7 @@ def band_factor(S, perm: np.ndarray, u: int, *, symmetric: bool, hold: np.ndarra
 def _belt_damping_matrix(system: System, setup: TransientSetup, q: np.ndarray, p: np.ndarray):
     """The belt's Kelvin-Voigt damping matrix dN_d/dq' at q (p = system.expand(q)) on the system's pattern,
     from the compiled element kernel; None without belt damping."""
-    from . import belt_kernel as bk
+    from beltdyn.model import belt_kernel as bk
 
     b = setup.belt
     if not (b.eta_a or b.eta_b):
@@ -465,7 +465,7 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
     added), and projected once: J^T S_p J with the arms' geometric term of (1 - alpha_f) times the loaded
     internal force (as `System.equilibrium`). Returns (S, diagonal): the arms' sticking bristles k_b as a
     diagonal (n_dof,) to add, or None."""
-    from .integrator import alpha_parameters
+    from beltdyn.analysis.integrator import alpha_parameters
 
     am, af, beta, gamma = alpha_parameters(rho_inf)
     c_m = (1.0 - am) / (beta * h * h)
@@ -614,7 +614,7 @@ class IterationPlan:
         if symmetric:
             keep &= r <= c
         diag = inv * height + u  # the flat place of each q's diagonal
-        from .timestep import alpha_parameters
+        from beltdyn.analysis.timestep import alpha_parameters
 
         return cls(system=system, at_rest=at_rest, setup=setup, arms=arms, symmetric=symmetric, n=n, u=u,
                    height=height, const=const, moving=moving, entries=np.flatnonzero(keep),
@@ -623,7 +623,7 @@ class IterationPlan:
 
     def factor(self, q: np.ndarray, h: float, t: float = 0.0):
         """The integrator.Factor of S at the state q (n_dof,) for the step h at time t."""
-        from .integrator import Factor, band_lu_nopivot
+        from beltdyn.analysis.integrator import Factor, band_lu_nopivot
 
         am, af, beta, gamma = self.alpha
         c_m = (1.0 - am) / (beta * h * h)
@@ -726,7 +726,7 @@ def initial_state(problem: StepProblem, step: float, start: Callable):
     """Consistent initial acceleration M a0 = F(0) - C v0 - f(q0, v0) on the free DOFs, and the
     energy reference. start(state): the compiled forces at t = 0 (`integrator.start_forces`, through
     the stepper's entry point `integrator.advance`)."""
-    from . import integrator as itg
+    from beltdyn.analysis import integrator as itg
 
     lin, cons = problem.linear, problem.constraints
     n = len(problem.q0)
@@ -792,7 +792,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     (status, run bookkeeping, final scal, slack events). Raises SolverError when the step cannot be
     reduced further (the batches before the failure have been delivered); KeyboardInterrupt
     propagates after the last complete batch was delivered."""
-    from . import integrator as itg
+    from beltdyn.analysis import integrator as itg
 
     am, af, beta, gamma = itg.alpha_parameters(rho_inf)
     n = len(problem.q0)
@@ -924,7 +924,7 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
     further; the batches before the failure have been delivered. KeyboardInterrupt propagates after
     the last complete batch was delivered. `status(text)` is told about a first-time kernel compile.
     """
-    from . import integrator as itg
+    from beltdyn.analysis import integrator as itg
 
     if opts.step is None:
         raise ValueError("TransientOptions.step is not set: resolve it from transient.accuracy and fmax first "
@@ -962,10 +962,10 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
 def tension_warnings(system: System, observer: "Observers", events: np.ndarray,
                      mean_tension: float) -> tuple[str, ...]:
     """The spans' tension outside the model's validity during the run (the static thresholds,
-    export.SLACK_WARNING and STRAIN_WARNING): a span that went slack (slack events), one that came
+    result_warnings.SLACK_WARNING and STRAIN_WARNING): a span that went slack (slack events), one that came
     close to slack (its smaller end tension below 10 % of the static mean tension at a sample), and a
     belt strain beyond 5 % at a sample (the last two from the recorded span tensions)."""
-    from .export import SLACK_WARNING, strain_warning
+    from beltdyn.analysis.result_warnings import SLACK_WARNING, strain_warning
 
     lay = system.layout
     out = []
@@ -1054,7 +1054,7 @@ class Observers:
                 out["span_tension"] = sysm.span_end_tensions(q, F, E)
                 self._track_tension(t, out["span_tension"])
                 if "slip_margin" in names:
-                    from .slip import required_friction, slip_margin
+                    from beltdyn.model.slip import required_friction, slip_margin
 
                     m = slip_margin(required_friction(out["span_tension"], sysm.layout.wrap_angle),
                                     sysm.pulley_friction)
@@ -1081,7 +1081,7 @@ class Observers:
             out["arm_angle"] = arms.angle + q[:, arms.dof]
             out["arm_speed"] = v[:, arms.dof].copy()
             if self.stop_hit is None and arms.stops is not None:
-                from .geometry import TWO_PI
+                from beltdyn.model.angles import TWO_PI
 
                 for k, (lo, hi) in enumerate(arms.stops):
                     if np.isnan(lo):
@@ -1109,8 +1109,8 @@ def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.
     """Integrate M a + C v + K q = 0 through the production path (the same `drive`, compiled stepper
     and band factorization as the drive, with no belt elements). For tests on analytic oscillators.
     Returns t (n_steps+1,), q, v, a (n_steps+1, n)."""
-    from . import integrator as itg
-    from .spring_kernel import no_springs
+    from beltdyn.analysis import integrator as itg
+    from beltdyn.model.spring_kernel import no_springs
 
     n = M.shape[0]
     belt = itg.BeltData(e0=np.zeros((0, 8)), T=np.zeros((0, 8, 8)), idx=np.zeros((0, 8), dtype=np.int64),
@@ -1167,22 +1167,9 @@ def entry_kernels() -> tuple:
     a running belt, the belt damping's), each loaded from numba's cache on its own; every other kernel
     runs inside them, compiled into their libraries. What `jitcache.is_warm` checks before a run and
     `warm_up` compiles; `tests/test_startup.py` checks the list against what transients dispatch."""
-    from . import belt_kernel as bk
-    from . import integrator as itg
+    from beltdyn.model import belt_kernel as bk
+    from beltdyn.analysis import integrator as itg
 
     return (itg.advance, itg.band_lu_nopivot, bk.element_forces, bk.element_damping, bk.element_damping_matrix,
             bk.reduced_force_and_tangent_blocks)
 
-
-def warm_up() -> None:
-    """Compile (or load from numba's cache) every kernel a transient runs, with the signatures it
-    runs them with: a few steps of a small drive (slide, backside arm with friction, belt and Rayleigh
-    damping, a prescribed rotation and a load, gravity) through `run_transient` (the band Cholesky
-    and band LU factors share one signature: both column-major). `make` calls it at install; the CLI
-    before a transient's output is opened."""
-    from .config import config_from_dict
-    from .pipeline import analyse
-
-    cfg = config_from_dict(WARM_DRIVE, file="<warm-up drive>")
-    run = analyse(cfg, compiled=True)
-    run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)

@@ -15,9 +15,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
-from . import SCHEMA_VERSION
-from .errors import OutputError
-from .results_schema import decode_attr, h5py_module
+from beltdyn import SCHEMA_VERSION
+from beltdyn.errors import OutputError
+from beltdyn.results.schema import decode_attr, h5py_module
 
 HELD_LOCKS: set[int] = set()  # lock descriptors of this process (closed in forked sweep workers)
 _OUTPUT_LOCKS: dict[str, int] = {}  # results-file lock path -> its descriptor

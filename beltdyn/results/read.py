@@ -12,11 +12,11 @@ from typing import Any
 
 import numpy as np
 
-from .errors import OutputError
-from .results_files import open_read, same_boot, writer_alive
-from .results_journal import read_journal
-from .results_schema import TIME_DIM, decode_attr, h5py_module
-from .results_write import source_file
+from beltdyn.errors import OutputError
+from beltdyn.results.files import open_read, same_boot, writer_alive
+from beltdyn.results.journal import read_journal
+from beltdyn.results.schema import TIME_DIM, decode_attr, h5py_module
+from beltdyn.results.write import source_file
 
 _ATTEMPTS = 5
 

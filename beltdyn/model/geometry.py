@@ -24,11 +24,11 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .config import DriveConfig
-from .errors import ConfigError
-from .frozen import set_at_once
+from beltdyn.config import DriveConfig
+from beltdyn.errors import ConfigError
+from beltdyn.model.angles import TWO_PI, pivot_angle, unwrap_near
+from beltdyn.model.frozen import set_at_once
 
-TWO_PI = 2.0 * math.pi
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -571,7 +571,7 @@ def layout_from_config(cfg: DriveConfig) -> Layout:
         if a is None:
             lay = compute_layout(center, radius, side, names)
         else:
-            from .supports import support_of
+            from beltdyn.model.supports import support_of
 
             lay = fit_adjustable(center, radius, side, names, index=a, target_length=cfg.belt.length,
                                  **support_of(cfg.pulleys[a]).fit_motion())
@@ -587,17 +587,34 @@ def layout_from_config(cfg: DriveConfig) -> Layout:
     return lay
 
 
-def unwrap_near(angle: float, ref: float) -> float:
-    """angle + 2 pi k, the one nearest to ref."""
-    return float(angle + TWO_PI * round((ref - angle) / TWO_PI))
-
-
 def arm_angle(layout: Layout, j: int, pivot) -> float:
     """The angle (rad, counter-clockwise from +x) of the arm pivot (2,) -> centre of pulley j."""
     return pivot_angle(layout.center[j], pivot)
 
 
-def pivot_angle(point, pivot) -> float:
-    """The angle (rad, counter-clockwise from +x) of pivot -> point, both (2,)."""
-    (x, y), (px, py) = point, pivot
-    return math.atan2(float(y) - float(py), float(x) - float(px))
+def travel_sense(layout: "Layout", j: int) -> float:
+    """+1 if a counter-clockwise turn of pulley j advances the belt along its direction of travel, else -1:
+    the sign of (z x n) . t at the tangent point where span j leaves pulley j."""
+    n = layout.start_normal[j]
+    t = layout.span_direction[j]
+    return 1.0 if float(-n[1] * t[0] + n[0] * t[1]) >= 0.0 else -1.0
+
+
+def belt_speed_of(cfg: "DriveConfig", layout: "Layout") -> float:
+    """The belt speed c (m/s) that [running] asks for: belt_speed, or driver_speed x R_driver with the
+    sense of travel (`travel_sense`); 0 without [running]."""
+    r = cfg.running
+    if r is None:
+        return 0.0
+    if r.belt_speed is not None:
+        return float(r.belt_speed)
+    if r.driver_speed is not None:
+        d = cfg.driver_index
+        return float(r.driver_speed) * float(layout.radius[d]) * travel_sense(layout, d)
+    return 0.0
+
+
+def driver_speed_of(belt_speed: float, layout: "Layout", driver: int) -> float:
+    """The driver's angular speed (rad/s, counter-clockwise) at the belt speed c: c / R_driver with the
+    sense of travel."""
+    return float(belt_speed) / float(layout.radius[driver]) * travel_sense(layout, driver)

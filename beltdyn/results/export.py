@@ -9,13 +9,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .results_io import GroupData, Variable
+from beltdyn.analysis.result_warnings import SLACK_WARNING, STRAIN_WARNING, strain_warning  # noqa: F401
+from beltdyn.results.io import GroupData, Variable
 
 if TYPE_CHECKING:  # keep `beltdyn geometry` from importing the solvers
-    from .geometry import Layout
-    from .modal import ModalResult
-    from .system import System as DriveModel
-    from .static import StaticResult
+    from beltdyn.model.geometry import Layout
+    from beltdyn.analysis.modal import ModalResult
+    from beltdyn.model.system import System as DriveModel
+    from beltdyn.analysis.static import StaticResult
 
 XY = ["x", "y"]
 MIXED = "mixed (see dof_unit)"
@@ -161,7 +162,7 @@ def _running_attrs(model: DriveModel) -> dict:
     """The running belt's speed (attributes of /static and /modal; none at rest)."""
     if not model.belt_speed:
         return {}
-    from .running import driver_speed_of
+    from beltdyn.model.geometry import driver_speed_of
 
     return {"belt_speed_m_per_s": float(model.belt_speed),
             "driver_speed_rad_per_s": driver_speed_of(model.belt_speed, model.layout, model.driver)}
@@ -206,25 +207,6 @@ def unrepresented_variables(model: DriveModel, modes) -> tuple[dict, tuple[Varia
         Variable(name="unrepresented_kind", data=[m[1] for m in modes], dims=("unrepresented",), units="1"),
         Variable(name="unrepresented_order", data=np.array([m[2] for m in modes], dtype=np.int64),
                  dims=("unrepresented",), units="1")))
-
-
-STRAIN_WARNING = 0.05  # belt strain above which the constant-EA axial law is flagged (real belts: ~1 % at most)
-
-
-SLACK_WARNING = 0.1  # a span whose smaller end tension is below this share of the mean tension is flagged
-
-
-def strain_warning(T: float, EA: float, when: str = "") -> list[str]:
-    """[a warning] if the largest span tension T (N) stretches the belt beyond STRAIN_WARNING, else [].
-    when: where in a run (e.g. " at t = 0.2 s"), empty for a static result."""
-    from .system import stretch_for_tension
-
-    strain = stretch_for_tension(T, EA) - 1.0 if np.isfinite(T) and T > 0 else 0.0  # engineering strain
-    if strain <= STRAIN_WARNING:
-        return []
-    return [f"the belt is stretched by {strain:.1%}{when} (tension {T:.4g} N on EA = {EA:.4g} N): far beyond a "
-            f"belt's working strain, where the axial law (constant EA) no longer describes it; check "
-            f"tension.target and belt.EA"]
 
 
 def static_warnings(model: DriveModel, res: StaticResult) -> list[str]:
@@ -292,7 +274,7 @@ def node_spans(model: DriveModel) -> np.ndarray:
 def modal_group(model: DriveModel, res: ModalResult, q: np.ndarray | None = None, unrepresented=()) -> GroupData:
     """/modal; with the equilibrium q also the shapes' motion of the belt's nodes (`node_shape`);
     unrepresented: the modes spring spans leave out (`ladder.unrepresented_modes`)."""
-    from .modal import KINDS
+    from beltdyn.analysis.modal import KINDS
 
     lay = model.layout
     extra = ()
@@ -365,7 +347,7 @@ def sweep_group(cfg, result) -> GroupData:
     """/sweep: a `case` axis, the swept parameters as per-case variables, tracked frequencies."""
     import json
 
-    from .sweep import var_name
+    from beltdyn.results.schema import var_name
 
     spec = result.spec
     n = spec.n_cases
@@ -419,7 +401,7 @@ def sweep_group(cfg, result) -> GroupData:
             dims, units = ("pulley", "component"), "N"
         elif base == "bearing_force":
             dims, units = ("bearing", "component"), "N"
-            from .supports import support_of
+            from beltdyn.model.supports import support_of
 
             coords["bearing"] = [p.name for p in cfg.pulleys if support_of(p).springs()]
         else:
@@ -437,7 +419,7 @@ def _campbell_variables(cfg, result, coords: dict, spans: list[str]) -> list:
     """A speed sweep's resonance table (`running.campbell`): each crossing of a tracked mode with an
     engine-order line of [running] orders on a `crossing` axis, and each loss of stability on an
     `instability` axis (added to coords)."""
-    from .running import campbell, speed_axis
+    from beltdyn.analysis.running import campbell, speed_axis
 
     if not speed_axis(result):
         return []
@@ -472,7 +454,7 @@ def _campbell_variables(cfg, result, coords: dict, spans: list[str]) -> list:
 def response_group(system, res) -> GroupData:
     """/response: a `speed` axis (the driver's mean speed) and an `order` axis; every output as its
     amplitude and phase (y(t) = amplitude cos(omega t + phase), omega = order x speed)."""
-    from .response import coordinates
+    from beltdyn.analysis.response import coordinates
 
     variables = [
         Variable(name="frequency", data=res.frequency, dims=("speed", "order"), units="Hz",

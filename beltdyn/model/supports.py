@@ -14,15 +14,15 @@ motion per unit of each translational DOF (the ones the belt joints and the pull
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
 
-from .config import Pulley
-from .frozen import set_at_once
-from .geometry import pivot_angle, unwrap_near
+from beltdyn.config import Pulley
+from beltdyn.model.frozen import set_at_once
+from beltdyn.model.angles import pivot_angle, unwrap_near
+from beltdyn.model.components import LinearComponent
 
 Dof = tuple[str, str, str]  # label suffix, unit, DOF group
 
@@ -162,7 +162,7 @@ class ArmSupport(Support):
             elif spring_free is not None and spring_free[dof] != 0.0:  # relaxed where it was on the L0 fit
                 free = np.array([float(spring_free[dof])])
         name, dofs, mass, stiffness, damping = self._arm_parts(dof)
-        return (set_at_once(_linear_component(), name=name, dofs=dofs, stiffness=stiffness, damping=damping,
+        return (set_at_once(LinearComponent, name=name, dofs=dofs, stiffness=stiffness, damping=damping,
                             mass=mass, weight=None, free=free, energy_kind="tensioner"),)
 
     def _arm_parts(self, dof: int) -> tuple:
@@ -190,15 +190,6 @@ class ArmSupport(Support):
             return None
         drawn = unwrap_near(p.arm_angle, 0.5 * (p.arm_range[0] + p.arm_range[1]))
         return (p.arm_range[0] - drawn, p.arm_range[1] - drawn)
-
-
-@functools.cache
-def _linear_component() -> type:
-    """`system.LinearComponent`, imported at the first use (system imports this module; an import statement
-    per call costs more than the component)."""
-    from .system import LinearComponent
-
-    return LinearComponent
 
 
 SUPPORT_CLASSES: dict[str, type[Support]] = {c.kind: c for c in (Support, SlideSupport, BearingSupport, ArmSupport)}

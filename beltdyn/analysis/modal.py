@@ -36,9 +36,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import SolverError
-from .geometry import TWO_PI
-from .system import ENERGY_KINDS, System
+from beltdyn.errors import SolverError
+from beltdyn.model.angles import TWO_PI
+from beltdyn.model.components import ENERGY_KINDS
+from beltdyn.model.system import System
 
 KINDS = ENERGY_KINDS
 ORDINAL = {1: "st", 2: "nd", 3: "rd"}

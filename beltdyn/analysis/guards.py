@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .config import DriveConfig, TransientOptions
+from beltdyn.config import DriveConfig, TransientOptions
 
 STATIC_S_PER_DOF = 50e-6  # s per DOF: geometry, static and modal analysis
 STEP_S = 5e-6  # s: a transient step's fixed cost
@@ -40,7 +40,7 @@ class CostEstimate:
 def estimate_cost(cfg: DriveConfig, transient: TransientOptions | None = None) -> CostEstimate:
     """The cost of the static (+ modal) analysis of `cfg`, and of the transient `transient` (its step
     resolved, `timestep.resolve_step`) if given."""
-    from .system import BYTES_PER_DOF, model_dofs
+    from beltdyn.model.system import BYTES_PER_DOF, model_dofs
 
     n = model_dofs(cfg)
     est = CostEstimate(n_dof=n, memory=n * BYTES_PER_DOF, static_s=STATIC_S_PER_DOF * n)

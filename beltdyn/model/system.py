@@ -38,13 +38,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import ancf
-from .config import DriveConfig
-from .errors import ConfigError
-from .frozen import set_at_once
-from .geometry import Layout, layout_from_config
-from .running import belt_speed_of
-from .supports import SUPPORT_CLASSES, Support, support_of
+from beltdyn.model import ancf
+from beltdyn.config import DriveConfig
+from beltdyn.errors import ConfigError
+from beltdyn.model.components import ENERGY_KINDS, BearingSprings, LinearComponent
+from beltdyn.model.barlaw import stretch_for_tension
+from beltdyn.model.frozen import set_at_once
+from beltdyn.model.joints import joint_selection
+from beltdyn.model.geometry import Layout, layout_from_config
+from beltdyn.model.geometry import belt_speed_of
+from beltdyn.model.supports import SUPPORT_CLASSES, Support, support_of
 
 DENSE_LIMIT = 200  # models up to this many DOFs use dense linear algebra
 _EYE2 = np.eye(2)
@@ -56,7 +59,6 @@ _PAD.setflags(write=False)
 _NO_ELEMENT, _NO_INDEX, _NO_T, _NO_IDX, _NO_E = (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 8, 8)),
                                                  np.zeros((0, 8), dtype=np.int64), np.zeros((0, 8)))
 DOF_GROUPS = ("span", "rotation", "translation", "arm")
-ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse", "tensioner")
 
 
 def _z_cross(n: np.ndarray) -> np.ndarray:
@@ -162,68 +164,6 @@ def _number_dofs(cfg: DriveConfig) -> DofMap:
 
 
 # ------------------------------------------------------------------------------------ components
-@dataclass(frozen=True, kw_only=True)
-class Observation:
-    """One output series a component offers: trailing dims (coordinate names) and units."""
-
-    name: str
-    dims: tuple[str, ...]
-    units: str
-    description: str = ""
-
-
-@dataclass(frozen=True, kw_only=True)
-class LinearComponent:
-    """A component with constant matrices over its own DOFs (k,): internal force
-    K (q[dofs] - free), damping C v[dofs], mass M, weight W (k, 2) (generalized force per unit
-    gravity vector); `free` (k,) the DOF values at which its force vanishes (default 0).
-
-    energy_kind names the kinetic-energy kind of its mass for the mode classification
-    (one of ENERGY_KINDS, or "" for none). Subclasses may offer output series (`observations`,
-    `observe`).
-    """
-
-    name: str
-    dofs: np.ndarray
-    stiffness: np.ndarray | None = None
-    damping: np.ndarray | None = None
-    mass: np.ndarray | None = None
-    weight: np.ndarray | None = None
-    free: np.ndarray | None = None
-    energy_kind: str = ""
-
-    def observations(self, system: "System") -> tuple[Observation, ...]:
-        return ()
-
-    def observe(self, system: "System", q: np.ndarray, preload: np.ndarray) -> dict[str, np.ndarray]:
-        """Series values for output states q (B, n_dof); preload (n_dof,) the static spring preload."""
-        return {}
-
-
-@dataclass(frozen=True, kw_only=True)
-class BearingSprings(LinearComponent):
-    """Bearing springs of the pulleys on slides and bearings (paper Eq. 21), diagonal."""
-
-    pulleys: tuple[int, ...] = ()  # pulley index of each supported pulley
-    pulley_names: tuple[str, ...] = ()
-
-    def observations(self, system: "System") -> tuple[Observation, ...]:
-        if not self.pulleys:
-            return ()
-        return (Observation(name="bearing_force", dims=("bearing", "component"), units="N",
-                            description="force of the bearing spring on the pulley (preload included)"),)
-
-    def observe(self, system: "System", q: np.ndarray, preload: np.ndarray) -> dict[str, np.ndarray]:
-        d = system.dofs
-        k_of = dict(zip(self.dofs.tolist(), np.diag(self.stiffness)))  # the springs are diagonal
-        free = dict(zip(self.dofs.tolist(), self.free if self.free is not None else np.zeros(len(self.dofs))))
-        rows = []
-        for j in self.pulleys:
-            F = np.zeros((q.shape[0], 2))
-            for dof, vec in zip(d.trans_dof[j], d.trans_dir[j]):
-                F += (preload[dof] - k_of[dof] * (q[:, dof] - free[dof]))[:, None] * vec
-            rows.append(F)
-        return {"bearing_force": np.stack(rows, axis=1)}
 
 
 # ------------------------------------------------------------------------------------ the belt
@@ -317,7 +257,7 @@ class BeltSpans:
         """The compiled kernel's tables of these elements (cached)."""
         tab = self.__dict__.get("_tables")
         if tab is None:
-            from .belt_kernel import tables_from_elements
+            from beltdyn.model.belt_kernel import tables_from_elements
 
             tab = tables_from_elements(self.elements)
             object.__setattr__(self, "_tables", tab)
@@ -325,7 +265,7 @@ class BeltSpans:
 
     def kernel_scratch(self):
         """New scratch arrays for the compiled kernel's functions on these elements (`belt_kernel.Scratch`)."""
-        from .belt_kernel import scratch
+        from beltdyn.model.belt_kernel import scratch
 
         return scratch(self.T.shape[0], self.elements.dS.shape[1], self.T.shape[2])
 
@@ -378,7 +318,7 @@ class BeltSpans:
         """Reduced elastic force of the belt (n_dof,)."""
         if not self.compiled:
             return self.reduce_vector(ancf.internal_forces(self.elements, self.element_coordinates(q)))
-        from . import belt_kernel as bk
+        from beltdyn.model import belt_kernel as bk
 
         tab = self.kernel_tables
         out = np.zeros(self.n_dof + 1)
@@ -391,7 +331,7 @@ class BeltSpans:
         if not self.compiled:
             fe, Ke = ancf.internal_forces_and_tangent(self.elements, self.element_coordinates(q))
             return self.reduce_vector(fe), self.reduce_blocks(Ke)
-        from . import belt_kernel as bk
+        from beltdyn.model import belt_kernel as bk
 
         tab = self.kernel_tables
         out = np.zeros(self.n_dof + 1)
@@ -487,7 +427,7 @@ class BeltSpans:
             ge = ancf.gravity_forces(sub_el, gravity)
             F = np.stack([ancf.internal_forces(sub_el, E[b, ends]) for b in range(B)]) - ge
             return self.on_spans(np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2))
-        from . import belt_kernel as bk
+        from beltdyn.model import belt_kernel as bk
 
         # the whole batch in one kernel call: the end elements' tables tiled over the batch (cached per size)
         cached = self.__dict__.get("_end_tables")
@@ -2002,24 +1942,6 @@ def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> an
     return base if inverse is None else ancf.subset(base, inverse.ravel())
 
 
-def joint_selection(T: np.ndarray, idx: np.ndarray, n_dof: int) -> np.ndarray:
-    """tsel (n_elem,) int64: -1 where element k has T[k] == [I8 | 0] exactly and idx[k, 8:] all
-    equal the padding index n_dof (identity fast path), else k (its own row of T).
-
-    T (n_elem, 8, m) and idx (n_elem, m) with m >= 8.
-    """
-    T = np.asarray(T)
-    idx = np.asarray(idx)
-    if T.ndim != 3 or T.shape[1] != 8 or T.shape[2] < 8:
-        raise ValueError(f"T must have shape (n_elem, 8, m >= 8), got {T.shape}")
-    if idx.shape != (T.shape[0], T.shape[2]):
-        raise ValueError(f"idx must have shape {(T.shape[0], T.shape[2])}, got {idx.shape}")
-    ident = np.zeros(T.shape[1:])
-    ident[:, :8] = np.eye(8)
-    ok = np.all(T == ident, axis=(1, 2)) & np.all(idx[:, 8:] == n_dof, axis=1)
-    return np.where(ok, -1, np.arange(T.shape[0])).astype(np.int64)
-
-
 def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = None, *,
                       spring_free: np.ndarray | None = None, parts: "PulleyParts | None" = None
                       ) -> tuple[LinearComponent, ...]:
@@ -2143,45 +2065,6 @@ def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
     for tq in cfg.static.torque:
         F[rot[names.index(tq.pulley)]] += tq.value
     return np.array(F)
-
-
-def stretch_start(x):
-    """A start for the stretch lambda of a bar at N / EA = x (`stretch_for_tension`; a float or an
-    array): the series lambda = 1 + x - 3/2 x^2 + 4 x^3 + O(x^4) where the strain is small (one Newton
-    step then reaches round-off for |x| < 1e-2), 1 + x beyond."""
-    series = 1.0 + x * (1.0 - x * (1.5 - 4.0 * x))
-    if isinstance(x, float):
-        return series if abs(x) < 0.05 else 1.0 + x
-    return np.where(np.abs(x) < 0.05, series, 1.0 + x)
-
-
-def stretch_for_tension(tension, EA: float):
-    """lambda with EA * eps * lambda = N, eps = (lambda^2 - 1)/2 (St. Venant-Kirchhoff bar); elementwise
-    for an array of tensions (a float for a float: plain Python arithmetic, no numpy call)."""
-    if not isinstance(tension, (float, int)) and np.size(tension) <= 16:  # a few: element by element in floats
-        T = np.asarray(tension, dtype=float)
-        if T.ndim == 0:
-            return stretch_for_tension(float(T), EA)
-        return np.array([stretch_for_tension(t, EA) for t in T.ravel().tolist()]).reshape(T.shape)
-    if isinstance(tension, (float, int)):  # from `stretch_start`
-        x = float(tension) / EA
-        lam = stretch_start(x)
-        largest = abs
-    else:
-        x = np.asarray(tension, dtype=float) / EA
-        lam = stretch_start(x)
-
-        def largest(step):
-            return float(np.max(np.abs(step), initial=0.0))
-    try:
-        for _ in range(50):
-            step = (lam * lam * lam - lam - 2.0 * x) / (3.0 * lam * lam - 1.0)  # (a float's ** raises on overflow)
-            lam = lam - step
-            if largest(step) <= 1e-15:  # lambda ~ 1: a few ulp; Newton is quadratic well before
-                break
-    except ZeroDivisionError:  # a float's 0 / 0 or x / 0 where numpy's would give nan or inf
-        return math.nan
-    return lam if isinstance(lam, float) or np.ndim(lam) else float(lam)
 
 
 def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
@@ -2365,5 +2248,5 @@ class DeferredSystem:
         return getattr(self.full(), name)
 
 
-__all__ = ["System", "DofMap", "BeltSpans", "SpringSpans", "build_springs", "LinearComponent", "BearingSprings", "Observation", "TensionSetting",
-           "build_system", "DriveFacts", "drive_facts", "number_dofs", "stretch_for_tension", "stretch_start", "element_pairs", "DENSE_LIMIT", "ENERGY_KINDS"]
+__all__ = ["System", "DofMap", "BeltSpans", "SpringSpans", "build_springs", "TensionSetting",
+           "build_system", "DriveFacts", "drive_facts", "number_dofs", "element_pairs", "DENSE_LIMIT"]

@@ -52,37 +52,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from .config import Damping, DriveConfig
-    from .geometry import Layout
-    from .system import DofMap, System
-
-
-def travel_sense(layout: "Layout", j: int) -> float:
-    """+1 if a counter-clockwise turn of pulley j advances the belt along its direction of travel, else -1:
-    the sign of (z x n) . t at the tangent point where span j leaves pulley j."""
-    n = layout.start_normal[j]
-    t = layout.span_direction[j]
-    return 1.0 if float(-n[1] * t[0] + n[0] * t[1]) >= 0.0 else -1.0
-
-
-def belt_speed_of(cfg: "DriveConfig", layout: "Layout") -> float:
-    """The belt speed c (m/s) that [running] asks for: belt_speed, or driver_speed x R_driver with the
-    sense of travel (`travel_sense`); 0 without [running]."""
-    r = cfg.running
-    if r is None:
-        return 0.0
-    if r.belt_speed is not None:
-        return float(r.belt_speed)
-    if r.driver_speed is not None:
-        d = cfg.driver_index
-        return float(r.driver_speed) * float(layout.radius[d]) * travel_sense(layout, d)
-    return 0.0
-
-
-def driver_speed_of(belt_speed: float, layout: "Layout", driver: int) -> float:
-    """The driver's angular speed (rad/s, counter-clockwise) at the belt speed c: c / R_driver with the
-    sense of travel."""
-    return float(belt_speed) / float(layout.radius[driver]) * travel_sense(layout, driver)
+    from beltdyn.config import Damping
+    from beltdyn.model.system import DofMap, System
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -117,7 +88,7 @@ def linearized_matrices(system: "System", q0: np.ndarray, damping: "Damping | No
         ray = damping.rayleigh_mass * system.mass + damping.rayleigh_stiffness * system.tangent_on_joints(q0)
         C_p = ray if C_p is None else C_p + ray
     if damping is not None and (damping.belt_axial or damping.belt_bending):
-        from . import belt_kernel as bk
+        from beltdyn.model import belt_kernel as bk
 
         belt = system.belt
         tab = belt.kernel_tables
@@ -165,7 +136,7 @@ class Instability:
 
 def mode_label(kind: str, order: int, span: int, span_names: list[str]) -> str:
     """"2nd transverse, span 1 (A-C)" from a tracked mode's classification."""
-    from .modal import ordinal
+    from beltdyn.analysis.modal import ordinal
 
     if kind in ("", "lost"):
         return kind or "?"

@@ -103,7 +103,7 @@ parts and journals are only appended to or created. A reader whose root was repl
 
 from __future__ import annotations
 
-from .results_files import (
+from beltdyn.results.files import (
     HELD_LOCKS,
     LockBusy,
     check_target,
@@ -112,10 +112,10 @@ from .results_files import (
     lock_pid,
     take_lock,
 )
-from .results_read import GroupState, group_names, group_states, read_group, read_root_attrs
-from .results_schema import GroupData, Variable
-from .results_stream import SYNC_SECONDS, WRITE_SECONDS, StreamWriter, recover
-from .results_write import INLINE_BYTES, write_group, write_groups
+from beltdyn.results.read import GroupState, group_names, group_states, read_group, read_root_attrs
+from beltdyn.results.schema import GroupData, Variable
+from beltdyn.results.stream import SYNC_SECONDS, WRITE_SECONDS, StreamWriter, recover
+from beltdyn.results.write import INLINE_BYTES, write_group, write_groups
 
 __all__ = [
     "HELD_LOCKS",

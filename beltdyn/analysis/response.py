@@ -42,10 +42,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import Damping, DriveConfig, ResponseOptions
-from .errors import SolverError
-from .static import StaticResult
-from .system import System
+from beltdyn.config import Damping, ResponseOptions
+from beltdyn.errors import SolverError
+from beltdyn.analysis.static import StaticResult
+from beltdyn.model.system import System
 
 OUTPUTS = ("span_tension", "hub_load", "pulley_angle", "pulley_speed", "arm_angle", "midspan_displacement",
            "driver_torque")
@@ -79,7 +79,7 @@ class LinearDrive:
 def linearize(system: System, static: StaticResult, damping: Damping) -> LinearDrive:
     """M, C, K of the drive about its static equilibrium (see the module docstring;
     `running.linearized_matrices`, whose gyroscopic G is zero at rest)."""
-    from .running import linearized_matrices
+    from beltdyn.analysis.running import linearized_matrices
 
     lin = linearized_matrices(system, static.q, damping)
     return LinearDrive(M=lin.M, C=lin.C + lin.G if system.belt_speed else lin.C, K=lin.K, q0=lin.q0)
@@ -240,7 +240,7 @@ def solve_response(system: System, static: StaticResult, opts: ResponseOptions,
                         "(give [response.damping])")
     if system.arms is not None and system.arms.friction is not None and np.any(system.arms.friction):
         warnings.append("the tensioner arms' dry friction is not in the linear response (the transient models it)")
-    from .running import travel_sense
+    from beltdyn.model.geometry import travel_sense
 
     R_d = float(lay.radius[system.driver]) * travel_sense(lay, system.driver)
     names = tuple(lay.names[j] for j in range(lay.n) if int(system.rot_dof[j]) in set(presc.tolist()))
@@ -277,35 +277,3 @@ def coordinates(system: System) -> dict:
                 coords["bearing"] = list(c.pulley_names)
     return coords
 
-
-def response_of(cfg: DriveConfig, run) -> ResponseResult:
-    """The response of an analysed drive (`pipeline.analyse`) to cfg.response: with response.transport
-    (default) linearized at each speed about the running equilibrium at the belt speed
-    speed x R_driver (one static solve per speed, warm from the L0 fit), else once about `run`."""
-    from dataclasses import replace
-
-    opts = cfg.response
-    assert opts is not None
-    d = opts.damping
-
-    def damped(system: System) -> System:
-        return system.with_belt_damping(d.belt_axial, d.belt_bending) if (d.belt_axial or d.belt_bending) else system
-
-    if not opts.transport:
-        return solve_response(damped(run.system), run.static, opts)
-    from .pipeline import analyse
-    from .running import travel_sense
-
-    lay = run.fit_layout if run.fit_layout is not None else run.layout
-    driver = cfg.driver_index
-    per_metre = float(lay.radius[driver]) * travel_sense(lay, driver)
-    parts = []
-    for omega in speeds_of(opts):
-        at = analyse(cfg, belt_speed=float(omega) * per_metre, layout=lay)
-        parts.append(solve_response(damped(at.system), at.static, opts, np.array([omega])))
-    first = parts[0]
-    outputs = {k: np.concatenate([p.outputs[k] for p in parts]) for k in first.outputs}
-    warnings = tuple(dict.fromkeys(w for p in parts for w in p.warnings))
-    return replace(first, speed=np.concatenate([p.speed for p in parts]),
-                   frequency=np.concatenate([p.frequency for p in parts]),
-                   belt_speed=np.concatenate([p.belt_speed for p in parts]), outputs=outputs, warnings=warnings)

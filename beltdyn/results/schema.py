@@ -8,6 +8,7 @@ layout these describe is documented in `results_io`.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -285,3 +286,8 @@ def decode_attr(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+def var_name(key: str) -> str:
+    """A dotted configuration key as an HDF5 variable name (tension.target -> tension_target)."""
+    return re.sub(r"[^A-Za-z0-9_]", "_", key).strip("_")

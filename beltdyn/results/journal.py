@@ -28,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import OutputError
-from .results_files import fsync_dir
+from beltdyn.errors import OutputError
+from beltdyn.results.files import fsync_dir
 
 MAGIC = b"BDSTREAM"
 _HEAD = struct.Struct("<8sQQII")  # magic, written, synced, crc32(written, synced), layout length

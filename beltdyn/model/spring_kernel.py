@@ -17,8 +17,8 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 
-from . import jitcache
-from .jitcache import kernel_options
+from beltdyn import jitcache
+from beltdyn.jitcache import kernel_options
 
 KERNEL = kernel_options()  # the njit options of this module's kernels (numba loaded)
 

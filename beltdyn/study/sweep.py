@@ -43,9 +43,9 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .config import DriveConfig, config_hash, resolved_toml
-from .errors import ConfigError, OutputError
-from .results_io import fsync_dir
+from beltdyn.config import DriveConfig, config_hash, resolved_toml
+from beltdyn.errors import ConfigError, OutputError
+from beltdyn.results.io import fsync_dir
 
 ANALYSES = ("static", "modal", "transient")
 MAC_LOST = 0.5  # below this MAC a tracked mode counts as lost (it left the computed modes)
@@ -183,7 +183,7 @@ def _check_cases(cfg: DriveConfig, spec: SweepSpec) -> None:
     come before transient.duration in every case, whether or not the spectrum is enabled."""
     import copy
 
-    from .config import apply_override, config_from_dict, config_to_dict
+    from beltdyn.config import apply_override, config_from_dict, config_to_dict
 
     raw = config_to_dict(cfg)
     tables = sweep_tables(cfg, spec)
@@ -206,7 +206,7 @@ def _check_cases(cfg: DriveConfig, spec: SweepSpec) -> None:
             for a in assignments:
                 apply_override(case_raw, a, file=cfg.source)
             c = config_from_dict(case_raw, file=cfg.source)
-            from .system import check_model_size
+            from beltdyn.model.system import check_model_size
 
             check_model_size(c)
         except ConfigError as exc:
@@ -241,7 +241,7 @@ def case_assignments(spec: SweepSpec, values: tuple, tables: dict[str, bytes]) -
 def sweep_tables(cfg: DriveConfig, spec: SweepSpec) -> dict[str, bytes]:
     """The bytes of every CSV table the sweep's cases read (the configuration's and every swept table
     value), sent with the cases to the workers (`run_case`)."""
-    from .config import table_bytes
+    from beltdyn.config import table_bytes
 
     swept = tuple(str(v) for p in spec.params if p.key.endswith(".table") for v in p.values)
     try:
@@ -267,8 +267,8 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
     tables travel with it (`config.table_bytes`), so a worker on another machine needs no files."""
     import tomllib
 
-    from .config import apply_override, config_from_dict
-    from .errors import BeltdynError
+    from beltdyn.config import apply_override, config_from_dict
+    from beltdyn.errors import BeltdynError
 
     t0 = time.perf_counter()
     out: dict[str, Any] = {"failed": 0, "error": ""}
@@ -280,10 +280,10 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
         if analysis == "transient" and cfg.transient is not None:
             from dataclasses import replace
 
-            from .timestep import resolve_step  # the step each case's accuracy (or step) asks for
+            from beltdyn.analysis.timestep import resolve_step  # the step each case's accuracy (or step) asks for
 
             cfg = replace(cfg, transient=resolve_step(cfg.transient)[0])
-        from .pipeline import analyse
+        from beltdyn.pipeline import analyse
 
         run = analyse(cfg, modal=analysis == "modal", n_modes=n_modes + 4)
         model, st = run.system, run.static
@@ -297,7 +297,7 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
         if st.slip_margin is not None and not np.all(np.isnan(st.slip_margin)):
             out["slip_margin"] = st.slip_margin
         if model.belt_speed or cfg.running is not None:  # the running belt's speeds (a Campbell diagram)
-            from .running import driver_speed_of
+            from beltdyn.model.geometry import driver_speed_of
 
             out["belt_speed"] = float(model.belt_speed)
             out["driver_speed"] = driver_speed_of(model.belt_speed, model.layout, model.driver)
@@ -324,10 +324,10 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
 def _transient_case(run) -> dict:
     """Steady-state amplitudes (first harmonic of the excitation, and half peak-to-peak) of the
     span tensions, hub loads and bearing forces after transient.spectrum.start."""
-    from .spectrum import amplitude_spectrum, harmonic_content
-    from .transient import prepare, run_transient
+    from beltdyn.analysis.spectrum import amplitude_spectrum, harmonic_content
+    from beltdyn.analysis.transient import prepare, run_transient
 
-    from .pipeline import transient_start
+    from beltdyn.pipeline import transient_start
 
     cfg = run.config
     system, static = transient_start(run)
@@ -374,8 +374,8 @@ def _run_chunk(base_toml: str, source: str, tables: dict[str, bytes], items: lis
 
 
 # ------------------------------------------------------------------------------------ the journal
-from .results_io import HELD_LOCKS as _HELD_LOCKS  # noqa: E402  lock descriptors (closed in forked workers)
-from .results_io import LockBusy, take_lock  # noqa: E402
+from beltdyn.results.io import HELD_LOCKS as _HELD_LOCKS  # noqa: E402  lock descriptors (closed in forked workers)
+from beltdyn.results.io import LockBusy, take_lock  # noqa: E402
 
 
 class Journal:
@@ -1073,10 +1073,6 @@ def assemble(spec: SweepSpec, journal: Journal, assembly: Assembly | None = None
     return assembly.result()
 
 
-def var_name(key: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_]", "_", key).strip("_")
-
-
 # ------------------------------------------------------------------------------------ convergence
 def richardson(frequency: np.ndarray, elements: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per mode: extrapolated frequency, error estimate of each mesh, observed order.
@@ -1129,8 +1125,8 @@ def refine_mesh(cfg: DriveConfig, *, n_modes: int, rtol: float, max_elements: in
     of the first n_modes modes (matched by kind, order and span) is <= rtol; return the cheapest mesh
     whose estimate meets it, with its model, static and modal results, and the Refinement record.
     At least three meshes are computed, so that the estimate rests on an observed order."""
-    from .config import with_overrides
-    from .pipeline import analyse
+    from beltdyn.config import with_overrides
+    from beltdyn.pipeline import analyse
 
     n_el = cfg.mesh.elements_per_span
     runs, elements = [], []

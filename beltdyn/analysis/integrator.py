@@ -75,15 +75,15 @@ from collections import namedtuple
 
 import numpy as np
 
-from . import jitcache
-from .jitcache import configure, kernel_options
+from beltdyn import jitcache
+from beltdyn.jitcache import configure, kernel_options
 
 
 configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
 from numba import njit  # noqa: E402
 
-from . import belt_kernel as bk
-from . import spring_kernel as sk
+from beltdyn.model import belt_kernel as bk
+from beltdyn.model import spring_kernel as sk
 
 KERNEL = kernel_options()  # the njit options of this module's kernels (numba loaded)
 
@@ -169,7 +169,7 @@ N_SCAL = 16  # TR_P0: the transport power at the last accepted step; STALE, REF_
 REF_STEPS = 4  # a new factor's first steps: their mean iterations are what the factor does fresh
 ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
 
-from .timestep import alpha_parameters  # noqa: E402,F401  (one definition, numba-free)
+from beltdyn.analysis.timestep import alpha_parameters  # noqa: E402,F401  (one definition, numba-free)
 
 
 def no_factor() -> Factor:

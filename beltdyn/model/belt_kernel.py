@@ -55,15 +55,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import jitcache
-from .jitcache import configure, kernel_options
+from beltdyn import jitcache
+from beltdyn.jitcache import configure, kernel_options
 
 
 configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
 from numba import njit  # noqa: E402
 
-from . import ancf
-from .system import joint_selection  # noqa: F401  (set-up helper, pure numpy, lives with the joints)
+from beltdyn.model import ancf
+from beltdyn.model.joints import joint_selection  # noqa: F401  (set-up helper, pure numpy)
 
 KERNEL = kernel_options()  # the njit options of this module's kernels (numba loaded)
 

@@ -1,0 +1,87 @@
+"""Components: items with constant matrices over their own DOFs (pulley inertia and mass, bearing
+springs, anything a user adds), and the output series they offer.
+
+A component owns its DOF indices and gives its contribution to the internal force and tangent
+(K (q - free), K), to the damping (C v), to the mass (M) and to the weight, its kinetic-energy kind
+for the classification of modes, and its own output series. The analyses see only the `System`:
+adding a component touches no analysis.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from beltdyn.model.system import System
+
+ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse", "tensioner")
+
+
+
+
+
+@dataclass(frozen=True, kw_only=True)
+class Observation:
+    """One output series a component offers: trailing dims (coordinate names) and units."""
+
+    name: str
+    dims: tuple[str, ...]
+    units: str
+    description: str = ""
+
+
+@dataclass(frozen=True, kw_only=True)
+class LinearComponent:
+    """A component with constant matrices over its own DOFs (k,): internal force
+    K (q[dofs] - free), damping C v[dofs], mass M, weight W (k, 2) (generalized force per unit
+    gravity vector); `free` (k,) the DOF values at which its force vanishes (default 0).
+
+    energy_kind names the kinetic-energy kind of its mass for the mode classification
+    (one of ENERGY_KINDS, or "" for none). Subclasses may offer output series (`observations`,
+    `observe`).
+    """
+
+    name: str
+    dofs: np.ndarray
+    stiffness: np.ndarray | None = None
+    damping: np.ndarray | None = None
+    mass: np.ndarray | None = None
+    weight: np.ndarray | None = None
+    free: np.ndarray | None = None
+    energy_kind: str = ""
+
+    def observations(self, system: "System") -> tuple[Observation, ...]:
+        return ()
+
+    def observe(self, system: "System", q: np.ndarray, preload: np.ndarray) -> dict[str, np.ndarray]:
+        """Series values for output states q (B, n_dof); preload (n_dof,) the static spring preload."""
+        return {}
+
+
+@dataclass(frozen=True, kw_only=True)
+class BearingSprings(LinearComponent):
+    """Bearing springs of the pulleys on slides and bearings (paper Eq. 21), diagonal."""
+
+    pulleys: tuple[int, ...] = ()  # pulley index of each supported pulley
+    pulley_names: tuple[str, ...] = ()
+
+    def observations(self, system: "System") -> tuple[Observation, ...]:
+        if not self.pulleys:
+            return ()
+        return (Observation(name="bearing_force", dims=("bearing", "component"), units="N",
+                            description="force of the bearing spring on the pulley (preload included)"),)
+
+    def observe(self, system: "System", q: np.ndarray, preload: np.ndarray) -> dict[str, np.ndarray]:
+        d = system.dofs
+        k_of = dict(zip(self.dofs.tolist(), np.diag(self.stiffness)))  # the springs are diagonal
+        free = dict(zip(self.dofs.tolist(), self.free if self.free is not None else np.zeros(len(self.dofs))))
+        rows = []
+        for j in self.pulleys:
+            F = np.zeros((q.shape[0], 2))
+            for dof, vec in zip(d.trans_dof[j], d.trans_dir[j]):
+                F += (preload[dof] - k_of[dof] * (q[:, dof] - free[dof]))[:, None] * vec
+            rows.append(F)
+        return {"bearing_force": np.stack(rows, axis=1)}
