@@ -362,7 +362,7 @@ def test_the_dense_assembly_of_the_components_is_the_sparse_one():
     from scipy.sparse import csr_matrix
 
     from beltdyn.model.geometry import layout_from_config
-    from beltdyn.model.system import number_dofs
+    from beltdyn.model.dofs import number_dofs
 
     cfg = config_from_dict({**TWO_ARMS, "model": {"gravity": [0.0, -9.81]}})
     lay = layout_from_config(cfg)

@@ -53,7 +53,8 @@ import numpy as np
 
 if TYPE_CHECKING:
     from beltdyn.config import Damping
-    from beltdyn.model.system import DofMap, System
+    from beltdyn.model.dofs import DofMap
+    from beltdyn.model.system import System
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -43,7 +43,8 @@ from beltdyn.model.angles import TWO_PI, pivot_angle, unwrap_near
 from beltdyn.model.geometry import GeometryError, Layout, MovingPulley, fit_adjustable, relay
 from beltdyn.model.slip import required_friction, slip_margin
 from beltdyn.model.barlaw import stretch_for_tension, stretch_start
-from beltdyn.model.system import DOF_GROUPS, System
+from beltdyn.model.dofs import DOF_GROUPS
+from beltdyn.model.system import System
 
 
 @dataclass(frozen=True, kw_only=True)

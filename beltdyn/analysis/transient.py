@@ -35,7 +35,8 @@ from beltdyn.config import TransientOptions
 from beltdyn.errors import SolverError
 from beltdyn.analysis.static import StaticResult
 from beltdyn.model.components import Observation as Series  # one declaration of a recorded series
-from beltdyn.model.system import System, element_pairs
+from beltdyn.model.assembly import element_pairs
+from beltdyn.model.system import System
 
 ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
 

@@ -1,0 +1,112 @@
+"""The DOF map: the independent coordinates of the drive, their labels, units and groups."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from beltdyn.config import DriveConfig
+from beltdyn.model.supports import SUPPORT_CLASSES, support_of
+
+_DOFMAPS: dict = {}  # number_dofs memo: a DofMap depends only on the pulleys' names and supports and the mesh
+
+
+DOF_GROUPS = ("span", "rotation", "translation", "arm")
+
+
+def _z_cross(n: np.ndarray) -> np.ndarray:
+    return np.array([-n[1], n[0]])
+
+
+@dataclass(frozen=True, kw_only=True)
+class DofMap:
+    """Every independent coordinate: label, unit and group, and the pulleys' and spans' DOFs.
+
+    labels/units (n_dof,); group (n_dof,) int index into DOF_GROUPS; rot_dof (n_pulley,);
+    trans_dof[j] the translation DOFs of pulley j with trans_dir[j] (k, 2) their directions (m per
+    unit q); span_slices[s] the contiguous DOF range of span s's own coordinates; arm_dof (n_pulley,)
+    the arm angle DOF of a tensioner pulley (-1 for other supports).
+
+    Joint coordinates p: the independent coordinates q (the first n_q) followed by `dependent` ones,
+    the centre offsets (x, y) of the arm pulleys, u = c(phi) - c(phi_ref), which the belt and the
+    pulley's mass see as a bearing's translations (`ArmJoints` gives them from q).
+    """
+
+    labels: tuple[str, ...]
+    units: tuple[str, ...]
+    group: np.ndarray
+    rot_dof: np.ndarray
+    trans_dof: tuple[tuple[int, ...], ...]
+    trans_dir: tuple[np.ndarray, ...]
+    span_slices: tuple[slice, ...]
+    arm_dof: np.ndarray | None = None
+    dependent: int = 0
+
+    @property
+    def n(self) -> int:
+        """Joint coordinates p (independent and dependent)."""
+        return len(self.labels)
+
+    @property
+    def n_q(self) -> int:
+        """Independent coordinates q."""
+        return len(self.labels) - self.dependent
+
+
+def number_dofs(cfg: DriveConfig) -> DofMap:
+    """DOF order along the loop: pulley j (its support's DOFs, rotation), then span j (start
+    gradients, interior nodes, end gradients; none for a spring span); the supports' dependent DOFs
+    after all of them."""
+    # the support's class too: a registered class (tests/test_system.py) may replace a kind's
+    key = (cfg.span_elements, tuple([(p.name, p.support, SUPPORT_CLASSES[p.support], tuple(p.slide_direction))
+                                     for p in cfg.pulleys]))
+    hit = _DOFMAPS.get(key)
+    if hit is None:
+        if len(_DOFMAPS) > 64:
+            _DOFMAPS.clear()
+        hit = _DOFMAPS[key] = _number_dofs(cfg)
+    return hit
+
+
+def _number_dofs(cfg: DriveConfig) -> DofMap:
+    counts = cfg.span_elements  # elements of each span (0: a spring span, no DOFs of its own)
+    labels: list[str] = []
+    units: list[str] = []
+    group: list[int] = []
+    rot_dof = np.zeros(len(cfg.pulleys), dtype=int)
+    trans_dof: list[tuple[int, ...]] = []
+    trans_dir: list[np.ndarray] = []
+    span_slices: list[slice] = []
+
+    def add(label: str, unit: str, grp: str) -> int:
+        labels.append(label)
+        units.append(unit)
+        group.append(DOF_GROUPS.index(grp))
+        return len(labels) - 1
+
+    comp = (("r1", "m"), ("r2", "m"), ("r1'", "1"), ("r2'", "1"))
+    arm_dof = np.full(len(cfg.pulleys), -1, dtype=int)
+    supports = [support_of(p) for p in cfg.pulleys]
+    for j, (p, sup) in enumerate(zip(cfg.pulleys, supports)):
+        own = [(add(f"pulley {p.name} {suffix}", unit, grp), grp) for suffix, unit, grp in sup.independent()]
+        trans_dof.append(tuple(d for d, grp in own if grp == "translation"))  # dependent ones: below
+        trans_dir.append(sup.directions())
+        arm_dof[j] = next((d for d, grp in own if grp == "arm"), -1)
+        rot_dof[j] = add(f"pulley {p.name} rotation", "rad", "rotation")
+        start = len(labels)
+        s = j + 1
+        n_e = counts[j]
+        for node in range(1, n_e + 2 if n_e else 1):
+            for c, unit in (comp[2:] if node in (1, n_e + 1) else comp):
+                add(f"span {s} node {node} {c}", unit, "span")
+        span_slices.append(slice(start, len(labels)))
+    n_q = len(labels)
+    for j, (p, sup) in enumerate(zip(cfg.pulleys, supports)):  # dependent DOFs (arm offsets): after q
+        if sup.dependent():
+            trans_dof[j] = tuple(add(f"pulley {p.name} {suffix}", unit, grp) for suffix, unit, grp in sup.dependent())
+    group = np.array(group, dtype=np.int64)
+    for a in (group, rot_dof, arm_dof, *trans_dir):  # (read-only: a DOF map is shared, `number_dofs`)
+        a.setflags(write=False)
+    return DofMap(labels=tuple(labels), units=tuple(units), group=group, rot_dof=rot_dof,
+                  trans_dof=tuple(trans_dof), trans_dir=tuple(trans_dir), span_slices=tuple(span_slices),
+                  arm_dof=arm_dof, dependent=len(labels) - n_q)
