@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: test test-slow test-all paper bench trade clean
+.PHONY: test test-slow test-all paper bench bench-compare trade clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -42,6 +42,10 @@ trade: $(STAMP)
 bench: $(STAMP)
 	@$(BIN)/python -m compileall -q beltdyn  # bytecode of the current sources, as an installed package has
 	$(BIN)/python bench/run.py
+
+# the same benchmarks of another commit and of this tree, side by side: make bench-compare BASE=<rev>
+bench-compare: $(STAMP)
+	$(BIN)/python bench/compare.py $(BASE)
 
 clean:
 	rm -rf results/*.h5 results/*.h5.parts results/paper/*.h5 results/paper/*.h5.parts .pytest_cache
