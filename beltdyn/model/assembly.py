@@ -18,7 +18,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.sparse import csr_matrix
 
 from beltdyn.model.components import LinearComponent
 
@@ -70,6 +69,8 @@ class Pattern:
 
     def matrix(self, data: np.ndarray):
         """A CSR matrix (n, n) of data (nnz,) on the (sparse) pattern."""
+        from scipy.sparse import csr_matrix  # (measured: scipy.sparse is not on the import path of a dense model)
+
         return csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
 

@@ -1,4 +1,13 @@
-"""The ANCF belt spans on their joints: element tables, forces, tangents, outputs."""
+"""The ANCF belt spans on their joints: element tables, forces, tangents, outputs.
+
+Joint (DESIGN section 2): r_end = c + R n + R theta (z x n) + translation, n the outward normal at the
+tangent point, z x n the pulley surface direction for a positive rotation; the gradients of the end nodes
+are free (pinned, "bi-articulated"). This joint has a constant Jacobian, so the paper's transformation B
+is constant: element coordinates e = e0 + T p[idx] element by element, with T (n_elem, 8, m) and idx
+(n_elem, m) (padding points at the dummy index n_p). Interior elements have T = [I8 | 0]: the kernel
+skips their transform (tsel < 0). Reduced force sum_e T^T f_e(e), tangent blocks T^T K_e T (n_elem, m, m)
+(paper Eqs. 20-23, 26), assembled by `assembly`.
+"""
 
 from __future__ import annotations
 

@@ -1,4 +1,13 @@
-"""The DOF map: the independent coordinates of the drive, their labels, units and groups."""
+"""The DOF map: the independent coordinates of the drive, their labels, units and groups.
+
+Nomenclature (paper section 2.2): q (n_dof,) the independent coordinates, measured from the reference
+configuration (q = 0 is the stress-free L0 geometry, or the prestrained one). A pulley carries only the
+DOFs its support allows: rotation theta (rad, counter-clockwise), plus the slide offset u (m), the bearing
+displacements (x, y) (m) or an arm angle phi (rad). A span carries every coordinate of its interior nodes
+(r1, r2, r1', r2') and the gradients of its end nodes; the end-node positions are dependent (the joints,
+`belt`). The joint coordinates p (n_p,) are q followed by the dependent ones (an arm pulley's centre
+offsets).
+"""
 
 from __future__ import annotations
 

@@ -1,17 +1,13 @@
-"""The drive as a system of components: one DOF map, components that own DOFs and contribute.
+"""The drive as a system of components: one DOF map, components that own DOFs and contribute; its
+build from a configuration (`build_system`, `drive_facts`) and the drive before its build
+(`DeferredSystem`).
 
-Nomenclature (paper section 2.2):
-- q (n_dof,): independent coordinates, measured from the reference configuration (q = 0 is the
-  stress-free L0 geometry, or the prestrained one). A pulley carries only the DOFs its support
-  allows: rotation theta (rad, counter-clockwise), plus the slide offset u (m) or the bearing
-  displacements (x, y) (m). A span carries every coordinate of its interior nodes (r1, r2, r1', r2')
-  and the gradients of its end nodes; the end-node positions are dependent (the joints).
-- Joint (DESIGN section 2): r_end = c + R n + R theta (z x n) + translation, n the outward normal at
-  the tangent point, z x n the pulley surface direction for a positive rotation; the gradients of
-  the end nodes are free (pinned, "bi-articulated"). This joint has a constant Jacobian, so the
-  paper's transformation B is constant: element coordinates e = e0 + T q[idx] element by element,
-  with T (n_elem, 8, m) and idx (n_elem, m) (padding points at the dummy index n_dof). Interior
-  elements have T = [I8 | 0]: the kernel skips their transform.
+Nomenclature: q (n_dof,) the independent coordinates and p (n_p,) the joint coordinates (`dofs`);
+element coordinates e = e0 + T p[idx] through the span-pulley joints (`belt`); components (`components`,
+`pulleys`); the assembly pattern (`assembly`); tensioner arms p = P(q), J = dP/dq (`arms`). Static
+residual r(q) = J^T (f(P(q)) - F), f the internal force (belt + K_c p - K_c free_c), F the load case
+(weight W g and accessory torques); mass J^T M J; running belt at speed c: gyroscopic c J^T (A - A^T) J,
+centripetal stiffness -c^2 B and force -c^2 (B p + b0) (`RunningTerms`).
 
 The seam. A `System` is the DOF map, the belt (`BeltSpans`, the ANCF spans, evaluated by the
 compiled kernel of `belt_kernel` in the time stepper; and `SpringSpans`, the spans modelled as axial
