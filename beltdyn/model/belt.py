@@ -342,14 +342,15 @@ class BeltSpans:
                                        np.einsum("bsd,bsd->bs", F_end[:, :, 1], t1)], axis=-1))
 
 
-def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
-               prestrain_stretch: float | np.ndarray = 1.0) -> BeltSpans:
+def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stretch: float | np.ndarray = 1.0,
+               no_elements: ancf.ElementSet | None = None) -> BeltSpans:
     """Mesh each span and join its end nodes to the pulleys (constant-Jacobian joints).
 
     Span s gets cfg.span_elements[s] elements (none for a spring span: `build_springs`); a "string"
     span's elements have no bending stiffness (EI = 0).
     prestrain_stretch: the stretch of the spans at q = 0 (chord length / reference length), one
-    number for all spans or one per span (n_span,)."""
+    number for all spans or one per span (n_span,). no_elements: `empty_element_set` of cfg, if at hand
+    (every span a spring)."""
     n_p = layout.n
     n_dof = dofs.n
     pad = n_dof
@@ -365,7 +366,7 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
         # (new empty arrays, writable: numba types a read-only array apart, and the transient's kernels would
         # compile anew)
         none = np.zeros(0, dtype=np.int64)
-        return BeltSpans(elements=span_element_set(cfg, np.zeros(0), np.zeros(0)), elem_span=none,
+        return BeltSpans(elements=empty_element_set(cfg) if no_elements is None else no_elements, elem_span=none,
                          span_elements=(none,) * n_p, T=np.zeros((0, 8, 8)), idx=np.zeros((0, 8), dtype=np.int64),
                          tsel=none, e0=np.zeros((0, 8)), n_dof=n_dof, reference_length=L_ref,
                          reference_direction=t_dir, prestrain_stretch=lam, span_stretch=lam_s)
@@ -432,6 +433,13 @@ def _no_elements(EA: float, rho: float, curvature: str, n_gauss: int) -> ancf.El
     return ancf.subset(one, np.zeros(0, dtype=np.int64))
 
 
+def empty_element_set(cfg: DriveConfig) -> ancf.ElementSet:
+    """The element set of a belt without elements (every span a spring): empty, its tables of the right
+    shapes (the bending law "none")."""
+    b = cfg.belt
+    return _no_elements(float(b.EA), float(b.mass_per_length), "none", cfg.model.gauss_points)
+
+
 def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> ancf.ElementSet:
     """The ANCF elements of the flexible spans: lengths and bending stiffnesses (n_elem,); the tables
     computed once per distinct (length, EI) and gathered. The bending law is model.curvature
@@ -444,7 +452,7 @@ def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> an
         curvature = "none"
     b = cfg.belt
     if len(length) == 0:
-        return _no_elements(float(b.EA), float(b.mass_per_length), curvature, cfg.model.gauss_points)
+        return empty_element_set(cfg)
     # the distinct (length, EI) pairs: one complex key each (exact; np.unique's 1-D path, not its slow axis=0)
     uniq, inverse = np.unique(np.asarray(length, dtype=float) + 1j * np.asarray(EI, dtype=float), return_inverse=True)
     if len(uniq) == len(length):  # every element distinct: no gathering

@@ -46,7 +46,7 @@ from beltdyn.model.supports import support_of
 from beltdyn.model.arms import ArmJoints, arm_joints
 from beltdyn.model.assembly import (DENSE_LIMIT, NO_INDEX, Pattern, assemble_blocks, component_entries,
                                     component_nonzeros, component_sums, element_pairs, make_pattern)
-from beltdyn.model.belt import BeltSpans, build_belt, plus
+from beltdyn.model.belt import BeltSpans, build_belt, empty_element_set, plus
 from beltdyn.model.dofs import DofMap, number_dofs
 from beltdyn.model.springs import SpringSpans, build_springs
 
@@ -693,6 +693,7 @@ class DriveFacts:
     gravity: np.ndarray  # (2,) m/s^2
     pulleys: PulleyParts  # `pulley_parts`
     arms: ArmJoints | None
+    no_elements: ancf.ElementSet | None = None  # `belt.empty_element_set` when every span is a spring, else None
 
 
 def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
@@ -702,7 +703,8 @@ def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
     return DriveFacts(layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs), loads=static_loads(cfg, dofs),
                       friction=np.array([np.nan if p.friction is None else p.friction for p in pulleys]),
                       pulley_names=tuple([p.name for p in pulleys]), gravity=np.asarray(cfg.model.gravity, dtype=float),
-                      pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs))
+                      pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
+                      no_elements=empty_element_set(cfg) if sum(cfg.span_elements) == 0 else None)
 
 
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
@@ -727,7 +729,7 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
     arms = facts.arms
     if arms is not None and layout is not facts.layout:
         arms = arm_joints(cfg, layout, dofs, like=arms)
-    belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam)
+    belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam, no_elements=facts.no_elements)
     springs = build_springs(cfg, layout, dofs, prestrain_stretch=lam, direction=belt.reference_direction,
                             reference_length=belt.reference_length)
     system = assemble_system(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free,
