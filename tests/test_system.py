@@ -335,9 +335,9 @@ def test_a_build_from_the_analysis_facts_is_the_build_from_the_configuration(den
 
 @pytest.mark.parametrize("dense", [True, False])
 def test_the_objects_of_a_build_hold_every_field(dense):
-    # drive_facts and build_system make their frozen dataclasses field by field at once (frozen.set_at_once,
-    # no default filled in): each holds every field of its class, nothing else (a field left out would be
-    # missing, not defaulted), on the two-arm drive and on the all-spring example drive.
+    # drive_facts and build_system make their frozen dataclasses through their constructors: each holds every
+    # field of its class, on the two-arm drive and on the all-spring example drive (tests/test_assembly.py holds
+    # them to exactly their fields after use).
     from beltdyn.model.geometry import layout_from_config
     from beltdyn.model.system import drive_facts
 
@@ -354,8 +354,8 @@ def test_the_objects_of_a_build_hold_every_field(dense):
 
 
 def test_the_dense_assembly_of_the_components_is_the_sparse_one():
-    # _assemble adds the components into a dense system in place (a one-DOF component's entries as scalars)
-    # and sums them on the CSR pattern of a sparse one: the same mass, stiffness, damping, weight and spring
+    # assemble_system sums the components on the pattern (`assembly.component_sums`), dense (n, n) or the CSR
+    # data of a sparse one: the same mass, stiffness, damping, weight and spring
     # offsets on the two-arm drive under gravity (arms with springs relaxed off the layout, a bearing, a slide,
     # spring and ANCF spans). Compared to 1e-14 of each matrix's largest entry: the two paths add an entry's element,
     # spring-span and component parts in different orders.

@@ -951,8 +951,7 @@ def _predicted_centers(system: System, anchored: set, fit, tol_x: float, span_te
     if system.arms is not None:
         a = system.arms
         for k, dof in enumerate(a.dof):
-            spring = next((c for c in system.components if c.stiffness is not None and c.dofs.shape == (1,)
-                           and c.dofs[0] == dof), None)
+            spring = system.arm_spring(dof)
             if int(dof) == system.tension.adjust_dof or spring is None:
                 continue
             j = a.pulleys[k]

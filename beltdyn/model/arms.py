@@ -9,7 +9,6 @@ from dataclasses import dataclass
 import numpy as np
 from beltdyn.config import DriveConfig
 from beltdyn.model.dofs import DofMap
-from beltdyn.model.frozen import set_at_once
 from beltdyn.model.geometry import Layout
 from beltdyn.model.supports import support_of
 
@@ -159,6 +158,10 @@ class ArmJoints:
         out[self.dof] += dx * fx + dy * fy
         return out, self._project_matrix(None, K, (-dy) * fx + dx * fy, dense=dense, dxy=(dx, dy))
 
+    def project_matrix_at(self, slopes: np.ndarray, K, *, dense: bool):
+        """J^T K J with the arms' slopes dc/dphi (a, 2) at hand (`first`)."""
+        return self._project_matrix(slopes, K, None, dense=dense)
+
     def _project_matrix(self, dc: np.ndarray | None, K, geo: np.ndarray | None, *, dense: bool, dxy=None):
         """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`; or its columns dxy)."""
         dx, dy = (dc[:, 0], dc[:, 1]) if dxy is None else dxy
@@ -234,7 +237,7 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoint
     arms on another layout (what the configuration fixes taken from it)."""
     if like is not None:
         length, angle = _arm_geometry(cfg, layout, like.pulleys, like.pivot.tolist())
-        return set_at_once(ArmJoints, dof=like.dof, slot=like.slot, pivot=like.pivot, length=length, angle=angle,
+        return ArmJoints(dof=like.dof, slot=like.slot, pivot=like.pivot, length=length, angle=angle,
                             n_q=like.n_q, n_p=like.n_p, friction=like.friction, stops=like.stops, names=like.names,
                             pulleys=like.pulleys)
     arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
@@ -243,7 +246,7 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoint
     ps = [cfg.pulleys[j] for j in arms]
     pivots = [p.arm_pivot for p in ps]
     length, angle = _arm_geometry(cfg, layout, arms, pivots)
-    return set_at_once(ArmJoints, dof=dofs.arm_dof[arms],
+    return ArmJoints(dof=dofs.arm_dof[arms],
                         slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64),
                         pivot=np.array(pivots, dtype=float), length=length, angle=angle, n_q=dofs.n_q, n_p=dofs.n,
                         friction=np.array([p.arm_friction for p in ps], dtype=float),

@@ -1,47 +1,44 @@
-"""The ANCF belt spans on their joints: element tables, forces, tangents, outputs."""
+"""The ANCF belt spans on their joints: element tables, forces, tangents, outputs.
+
+Joint (DESIGN section 2): r_end = c + R n + R theta (z x n) + translation, n the outward normal at the
+tangent point, z x n the pulley surface direction for a positive rotation; the gradients of the end nodes
+are free (pinned, "bi-articulated"). This joint has a constant Jacobian, so the paper's transformation B
+is constant: element coordinates e = e0 + T p[idx] element by element, with T (n_elem, 8, m) and idx
+(n_elem, m) (padding points at the dummy index n_p). Interior elements have T = [I8 | 0]: the kernel
+skips their transform (tsel < 0). Reduced force sum_e T^T f_e(e), tangent blocks T^T K_e T (n_elem, m, m)
+(paper Eqs. 20-23, 26), assembled by `assembly`.
+"""
 
 from __future__ import annotations
 
-import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from beltdyn.model import ancf
 from beltdyn.config import DriveConfig
-from beltdyn.model.dofs import DofMap, _z_cross
-from beltdyn.model.frozen import set_at_once
+from beltdyn.model.dofs import DofMap
 from beltdyn.model.geometry import Layout
 from beltdyn.model.joints import joint_selection
 
-# the tables of a belt without elements (every span a spring), shared: empty, so nothing can change them (and
-# writable: numba types a read-only array apart, and the transient's kernels would compile anew)
-_NO_ELEMENT, _NO_INDEX, _NO_T, _NO_IDX, _NO_E = (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros((0, 8, 8)),
-                                                 np.zeros((0, 8), dtype=np.int64), np.zeros((0, 8)))
+NORMAL_SIGNS = np.array([-1.0, 1.0])  # (t_y, t_x) * NORMAL_SIGNS = z x t = (-t_y, t_x)
+NORMAL_SIGNS.setflags(write=False)
 
 
-_NORMAL = np.array([-1.0, 1.0])  # (t_y, t_x) -> z x t = (-t_y, t_x)
-
-
-def _plus(a: np.ndarray | None, b: np.ndarray) -> np.ndarray:
+def plus(a: np.ndarray | None, b: np.ndarray) -> np.ndarray:
     """a + b, or b without a (the flexible spans' and the spring spans' parts of a per-span output:
     every span is one or the other)."""
     return b if a is None else a + b
 
 
-def _cached(obj, key: str, make):
-    """obj's `key` entry, made by make() at first use: a per-object cache on a frozen dataclass (a "_" key,
-    which the field copies of `System.with_belt` and `with_speed` leave out)."""
-    value = obj.__dict__.get(key)
-    if value is None:
-        value = make()
-        object.__setattr__(obj, key, value)
-    return value
+def z_cross(n: np.ndarray) -> np.ndarray:
+    """z x n = (-n_y, n_x) of a vector n (2,)."""
+    return np.array([-n[1], n[0]])
 
 
-def _transposed(spans) -> np.ndarray:
-    """spans.T (k, r, m) transposed to (k, m, r), contiguous, cached on the (frozen) spans object."""
-    return _cached(spans, "_Tt", lambda: np.ascontiguousarray(spans.T.transpose(0, 2, 1)))
+def transposed(T: np.ndarray) -> np.ndarray:
+    """T (k, r, m) transposed to (k, m, r), contiguous."""
+    return np.ascontiguousarray(T.transpose(0, 2, 1))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -66,15 +63,23 @@ class BeltSpans:
     damping_axial: float = 0.0  # Kelvin-Voigt retardation times (s), set by the transient options
     damping_bending: float = 0.0
     compiled: bool = False  # forces by the compiled kernel (`belt_kernel`) instead of the numpy `ancf`
+    # derived in the constructor (`__post_init__`), never passed: T transposed (n_elem, m, 8), the spans'
+    # normals (n_span, 2), the mid-span points (`midspan_point`), the compiled kernel's tables (compiled only)
+    Tt: np.ndarray = field(init=False, repr=False, compare=False)
+    reference_normal: np.ndarray = field(init=False, repr=False, compare=False)
+    midspan_point: tuple = field(init=False, repr=False, compare=False)
+    compiled_tables: object = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        derived = {"Tt": transposed(self.T), "reference_normal": self.reference_direction[:, ::-1] * NORMAL_SIGNS,
+                   "midspan_point": self._midspan_point(),
+                   "compiled_tables": self._kernel_tables() if self.compiled else None}
+        for name, value in derived.items():  # (a frozen dataclass: its derived fields set once, here)
+            object.__setattr__(self, name, value)
 
     @property
     def n_span(self) -> int:
         return len(self.span_elements)
-
-    @property
-    def reference_normal(self) -> np.ndarray:
-        """(n_span, 2) unit normal z x t = (-t_y, t_x) of each span at q = 0 (cached)."""
-        return _cached(self, "_normal", lambda: self.reference_direction[:, ::-1] * _NORMAL)
 
     @property
     def flexible(self) -> np.ndarray:
@@ -101,20 +106,15 @@ class BeltSpans:
         return out
 
     @property
-    def Tt(self) -> np.ndarray:
-        """(n_elem, m, 8) transposed element transformation (cached)."""
-        return _transposed(self)
-
-    @property
     def kernel_tables(self):
-        """The compiled kernel's tables of these elements (cached)."""
-        tab = self.__dict__.get("_tables")
-        if tab is None:
-            from beltdyn.model.belt_kernel import tables_from_elements
+        """The compiled kernel's tables of these elements (`belt_kernel.tables_from_elements`): held by a
+        compiled belt, made anew otherwise."""
+        return self.compiled_tables if self.compiled_tables is not None else self._kernel_tables()
 
-            tab = tables_from_elements(self.elements)
-            object.__setattr__(self, "_tables", tab)
-        return tab
+    def _kernel_tables(self):
+        from beltdyn.model.belt_kernel import tables_from_elements  # (numba: only where the kernel runs)
+
+        return tables_from_elements(self.elements)
 
     def kernel_scratch(self):
         """New scratch arrays for the compiled kernel's functions on these elements (`belt_kernel.Scratch`)."""
@@ -123,13 +123,8 @@ class BeltSpans:
         return scratch(self.T.shape[0], self.elements.dS.shape[1], self.T.shape[2])
 
     def sampling_table(self, n_pts: int) -> np.ndarray:
-        """(n_elem, n_pts, 4) shape functions s1..s4 at xi = 0, 1/n_pts, ... (cached)."""
-        key = f"_samp{n_pts}"
-        tab = self.__dict__.get(key)
-        if tab is None:
-            tab, _, _ = ancf.shape_functions(np.arange(n_pts) / n_pts, self.elements.length)
-            object.__setattr__(self, key, tab)
-        return tab
+        """(n_elem, n_pts, 4) shape functions s1..s4 at xi = 0, 1/n_pts, ..."""
+        return ancf.shape_functions(np.arange(n_pts) / n_pts, self.elements.length)[0]
 
     # -------------------------------------------------------------------- coordinates
     def element_coordinates(self, q: np.ndarray) -> np.ndarray:
@@ -209,24 +204,20 @@ class BeltSpans:
         return float((el.wL * N).sum() / total), self.reduce_vector(g) / total
 
     # -------------------------------------------------------------------- mid-span motion
-    @property
-    def midspan_point(self) -> tuple[np.ndarray, np.ndarray]:
-        """(elements (n_flex,), shape functions (n_flex, 4)) of each flexible span's mid-span point: the
-        middle node (an even count of elements) or the middle of the middle element (odd). Cached."""
-        mid = self.__dict__.get("_mid")
-        if mid is None:  # per flexible span: its middle node, or the middle of its middle element
-            els, xis = [], []
-            for span in self.span_elements:
-                n_e = len(span)
-                if n_e:
-                    k, xi = (n_e // 2, 0.0) if n_e % 2 == 0 else ((n_e - 1) // 2, 0.5)
-                    els.append(span[k])
-                    xis.append(xi)
-            els = np.array(els, dtype=np.int64)
-            s_fun, _, _ = ancf.shape_functions(np.array([0.0, 0.5]), self.elements.length[els])
-            mid = (els, s_fun[np.arange(len(els)), (np.array(xis) > 0).astype(int), :])
-            object.__setattr__(self, "_mid", mid)
-        return mid
+    def _midspan_point(self) -> tuple[np.ndarray, np.ndarray]:
+        """The field `midspan_point`: (elements (n_flex,), shape functions (n_flex, 4)) of each flexible
+        span's mid-span point: the middle node (an even count of elements) or the middle of the middle
+        element (odd)."""
+        els, xis = [], []
+        for span in self.span_elements:
+            n_e = len(span)
+            if n_e:
+                k, xi = (n_e // 2, 0.0) if n_e % 2 == 0 else ((n_e - 1) // 2, 0.5)
+                els.append(span[k])
+                xis.append(xi)
+        els = np.array(els, dtype=np.int64)
+        s_fun, _, _ = ancf.shape_functions(np.array([0.0, 0.5]), self.elements.length[els])
+        return els, s_fun[np.arange(len(els)), (np.array(xis) > 0).astype(int), :]
 
     def midspan_displacement(self, E: np.ndarray) -> np.ndarray:
         """(B, n_span) transverse displacement of the mid-span point from the chord between the span's
@@ -273,21 +264,14 @@ class BeltSpans:
         damped = self.damping_axial > 0.0 or self.damping_bending > 0.0
         n = len(self.first)
         if not self.compiled and not (damped and Ed is not None):
-            sub_el = self.__dict__.get("_end_elements")
-            if sub_el is None:  # the span-end elements' tables (cached)
-                sub_el = ancf.subset(el, ends)
-                object.__setattr__(self, "_end_elements", sub_el)
+            sub_el = ancf.subset(el, ends)  # the span-end elements' tables
             ge = ancf.gravity_forces(sub_el, gravity)
             F = np.stack([ancf.internal_forces(sub_el, E[b, ends]) for b in range(B)]) - ge
             return self.on_spans(np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2))
         from beltdyn.model import belt_kernel as bk
 
-        # the whole batch in one kernel call: the end elements' tables tiled over the batch (cached per size)
-        cached = self.__dict__.get("_end_tables")
-        if cached is None or cached[0] != B:
-            cached = (B, _sub_tables(self.kernel_tables, np.tile(ends, B)))
-            object.__setattr__(self, "_end_tables", cached)
-        sub = cached[1]
+        # the whole batch in one kernel call: the end elements' tables tiled over the batch
+        sub = _sub_tables(self.kernel_tables, np.tile(ends, B))
         Eb = np.ascontiguousarray(E[:, ends].reshape(B * len(ends), 8))
         fe = np.empty((B * len(ends), 8))
         bk.element_forces(Eb, *sub, fe)
@@ -300,30 +284,32 @@ class BeltSpans:
         return self.on_spans(np.stack([F[:, :n, 0:2], F[:, n:, 4:6]], axis=2))
 
     # -------------------------------------------------------------------- the running belt (transport)
-    def transport_blocks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The axial-transport terms of the running belt (`ancf.transport_matrices`) on the joint
-        coordinates: blocks T^T A_e T and T^T B_e T (n_elem, m, m), and the reduced vectors
-        a0 = sum_e T^T A_e e0 and b0 = sum_e T^T B_e e0 (n_dof,), so that sum_e T^T A_e e = A p + a0 and
-        sum_e T^T B_e e = B p + b0 for e = e0 + T p. Per unit speed; cached."""
-        got = self.__dict__.get("_transport")
-        if got is None:
-            A_e, B_e = ancf.transport_matrices(self.elements)
-            got = (self.reduce_blocks(A_e), self.reduce_blocks(B_e),
-                   self.reduce_vector(np.matmul(A_e, self.e0[:, :, None])[:, :, 0]),
-                   self.reduce_vector(np.matmul(B_e, self.e0[:, :, None])[:, :, 0]))
-            object.__setattr__(self, "_transport", got)
-            object.__setattr__(self, "_transport_e", (A_e, B_e))
-        return got
+    def transport_element_matrices(self) -> tuple[np.ndarray, np.ndarray]:
+        """(A_e, B_e) (n_elem, 8, 8) the elements' axial-transport matrices per unit speed
+        (`ancf.transport_matrices`)."""
+        return ancf.transport_matrices(self.elements)
 
-    def transport_end_forces(self, E: np.ndarray, Ed: np.ndarray | None, speed, acceleration=0.0) -> np.ndarray:
+    def transport_blocks(self, A_e: np.ndarray | None = None, B_e: np.ndarray | None = None
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The axial-transport terms of the running belt on the joint coordinates: blocks T^T A_e T and
+        T^T B_e T (n_elem, m, m), and the reduced vectors a0 = sum_e T^T A_e e0 and b0 = sum_e T^T B_e e0
+        (n_dof,), so that sum_e T^T A_e e = A p + a0 and sum_e T^T B_e e = B p + b0 for e = e0 + T p. Per
+        unit speed; A_e, B_e: `transport_element_matrices` if at hand."""
+        if A_e is None or B_e is None:
+            A_e, B_e = self.transport_element_matrices()
+        return (self.reduce_blocks(A_e), self.reduce_blocks(B_e),
+                self.reduce_vector(np.matmul(A_e, self.e0[:, :, None])[:, :, 0]),
+                self.reduce_vector(np.matmul(B_e, self.e0[:, :, None])[:, :, 0]))
+
+    def transport_end_forces(self, E: np.ndarray, Ed: np.ndarray | None, speed, acceleration=0.0, *,
+                             matrices: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
         """(B, n_span, 2 ends, 2) the transport forces of the end elements on the span-end nodes for element
         states E, Ed (B, n_elem, 8) at the belt speed c (m/s) and its rate c' (m/s^2), each a number or one
         per state (B,): c (A_e - A_e^T) e' - c^2 B_e e + c' A_e e (rows of the end nodes' positions). With
         the elastic forces (`end_forces`) and the inertia (`end_inertia`) they make the force the pulley
         holds the node with: the running belt's momentum flux, which lowers the hub loads by
-        rho c^2 lambda per span end."""
-        self.transport_blocks()
-        A_e, B_e = self.__dict__["_transport_e"]
+        rho c^2 lambda per span end. matrices: (A_e, B_e), `transport_element_matrices`, if at hand."""
+        A_e, B_e = self.transport_element_matrices() if matrices is None else matrices
         c = np.broadcast_to(np.asarray(speed, dtype=float), (E.shape[0],))[:, None, None]
         cd = np.broadcast_to(np.asarray(acceleration, dtype=float), (E.shape[0],))[:, None, None]
         out = []
@@ -356,32 +342,34 @@ class BeltSpans:
                                        np.einsum("bsd,bsd->bs", F_end[:, :, 1], t1)], axis=-1))
 
 
-def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
-               prestrain_stretch: float | np.ndarray = 1.0) -> BeltSpans:
+def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stretch: float | np.ndarray = 1.0,
+               no_elements: ancf.ElementSet | None = None) -> BeltSpans:
     """Mesh each span and join its end nodes to the pulleys (constant-Jacobian joints).
 
     Span s gets cfg.span_elements[s] elements (none for a spring span: `build_springs`); a "string"
     span's elements have no bending stiffness (EI = 0).
     prestrain_stretch: the stretch of the spans at q = 0 (chord length / reference length), one
-    number for all spans or one per span (n_span,)."""
+    number for all spans or one per span (n_span,). no_elements: `empty_element_set` of cfg, if at hand
+    (every span a spring)."""
     n_p = layout.n
     n_dof = dofs.n
     pad = n_dof
-    lam_s = _span_stretch(prestrain_stretch, n_p)
+    lam_s = span_stretch_of(prestrain_stretch, n_p)
     L_ref = layout.span_length / lam_s
     if isinstance(prestrain_stretch, (float, int)):  # (one number: uniform)
         lam = float(prestrain_stretch)
-    else:
-        lam_list = lam_s.tolist()
-        uniform = lam_list.count(lam_list[0]) == n_p  # (the sums by np.add.reduce: ndarray.sum's own)
-        lam = lam_list[0] if uniform else float(np.add.reduce(layout.span_length) / np.add.reduce(L_ref))
+    else:  # one per span: the mean stretch, sum of chords / sum of reference lengths (their own if all equal)
+        lam = float(lam_s[0]) if np.all(lam_s == lam_s[0]) else float(layout.span_length.sum() / L_ref.sum())
     t_dir = layout.span_direction
     n_elem = sum(cfg.span_elements)
     if n_elem == 0:  # every span a spring (`build_springs`): no elements, no joints of the belt's own
-        return set_at_once(BeltSpans, elements=span_element_set(cfg, _NO_ELEMENT, _NO_ELEMENT), elem_span=_NO_INDEX,
-                            span_elements=(_NO_INDEX,) * n_p, T=_NO_T, idx=_NO_IDX, tsel=_NO_INDEX, e0=_NO_E,
-                            n_dof=n_dof, reference_length=L_ref, reference_direction=t_dir, prestrain_stretch=lam,
-                            span_stretch=lam_s, damping_axial=0.0, damping_bending=0.0, compiled=False)
+        # (new empty arrays, writable: numba types a read-only array apart, and the transient's kernels would
+        # compile anew)
+        none = np.zeros(0, dtype=np.int64)
+        return BeltSpans(elements=empty_element_set(cfg) if no_elements is None else no_elements, elem_span=none,
+                         span_elements=(none,) * n_p, T=np.zeros((0, 8, 8)), idx=np.zeros((0, 8), dtype=np.int64),
+                         tsel=none, e0=np.zeros((0, 8)), n_dof=n_dof, reference_length=L_ref,
+                         reference_direction=t_dir, prestrain_stretch=lam, span_stretch=lam_s)
     counts = np.array(cfg.span_elements, dtype=np.int64)  # (n_span,) elements of each span
     # Per element, columns 0-3 / 4-7 carry the coordinates of its first / second node, 8-10 / 11-13
     # the joint DOFs of a span end; padding columns are squeezed out afterwards.
@@ -435,15 +423,21 @@ def joint_pairs(layout: Layout, dofs: DofMap, s: int, side: int) -> list[tuple[i
     (joint coordinate, d r_end / d coordinate (2,)) pairs, r_end = c + R n + R theta (z x n) + u."""
     j = s if side == 0 else (s + 1) % layout.n
     normal = layout.start_normal[s] if side == 0 else layout.end_normal[s]
-    pairs = [(int(dofs.rot_dof[j]), layout.radius[j] * _z_cross(normal))]
+    pairs = [(int(dofs.rot_dof[j]), layout.radius[j] * z_cross(normal))]
     return pairs + list(zip(dofs.trans_dof[j], dofs.trans_dir[j]))
 
 
-@functools.lru_cache(maxsize=8)
 def _no_elements(EA: float, rho: float, curvature: str, n_gauss: int) -> ancf.ElementSet:
-    """An empty element set (every span a spring), its tables of the right shapes (read-only, shared)."""
+    """An empty element set (every span a spring), its tables of the right shapes."""
     one = ancf.make_elements(np.ones(1), EA, 0.0, rho, curvature=curvature, n_gauss=n_gauss)
     return ancf.subset(one, np.zeros(0, dtype=np.int64))
+
+
+def empty_element_set(cfg: DriveConfig) -> ancf.ElementSet:
+    """The element set of a belt without elements (every span a spring): empty, its tables of the right
+    shapes (the bending law "none")."""
+    b = cfg.belt
+    return _no_elements(float(b.EA), float(b.mass_per_length), "none", cfg.model.gauss_points)
 
 
 def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> ancf.ElementSet:
@@ -458,7 +452,7 @@ def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> an
         curvature = "none"
     b = cfg.belt
     if len(length) == 0:
-        return _no_elements(float(b.EA), float(b.mass_per_length), curvature, cfg.model.gauss_points)
+        return empty_element_set(cfg)
     # the distinct (length, EI) pairs: one complex key each (exact; np.unique's 1-D path, not its slow axis=0)
     uniq, inverse = np.unique(np.asarray(length, dtype=float) + 1j * np.asarray(EI, dtype=float), return_inverse=True)
     if len(uniq) == len(length):  # every element distinct: no gathering
@@ -468,7 +462,7 @@ def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> an
     return base if inverse is None else ancf.subset(base, inverse.ravel())
 
 
-def _span_stretch(prestrain_stretch: float | np.ndarray, n: int) -> np.ndarray:
+def span_stretch_of(prestrain_stretch: float | np.ndarray, n: int) -> np.ndarray:
     """(n,) the spans' stretch at q = 0 of one number for all or one per span (a new array)."""
     if isinstance(prestrain_stretch, np.ndarray) and prestrain_stretch.shape == (n,):
         return prestrain_stretch.astype(float)

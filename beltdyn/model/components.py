@@ -20,9 +20,6 @@ if TYPE_CHECKING:
 ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse", "tensioner")
 
 
-
-
-
 @dataclass(frozen=True, kw_only=True)
 class Observation:
     """One output series a component offers: trailing dims (coordinate names) and units."""
@@ -85,3 +82,10 @@ class BearingSprings(LinearComponent):
                 F += (preload[dof] - k_of[dof] * (q[:, dof] - free[dof]))[:, None] * vec
             rows.append(F)
         return {"bearing_force": np.stack(rows, axis=1)}
+
+
+def arm_spring(components: tuple[LinearComponent, ...], dof: int) -> LinearComponent | None:
+    """The torsion spring of the tensioner arm whose angle is the coordinate `dof`: the component on that
+    coordinate alone with a stiffness (None: the arm has no spring)."""
+    return next((c for c in components if c.stiffness is not None and c.dofs.shape == (1,) and c.dofs[0] == dof),
+                None)

@@ -1,4 +1,13 @@
-"""The DOF map: the independent coordinates of the drive, their labels, units and groups."""
+"""The DOF map: the independent coordinates of the drive, their labels, units and groups.
+
+Nomenclature (paper section 2.2): q (n_dof,) the independent coordinates, measured from the reference
+configuration (q = 0 is the stress-free L0 geometry, or the prestrained one). A pulley carries only the
+DOFs its support allows: rotation theta (rad, counter-clockwise), plus the slide offset u (m), the bearing
+displacements (x, y) (m) or an arm angle phi (rad). A span carries every coordinate of its interior nodes
+(r1, r2, r1', r2') and the gradients of its end nodes; the end-node positions are dependent (the joints,
+`belt`). The joint coordinates p (n_p,) are q followed by the dependent ones (an arm pulley's centre
+offsets).
+"""
 
 from __future__ import annotations
 
@@ -6,16 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from beltdyn.config import DriveConfig
-from beltdyn.model.supports import SUPPORT_CLASSES, support_of
-
-_DOFMAPS: dict = {}  # number_dofs memo: a DofMap depends only on the pulleys' names and supports and the mesh
-
+from beltdyn.model.supports import support_of
 
 DOF_GROUPS = ("span", "rotation", "translation", "arm")
-
-
-def _z_cross(n: np.ndarray) -> np.ndarray:
-    return np.array([-n[1], n[0]])
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -57,18 +59,6 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
     """DOF order along the loop: pulley j (its support's DOFs, rotation), then span j (start
     gradients, interior nodes, end gradients; none for a spring span); the supports' dependent DOFs
     after all of them."""
-    # the support's class too: a registered class (tests/test_system.py) may replace a kind's
-    key = (cfg.span_elements, tuple([(p.name, p.support, SUPPORT_CLASSES[p.support], tuple(p.slide_direction))
-                                     for p in cfg.pulleys]))
-    hit = _DOFMAPS.get(key)
-    if hit is None:
-        if len(_DOFMAPS) > 64:
-            _DOFMAPS.clear()
-        hit = _DOFMAPS[key] = _number_dofs(cfg)
-    return hit
-
-
-def _number_dofs(cfg: DriveConfig) -> DofMap:
     counts = cfg.span_elements  # elements of each span (0: a spring span, no DOFs of its own)
     labels: list[str] = []
     units: list[str] = []
@@ -105,7 +95,7 @@ def _number_dofs(cfg: DriveConfig) -> DofMap:
         if sup.dependent():
             trans_dof[j] = tuple(add(f"pulley {p.name} {suffix}", unit, grp) for suffix, unit, grp in sup.dependent())
     group = np.array(group, dtype=np.int64)
-    for a in (group, rot_dof, arm_dof, *trans_dir):  # (read-only: a DOF map is shared, `number_dofs`)
+    for a in (group, rot_dof, arm_dof, *trans_dir):  # (read-only: a DOF map is immutable)
         a.setflags(write=False)
     return DofMap(labels=tuple(labels), units=tuple(units), group=group, rot_dof=rot_dof,
                   trans_dof=tuple(trans_dof), trans_dir=tuple(trans_dir), span_slices=tuple(span_slices),

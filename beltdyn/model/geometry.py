@@ -27,7 +27,6 @@ import numpy as np
 from beltdyn.config import DriveConfig
 from beltdyn.errors import ConfigError
 from beltdyn.model.angles import TWO_PI, pivot_angle, unwrap_near
-from beltdyn.model.frozen import set_at_once
 
 
 
@@ -171,8 +170,8 @@ def compute_layout(
     np.multiply(radius, wrap, out=arc)
     np.multiply(sigma, wrap, out=turn)
     total_length, total_arc, total_turn = sums.sum(axis=1).tolist()
-    lay = set_at_once(
-        Layout, names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
+    lay = Layout(
+        names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
         span_start=point_xy[1], span_end=point_xy[2], span_length=length, span_angle=alpha, start_normal=normal[0],
         end_normal=normal[1], wrap_angle=wrap, arc_length=arc, belt_length=total_length + total_arc,
         adjust_offset=adjust_offset, adjust_index=adjust_index, adjust_kind=adjust_kind,

@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from beltdyn.config import DriveConfig
-from beltdyn.model.belt import _NORMAL, _cached, _transposed
+from beltdyn.model.belt import NORMAL_SIGNS, span_stretch_of, transposed
 from beltdyn.model.dofs import DofMap
-from beltdyn.model.frozen import set_at_once
 from beltdyn.model.geometry import Layout
-from beltdyn.model.belt import _span_stretch
 
 _EYE2 = np.eye(2)
 _EYE2.setflags(write=False)
@@ -62,13 +59,13 @@ class SpringSpans:
 
     @property
     def end_mass(self) -> np.ndarray:
-        """(k,) the mass lumped on each end, rho L / 2 (kg) (cached)."""
-        return _cached(self, "_end_mass", lambda: 0.5 * self.rho * self.reference_length)
+        """(k,) the mass lumped on each end, rho L / 2 (kg)."""
+        return 0.5 * self.rho * self.reference_length
 
     @property
     def Tt(self) -> np.ndarray:
-        """(k, m, 4) transposed end transformation (cached)."""
-        return _transposed(self)
+        """(k, m, 4) transposed end transformation."""
+        return transposed(self.T)
 
     def positions(self, p: np.ndarray) -> np.ndarray:
         """x (k, 4) at the joint coordinates p (n_dof,)."""
@@ -136,13 +133,13 @@ class SpringSpans:
 
     @property
     def chord_map(self) -> np.ndarray:
-        """D = T[:, 2:4] - T[:, 0:2] (k, 2, m): the chord d = r_b - r_a per joint coordinate (cached)."""
-        return _cached(self, "_D", lambda: self.T[:, 2:4] - self.T[:, 0:2])
+        """D = T[:, 2:4] - T[:, 0:2] (k, 2, m): the chord d = r_b - r_a per joint coordinate."""
+        return self.T[:, 2:4] - self.T[:, 0:2]
 
     @property
     def chord_map_t(self) -> np.ndarray:
-        """D^T (k, m, 2), contiguous (cached)."""
-        return _cached(self, "_Dt", lambda: np.ascontiguousarray(self.chord_map.transpose(0, 2, 1)))
+        """D^T (k, m, 2), contiguous."""
+        return transposed(self.chord_map)
 
     def damping_blocks(self, p: np.ndarray) -> np.ndarray:
         """(k, m, m) the damping matrix dN_d/d(x') through the joints at p (Kelvin-Voigt)."""
@@ -163,14 +160,10 @@ class SpringSpans:
 
     def transport_blocks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """As `BeltSpans.transport_blocks`: T^T A_s T, T^T B_s T (k, m, m) and the reduced A_s x0, B_s x0
-        (n_dof,). Cached."""
-        got = self.__dict__.get("_transport")
-        if got is None:
-            A, B = self.transport_end_matrices()
-            got = (self.reduce_blocks(A), self.reduce_blocks(B), self.reduce_vector(np.matmul(A, self.x0[:, :, None])[:, :, 0]),
-                   self.reduce_vector(np.matmul(B, self.x0[:, :, None])[:, :, 0]))
-            object.__setattr__(self, "_transport", got)
-        return got
+        (n_dof,)."""
+        A, B = self.transport_end_matrices()
+        return (self.reduce_blocks(A), self.reduce_blocks(B), self.reduce_vector(np.matmul(A, self.x0[:, :, None])[:, :, 0]),
+                self.reduce_vector(np.matmul(B, self.x0[:, :, None])[:, :, 0]))
 
     def centripetal_force(self, p: np.ndarray, speed: float) -> np.ndarray:
         """-c^2 T^T B_s x (n_dof,) at the joint coordinates p."""
@@ -211,16 +204,12 @@ class SpringSpans:
     @property
     def span_rows(self) -> slice | np.ndarray:
         """Where the springs' rows go among the spans: `span`, or a slice when every span is a spring
-        (cached)."""
-        return self._spans
-
-    @functools.cached_property  # (a "_" name: not a field, which `System.with_belt` copies)
-    def _spans(self) -> slice | np.ndarray:
+        """
         return slice(None) if len(self.span) == self.n_span else self.span  # (span: ascending, distinct)
 
     def scatter(self, x: np.ndarray) -> np.ndarray:
         """(B, k, ...) -> (B, n_span, ...), zeros for the other spans (x's dtype)."""
-        if isinstance(self._spans, slice):
+        if len(self.span) == self.n_span:
             return x
         out = np.zeros((x.shape[0], self.n_span) + x.shape[2:], dtype=x.dtype)
         out[:, self.span] = x
@@ -236,8 +225,8 @@ class SpringSpans:
         w = self.end_mass[None, :, None] * np.asarray(gravity, dtype=float)
         Nu = N[..., None] * u
         out = np.zeros((X.shape[0], self.n_span, 2, 2))
-        out[:, self._spans, 0] = -Nu - w
-        out[:, self._spans, 1] = Nu - w
+        out[:, self.span_rows, 0] = -Nu - w
+        out[:, self.span_rows, 1] = Nu - w
         return out
 
     def end_inertia(self, Xa: np.ndarray) -> np.ndarray:
@@ -249,10 +238,10 @@ class SpringSpans:
         """(B, n_span, 2) span tensions at the ends of the spring spans (zeros elsewhere) from the end
         forces F_end (B, n_span, 2, 2): N_start = -F_start . u, N_end = F_end . u."""
         u = self.chord(X)[0]
-        F = F_end[:, self._spans]
+        F = F_end[:, self.span_rows]
         out = np.zeros((X.shape[0], self.n_span, 2))
-        out[:, self._spans, 0] = -np.einsum("bkd,bkd->bk", F[:, :, 0], u)
-        out[:, self._spans, 1] = np.einsum("bkd,bkd->bk", F[:, :, 1], u)
+        out[:, self.span_rows, 0] = -np.einsum("bkd,bkd->bk", F[:, :, 0], u)
+        out[:, self.span_rows, 1] = np.einsum("bkd,bkd->bk", F[:, :, 1], u)
         return out
 
     def static_ends(self, p: np.ndarray, gravity: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
@@ -274,7 +263,7 @@ class SpringSpans:
             F.append(((f0x, f0y), (f1x, f1y)))
             T.append((-(f0x * ux + f0y * uy), f1x * ux + f1y * uy))
             NL += N * L
-        if isinstance(self._spans, slice):
+        if len(self.span) == self.n_span:
             return np.array(F), np.array(T), NL
         F_all, T_all = np.zeros((self.n_span, 2, 2)), np.zeros((self.n_span, 2))
         F_all[self.span], T_all[self.span] = F, T
@@ -288,7 +277,7 @@ class SpringSpans:
         coordinate of P)."""
         k, m = self.idx.shape
         t = self.reference_direction
-        frame = np.concatenate([t, t[:, ::-1] * _NORMAL], axis=1).reshape(k, 1, 2, 2)  # (k, 1, t|n, 2), n = z x t
+        frame = np.concatenate([t, t[:, ::-1] * NORMAL_SIGNS], axis=1).reshape(k, 1, 2, 2)  # (k, 1, t|n, 2), n = z x t
         tn = np.matmul(frame, self.T.reshape(k, 2, 2, m)).reshape(k, 4, m)  # rows: end 0 t, n, end 1 t, n
         ab = np.matmul(tn, P.take(self.idx, axis=1, mode="clip").transpose(1, 2, 0))  # (k, 4, B)
         ab *= ab
@@ -310,7 +299,7 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     idx, T, (at, pulley) = _spring_joints(dofs, spans, n)
     direction = layout.span_direction if direction is None else direction
     if reference_length is None:
-        reference_length = layout.span_length / _span_stretch(prestrain_stretch, n)
+        reference_length = layout.span_length / span_stretch_of(prestrain_stretch, n)
     start, end, start_normal, end_normal = layout.span_start, layout.span_end, layout.start_normal, layout.end_normal
     sp = np.arange(n) if len(spans) == n else np.array(spans, dtype=np.int64)  # (writable: `spring_kernel`)
     if len(spans) < n:  # (every span a spring: the layout's arrays as they are)
@@ -318,23 +307,19 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
         start, end, start_normal, end_normal = start[sp], end[sp], start_normal[sp], end_normal[sp]
     T = T.copy()  # the rotation columns R (z x n) = R (-n_y, n_x) of each end (`joint_pairs`): the layout's
     normal = np.concatenate([start_normal, end_normal])  # (2k, 2)
-    T.ravel()[at] = (normal[:, ::-1] * _NORMAL * layout.radius[pulley][:, None]).ravel()
-    return set_at_once(SpringSpans, span=sp, T=T, idx=idx, x0=np.concatenate([start, end], axis=1),
+    T.ravel()[at] = (normal[:, ::-1] * NORMAL_SIGNS * layout.radius[pulley][:, None]).ravel()
+    return SpringSpans(span=sp, T=T, idx=idx, x0=np.concatenate([start, end], axis=1),
                         reference_length=reference_length, reference_direction=direction, EA=float(cfg.belt.EA),
                         rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=n, damping_axial=0.0,
                         EI=float(cfg.belt.EI), curvature=cfg.model.curvature)
 
 
 def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.ndarray, np.ndarray, tuple]:
-    """The parts of the spring spans' joints that the DOF map fixes (`joint_pairs`), cached on it (read-only):
+    """The parts of the spring spans' joints that the DOF map fixes (`joint_pairs`) (read-only):
     idx (k, m) the joint coordinates of each span, its start's columns (rotation, then the pulley's
     translations) before its end's, padded with n_dof; T (k, 4, m) with the translations' directions and
     zero rotation columns; and where the rotation columns' entries are in T's flat order ((4k,): the x and
     y rows of each end) and their pulleys (2k,), the k starts, then the k ends."""
-    cache = dofs.__dict__.setdefault("_spring_joints", {})
-    hit = cache.get(spans)
-    if hit is not None:
-        return hit
     k = len(spans)
     ends = [(s, (s + 1) % n) for s in spans]
     m = max(2 + len(dofs.trans_dof[a]) + len(dofs.trans_dof[b]) for a, b in ends)
@@ -356,6 +341,5 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
     rows = np.repeat([0, 2], k)
     at = np.ravel_multi_index((np.repeat(np.tile(np.arange(k), 2), 2), np.stack([rows, rows + 1], axis=1).ravel(),
                                np.repeat(rot_col.ravel(), 2)), T.shape)
-    hit = cache[spans] = (idx, T, (at, np.concatenate([sp, (sp + 1) % n])))
-    return hit
+    return idx, T, (at, np.concatenate([sp, (sp + 1) % n]))
 

@@ -20,7 +20,6 @@ from typing import ClassVar
 import numpy as np
 
 from beltdyn.config import Pulley
-from beltdyn.model.frozen import set_at_once
 from beltdyn.model.angles import pivot_angle, unwrap_near
 from beltdyn.model.components import LinearComponent
 
@@ -162,22 +161,18 @@ class ArmSupport(Support):
             elif spring_free is not None and spring_free[dof] != 0.0:  # relaxed where it was on the L0 fit
                 free = np.array([float(spring_free[dof])])
         name, dofs, mass, stiffness, damping = self._arm_parts(dof)
-        return (set_at_once(LinearComponent, name=name, dofs=dofs, stiffness=stiffness, damping=damping,
-                            mass=mass, weight=None, free=free, energy_kind="tensioner"),)
+        return (LinearComponent(name=name, dofs=dofs, stiffness=stiffness, damping=damping, mass=mass, weight=None,
+                                free=free, energy_kind="tensioner"),)
 
     def _arm_parts(self, dof: int) -> tuple:
         """The arm component's name, DOFs (1,) and inertia, torsion spring and damper (1, 1) each (None where
-        zero), read-only: made once per support object (`own_components` on every layout of an analysis)."""
-        hit = self.__dict__.get("_parts")
-        if hit is None or hit[0] != dof:
-            p = self.pulley
-            values = (p.arm_inertia, p.arm_stiffness, p.arm_damping)
-            every, dofs = np.array(values).reshape(3, 1, 1), np.array([dof], dtype=np.int64)
-            every.setflags(write=False)
-            dofs.setflags(write=False)
-            hit = (dof, f"tensioner arm {p.name}", dofs, *(every[i] if v > 0 else None for i, v in enumerate(values)))
-            object.__setattr__(self, "_parts", hit)  # (a frozen dataclass: its cache slot)
-        return hit[1:]
+        zero), read-only."""
+        p = self.pulley
+        values = (p.arm_inertia, p.arm_stiffness, p.arm_damping)
+        every, dofs = np.array(values).reshape(3, 1, 1), np.array([dof], dtype=np.int64)
+        every.setflags(write=False)
+        dofs.setflags(write=False)
+        return (f"tensioner arm {p.name}", dofs, *(every[i] if v > 0 else None for i, v in enumerate(values)))
 
     def fit_motion(self) -> dict:
         return {"direction": np.zeros(2), "slide_range": self.travel_limits(),

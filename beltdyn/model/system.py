@@ -1,17 +1,13 @@
-"""The drive as a system of components: one DOF map, components that own DOFs and contribute.
+"""The drive as a system of components: one DOF map, components that own DOFs and contribute; its
+build from a configuration (`build_system`, `drive_facts`) and the drive before its build
+(`DeferredSystem`).
 
-Nomenclature (paper section 2.2):
-- q (n_dof,): independent coordinates, measured from the reference configuration (q = 0 is the
-  stress-free L0 geometry, or the prestrained one). A pulley carries only the DOFs its support
-  allows: rotation theta (rad, counter-clockwise), plus the slide offset u (m) or the bearing
-  displacements (x, y) (m). A span carries every coordinate of its interior nodes (r1, r2, r1', r2')
-  and the gradients of its end nodes; the end-node positions are dependent (the joints).
-- Joint (DESIGN section 2): r_end = c + R n + R theta (z x n) + translation, n the outward normal at
-  the tangent point, z x n the pulley surface direction for a positive rotation; the gradients of
-  the end nodes are free (pinned, "bi-articulated"). This joint has a constant Jacobian, so the
-  paper's transformation B is constant: element coordinates e = e0 + T q[idx] element by element,
-  with T (n_elem, 8, m) and idx (n_elem, m) (padding points at the dummy index n_dof). Interior
-  elements have T = [I8 | 0]: the kernel skips their transform.
+Nomenclature: q (n_dof,) the independent coordinates and p (n_p,) the joint coordinates (`dofs`);
+element coordinates e = e0 + T p[idx] through the span-pulley joints (`belt`); components (`components`,
+`pulleys`); the assembly pattern (`assembly`); tensioner arms p = P(q), J = dP/dq (`arms`). Static
+residual r(q) = J^T (f(P(q)) - F), f the internal force (belt + K_c p - K_c free_c), F the load case
+(weight W g and accessory torques); mass J^T M J; running belt at speed c: gyroscopic c J^T (A - A^T) J,
+centripetal stiffness -c^2 B and force -c^2 (B p + b0) (`RunningTerms`).
 
 The seam. A `System` is the DOF map, the belt (`BeltSpans`, the ANCF spans, evaluated by the
 compiled kernel of `belt_kernel` in the time stepper; and `SpringSpans`, the spans modelled as axial
@@ -31,47 +27,28 @@ matrix (large models).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from beltdyn.model import ancf
 from beltdyn.config import DriveConfig
 from beltdyn.errors import ConfigError
-from beltdyn.model.components import ENERGY_KINDS, BearingSprings, LinearComponent
+from beltdyn.model.components import ENERGY_KINDS, LinearComponent, arm_spring
+from beltdyn.model.pulleys import PulleyParts, pulley_components, pulley_parts
 from beltdyn.model.barlaw import stretch_for_tension
-from beltdyn.model.frozen import set_at_once
 from beltdyn.model.geometry import Layout, layout_from_config
 from beltdyn.model.geometry import belt_speed_of
-from beltdyn.model.supports import SUPPORT_CLASSES, Support, support_of
+from beltdyn.model.supports import support_of
 from beltdyn.model.arms import ArmJoints, arm_joints
-from beltdyn.model.assembly import Pattern, _assembled
-from beltdyn.model.belt import _NO_INDEX, BeltSpans, _plus, build_belt
+from beltdyn.model.assembly import (DENSE_LIMIT, NO_INDEX, Pattern, assemble_blocks, component_entries,
+                                    component_nonzeros, component_sums, element_pairs, make_pattern)
+from beltdyn.model.belt import BeltSpans, build_belt, empty_element_set, plus
 from beltdyn.model.dofs import DofMap, number_dofs
 from beltdyn.model.springs import SpringSpans, build_springs
-from beltdyn.model.assembly import DENSE_LIMIT, _add_components, _summed_sparse, element_pairs, make_pattern
-
-
-
-# ------------------------------------------------------------------------------------ DOF map
-
-
-
-
-# ------------------------------------------------------------------------------------ components
-
-
-# ------------------------------------------------------------------------------------ the belt
-
-
-# ------------------------------------------------------------------------------------ spring spans
-
-
-# ------------------------------------------------------------------------------------ assembly pattern
-
-
 
 
 # ------------------------------------------------------------------------------------ the system
@@ -85,6 +62,25 @@ class TensionSetting:
     adjust_dof: int  # -1 when no DOF is moved
     adjust_range: tuple[float, float] | None = None  # allowed total travel of the adjustable pulley (slide_range), m
     adjust_name: str = ""  # name of the adjustable pulley
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunningTerms:
+    """The running belt's transport terms per unit speed (`BeltSpans.transport_blocks`, `SpringSpans.
+    transport_blocks`) on the joint coordinates: A, B (dense (n_p, n_p) or CSR) and a0, b0 (n_p,), so
+    that the gyroscopic matrix is c (A - A^T), the centripetal stiffness -c^2 B and the centripetal force
+    -c^2 (B p + b0); element_A, element_B (n_elem, 8, 8) the ANCF elements' own."""
+
+    A: object
+    B: object
+    a0: np.ndarray
+    b0: np.ndarray
+    element_A: np.ndarray
+    element_B: np.ndarray
+
+
+EnergyComponents = tuple  # (DOFs (r,), block-diagonal mass (r, r), kind of each DOF (r, len(ENERGY_KINDS))) or Nones
+ArmStatics = tuple  # per arm: (pulley index, its spring (LinearComponent or None), carried weight (2,) N)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -112,6 +108,21 @@ class System:
     belt_speed: float = 0.0  # m/s, the running belt's transport speed c (`running`); 0: the drive at rest
     springs: SpringSpans | None = None  # the spans modelled as axial springs (None: every span flexible)
     spring_scatter: np.ndarray | None = None  # (k m m,) where the springs' blocks go: flat (dense) or CSR slot
+    # derived in the constructor (`__post_init__`), never passed: the running belt's terms (at speed only,
+    # None at rest), the components' stiffness as a CSR matrix (sparse only), the mode classification's
+    # component masses, the tensioner arms' statics
+    running_terms: RunningTerms | None = field(init=False, repr=False, compare=False)
+    linear_csr: object = field(init=False, repr=False, compare=False)
+    energy_components: EnergyComponents = field(init=False, repr=False, compare=False)
+    arm_statics: ArmStatics = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        derived = {"running_terms": self._running_terms() if self.belt_speed else None,
+                   "linear_csr": None if self.dense else self.pattern.matrix(
+                       self.linear_stiffness if self.linear_stiffness is not None else np.zeros(self.pattern.nnz)),
+                   "energy_components": self._energy_components(), "arm_statics": self._arm_statics()}
+        for name, value in derived.items():  # (a frozen dataclass: its derived fields set once, here)
+            object.__setattr__(self, name, value)
 
     # The belt, the components, mass, pattern, gravity_force, loads and the linear matrices live on the
     # joint coordinates p (n_p); the analyses see the independent q (n_dof). Without arms p = q.
@@ -171,47 +182,46 @@ class System:
 
     def with_components(self, *extra: LinearComponent) -> "System":
         """A system with more components (matrices and pattern rebuilt)."""
-        out = _assemble(self.layout, self.dofs, self.belt, self.components + tuple(extra), pulley_names=self.pulley_names,
-                        driver=self.driver, tension=self.tension, gravity=self.gravity, dense=self.dense,
-                        loads=self.loads, arms=self.arms, friction=self.pulley_friction, springs=self.springs)
+        out = assemble_system(self.layout, self.dofs, self.belt, self.components + tuple(extra),
+                              pulley_names=self.pulley_names, driver=self.driver, tension=self.tension,
+                              gravity=self.gravity, dense=self.dense, loads=self.loads, arms=self.arms,
+                              friction=self.pulley_friction, springs=self.springs)
         return out.with_speed(self.belt_speed) if self.belt_speed else out
 
     def with_belt(self, **changes) -> "System":
         """The same system with belt fields changed (e.g. damping_axial, compiled); the spring spans
         take the axial damping too."""
-        belt = BeltSpans(**{**{k: v for k, v in self.belt.__dict__.items() if not k.startswith("_")}, **changes})
+        belt = dataclasses.replace(self.belt, **changes)
         springs = self.springs
         if springs is not None and "damping_axial" in changes:
-            springs = SpringSpans(**{**{k: v for k, v in springs.__dict__.items() if not k.startswith("_")},
-                                     "damping_axial": float(changes["damping_axial"])})
-        return System(**{**{k: v for k, v in self.__dict__.items() if not k.startswith("_")}, "belt": belt,
-                         "springs": springs})
+            springs = dataclasses.replace(springs, damping_axial=float(changes["damping_axial"]))
+        return dataclasses.replace(self, belt=belt, springs=springs)
 
     def with_belt_damping(self, axial: float, bending: float) -> "System":
         return self.with_belt(damping_axial=float(axial), damping_bending=float(bending))
 
     def with_speed(self, belt_speed: float) -> "System":
         """The same drive with its belt running at belt_speed (m/s; see `running`)."""
-        return System(**{**{k: v for k, v in self.__dict__.items() if not k.startswith("_")},
-                         "belt_speed": float(belt_speed)})
+        return dataclasses.replace(self, belt_speed=float(belt_speed))
 
     # -------------------------------------------------------------------- the running belt
     def transport_matrices(self):
         """(A, B, a0, b0) of the running belt per unit speed on the joint coordinates (dense (n_p, n_p) or
-        CSR; `BeltSpans.transport_blocks`): the gyroscopic matrix is c (A - A^T), the centripetal stiffness
-        -c^2 B, the centripetal force -c^2 (B p + b0). Cached."""
-        got = self.__dict__.get("_transport")
-        if got is None:
-            Ab, Bb, a0, b0 = self.belt.transport_blocks()
-            sp = self.springs
-            if sp is None:
-                got = (self.assemble(Ab, linear=False), self.assemble(Bb, linear=False), a0, b0)
-            else:  # + the spring spans' (their blocks on the same joint coordinates)
-                As, Bs, a0s, b0s = sp.transport_blocks()
-                got = (self.assemble(Ab, linear=False, springs=As), self.assemble(Bb, linear=False, springs=Bs),
-                       a0 + a0s, b0 + b0s)
-            object.__setattr__(self, "_transport", got)
-        return got
+        CSR; `RunningTerms`): the gyroscopic matrix is c (A - A^T), the centripetal stiffness -c^2 B, the
+        centripetal force -c^2 (B p + b0). Held by a running system, computed anew at rest."""
+        t = self.running_terms if self.running_terms is not None else self._running_terms()
+        return t.A, t.B, t.a0, t.b0
+
+    def _running_terms(self) -> RunningTerms:
+        A_e, B_e = self.belt.transport_element_matrices()
+        Ab, Bb, a0, b0 = self.belt.transport_blocks(A_e, B_e)
+        sp = self.springs
+        if sp is None:
+            return RunningTerms(A=self.assemble(Ab, linear=False), B=self.assemble(Bb, linear=False), a0=a0, b0=b0,
+                                element_A=A_e, element_B=B_e)
+        As, Bs, a0s, b0s = sp.transport_blocks()  # + the spring spans' (their blocks on the same coordinates)
+        return RunningTerms(A=self.assemble(Ab, linear=False, springs=As), B=self.assemble(Bb, linear=False, springs=Bs),
+                            a0=a0 + a0s, b0=b0 + b0s, element_A=A_e, element_B=B_e)
 
     def centripetal_force(self, p: np.ndarray) -> np.ndarray:
         """-c^2 (B p + b0) (n_p,) at the joint coordinates p: the running belt's centripetal term of the
@@ -222,14 +232,13 @@ class System:
         f = self.springs.centripetal_force(p, c) if self.springs is not None else 0.0
         if not belt.elements.n_elem:
             return f if self.springs is not None else np.zeros(self.n_p)
-        belt.transport_blocks()
-        B_e = belt.__dict__["_transport_e"][1]
+        B_e = (self.running_terms or self._running_terms()).element_B
         e = belt.element_coordinates(p)
         return f - (c * c) * belt.reduce_vector(np.matmul(B_e, e[:, :, None])[:, :, 0])
 
     def _running_blocks(self, blocks: np.ndarray) -> np.ndarray:
         """The element tangent blocks (n_elem, m, m) with the centripetal stiffness -c^2 T^T B_e T added."""
-        return blocks - (self.belt_speed * self.belt_speed) * self.belt.transport_blocks()[1]
+        return blocks - (self.belt_speed * self.belt_speed) * self.belt.reduce_blocks(self.running_terms.element_B)
 
     def _running_spring_blocks(self, blocks: np.ndarray) -> np.ndarray:
         """The spring spans' tangent blocks (k, m, m) with their centripetal stiffness -c^2 T^T B_s T."""
@@ -246,29 +255,21 @@ class System:
                  springs: np.ndarray | None = None):
         """Element blocks (n_elem, m, m) (None: none) (+ the spring spans' blocks (k, m_s, m_s), + the
         components' constant stiffness, + a diagonal) -> dense (n_p, n_p) or CSR, on the joint coordinates."""
-        return _assembled(self.n_p, self.dense, self.pattern, blocks, springs if self.springs is not None else None,
-                          self.spring_scatter, self.linear_stiffness if linear else None, diagonal)
+        return assemble_blocks(self.pattern, blocks, springs if self.springs is not None else None,
+                               self.spring_scatter, self.linear_stiffness if linear else None, diagonal)
 
     def linear_force(self, q: np.ndarray) -> np.ndarray:
         """The components' force K p - offset (joint coordinates p)."""
         if self.linear_stiffness is None:
             return np.zeros(self.n_p)
-        f = self.linear_stiffness @ q if self.dense else self.linear_matrix() @ q
+        f = (self.linear_stiffness if self.dense else self.linear_csr) @ q
         return f - self.linear_offset if self.linear_offset is not None else f
 
     def linear_matrix(self):
         """The components' constant stiffness as a matrix (dense or CSR), zeros if none."""
-        n = self.n_p
         if self.dense:
-            return self.linear_stiffness if self.linear_stiffness is not None else np.zeros((n, n))
-        A = self.__dict__.get("_linear_csr")
-        if A is None:  # constant: built once (callers only read it)
-            from scipy.sparse import csr_matrix
-
-            data = self.linear_stiffness if self.linear_stiffness is not None else np.zeros(self.pattern.nnz)
-            A = csr_matrix((data, self.pattern.indices, self.pattern.indptr), shape=(n, n))
-            object.__setattr__(self, "_linear_csr", A)
-        return A
+            return self.linear_stiffness if self.linear_stiffness is not None else np.zeros((self.n_p, self.n_p))
+        return self.linear_csr
 
     # -------------------------------------------------------------------- forces
     def belt_force(self, p: np.ndarray) -> np.ndarray:
@@ -309,7 +310,9 @@ class System:
         if self.belt.elements.n_elem == 0:
             F = np.zeros((p.shape[0], self.belt.n_span, 2, 2))
         else:
-            F = self.belt.on_spans(self.belt.transport_end_forces(E, Ed, speed, acceleration))
+            t = self.running_terms or self._running_terms()
+            F = self.belt.on_spans(self.belt.transport_end_forces(E, Ed, speed, acceleration,
+                                                                  matrices=(t.element_A, t.element_B)))
         sp = self.springs
         if sp is not None:
             F = F + sp.transport_end_forces(sp.positions_batch(p), None if vp is None else sp.positions_batch(vp, offset=False),
@@ -375,12 +378,11 @@ class System:
             return self.mass
         if slopes is None:
             slopes = self.arm_slopes(np.zeros(self.n_dof) if q is None else q)
-        return self.arms._project_matrix(slopes, self.mass, None, dense=self.dense)
+        return self.arms.project_matrix_at(slopes, self.mass, dense=self.dense)
 
     def arm_jacobian(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None) -> np.ndarray:
         """J = dp/dq (n_p, n_dof) dense at q: the identity on q, the arms' slopes dc/dphi in the arm
-        columns, from `arm_slopes` (a, 2) if given, else from q on Python floats (`ArmJoints.first`'s
-        formula arm by arm: a drive has a few arms)."""
+        columns, from `arm_slopes` (a, 2) if given, else from q (`ArmJoints.first`)."""
         return self.arms.dense_jacobian(q, slopes=slopes)
 
     def mean_tension_and_gradient(self, q: np.ndarray, *, gradient: bool = True, p: np.ndarray | None = None
@@ -436,7 +438,7 @@ class System:
             F = b.end_forces(E, Ed, self.gravity)  # (Ed is read with belt damping only)
         if self.springs is not None:
             sp = self.springs
-            F = _plus(F, sp.end_forces(sp.positions_batch(p) if X is None else X,
+            F = plus(F, sp.end_forces(sp.positions_batch(p) if X is None else X,
                                        None if vp is None else sp.positions_batch(vp, offset=False), self.gravity))
         return F
 
@@ -448,7 +450,7 @@ class System:
         if self.belt.elements.n_elem:
             T = self.belt.end_tensions(self.belt.element_coordinates_batch(p) if E is None else E, F)
         if self.springs is not None:
-            T = _plus(T, self.springs.end_tensions(self.springs.positions_batch(p) if X is None else X, F))
+            T = plus(T, self.springs.end_tensions(self.springs.positions_batch(p) if X is None else X, F))
         return T
 
     def span_end_inertia(self, ap: np.ndarray) -> np.ndarray:
@@ -457,7 +459,7 @@ class System:
         if self.belt.elements.n_elem:
             F = self.belt.end_inertia(self.belt.element_coordinates_batch(ap, offset=False))
         if self.springs is not None:
-            F = _plus(F, self.springs.end_inertia(self.springs.positions_batch(ap, offset=False)))
+            F = plus(F, self.springs.end_inertia(self.springs.positions_batch(ap, offset=False)))
         return F
 
     def joint_reactions(self, q: np.ndarray, *, p: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -486,7 +488,7 @@ class System:
             E = None
         if sp is not None:
             F_s, T_s, NL_s = sp.static_ends(p, self.gravity)
-            F, T = _plus(F, F_s), _plus(T, T_s)
+            F, T = plus(F, F_s), plus(T, T_s)
             NL = NL_s + NL if L_b > 0.0 else NL_s
         hub = F if not self.belt_speed else F + self.span_transport_forces(E, None, self.belt_speed, p=p[None])[0]
         n = self.layout.n
@@ -505,15 +507,14 @@ class System:
         hub[:, 0] -= F_end[:, -1, 1]
         return hub[:, :n]
 
-    @property
-    def arm_statics(self) -> tuple[tuple[int, LinearComponent | None, np.ndarray], ...]:
-        """Per tensioner arm: its pulley's index, the arm's spring (the component on the arm angle alone
-        with a stiffness; None: none) and the weight (2,) N of what the arm carries (its pulley's
-        components' weight on the pulley's offsets at this gravity). Cached."""
-        return self._arm_statics
+    def arm_spring(self, dof: int) -> LinearComponent | None:
+        """The torsion spring of the tensioner arm on the angle `dof` (`components.arm_spring`)."""
+        return arm_spring(self.components, dof)
 
-    @functools.cached_property  # (a "_" name: not a field, which `with_belt` and `with_speed` copy)
-    def _arm_statics(self) -> tuple[tuple[int, LinearComponent | None, np.ndarray], ...]:
+    def _arm_statics(self) -> ArmStatics:
+        """Per tensioner arm: its pulley's index, the arm's spring (`arm_spring`; None: none) and the weight
+        (2,) N of what the arm carries (its pulley's components' weight on the pulley's offsets at this
+        gravity): the field `arm_statics`."""
         arms = self.arms
         if arms is None:
             return ()
@@ -521,7 +522,7 @@ class System:
         comps = [(c, c.dofs.tolist()) for c in self.components]
         g = self.gravity
         for d, slot, j in zip(arms.dof.tolist(), arms.slot.tolist(), arms.pulleys):
-            spring = next((c for c, cd in comps if cd == [d] and c.stiffness is not None), None)
+            spring = self.arm_spring(d)
             weight = np.zeros(2)
             for c, cd in comps:
                 if c.weight is not None and (slot in cd or slot + 1 in cd):
@@ -562,7 +563,7 @@ class System:
         elif self.arms is not None:
             shapes = self.arms.expand_motion(np.zeros(self.n_dof) if q is None else q, shapes)
         E = np.zeros((n_modes, nk + 2 * belt.n_span))
-        dofs, mass, kind_of = self._energy_components
+        dofs, mass, kind_of = self.energy_components
         if dofs is not None:  # x^T M_c x of every component at once, summed by kind
             x = shapes.take(dofs, axis=1)
             np.matmul(np.matmul(x, mass) * x, kind_of, out=E[:, :nk])
@@ -589,9 +590,8 @@ class System:
         totals += np.add.reduce(span, axis=2) if el.n_elem else np.add.reduce(e, axis=0).T  # (contiguous e: all springs)
         return E, b
 
-    @functools.cached_property
-    def _energy_components(self) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
-        """The components whose mass counts for a kind, side by side: their DOFs (r,), their mass
+    def _energy_components(self) -> EnergyComponents:
+        """The field `energy_components`: the components whose mass counts for a kind, side by side: their DOFs (r,), their mass
         matrices block-diagonal (r, r) and each DOF's kind (r, len(ENERGY_KINDS)), 1 in the column of its
         component's kind; Nones without such components."""
         comps = [c for c in self.components if c.mass is not None and c.energy_kind]
@@ -611,95 +611,13 @@ class System:
 # ------------------------------------------------------------------------------------ building
 
 
-def pulley_components(cfg: DriveConfig, dofs: DofMap, layout: Layout | None = None, *,
-                      spring_free: np.ndarray | None = None, parts: "PulleyParts | None" = None
-                      ) -> tuple[LinearComponent, ...]:
-    """Pulley inertia (rotation DOFs), pulley mass and weight (translation DOFs, paper Eq. 20), the
-    bearing springs (Eq. 21): only on the DOFs the supports allow; and each tensioner arm's inertia,
-    torsion spring and viscous damper on its angle (the arm pulley's mass sits on its dependent
-    centre offsets: its m l^2 comes through the arm kinematics).
-
-    spring_free (n_dof,): the value of each translation DOF at which its bearing spring is relaxed
-    (None: 0, the pulley at its layout centre). A layout whose pulleys sit displaced from their given
-    centres (`geometry.relay`) anchors the springs at the given centres with it. parts: the
-    configuration's own share (`pulley_parts` of cfg and dofs), if at hand."""
-    fixed, bearing, own = pulley_parts(cfg, dofs) if parts is None else parts
-    out = list(fixed)
-    if bearing is not None:
-        d, K, supported, names = bearing
-        free = None if spring_free is None or not np.any(spring_free[d]) else np.asarray(spring_free, dtype=float)[d]
-        out.append(BearingSprings(name="bearing springs", dofs=d, stiffness=K, free=free, pulleys=supported,
-                                  pulley_names=names))
-    for sup, first, j in own:
-        out += sup.own_components(first, layout, j, spring_free)
-    return tuple(out)
-
-
-_MASS_NAMES = {"translational": "pulley mass", "tensioner": "arm pulley mass"}  # the pulley mass components' names
-
-
-def _diagonal(values: list) -> np.ndarray:
-    """np.diag(values) of floats (k, k) without its generic set-up."""
-    k = len(values)
-    out = np.zeros((k, k))
-    out.ravel()[:: k + 1] = values
-    return out
-
-
-PulleyParts = tuple  # (fixed components, bearing springs' (dofs, K, pulleys, names) or None, ((support, first DOF, j), ...))
-
-
-def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
-    """What `pulley_components` takes from the configuration alone: the pulley inertia and the pulleys'
-    masses (components), the bearing springs' DOFs (k,), stiffness (k, k), pulleys and their names (None
-    without any), and the supports with own components (support, its first DOF, pulley index)."""
-    pulleys = cfg.pulleys
-    fixed: list[LinearComponent] = [set_at_once(
-        LinearComponent, name="pulley inertia", dofs=dofs.rot_dof, stiffness=None, damping=None,
-        mass=_diagonal([p.inertia for p in pulleys]), weight=None, free=None, energy_kind="rotational")]
-    masses: dict[str, tuple[list, list, list]] = {}  # energy kind -> translational DOFs, masses, weights
-    t_dofs, k_spring, supported = [], [], []
-    own = []
-    for j, (p, t_dof) in enumerate(zip(pulleys, dofs.trans_dof)):
-        if not t_dof and SUPPORT_CLASSES[p.support] is Support:  # a fixed centre: nothing of its own (its mass
-            if "translational" not in masses:  # kind still takes its place in the order)
-                masses["translational"] = ([], [], [])
-            continue
-        sup = support_of(p)
-        d_m, m_m, w_m = masses.setdefault(sup.mass_kind, ([], [], []))
-        if t_dof:
-            d_m += t_dof
-            for vx, vy in dofs.trans_dir[j].tolist():  # (floats: a direction or two)
-                m_m.append(p.mass * (vx * vx + vy * vy))  # m |v|^2 (1 for the unit directions)
-                w_m.append((p.mass * vx, p.mass * vy))
-        springs = sup.springs()
-        if springs:
-            t_dofs += t_dof
-            k_spring += springs
-            supported.append(j)
-        if sup.independent():
-            own.append((sup, t_dof[0] if t_dof and not sup.translation_is_dependent() else int(dofs.arm_dof[j]), j))
-    for kind, (d_m, m_m, w_m) in masses.items():
-        if d_m:
-            fixed.append(set_at_once(LinearComponent, name=_MASS_NAMES.get(kind) or f"{kind} pulley mass",
-                                      dofs=np.array(d_m, dtype=np.int64), stiffness=None, damping=None,
-                                      mass=_diagonal(m_m), weight=np.array(w_m), free=None, energy_kind=kind))
-    bearing = None
-    if t_dofs:
-        bearing = (np.array(t_dofs, dtype=np.int64), _diagonal(k_spring), tuple(supported),
-                   tuple(pulleys[j].name for j in supported))
-    return tuple(fixed), bearing, tuple(own)
-
-
 def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
     """(n_p,) the accessory torques of [[static.torque]] on the pulley rotations (None if none)."""
     if not cfg.static.torque:
         return None
-    F = [0.0] * dofs.n  # (floats: a few entries)
-    names, rot = [p.name for p in cfg.pulleys], dofs.rot_dof.tolist()
-    for tq in cfg.static.torque:
-        F[rot[names.index(tq.pulley)]] += tq.value
-    return np.array(F)
+    names = [p.name for p in cfg.pulleys]
+    at = dofs.rot_dof[[names.index(tq.pulley) for tq in cfg.static.torque]]
+    return np.bincount(at, weights=[tq.value for tq in cfg.static.torque], minlength=dofs.n).astype(float)
 
 
 def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
@@ -775,17 +693,18 @@ class DriveFacts:
     gravity: np.ndarray  # (2,) m/s^2
     pulleys: PulleyParts  # `pulley_parts`
     arms: ArmJoints | None
+    no_elements: ancf.ElementSet | None = None  # `belt.empty_element_set` when every span is a spring, else None
 
 
 def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
     """The `DriveFacts` of a configuration (`layout`: its L0 fit, where the arms are taken)."""
     dofs = number_dofs(cfg)
     pulleys = cfg.pulleys
-    return set_at_once(DriveFacts, layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs),
-                        loads=static_loads(cfg, dofs),
-                        friction=np.array([np.nan if p.friction is None else p.friction for p in pulleys]),
-                        pulley_names=tuple([p.name for p in pulleys]), gravity=np.asarray(cfg.model.gravity, dtype=float),
-                        pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs))
+    return DriveFacts(layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs), loads=static_loads(cfg, dofs),
+                      friction=np.array([np.nan if p.friction is None else p.friction for p in pulleys]),
+                      pulley_names=tuple([p.name for p in pulleys]), gravity=np.asarray(cfg.model.gravity, dtype=float),
+                      pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
+                      no_elements=empty_element_set(cfg) if sum(cfg.span_elements) == 0 else None)
 
 
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
@@ -810,14 +729,14 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
     arms = facts.arms
     if arms is not None and layout is not facts.layout:
         arms = arm_joints(cfg, layout, dofs, like=arms)
-    belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam)
+    belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam, no_elements=facts.no_elements)
     springs = build_springs(cfg, layout, dofs, prestrain_stretch=lam, direction=belt.reference_direction,
                             reference_length=belt.reference_length)
-    system = _assemble(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free,
-                                                             parts=facts.pulleys) + tuple(extra),
-                       pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
-                       gravity=facts.gravity, dense=dense, loads=facts.loads, arms=arms, friction=facts.friction,
-                       springs=springs)
+    system = assemble_system(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free,
+                                                                   parts=facts.pulleys) + tuple(extra),
+                             pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
+                             gravity=facts.gravity, dense=dense, loads=facts.loads, arms=arms, friction=facts.friction,
+                             springs=springs)
     if belt_speed is None:
         belt_speed = belt_speed_of(cfg, layout)
     return system.with_speed(belt_speed) if belt_speed else system
@@ -836,118 +755,152 @@ def tension_setting(cfg: DriveConfig, dofs: DofMap) -> TensionSetting:
             adjust_dof = int(dofs.arm_dof[a]) if dofs.arm_dof[a] >= 0 else int(dofs.trans_dof[a][0])
         adjust_range = sup.travel_limits()
     mode = "spring" if cfg.tension.mode == "spring" else (cfg.tension.mode if target is not None else "geometry")
-    return set_at_once(TensionSetting, target=target, mode=mode, adjust_dof=adjust_dof, adjust_range=adjust_range,
-                        adjust_name=cfg.pulleys[a].name if a is not None else "")
+    return TensionSetting(target=target, mode=mode, adjust_dof=adjust_dof, adjust_range=adjust_range,
+                          adjust_name=cfg.pulleys[a].name if a is not None else "")
+
+
+@dataclass(frozen=True, kw_only=True)
+class BeltFacts:
+    """What the belt of a drive is before it is built: the spans' reference lengths (n_span,) m, their
+    stretch at q = 0 (one for all) and the axial stiffness EA, N."""
+
+    reference_length: np.ndarray
+    prestrain_stretch: float
+    EA: float
 
 
 class DeferredSystem:
-    """The drive on a layout whose full build waits until something needs it: `pipeline.analyse` hands
-    this to the static analysis, which lays the belt out anew at the predicted solved positions and
-    usually never solves on the L0 fit. Cheap facts (tension, DOF map, layout, arms, the belt's
-    reference lengths, stretch and EA) come without a build; anything else builds (`full`)."""
+    """The drive on a layout before its full build: `pipeline.analyse` hands this to the static analysis,
+    which lays the belt out anew at the predicted solved positions and usually never solves on the L0 fit.
+    It holds the facts a build starts from (DOF map, layout, tension setting, arms, loads, the pulleys'
+    components, the belt's reference lengths, stretch and EA: `BeltFacts`) and builds the `System` on its
+    layout when asked (`full`, once)."""
 
     def __init__(self, cfg: DriveConfig, layout: Layout, build, *, facts: DriveFacts | None = None) -> None:
-        """facts: the configuration's `DriveFacts` on this layout (default: computed here); the `facts`
-        attribute either way, for the builds of the same analysis."""
-        from types import SimpleNamespace
-
+        """build: layout -> System; facts: the configuration's `DriveFacts` on this layout (default: computed
+        here), the builds of the same analysis share them."""
         facts = drive_facts(cfg, layout) if facts is None else facts
         dofs = facts.dofs
         lam = reference_stretch(cfg, layout)
-        self.__dict__.update({  # the facts as plain attributes (`__getattr__` only for the rest)
-            "layout": layout, "dofs": dofs, "tension": facts.tension, "arms": facts.arms,
-            "trans_dof": dofs.trans_dof, "trans_dir": dofs.trans_dir, "rot_dof": dofs.rot_dof,
-            "loads": facts.loads, "driver": cfg.driver_index, "driver_dof": int(dofs.rot_dof[cfg.driver_index]),
-            "belt": SimpleNamespace(reference_length=layout.span_length / lam, prestrain_stretch=float(lam),
-                                    span_stretch=None, elements=SimpleNamespace(EA=np.array([cfg.belt.EA]))),
-            "EA": float(cfg.belt.EA), "dof_labels": dofs.labels[: dofs.n_q],
-            "pulley_friction": facts.friction, "pulley_index": facts.pulley_names.index, "facts": facts,
-        })
-        self._build, self._full, self._cfg = build, None, cfg
+        self.facts = facts
+        self.layout = layout
+        self.dofs = dofs
+        self.tension = facts.tension
+        self.arms = facts.arms
+        self.loads = facts.loads
+        self.pulley_friction = facts.friction
+        self.pulley_names = facts.pulley_names
+        self.driver = cfg.driver_index
+        self.EA = float(cfg.belt.EA)
+        self.belt = BeltFacts(reference_length=layout.span_length / lam, prestrain_stretch=float(lam), EA=self.EA)
+        self.components = pulley_components(cfg, dofs, layout, parts=facts.pulleys)  # the pulleys': no belt
+        self._build = build
+        self._system: System | None = None
+
+    @property
+    def rot_dof(self) -> np.ndarray:
+        return self.dofs.rot_dof
+
+    @property
+    def trans_dof(self) -> tuple[tuple[int, ...], ...]:
+        return self.dofs.trans_dof
+
+    @property
+    def trans_dir(self) -> tuple[np.ndarray, ...]:
+        return self.dofs.trans_dir
+
+    @property
+    def driver_dof(self) -> int:
+        return int(self.dofs.rot_dof[self.driver])
+
+    @property
+    def n_p(self) -> int:
+        return self.dofs.n
+
+    @property
+    def n_dof(self) -> int:
+        return self.dofs.n_q
+
+    @property
+    def dof_labels(self) -> tuple[str, ...]:
+        return self.dofs.labels[: self.dofs.n_q]
+
+    @property
+    def gravity_force(self) -> np.ndarray:
+        """(n_p,) the generalized weight, the belt's share included: of the system built (`full`)."""
+        return self.full().gravity_force
+
+    def pulley_index(self, name: str) -> int:
+        return self.pulley_names.index(name)
+
+    def arm_spring(self, dof: int) -> LinearComponent | None:
+        """As `System.arm_spring`, among the pulleys' components."""
+        return arm_spring(self.components, dof)
+
+    def linear_matrix(self):
+        """The components' constant stiffness (n_p, n_p) as `System.linear_matrix` gives it (dense up to
+        `DENSE_LIMIT` coordinates, CSR above), from the pulleys' components alone: no belt built."""
+        n = self.n_p
+        entries = component_entries(self.components, "stiffness")
+        if n <= DENSE_LIMIT:
+            return Pattern(n=n, flat=NO_INDEX).scatter(*entries) if entries is not None else np.zeros((n, n))
+        from scipy.sparse import csr_matrix
+
+        rows, cols, values = entries if entries is not None else (NO_INDEX, NO_INDEX, np.zeros(0))
+        return csr_matrix((values, (rows, cols)), shape=(n, n))
 
     @property
     def built(self) -> bool:
-        return self._full is not None
+        return self._system is not None
 
     def full(self) -> System:
-        if self._full is None:
-            self._full = self._build(self.layout)
-        return self._full
-
-    def __getattr__(self, name: str):  # (only for what __init__ did not set)
-        if name in ("_build", "_full", "_cfg"):  # (its own state, before __init__ set it: no build)
-            raise AttributeError(name)
-        if name == "components":  # the pulleys' own components: cheap, no belt
-            self.components = pulley_components(self._cfg, self.dofs, self.layout, parts=self.facts.pulleys)
-            return self.components
-        return getattr(self.full(), name)
+        """The system built on this layout (once)."""
+        if self._system is None:
+            self._system = self._build(self.layout)
+        return self._system
 
 
 __all__ = ["System", "DofMap", "BeltSpans", "SpringSpans", "build_springs", "TensionSetting",
            "build_system", "DriveFacts", "drive_facts", "number_dofs", "element_pairs", "DENSE_LIMIT"]
 
 
-def _assemble(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[LinearComponent, ...], *,
-              pulley_names: tuple[str, ...], driver: int, tension: TensionSetting, gravity: np.ndarray,
-              dense: bool | None, loads: np.ndarray | None = None, arms: ArmJoints | None = None,
-              friction: np.ndarray | None = None, springs: SpringSpans | None = None) -> System:
-    """Pattern, mass, weight and the components' constant matrices of a system."""
+def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[LinearComponent, ...], *,
+                    pulley_names: tuple[str, ...], driver: int, tension: TensionSetting, gravity: np.ndarray,
+                    dense: bool | None, loads: np.ndarray | None = None, arms: ArmJoints | None = None,
+                    friction: np.ndarray | None = None, springs: SpringSpans | None = None) -> System:
+    """The system of a belt and components: its pattern, mass, weight and the components' constant
+    matrices, one assembly for dense and sparse (`assembly`)."""
     n = dofs.n
     use_dense = n <= DENSE_LIMIT if dense is None else dense
-    if springs is not None and not use_dense:  # the spring spans' blocks: entries of the pattern like the components'
+    if springs is not None:  # the spring spans' blocks: entries of the pattern like the components'
         s_rows, s_cols = element_pairs(springs.idx)
+        live = (s_rows < n) & (s_cols < n)
     extra = None
     if not use_dense:  # (a dense pattern holds every entry)
-        rows, cols = [], []
-        if springs is not None:
-            live = (s_rows < n) & (s_cols < n)
-            rows.append(s_rows[live])
-            cols.append(s_cols[live])
-        for c in components:
-            for mat in (c.stiffness, c.damping, c.mass):
-                if mat is not None:
-                    r, cc = np.nonzero(mat)
-                    rows.append(c.dofs[r])
-                    cols.append(c.dofs[cc])
-        extra = (np.concatenate(rows), np.concatenate(cols)) if rows else None
+        parts = ([(s_rows[live], s_cols[live])] if springs is not None else []) + \
+            [nz for nz in [component_nonzeros(components)] if nz is not None]
+        extra = (np.concatenate([r for r, _ in parts]), np.concatenate([c for _, c in parts])) if parts else None
     # (dense without elements: nothing to scatter but the springs, which bring their own indices)
-    pattern = set_at_once(Pattern, n=n, flat=_NO_INDEX, slot=None, indices=None, indptr=None, diag_slot=None, nnz=0) \
-        if use_dense and not len(belt.idx) else \
+    pattern = Pattern(n=n, flat=NO_INDEX) if use_dense and not len(belt.idx) else \
         make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
     g = np.asarray(gravity, dtype=float)
     has_elements = belt.elements.n_elem > 0
     weighs = bool(g.any())  # (without gravity the belt's weight is zeros)
-    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g)) if has_elements and weighs else None
+    fg = belt.reduce_vector(ancf.gravity_forces(belt.elements, g)) if has_elements and weighs else np.zeros(n)
     scatter = None
     if springs is not None:
         if weighs:
-            fg = springs.gravity_force(g) if fg is None else fg + springs.gravity_force(g)
+            fg = fg + springs.gravity_force(g)
         if use_dense:  # row * (n + 1) + column of each block entry (`element_pairs`)
-            idx = springs.idx
-            scatter = (idx[:, :, None] * (n + 1) + idx[:, None, :]).ravel()
+            scatter = s_rows * (n + 1) + s_cols
         else:
             scatter = np.full(s_rows.shape, -1, dtype=np.int64)
             scatter[live] = pattern.slots_of(s_rows[live], s_cols[live])
-    fg = np.zeros(n) if fg is None else fg
-    M = _assembled(n, use_dense, pattern, belt.reduce_blocks(belt.elements.mass) if has_elements else None,
-                   None if springs is None else springs.mass_blocks(), scatter, None, None)
-    if use_dense:  # the components' matrices added in place, their weights too
-        K_lin, C, offset = _add_components(components, n, M, fg, g)
-    else:
-        from scipy.sparse import csr_matrix
-
-        K_lin, C_lin, M_comp = (_summed_sparse(components, pattern, attr) for attr in ("stiffness", "damping", "mass"))
-        if M_comp is not None:  # M is already on the pattern: add the components' entries
-            M.data += M_comp
-        C = csr_matrix((C_lin, pattern.indices, pattern.indptr), shape=(n, n)) if C_lin is not None else None
-        offset = None
-        for c in components:
-            if c.free is not None and c.stiffness is not None:
-                offset = np.zeros(n) if offset is None else offset
-                offset[c.dofs] += c.stiffness @ np.asarray(c.free, dtype=float)
-            if c.weight is not None:
-                fg[c.dofs] += c.weight @ g
-    return set_at_once(System, layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names,
-                        driver=driver, tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M,
-                        gravity_force=fg, linear_stiffness=K_lin, linear_damping=C, linear_offset=offset, loads=loads,
-                        arms=arms, pulley_friction=friction, belt_speed=0.0, springs=springs, spring_scatter=scatter)
+    sums = component_sums(components, pattern, g)
+    M = assemble_blocks(pattern, belt.reduce_blocks(belt.elements.mass) if has_elements else None,
+                        None if springs is None else springs.mass_blocks(), scatter, sums.mass, None)
+    return System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names,
+                  driver=driver, tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M,
+                  gravity_force=fg + sums.weight, linear_stiffness=sums.stiffness, linear_damping=sums.damping,
+                  linear_offset=sums.offset, loads=loads, arms=arms, pulley_friction=friction, belt_speed=0.0,
+                  springs=springs, spring_scatter=scatter)
