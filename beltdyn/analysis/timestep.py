@@ -281,3 +281,32 @@ def step_warnings(step: float, *, excitation_frequency: float | None = None,
                    f"{STEP_PER_PERIOD / step:.4g} Hz is resolved; use transient.step <= "
                    f"{STEP_PER_PERIOD / mode_frequency:.3g} s, or transient.accuracy and transient.fmax")
     return tuple(out)
+
+
+RESOLVE_ACCURACY = 0.1  # the frequency error (10 %) up to which a step is said to resolve a motion at all
+
+
+def unresolved_motion(step: float, *, duration: float, rho_inf: float, excitation_frequency: float | None = None,
+                      lowest_frequency: float | None = None, fmax: float | None = None,
+                      accuracy: float | None = None) -> str | None:
+    """Why a step resolves nothing of a run, or None: a step longer than the duration, or one whose
+    band at a 10 % frequency error (`resolved_band` at RESOLVE_ACCURACY) lies below the excitation
+    frequency (Hz) or the lowest non-rigid natural frequency (Hz). The sentence ends with the step
+    that resolves fmax (transient.fmax, else the frequency missed) to the accuracy (transient.accuracy,
+    else DEFAULT_ACCURACY)."""
+    if step > duration:
+        why = f"the step {step:g} s is longer than the duration {duration:g} s: not one step of the motion is resolved"
+        target = max(f for f in (excitation_frequency, lowest_frequency, 1.0 / duration) if f)
+    else:
+        band = resolved_band(step, RESOLVE_ACCURACY, rho_inf)
+        missed = [(f, what) for f, what in ((lowest_frequency, "the lowest natural frequency"),
+                                            (excitation_frequency, "the excitation frequency")) if f and band < f]
+        if not missed:
+            return None
+        f, what = min(missed)
+        why = (f"the step {step:g} s resolves motion only up to {band:.4g} Hz (frequency error "
+               f"{RESOLVE_ACCURACY:.0%}), below {what} {f:.6g} Hz: it resolves no mode of the model")
+        target = max(f for f, _ in missed)
+    target = fmax if fmax is not None else target
+    acc = accuracy if accuracy is not None else DEFAULT_ACCURACY
+    return f"{why}; the step {step_for_accuracy(target, acc, rho_inf):.3g} s resolves {target:.6g} Hz to {acc:g}"

@@ -84,18 +84,15 @@ class TransientSummary:
     newton_iterations: int = 0  # corrections (iteration-matrix solves) of the accepted steps
 
 
-ENERGY_WARNING = 0.01  # energy-balance error, as a share of the energy moved, above which a run is flagged
+ENERGY_LIMIT = 0.01  # energy-balance error, as a share of the energy moved, above which a run fails (SolverError)
 
 
 def accuracy_warnings(opts: TransientOptions, *, energy_error: float, excitation_frequency: float | None,
                       min_step: float) -> tuple[str, ...]:
-    """What makes a finished run's numbers doubtful: an energy-balance error above 1 % of the energy
-    moved, a step longer than a tenth of the excitation period, an output interval below the step
+    """What makes a finished run's numbers doubtful (an energy-balance error above ENERGY_LIMIT is
+    not a warning: the run fails, see `run_transient`): a step longer than a tenth of the excitation period, an output interval below the step
     (samples between steps are interpolated, not computed)."""
     out = []
-    if energy_error > ENERGY_WARNING:
-        out.append(f"energy balance error {energy_error:.2e} of the energy moved exceeds {ENERGY_WARNING:.0%}: "
-                   f"the step {opts.step:g} s is too long for this run; reduce transient.step")
     from beltdyn.analysis.timestep import step_warnings
 
     out += step_warnings(opts.step, excitation_frequency=excitation_frequency)
@@ -950,6 +947,10 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
         n_span=system.belt.n_span)
     moved = float(th[itg.MOVED])
     error = float(th[itg.WORST]) / moved if moved > 0 else 0.0
+    if error > ENERGY_LIMIT:  # every sample has reached the sink: the results so far stay, marked failed
+        raise SolverError(f"energy balance error {error:.2e} of the energy moved ({moved:.3g} J) exceeds "
+                          f"{ENERGY_LIMIT:.0%}: the step {opts.step:g} s is too long for this run; reduce transient.step",
+                          analysis="transient", step=f"t = {float(th[itg.T_NOW]):.6g} s", residual=error)
     return TransientSummary(status="complete", steps=run.steps, refactorizations=run.refactors,
                             step_halvings=run.halvings, final_time=float(th[itg.T_NOW]), min_step=float(min_h),
                             slack_events=events, n_outputs=run.delivered, energy_error=error, energy_moved=moved,
@@ -979,7 +980,12 @@ def tension_warnings(system: System, observer: "Observers", events: np.ndarray,
                    f"compression, it flaps and may slip there; raise the tension or lower the excitation")
     scale = abs(float(mean_tension))
     for s_, (t_low, when) in enumerate(zip(observer.tension_low, observer.tension_low_time)):
-        if s_ not in went and np.isfinite(t_low) and t_low < SLACK_WARNING * scale:
+        if s_ in went or not np.isfinite(t_low):
+            continue
+        if t_low < 0.0:  # a span in compression is slack, whatever the slack events saw at the steps
+            out.append(f"span {lay.span_name(s_)} went slack: its tension reached {t_low:.4g} N at one end at "
+                       f"t = {when:.6g} s: a real belt carries no compression, it flaps and may slip there")
+        elif t_low < SLACK_WARNING * scale:
             out.append(f"span {lay.span_name(s_)} came close to slack: {t_low:.4g} N at one end at t = {when:.6g} s, "
                        f"{t_low / scale:.1%} of the static mean tension {scale:.4g} N")
     T, when = observer.tension_high
