@@ -808,6 +808,7 @@ def _run_transient(job: "_Job", run, *, force_large: bool = False) -> None:
 
         mres = solve_modes(model, res.q, n_modes=len(mres.frequency), solver=cfg.modal.solver)
     setup = prepare(model, res, opts)
+    _refuse_unresolving_step(job, opts, setup, mres)
     early = _step_warnings(opts, setup, mres)
     for w in early:  # before the work: a step that resolves nothing is said at once
         _console().print(f"[bold yellow]warning[/]: {w}")
@@ -978,6 +979,23 @@ def _channel_labels(series, coords) -> list[str]:
         return [series.name]
     axes = [coords[d] for d in series.dims]
     return [f"{series.name}[{', '.join(map(str, combo))}]" for combo in itertools.product(*axes)]
+
+
+def _refuse_unresolving_step(job, opts, setup, mres) -> None:
+    """A step that resolves nothing of the run (`timestep.unresolved_motion`) is refused before the
+    transient starts: ConfigError naming --step or transient.step (exit 2)."""
+    from beltdyn.analysis.timestep import unresolved_motion
+
+    lowest = float(mres.frequency.min()) if mres is not None and len(mres.frequency) else None
+    why = unresolved_motion(opts.step, duration=opts.duration, rho_inf=opts.rho_inf,
+                            excitation_frequency=setup.excitation_frequency, lowest_frequency=lowest,
+                            fmax=opts.fmax, accuracy=opts.accuracy)
+    if why is not None:
+        from beltdyn.errors import ConfigError
+
+        origin = getattr(job, "step_origin", "config")
+        key = {"--step": "--step", "accuracy": "transient.accuracy"}.get(origin, "transient.step")
+        raise ConfigError(why, file=job.cfg.source, key=key)
 
 
 def _step_warnings(opts, setup, mres) -> tuple[str, ...]:

@@ -144,10 +144,8 @@ def test_convergence_does_not_depend_on_bearing_preload(stiffness):
 
 
 def test_inaccurate_transient_is_flagged_not_silently_complete(tmp_path):
-    # Issue 14/15: `--step 0.1` on the large example resolves nothing of its 45 Hz excitation; the run
-    # finishes but /transient carries warnings (energy balance, step against the excitation period,
-    # output interval below the step) and the console prints them. A well-resolved run has none
-    # (an empty array of strings).
+    # Issue 14/15: `--step 0.01` on the small example resolves nothing of its 45 Hz excitation (issue
+    # 26: refused before the run). A well-resolved run has no warnings (an empty array of strings).
     import subprocess
     import sys
 
@@ -158,11 +156,10 @@ def test_inaccurate_transient_is_flagged_not_silently_complete(tmp_path):
     bad = subprocess.run([str(exe), "transient", str(cfg), "-o", str(tmp_path / "bad.h5"), "--step", "0.01",
                           "--duration", "0.6", "--set", "transient.spectrum.start=0.3"],
                          capture_output=True, text=True, timeout=300)
-    assert bad.returncode == 0, bad.stderr
-    assert "warning" in bad.stdout
-    with h5py.File(tmp_path / "bad.h5") as f:
-        w = [x.decode() if isinstance(x, bytes) else x for x in f["transient"].attrs["warnings"]]
-    assert any("excitation period" in x for x in w) and any("output_interval" in x for x in w)
+    # issue 26: such a step is now refused before the run (exit 2, naming --step; its band at a 10 %
+    # frequency error, 19 Hz, lies below the lowest mode, 30.5 Hz); tests/test_trustworthy_transient.py
+    assert bad.returncode == 2, bad.stderr
+    assert "--step" in bad.stderr and "resolves no mode" in bad.stderr
     good = subprocess.run([str(exe), "transient", str(cfg), "-o", str(tmp_path / "good.h5"), "--duration", "0.6",
                            "--set", "transient.spectrum.start=0.3"], capture_output=True, text=True, timeout=300)
     assert good.returncode == 0, good.stderr

@@ -213,11 +213,23 @@ def test_extreme_steps_and_rho(rho, step, duration):
     # dt from 1e-6 to 1e-2 s and rho_inf 0 and 1 under the small excitation: finite results; at
     # dt = 1e-6 with rho_inf = 1 the energy balance closes within 1e-3 of the energy exchanged (its
     # error is O(h^2) for the nonlinear forces; at dt = 1e-2 the 100 Hz rotational mode has w h ~ 6,
-    # outside the resolved range, so only finiteness and completion are asserted there).
+    # outside the resolved range: issue 26, such a run is not trustworthy and does not end complete:
+    # it runs to the end with finite samples, all delivered, then fails on its energy balance error,
+    # ~94 % of the energy moved > transient.ENERGY_LIMIT).
     tr = excitation(1e-3)
     tr.update(duration=duration, step=step, output_interval=max(step, duration / 200), rho_inf=rho,
               damping={}, min_step=min(step, 1e-9))
     tr["rotation"][0]["fluctuation_ramp"] = duration / 2
+    if step >= 1e-2:
+        seen: list = []
+        run = analyse(bench_cfg(tr))
+        with pytest.raises(SolverError) as err:
+            run_transient(run.system, run.static, bench_cfg(tr).transient,
+                          sink=lambda t, b: seen.append((t, b["span_tension"])))
+        assert str(err.value).startswith("transient: energy balance error") and f"t = {duration:g} s" in str(err.value)
+        assert seen and seen[-1][0][-1] == pytest.approx(duration, rel=1e-9)
+        assert all(np.all(np.isfinite(T)) for _, T in seen)
+        return
     _, _, summary, out = collect(bench_cfg(tr))
     for name, arr in out.items():
         assert np.all(np.isfinite(arr)), name

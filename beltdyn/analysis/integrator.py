@@ -87,6 +87,14 @@ from beltdyn.model import spring_kernel as sk
 
 KERNEL = kernel_options()  # the njit options of this module's kernels (numba loaded)
 
+# the stepper's data and band solvers (re-exported: `integrator.X` is where the transient reads them)
+from beltdyn.analysis.band_solve import (  # noqa: E402,F401
+    band_cholesky_solve, band_lu_nopivot, band_lu_nopivot_solve, band_lu_solve, band_upper_solve, factor_solve)
+from beltdyn.analysis.stepper_data import (  # noqa: E402,F401
+    ARM_PRESLIDING, BAND_COST, Arms, BeltData, Check, Constraints, Coo, Csr, Events, Factor, Forcing, Fused, Linear,
+    Outputs, Split, State, StepOptions, StepperModel, Transport, Work, empty_csr, fused, no_arms, no_factor,
+    no_transport, split, split_matrix, to_csr, workspace)
+
 # tasks of `advance`, the stepper's one entry point from Python
 START = 0  # the forces and energies of the initial state (`start_forces`)
 STEP = 1  # integrate (`run_steps`)
@@ -99,68 +107,8 @@ REFACTOR = 2  # convergence slowed (or the factor's extra iterations outweigh a 
 HALVE = 3  # no convergence with a fresh factor: halve the step, refactorize, call again
 MAX_STEPS = 4  # step budget of this call used up (keeps Ctrl-C responsive)
 
-# Named structures handed to the compiled stepper (numba reads namedtuples by attribute).
-BeltData = namedtuple("BeltData", ["e0", "T", "idx", "tsel", "dS", "d2S", "wEA", "wEI", "EA", "Kb", "curvature",
-                                   "eta_a", "eta_b", "elem_span", "n_span", "springs"])  # springs: spring_kernel.SpringData
-Csr = namedtuple("Csr", ["indptr", "indices", "data"])
-# A constant matrix A (n, n) of the stepper (`split`): its entries within w of the diagonal as a band (band
-# (2 w + 1, n), band[k, i] = A[i, i - w + k], zeros where A has none), the others as lists in row-major
-# order, left of the band (columns < i - w) and right of it (> i + w). `split_matvec` adds each row's
-# products in ascending column order, as a CSR product does: the same floating-point result (the band's
-# zeros add nothing), with the band vectorized across rows. The belt's M and C are banded in the system's
-# DOF order (half-width 6-7) but for the few entries that close the belt loop: M a + C v 3x faster.
-Coo = namedtuple("Coo", ["row", "col", "val"])
-Split = namedtuple("Split", ["w", "band", "left", "right"])
-Linear = namedtuple("Linear", ["K", "q_ref", "C", "M"])  # constant stiffness, its reference state, damping, mass
-# (K, C, M: Split)
-Forcing = namedtuple("Forcing", ["constant", "load_dof", "load_coef", "load_sig", "sig_params", "tab_ptr", "tab_t",
-                                 "tab_v", "nominal_mass", "nominal_rotation", "nominal_scale"])
-Constraints = namedtuple("Constraints", ["dof", "params"])  # dof (k,), params (k, 9): rotation law (rotation_state)
-Check = namedtuple("Check", ["group", "n_groups", "tol", "max_iter", "noise"])
-# refresh: the cost of a new factor in Newton iterations (0: refactorize only when convergence slows)
-StepOptions = namedtuple("StepOptions", ["am", "af", "beta", "gamma", "t_stop", "dt_out", "max_steps", "refresh"])
-Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind 0 band Cholesky, 1 band LU (partial
-# pivoting, LAPACK), 2 band LU without row exchanges (`band_lu_nopivot`)
-State = namedtuple("State", ["q", "v", "a", "f0", "fd0", "F0", "R0", "scal"])
-Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n"])
-Events = namedtuple("Events", ["data", "n", "slack"])
-# the running belt's transport terms (module docstring): A, G = A - A^T, B (Csr, per unit speed) on the joint
-# coordinates, a0, b0 (n,); the belt speed c = speed (follow = 0) or the nominal speed of the prescribed
-# rotation (follow = 1: c = theta_nominal' * Forcing.nominal_scale)
-# mag: M, A, G, B on their union pattern (`fused`), for one pass per Newton iteration (`fused_matvec`)
-Transport = namedtuple("Transport", ["A", "G", "B", "a0", "b0", "speed", "follow", "mag"])
-Fused = namedtuple("Fused", ["indptr", "indices", "data"])  # data (k, nnz): k matrices on one CSR pattern
-# tensioner arms: q index of the angle, p index of the centre offset x (y: + 1), arm length, angle at q = 0,
-# dry friction torque, its bristle stiffness and anchor angle (state); n_q the independent coordinates (p[:n_q] = q)
-Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction", "bristle", "anchor", "n_q"])
-ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry friction (bristle stiffness T_f / this);
-# 1e-4 rad gave the same hysteresis (0.1 %) and cost 20 % more Newton work on the FEAD example
-
-# The stepper's scratch, allocated once per run by `workspace` and cleared at every call of `advance`:
-# the compiled kernels allocate nothing, so that the cached library names no numba array module (a
-# cache hit imports the modules its functions' environments name: np.empty, np.zeros, np.interp and
-# np.finfo would bring numba's array modules, ~30 ms of a short command's start). Rows of:
-# ext (5, n + 1): q_ext, v_ext, f_el, f_dmp, gross (the padded vectors of `belt_kernel`);
-# vec (17, n): F1, q1, v1, a1, dq, Ma, Ma0, Cv, Cv0, Kd, fi, fl, tmp, tmp2, f_tr, tr_Bq, tr_Aq;
-# proj (13, nq): R, dx, work and, with arms, the terms projected on q (`run_steps`);
-# elem (4, n_elem, 8): E, Ed, fe, fd; elem1 (2, n_elem): U, min_elem; group (3, n_groups): res_g,
-# scale_g, floor_g; worst (n_groups,) int64; sig (n_signals,); react (max(n_con, 1),) R1; span
-# (max(n_span, 1),) min_span; held (nq,) int64: 1 on the prescribed DOFs (set by `run_steps`).
-Work = namedtuple("Work", ["ext", "vec", "proj", "elem", "elem1", "group", "worst", "sig", "react", "span", "held"])
 EPS = float(np.finfo(np.float64).eps)  # a constant to the compiled code (np.finfo there is numba's array module)
 
-
-
-def no_arms(n: int) -> Arms:
-    return Arms(dof=np.zeros(0, dtype=np.int64), slot=np.zeros(0, dtype=np.int64), length=np.zeros(0),
-                angle=np.zeros(0), friction=np.zeros(0), bristle=np.zeros(0), anchor=np.zeros(0), n_q=n)
-
-
-def no_transport(n: int) -> Transport:
-    """The belt at rest (no transport terms)."""
-    return Transport(A=empty_csr(n), G=empty_csr(n), B=empty_csr(n), a0=np.zeros(n), b0=np.zeros(n), speed=0.0,
-                     follow=0, mag=Fused(np.zeros(n + 1, dtype=np.int64), np.zeros(0, dtype=np.int64),
-                                         np.zeros((4, 0))))
 
 
 # scal slots
@@ -170,92 +118,6 @@ REF_STEPS = 4  # a new factor's first steps: their mean iterations are what the 
 ENERGY_TERMS = ("kinetic", "strain", "work", "dissipated", "balance_error")
 
 from beltdyn.analysis.timestep import alpha_parameters  # noqa: E402,F401  (one definition, numba-free)
-
-
-def no_factor() -> Factor:
-    """A placeholder factor with the types of `transient.band_factor`'s (for `advance`'s START task,
-    which solves nothing: one compiled signature for both tasks)."""
-    return Factor(kind=0, ab=np.zeros((2, 2), order="F"), piv=np.zeros(1, dtype=np.int64),
-                  perm=np.zeros(2, dtype=np.int64), kl=0, ku=1)
-
-
-def workspace(n: int, belt, forcing, cons, n_groups: int, arms) -> Work:
-    """The stepper's scratch (`Work`) for n joint coordinates."""
-    n_elem = belt.T.shape[0]
-    return Work(ext=np.zeros((5, n + 1)), vec=np.zeros((17, n)), proj=np.zeros((13, int(arms.n_q))),
-                elem=np.zeros((4, n_elem, 8)), elem1=np.zeros((2, n_elem)), group=np.zeros((3, n_groups)),
-                worst=np.zeros(n_groups, dtype=np.int64), sig=np.zeros(forcing.sig_params.shape[0]),
-                react=np.zeros(max(cons.dof.shape[0], 1)), span=np.zeros(max(belt.n_span, 1)),
-                held=np.zeros(int(arms.n_q), dtype=np.int64))
-
-
-def empty_csr(n: int) -> Csr:
-    return Csr(np.zeros(n + 1, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0))
-
-
-BAND_COST = 0.2  # the cost of a band entry in `split_matvec` relative to a listed one (measured: 0.17 ns vs ~1 ns)
-
-
-def split(A, n: int) -> Split:
-    """A (scipy, dense or None: zero) as a `Split`, its half-width w the cheapest for `split_matvec`
-    (BAND_COST; w = -1: no band), the band holding at most about 4 x A's entries (memory)."""
-    C = to_csr(A) if A is not None else empty_csr(n)
-    rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(C.indptr))
-    off = C.indices - rows
-    nnz = len(off)
-    inside = np.cumsum(np.bincount(np.abs(off), minlength=n))  # entries with |offset| <= w
-    widths = np.arange(min(n, 2 * nnz // n + 1))  # (2 w + 1) n <= 4 nnz + n
-    cost = BAND_COST * (2 * widths + 1) * n + (nnz - inside[widths])
-    w = int(np.argmin(cost)) if nnz and cost.min() < nnz else -1
-    band = np.zeros((max(2 * w + 1, 0), n))
-    near = np.abs(off) <= w
-    band[off[near] + w, rows[near]] = C.data[near]
-
-    def listed(mask):
-        return Coo(row=rows[mask], col=C.indices[mask], val=C.data[mask])
-
-    return Split(w=w, band=band, left=listed(off < -max(w, 0)), right=listed(off > w))  # (w = -1: all listed)
-
-
-def split_matrix(S: Split, n: int):
-    """The scipy CSR matrix (sorted indices) of a `Split`."""
-    from scipy.sparse import csr_matrix
-
-    k, i = np.nonzero(S.band)
-    rows = np.concatenate([S.left.row, i, S.right.row])
-    cols = np.concatenate([S.left.col, i + k - S.w, S.right.col])
-    vals = np.concatenate([S.left.val, S.band[k, i], S.right.val])
-    A = csr_matrix((vals, (rows, cols)), shape=(n, n))
-    A.sort_indices()
-    return A
-
-
-def to_csr(A) -> Csr:
-    from scipy.sparse import csr_matrix
-
-    A = csr_matrix(A, copy=True)
-    A.eliminate_zeros()  # a system's constant matrices live on the whole pattern: the springs are few
-    A.sort_indices()
-    return Csr(A.indptr.astype(np.int64), A.indices.astype(np.int64), A.data.astype(np.float64))
-
-
-def fused(*mats) -> Fused:
-    """The matrices (scipy or dense, one shape) on the union of their nonzero patterns: data (k, nnz), zeros
-    where a matrix has no entry."""
-    from scipy.sparse import coo_matrix
-
-    coos = [coo_matrix(A) for A in mats]
-    for A in coos:  # a system's matrices live on its whole pattern: only their nonzeros count
-        A.eliminate_zeros()
-    n_row, n_col = coos[0].shape
-    keys = [A.row.astype(np.int64) * n_col + A.col for A in coos]
-    union = np.unique(np.concatenate(keys))
-    data = np.zeros((len(coos), len(union)))
-    for k, (A, key) in enumerate(zip(coos, keys)):
-        np.add.at(data[k], np.searchsorted(union, key), A.data)
-    indptr = np.zeros(n_row + 1, dtype=np.int64)
-    np.add.at(indptr, union // n_col + 1, 1)
-    return Fused(np.cumsum(indptr), (union % n_col).astype(np.int64), data)
 
 
 @njit(**KERNEL)
@@ -381,138 +243,6 @@ def rotation_state(rot, t):
         g, gd, gdd = 0.0, 0.0, 0.0
     s, sd, sdd = smoothstep(t, tf)
     return th, thd, thdd, s * g, sd * g + s * gd, sdd * g + 2.0 * sd * gd + s * gdd
-
-
-@njit(**KERNEL)
-def band_cholesky_solve(ab, perm, b, x, work):
-    """Solve S x = b with S[perm][:, perm] = U^T U, U in upper band storage ab (u+1, n), column-major:
-    U^T y = b by columns of U (dot products, 4 partial sums: no chain of dependent additions), U x = y
-    by column updates (`band_upper_solve`)."""
-    u = ab.shape[0] - 1
-    n = ab.shape[1]
-    for i in range(n):
-        work[i] = b[perm[i]]
-    for j in range(n):  # U^T y = b: y_j = (b_j - sum_{i<j} U_ij y_i) / U_jj
-        lo = max(0, j - u)
-        m = j - lo
-        col = ab[u - m:u, j]  # U[lo:j, j], and y[lo:j]: views from 0 (indices provably >= 0)
-        ys = work[lo:j]
-        s0 = 0.0
-        s1 = 0.0
-        s2 = 0.0
-        s3 = 0.0
-        i = 0
-        while i + 3 < m:
-            s0 += col[i] * ys[i]
-            s1 += col[i + 1] * ys[i + 1]
-            s2 += col[i + 2] * ys[i + 2]
-            s3 += col[i + 3] * ys[i + 3]
-            i += 4
-        while i < m:
-            s0 += col[i] * ys[i]
-            i += 1
-        work[j] = (work[j] - ((s0 + s1) + (s2 + s3))) / ab[u, j]
-    band_upper_solve(ab, u, work)  # U x = y
-    for i in range(n):
-        x[perm[i]] = work[i]
-
-
-@njit(**KERNEL)
-def band_upper_solve(ab, u, work):
-    """U x = y in place (work (n,)), U upper with u superdiagonals, U[i, j] = ab[u + i - j, j]
-    (column-major): x_j, then its column leaves the rows above (column updates)."""
-    n = ab.shape[1]
-    for j in range(n - 1, -1, -1):
-        xj = work[j] / ab[u, j]
-        work[j] = xj
-        lo = max(0, j - u)
-        m = j - lo
-        col = ab[u - m:u, j]  # U[lo:j, j], x[lo:j]: views from 0 (the update vectorizes)
-        xs = work[lo:j]
-        for i in range(m):
-            xs[i] -= col[i] * xj
-
-
-@njit(**KERNEL)
-def band_lu_nopivot(ab, u):
-    """LU factor without row exchanges, in place, of the band matrix A (n, n) held in ab (2u + 1, n)
-    column-major, A[i, j] = ab[u + i - j, j] for |i - j| <= u: L unit lower (its multipliers below the
-    diagonal), U on and above (u superdiagonals: no fill beyond the band, as partial pivoting's 2u).
-    Exists and needs no exchanges when the symmetric part of A is positive definite (every pivot is
-    then positive): the iteration matrix c_m M + ... with the running belt's small skew terms. Returns
-    the number of columns eliminated: n, or the first column whose pivot is not positive (the caller
-    falls back to partial pivoting)."""
-    n = ab.shape[1]
-    for k in range(n):
-        p = ab[u, k]
-        if not p > 0.0:
-            return k
-        lm = min(u, n - 1 - k)
-        for i in range(1, lm + 1):
-            ab[u + i, k] /= p
-        for j in range(1, lm + 1):  # A[k+i, k+j] -= l_{k+i,k} u_{k,k+j}
-            ukj = ab[u - j, k + j]
-            if ukj != 0.0:
-                off = u - j
-                for i in range(1, lm + 1):
-                    ab[off + i, k + j] -= ab[u + i, k] * ukj
-    return n
-
-
-@njit(**KERNEL)
-def band_lu_nopivot_solve(ab, perm, b, x, work):
-    """Solve S x = b with the `band_lu_nopivot` factor of S[perm][:, perm] in ab (2u + 1, n)."""
-    u = (ab.shape[0] - 1) // 2
-    n = ab.shape[1]
-    for i in range(n):
-        work[i] = b[perm[i]]
-    for j in range(n - 1):  # L y = b (unit lower), by columns
-        wj = work[j]
-        lm = min(u, n - 1 - j)
-        for i in range(1, lm + 1):
-            work[j + i] -= ab[u + i, j] * wj
-    band_upper_solve(ab, u, work)  # U x = y
-    for i in range(n):
-        x[perm[i]] = work[i]
-
-
-@njit(**KERNEL)
-def band_lu_solve(ab, piv, perm, kl, ku, b, x, work):
-    """Solve S x = b with the LAPACK dgbtrf factor of S[perm][:, perm] (band storage ab
-    (2 kl + ku + 1, n), 0-based pivots piv): the dgbtrs algorithm for no transpose."""
-    n = ab.shape[1]
-    kd = kl + ku
-    for i in range(n):
-        work[i] = b[perm[i]]
-    if kl > 0:
-        for j in range(n - 1):
-            lm = min(kl, n - 1 - j)
-            p = piv[j]
-            if p != j:
-                tmp = work[p]
-                work[p] = work[j]
-                work[j] = tmp
-            wj = work[j]
-            for i in range(1, lm + 1):
-                work[j + i] -= ab[kd + i, j] * wj
-    for j in range(n - 1, -1, -1):  # U x = y, U with kd superdiagonals: U[i, j] = ab[kd + i - j, j]
-        work[j] /= ab[kd, j]
-        wj = work[j]
-        lo = max(0, j - kd)
-        for i in range(lo, j):
-            work[i] -= ab[kd + i - j, j] * wj
-    for i in range(n):
-        x[perm[i]] = work[i]
-
-
-@njit(**KERNEL)
-def factor_solve(fac, b, x, work):
-    if fac.kind == 0:
-        band_cholesky_solve(fac.ab, fac.perm, b, x, work)
-    elif fac.kind == 2:
-        band_lu_nopivot_solve(fac.ab, fac.perm, b, x, work)
-    else:
-        band_lu_solve(fac.ab, fac.piv, fac.perm, fac.kl, fac.ku, b, x, work)
 
 
 @njit(**KERNEL)
@@ -703,17 +433,17 @@ def slide_anchors(arms, q):
 
 
 @njit(**KERNEL)
-def advance(task, state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr, work):
+def advance(task, state, model, opts, fac, fresh, out, ev, info, work):
     """The stepper's one entry point from Python: task START runs `start_forces` (returns DONE), STEP
     `run_steps` (returns its code). One compiled function holds every kernel a transient calls from
     Python, so a run loads one library from numba's cache instead of one per kernel (each load parses
-    its own copy of the callees' code: ~45 ms of a short command's start). work: the scratch
-    (`workspace`), cleared here."""
+    its own copy of the callees' code: ~45 ms of a short command's start). model: the `StepperModel`;
+    work: the scratch (`workspace`), cleared here."""
     clear(work)
     if task == START:
-        start_forces(state, belt, lin, F, cons, arms, tr, work)
+        start_forces(state, model, work)
         return DONE
-    return run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr, work)
+    return run_steps(state, model, opts, fac, fresh, out, ev, info, work)
 
 
 @njit(**KERNEL)
@@ -733,23 +463,30 @@ def clear(work):
 
 
 @njit(**KERNEL)
-def start_forces(state, belt, lin, F, cons, arms, tr, work):
+def hold_prescribed(cons, t, q, v, a):
+    """Constraints: the prescribed DOFs' q, v, a at time t (the static rotation params[k, 7] plus the
+    prescribed fluctuation of `rotation_state`)."""
+    for k in range(cons.dof.shape[0]):
+        g, gd, gdd = rotation_state(cons.params[k], t)[3:]
+        d = cons.dof[k]
+        q[d] = cons.params[k, 7] + g
+        v[d] = gd
+        a[d] = gdd
+
+
+@njit(**KERNEL)
+def start_forces(state, model, work):
     """The initial state's forces at t = 0 (`transient.initial_state` solves for the acceleration):
     sets the prescribed DOFs' q, v, a and the arms' dependent entries (their angle accelerations 0 so
     far: a holds the centripetal part), relaxes the arms' friction bristles (anchors at the angles),
     and writes state.f0 = f(q, v) (belt elastic and damping, arm friction, K (q - q_ref), transport),
     state.fd0 its damping part, state.F0 = F(0), and scal[E0, KIN0, POT0, TR_P0] (the energy
     reference: kinetic + strain with the centripetal potential, and the transport power)."""
+    belt, lin, F, arms, tr = model.belt, model.linear, model.forcing, model.arms, model.transport
     q, v, a = state.q, state.v, state.a
     th = state.scal
     n = q.shape[0]
-    n_elem = belt.T.shape[0]
-    for k in range(cons.dof.shape[0]):
-        g, gd, gdd = rotation_state(cons.params[k], 0.0)[3:]
-        d = cons.dof[k]
-        q[d] = cons.params[k, 7] + g
-        v[d] = gd
-        a[d] = gdd
+    hold_prescribed(model.constraints, 0.0, q, v, a)
     complete(arms, q, v, a)
     q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
     E, Ed, fe, fd = work.elem[0], work.elem[1], work.elem[2], work.elem[3]
@@ -764,7 +501,7 @@ def start_forces(state, belt, lin, F, cons, arms, tr, work):
     for i in range(n):
         dq[i] = q[i] - lin.q_ref[i]
     split_matvec(lin.K, dq, Kd)
-    external_forces(F, cons, 0.0, state.F0, work.sig)
+    external_forces(F, model.constraints, 0.0, state.F0, work.sig)
     c0, cd0 = transport_speed(tr, F, 0.0)
     qbq, vaq = transport_forces(tr, c0, cd0, q, v, f_tr, tmp, tmp2)
     for i in range(n):
@@ -779,8 +516,333 @@ def start_forces(state, belt, lin, F, cons, arms, tr, work):
 
 
 @njit(**KERNEL)
-def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, arms, tr, work):
-    """Advance the state until t_stop, a full buffer, a refactorization request or the step budget.
+def predict(h, q, v, a, q1, v1, a1, nq):
+    """The predictor on the independent coordinates: the same acceleration over the step h."""
+    for i in range(nq):
+        a1[i] = a[i]
+        q1[i] = q[i] + h * v[i] + h * h * a[i] * 0.5
+        v1[i] = v[i] + h * a[i]
+
+
+@njit(**KERNEL)
+def step_forces(model, q1, v1, a1, c1, cd1, with_gross, work):
+    """The forces at the new state (q1, v1, a1), into the scratch rows (`Work`): f_el, f_dmp (belt and
+    arm friction), K (q1 - q_ref), C v1, M a1, the transport terms f_tr at the belt speed c1 and rate
+    cd1, fi = f_el + K d + f_dmp + f_tr and fl the round-off scale (gross only when with_gross).
+    Returns (the bristles' stored energy, q.B q + 2 b0.q, the transport power)."""
+    belt, lin, tr = model.belt, model.linear, model.transport
+    n = q1.shape[0]
+    q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
+    E, Ed, fe, fd = work.elem[0], work.elem[1], work.elem[2], work.elem[3]
+    wv = work.vec
+    dq, Ma, Cv, Kd, fi, fl, f_tr, tr_Bq, tr_Aq = wv[4], wv[5], wv[7], wv[9], wv[10], wv[11], wv[14], wv[15], wv[16]
+    for i in range(n):
+        q_ext[i] = q1[i]
+        v_ext[i] = v1[i]
+        dq[i] = q1[i] - lin.q_ref[i]
+    belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross)
+    bristle = arm_friction(model.arms, q1, f_dmp)
+    split_matvec(lin.K, dq, Kd)
+    split_matvec(lin.C, v1, Cv)
+    qbq = 0.0
+    p_tr = 0.0
+    if tr.follow != 0 or tr.speed != 0.0:  # moving: M a, A q, G v, B q in one pass
+        fused_matvec(tr.mag, a1, q1, v1, Ma, tr_Aq, tr_Bq, f_tr)
+        qbq, vaq = transport_from(tr, c1, cd1, q1, v1, f_tr, tr_Bq, tr_Aq)
+        p_tr = -cd1 * (c1 * qbq + vaq)
+    else:
+        split_matvec(lin.M, a1, Ma)
+    for i in range(n):
+        fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
+        fl[i] = gross[i] + abs(Kd[i]) + abs(model.forcing.constant[i]) + abs(f_tr[i])
+    return bristle, qbq, p_tr
+
+
+# The terms of the residual on the independent coordinates (the joint coordinates' terms projected by J^T at
+# their own state, or the terms themselves without arms): new (step end) and old (step start), Fc the constant
+# force, fl the round-off scale. Each (n_q,).
+Terms = namedtuple("Terms", ["Ma", "Ma0", "Cv", "Cv0", "fi", "f0", "F1", "F0", "Fc", "fl"])
+
+
+@njit(**KERNEL)
+def project_new(model, q1, work, terms):
+    """The arms' part: the new terms (work rows M a, C v, fi, F1, fl and the constant force) projected
+    on q by J(q1)^T into `terms` (nothing to do without arms: the terms are the rows)."""
+    arms = model.arms
+    if arms.dof.shape[0] > 0:
+        wv = work.vec
+        project(arms, q1, wv[5], terms.Ma)
+        project(arms, q1, wv[7], terms.Cv)
+        project(arms, q1, wv[10], terms.fi)
+        project(arms, q1, wv[0], terms.F1)
+        project(arms, q1, model.forcing.constant, terms.Fc)
+        project(arms, q1, wv[11], terms.fl, True)
+
+
+@njit(**KERNEL)
+def scaled_residual(chk, held, am, af, x, R, work):
+    """The generalized-alpha residual R (n_q,) of the terms x (`Terms`), zero on the prescribed rows
+    (held), and its size against the allowed one per DOF group (module docstring):
+    (max_g res_g / (tol s_g + 1e3 eps floor_g + noise), worst DOF, finite)."""
+    res_g, scale_g, floor_g = work.group[0], work.group[1], work.group[2]
+    worst_g = work.worst
+    G = chk.n_groups
+    for g in range(G):
+        res_g[g] = 0.0
+        scale_g[g] = 0.0
+        floor_g[g] = 0.0
+    worst = 0
+    for i in range(R.shape[0]):  # residual, scales and floors (every row), checked (the free rows)
+        Ri = ((1.0 - am) * x.Ma[i] + am * x.Ma0[i]
+              + (1.0 - af) * (x.Cv[i] + x.fi[i] - x.F1[i]) + af * (x.Cv0[i] + x.f0[i] - x.F0[i]))
+        g = chk.group[i]
+        sc = abs(x.Ma[i]) + abs(x.Cv[i]) + abs(x.fi[i] - x.Fc[i]) + abs(x.F1[i] - x.Fc[i])
+        if sc > scale_g[g]:
+            scale_g[g] = sc
+        if x.fl[i] > floor_g[g]:
+            floor_g[g] = x.fl[i]
+        if held[i]:  # a prescribed row: no residual
+            Ri = 0.0
+        R[i] = Ri
+        r = abs(Ri)
+        if not np.isfinite(r):
+            return np.inf, i, False
+        if r > res_g[g]:
+            res_g[g] = r
+            worst_g[g] = i
+    res = 0.0
+    for g in range(G):
+        allowed = chk.tol * scale_g[g] + 1e3 * EPS * floor_g[g] + chk.noise
+        x_g = res_g[g] / allowed if allowed > 0.0 else (0.0 if res_g[g] == 0.0 else np.inf)
+        if x_g > res:
+            res = x_g
+            worst = worst_g[g]
+    return res, worst, True
+
+
+@njit(**KERNEL)
+def correct(fac, cons, R, c_v, c_a, q1, v1, a1, work):
+    """One Newton correction with the factor: dx = S^-1 R (zero on the prescribed DOFs), q1 -= dx,
+    v1 -= c_v dx, a1 -= c_a dx. Returns |dx|^2."""
+    dx, work_q = work.proj[1], work.proj[2]
+    factor_solve(fac, R, dx, work_q)
+    for k in range(cons.dof.shape[0]):
+        dx[cons.dof[k]] = 0.0
+    norm = 0.0
+    for i in range(R.shape[0]):
+        d = -dx[i]
+        q1[i] += d
+        v1[i] += c_v * d
+        a1[i] += c_a * d
+        norm += d * d
+    return norm
+
+
+@njit(**KERNEL)
+def solve_step(state, model, opts, fac, t1, h, x, work):
+    """Newton on the step ending at t1 from the predictor (in work rows q1, v1, a1): at most max_iter
+    corrections, the residual after the last one checked. Returns (converged, scaled residual, worst
+    DOF, corrections, bristle energy, q.B q + 2 b0.q, transport power) with the forces of the last
+    evaluation in the work rows and `x`."""
+    chk, cons, arms = model.check, model.constraints, model.arms
+    wv = work.vec
+    q1, v1, a1 = wv[1], wv[2], wv[3]
+    R = work.proj[0]
+    c_a = 1.0 / (opts.beta * h * h)
+    c_v = opts.gamma / (opts.beta * h)
+    c1, cd1 = transport_speed(model.transport, model.forcing, t1)
+    prev = np.inf
+    it = 0
+    while True:
+        # the round-off scale at the step's first evaluation: a floor, not a force
+        bristle1, qbq, p_tr = step_forces(model, q1, v1, a1, c1, cd1, it == 0, work)
+        project_new(model, q1, work, x)
+        res, worst, finite = scaled_residual(chk, work.held, opts.am, opts.af, x, R, work)
+        if not finite:
+            return False, res, worst, it, bristle1, qbq, p_tr
+        if res <= 1.0:
+            return True, res, worst, it, bristle1, qbq, p_tr
+        if it >= chk.max_iter:
+            return False, res, worst, it, bristle1, qbq, p_tr
+        norm = correct(fac, cons, R, c_v, c_a, q1, v1, a1, work)
+        complete(arms, q1, v1, a1)
+        it += 1
+        if it >= 3 and norm > 0.25 * prev:  # convergence rate worse than 1/2 per iteration
+            return False, res, worst, it, bristle1, qbq, p_tr
+        prev = norm
+
+
+@njit(**KERNEL)
+def count_outputs(t_out, t1, h, dt_out):
+    """The output times in (t, t1] still to come from t_out."""
+    n_pend = 0
+    tt = t_out
+    while tt <= t1 + 1e-6 * h:
+        n_pend += 1
+        tt += dt_out
+    return n_pend
+
+
+@njit(**KERNEL)
+def step_power(state, model, x, v1, p_tr, work):
+    """The trapezoid of the step's power: (external forces and reactions, dissipated), on p (power is
+    invariant: F . v_p = (J^T F) . v_q); the reactions R1 (work.react) of the prescribed DOFs."""
+    cons = model.constraints
+    th = state.scal
+    v = state.v
+    wv = work.vec
+    F1, Cv, Cv0, f_dmp = wv[0], wv[7], wv[8], work.ext[3]
+    R1 = work.react
+    p_ext = 0.0
+    p_dis = 0.0
+    for i in range(v.shape[0]):
+        p_ext += 0.5 * (F1[i] * v1[i] + state.F0[i] * v[i])
+        p_dis += 0.5 * ((Cv[i] + f_dmp[i]) * v1[i] + (Cv0[i] + state.fd0[i]) * v[i])
+    for k in range(cons.dof.shape[0]):
+        d = cons.dof[k]
+        R1[k] = x.Ma[d] + x.Cv[d] + x.fi[d] - x.F1[d]
+        p_ext += 0.5 * (R1[k] * v1[d] + state.R0[k] * v[d])
+    p_ext += 0.5 * (p_tr + th[TR_P0])  # the drive's work on the belt's transport while its speed changes
+    return p_ext, p_dis
+
+
+@njit(**KERNEL)
+def balance_energy(state, model, q1, v1, c1, qbq, bristle1, work):
+    """Observer: kinetic and potential energy at the accepted step (exact, not interpolated), the
+    balance error's running maximum scal[WORST] and the energy moved scal[MOVED]. Returns (kin, pot)."""
+    th = state.scal
+    tmp, tmp2 = work.vec[12], work.vec[13]
+    kin = kinetic_energy(model.linear, v1, tmp)
+    pot = potential_energy(model.belt, model.linear, q1, work.ext[0], work.elem[0], work.elem1[0], tmp,
+                           tmp2) + bristle1 - 0.5 * c1 * c1 * qbq
+    bal = kin + pot - th[WORK] + th[DISS] - th[E0]
+    if abs(bal) > th[WORST]:
+        th[WORST] = abs(bal)
+    moved = max(abs(kin - th[KIN0]) + abs(pot - th[POT0]), abs(th[WORK]), abs(th[DISS]))
+    if moved > th[MOVED]:
+        th[MOVED] = moved
+    return kin, pot
+
+
+@njit(**KERNEL)
+def record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, R1):
+    """Observer: the samples at the output times in (t, t1] (Hermite interpolation within the step, the
+    arms' dependent entries kinematically exact), the step's energy terms and the reactions."""
+    q, v, a = state.q, state.v, state.a
+    th = state.scal
+    n = q.shape[0]
+    t1 = t + h
+    while th[T_OUT] <= t1 + 1e-6 * h:  # outputs at t_next_out in (t, t1]
+        tau = th[T_OUT]
+        s = (tau - t) / h
+        h00 = 2 * s ** 3 - 3 * s ** 2 + 1
+        h10 = s ** 3 - 2 * s ** 2 + s
+        h01 = -2 * s ** 3 + 3 * s ** 2
+        h11 = s ** 3 - s ** 2
+        k = out.n[0]
+        out.t[k] = tau
+        for i in range(n):
+            out.q[k, i] = h00 * q[i] + h10 * h * v[i] + h01 * q1[i] + h11 * h * v1[i]
+            out.v[k, i] = h00 * v[i] + h10 * h * a[i] + h01 * v1[i] + h11 * h * a1[i]
+            out.a[k, i] = (1.0 - s) * a[i] + s * a1[i]
+        if model.arms.dof.shape[0] > 0:  # the dependent entries stay kinematically exact
+            complete(model.arms, out.q[k], out.v[k], out.a[k])
+        out.energy[k, 0] = kin
+        out.energy[k, 1] = pot
+        out.energy[k, 2] = th[WORK]
+        out.energy[k, 3] = th[DISS]
+        out.energy[k, 4] = kin + pot - th[WORK] + th[DISS] - th[E0]
+        for c in range(model.constraints.dof.shape[0]):
+            out.reaction[k, c] = (1.0 - s) * state.R0[c] + s * R1[c]
+        out.n[0] += 1
+        th[T_OUT] += opts.dt_out
+
+
+@njit(**KERNEL)
+def slack_events(belt, t1, ev, work):
+    """Observer: slack events, the smallest 2nd Piola-Kirchhoff force per span (work.elem[0]: the
+    accepted state, the last one evaluated unless an energy evaluation gathered it again at q1)."""
+    E, min_elem, min_span = work.elem[0], work.elem1[1], work.span
+    bk.element_min_axial_force(E, belt.dS, belt.EA, min_elem)
+    for sp in range(belt.n_span):
+        min_span[sp] = np.inf
+    for e in range(belt.T.shape[0]):
+        sp = belt.elem_span[e]
+        if min_elem[e] < min_span[sp]:
+            min_span[sp] = min_elem[e]
+    sk.spring_min_force(belt.springs, work.ext[0], min_span)
+    for sp in range(belt.n_span):
+        now = 1.0 if min_span[sp] < 0.0 else 0.0
+        if now != ev.slack[sp] and ev.n[0] < ev.data.shape[0]:
+            ev.data[ev.n[0], 0] = t1
+            ev.data[ev.n[0], 1] = sp
+            ev.data[ev.n[0], 2] = now
+            ev.data[ev.n[0], 3] = min_span[sp]
+            ev.n[0] += 1
+        ev.slack[sp] = now
+
+
+@njit(**KERNEL)
+def accept(state, model, x, p_tr, work):
+    """The new state becomes the old one: q, v, a, the forces, the projected terms, the reactions,
+    the transport power; the arms' friction anchors slide (return mapping)."""
+    wv = work.vec
+    q1, v1, a1, Ma, Ma0, Cv, Cv0, fi, F1 = wv[1], wv[2], wv[3], wv[5], wv[6], wv[7], wv[8], wv[10], wv[0]
+    f_dmp = work.ext[3]
+    for i in range(state.q.shape[0]):
+        state.q[i] = q1[i]
+        state.v[i] = v1[i]
+        state.a[i] = a1[i]
+        state.f0[i] = fi[i]
+        state.fd0[i] = f_dmp[i]
+        state.F0[i] = F1[i]
+        Ma0[i] = Ma[i]
+        Cv0[i] = Cv[i]
+    if model.arms.dof.shape[0] > 0:
+        for i in range(model.arms.n_q):
+            x.Ma0[i] = x.Ma[i]
+            x.Cv0[i] = x.Cv[i]
+            x.f0[i] = x.fi[i]
+            x.F0[i] = x.F1[i]
+    for k in range(model.constraints.dof.shape[0]):
+        state.R0[k] = work.react[k]
+    state.scal[TR_P0] = p_tr
+    slide_anchors(model.arms, state.q)
+
+
+@njit(**KERNEL)
+def factor_aged(th, it, refresh):
+    """An aging factor: the iterations its steps take beyond what it took fresh (the mean of its first
+    REF_STEPS steps) add up; once they cost more than a new factor (refresh > 0), True: the next step
+    gets one (the rent-or-buy rule: within 2x of the best choice). A drive whose steps take as many
+    iterations with any factor never pays for one."""
+    if th[REF_N] < REF_STEPS:
+        th[REF_SUM] += it
+        th[REF_N] += 1.0
+        return False
+    th[STALE] = max(0.0, th[STALE] + it - th[REF_SUM] / th[REF_N])
+    return refresh > 0.0 and th[STALE] > refresh
+
+
+@njit(**KERNEL)
+def terms_of(state, model, work):
+    """The residual's `Terms` on q: views of the work rows and the state (no arms: q = p, J = I, the
+    terms themselves, no copies) or of the projection rows (arms)."""
+    wv, wp = work.vec, work.proj
+    if model.arms.dof.shape[0] > 0:
+        return Terms(Ma=wp[3], Ma0=wp[9], Cv=wp[4], Cv0=wp[10], fi=wp[5], f0=wp[11], F1=wp[6], F0=wp[12],
+                     Fc=wp[7], fl=wp[8])
+    return Terms(Ma=wv[5], Ma0=wv[6], Cv=wv[7], Cv0=wv[8], fi=wv[10], f0=state.f0, F1=wv[0], F0=state.F0,
+                 Fc=model.forcing.constant, fl=wv[11])
+
+
+@njit(**KERNEL)
+def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
+    """Advance the state until t_stop, a full buffer, a refactorization request or the step budget: a
+    loop over the stepper's parts (as PyElastica's do_step calls the system's hooks): predictor,
+    constraints (`hold_prescribed`), arms (`complete`), forcing (`external_forces`), Newton
+    (`solve_step`), the step's power (`step_power`), observers (`balance_energy`, `record_outputs`,
+    `slack_events`), `accept` and the factor's age (`factor_aged`).
 
     Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
     output times (Hermite interpolation within the step), the energy terms of the step that contains
@@ -789,176 +851,40 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
     """
     q, v, a = state.q, state.v, state.a  # on the joint coordinates p (n); q[:nq] independent
     th = state.scal
-    am, af, beta, gamma = opts.am, opts.af, opts.beta, opts.gamma
-    n = q.shape[0]
-    nq = arms.n_q
-    n_elem = belt.T.shape[0]
-    n_con = cons.dof.shape[0]
-    B = out.t.shape[0]
-    G = chk.n_groups
-    q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
-    E, Ed, fe, fd = work.elem[0], work.elem[1], work.elem[2], work.elem[3]
-    U, min_elem = work.elem1[0], work.elem1[1]
+    lin, arms, cons = model.linear, model.arms, model.constraints
     wv = work.vec
-    F1, q1, v1, a1, dq, Ma, Ma0, Cv, Cv0 = wv[0], wv[1], wv[2], wv[3], wv[4], wv[5], wv[6], wv[7], wv[8]
-    Kd, fi, fl, tmp, tmp2, f_tr, tr_Bq, tr_Aq = wv[9], wv[10], wv[11], wv[12], wv[13], wv[14], wv[15], wv[16]
-    # the same terms projected on q (J^T at their own state): new (1) and old (0)
-    # (without arms q = p, J = I: the terms themselves, no copies)
-    with_arms = arms.dof.shape[0] > 0
-    wp = work.proj
-    R, dx, work_q = wp[0], wp[1], wp[2]
-    if with_arms:
-        Ma_q, Cv_q, fi_q, F1_q, Fc_q = wp[3], wp[4], wp[5], wp[6], wp[7]
-        fl_q, Ma0_q, Cv0_q, f0_q, F0_q = wp[8], wp[9], wp[10], wp[11], wp[12]
-    else:
-        Ma_q = Ma
-        Cv_q = Cv
-        fi_q = fi
-        F1_q = F1
-        Fc_q = F.constant
-        fl_q = fl
-        Ma0_q = Ma0
-        Cv0_q = Cv0
-        f0_q = state.f0
-        F0_q = state.F0
-    sig_val = work.sig
-    res_g, scale_g, floor_g = work.group[0], work.group[1], work.group[2]
-    worst_g = work.worst
-    R1 = work.react
-    min_span = work.span
-    held = work.held
-    for k in range(n_con):
-        held[cons.dof[k]] = 1
-    moving = tr.follow != 0 or tr.speed != 0.0
-    qbq = 0.0
-    p_tr = 0.0
+    F1, q1, v1, a1, Ma0, Cv0 = wv[0], wv[1], wv[2], wv[3], wv[6], wv[8]
+    x = terms_of(state, model, work)
+    for k in range(cons.dof.shape[0]):
+        work.held[cons.dof[k]] = 1
     split_matvec(lin.M, a, Ma0)
     split_matvec(lin.C, v, Cv0)
-    if with_arms:
-        project(arms, q, Ma0, Ma0_q)
-        project(arms, q, Cv0, Cv0_q)
-        project(arms, q, state.f0, f0_q)
-        project(arms, q, state.F0, F0_q)
-    eps = EPS
+    if arms.dof.shape[0] > 0:
+        project(arms, q, Ma0, x.Ma0)
+        project(arms, q, Cv0, x.Cv0)
+        project(arms, q, state.f0, x.f0)
+        project(arms, q, state.F0, x.F0)
     steps = 0
     if fresh:  # a new factor: its age starts
         th[STALE] = 0.0
         th[REF_SUM] = 0.0
         th[REF_N] = 0.0
-    tmp[:] = 0.0
-    bristle0 = arm_friction(arms, q, tmp)
-    bristle1 = bristle0
+    wv[12, :] = 0.0
+    bristle0 = arm_friction(arms, q, wv[12])
     while True:
         t, h = th[T_NOW], th[H]
         if t >= opts.t_stop - 1e-6 * h:
             return DONE
-        if out.n[0] >= B:
+        if out.n[0] >= out.t.shape[0]:
             return BUFFER_FULL
         if steps >= opts.max_steps:
             return MAX_STEPS
         t1 = t + h
-        c_a = 1.0 / (beta * h * h)
-        c_v = gamma / (beta * h)
-        for i in range(nq):  # predictor: same acceleration
-            a1[i] = a[i]
-            q1[i] = q[i] + h * v[i] + h * h * a[i] * 0.5
-            v1[i] = v[i] + h * a[i]
-        for k in range(n_con):
-            g, gd, gdd = rotation_state(cons.params[k], t1)[3:]
-            d = cons.dof[k]
-            q1[d] = cons.params[k, 7] + g  # the static rotation plus the prescribed fluctuation
-            v1[d] = gd
-            a1[d] = gdd
+        predict(h, q, v, a, q1, v1, a1, arms.n_q)
+        hold_prescribed(cons, t1, q1, v1, a1)
         complete(arms, q1, v1, a1)
-        external_forces(F, cons, t1, F1, sig_val)
-        c1, cd1 = transport_speed(tr, F, t1)
-        converged = False
-        prev = np.inf
-        it = 0
-        res = np.inf
-        worst = 0
-        while True:  # at most max_iter corrections; the residual after the last one is checked
-            for i in range(n):
-                q_ext[i] = q1[i]
-                v_ext[i] = v1[i]
-                dq[i] = q1[i] - lin.q_ref[i]
-            # the round-off scale at the step's first evaluation: a floor, not a force
-            belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, it == 0)
-            bristle1 = arm_friction(arms, q1, f_dmp)
-            split_matvec(lin.K, dq, Kd)
-            split_matvec(lin.C, v1, Cv)
-            if moving:  # M a, A q, G v, B q in one pass
-                fused_matvec(tr.mag, a1, q1, v1, Ma, tr_Aq, tr_Bq, f_tr)
-                qbq, vaq = transport_from(tr, c1, cd1, q1, v1, f_tr, tr_Bq, tr_Aq)
-                p_tr = -cd1 * (c1 * qbq + vaq)
-            else:
-                split_matvec(lin.M, a1, Ma)
-            for i in range(n):
-                fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
-                fl[i] = gross[i] + abs(Kd[i]) + abs(F.constant[i]) + abs(f_tr[i])
-            if with_arms:
-                project(arms, q1, Ma, Ma_q)
-                project(arms, q1, Cv, Cv_q)
-                project(arms, q1, fi, fi_q)
-                project(arms, q1, F1, F1_q)
-                project(arms, q1, F.constant, Fc_q)
-                project(arms, q1, fl, fl_q, True)
-            for g in range(G):
-                res_g[g] = 0.0
-                scale_g[g] = 0.0
-                floor_g[g] = 0.0
-            finite = True
-            res = 0.0
-            for i in range(nq):  # residual, scales and floors (every row), checked (the free rows)
-                Ri = ((1.0 - am) * Ma_q[i] + am * Ma0_q[i]
-                      + (1.0 - af) * (Cv_q[i] + fi_q[i] - F1_q[i]) + af * (Cv0_q[i] + f0_q[i] - F0_q[i]))
-                g = chk.group[i]
-                sc = abs(Ma_q[i]) + abs(Cv_q[i]) + abs(fi_q[i] - Fc_q[i]) + abs(F1_q[i] - Fc_q[i])
-                if sc > scale_g[g]:
-                    scale_g[g] = sc
-                if fl_q[i] > floor_g[g]:
-                    floor_g[g] = fl_q[i]
-                if held[i]:  # a prescribed row: no residual
-                    Ri = 0.0
-                R[i] = Ri
-                r = abs(Ri)
-                if not np.isfinite(r):
-                    finite = False
-                    worst = i
-                    break
-                if r > res_g[g]:
-                    res_g[g] = r
-                    worst_g[g] = i
-            if finite:
-                for g in range(G):
-                    allowed = chk.tol * scale_g[g] + 1e3 * eps * floor_g[g] + chk.noise
-                    x = res_g[g] / allowed if allowed > 0.0 else (0.0 if res_g[g] == 0.0 else np.inf)
-                    if x > res:
-                        res = x
-                        worst = worst_g[g]
-            else:
-                res = np.inf
-                break
-            if res <= 1.0:
-                converged = True
-                break
-            if it >= chk.max_iter:
-                break
-            factor_solve(fac, R, dx, work_q)
-            for k in range(n_con):
-                dx[cons.dof[k]] = 0.0
-            norm = 0.0
-            for i in range(nq):
-                d = -dx[i]
-                q1[i] += d
-                v1[i] += c_v * d
-                a1[i] += c_a * d
-                norm += d * d
-            complete(arms, q1, v1, a1)
-            it += 1
-            if it >= 3 and norm > 0.25 * prev:  # convergence rate worse than 1/2 per iteration
-                break
-            prev = norm
+        external_forces(model.forcing, cons, t1, F1, work.sig)
+        converged, res, worst, it, bristle1, qbq, p_tr = solve_step(state, model, opts, fac, t1, h, x, work)
         if not converged:
             info[0] = t1
             info[1] = res
@@ -968,119 +894,28 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
                 return HALVE
             return REFACTOR
         # the step is accepted only if all of its output samples fit in the buffer
-        n_pend = 0
-        tt = th[T_OUT]
-        while tt <= t1 + 1e-6 * h:
-            n_pend += 1
-            tt += opts.dt_out
-        if out.n[0] + n_pend > B:
+        n_pend = count_outputs(th[T_OUT], t1, h, opts.dt_out)
+        if out.n[0] + n_pend > out.t.shape[0]:
             return BUFFER_FULL
         fresh = False
-        # accepted: power of external forces and reactions, dissipation (trapezoid), on p (power is
-        # invariant: F . v_p = (J^T F) . v_q)
-        p_ext = 0.0
-        p_dis = 0.0
-        for i in range(n):
-            p_ext += 0.5 * (F1[i] * v1[i] + state.F0[i] * v[i])
-            p_dis += 0.5 * ((Cv[i] + f_dmp[i]) * v1[i] + (Cv0[i] + state.fd0[i]) * v[i])
-        for k in range(n_con):
-            d = cons.dof[k]
-            R1[k] = Ma_q[d] + Cv_q[d] + fi_q[d] - F1_q[d]
-            p_ext += 0.5 * (R1[k] * v1[d] + state.R0[k] * v[d])
-        p_ext += 0.5 * (p_tr + th[TR_P0])  # the drive's work on the belt's transport while its speed changes
-        W_old, D_old = th[WORK], th[DISS]
-        th[WORK] = W_old + h * p_ext
-        th[DISS] = D_old + h * p_dis - (bristle1 - bristle0)  # the bristles' stored part is not lost
-        bristle0 = bristle1
+        p_ext, p_dis = step_power(state, model, x, v1, p_tr, work)
+        th[WORK] = th[WORK] + h * p_ext
+        th[DISS] = th[DISS] + h * p_dis - (bristle1 - bristle0)  # the bristles' stored part is not lost
         kin = 0.0
         pot = 0.0
         if n_pend > 0:  # energy at this step (exact, not interpolated)
-            kin = kinetic_energy(lin, v1, tmp)
-            pot = potential_energy(belt, lin, q1, q_ext, E, U, tmp, tmp2) + bristle1 - 0.5 * c1 * c1 * qbq
-            bal = kin + pot - th[WORK] + th[DISS] - th[E0]
-            if abs(bal) > th[WORST]:
-                th[WORST] = abs(bal)
-            moved = max(abs(kin - th[KIN0]) + abs(pot - th[POT0]), abs(th[WORK]), abs(th[DISS]))
-            if moved > th[MOVED]:
-                th[MOVED] = moved
-        while th[T_OUT] <= t1 + 1e-6 * h:  # outputs at t_next_out in (t, t1]
-            tau = th[T_OUT]
-            s = (tau - t) / h
-            h00 = 2 * s ** 3 - 3 * s ** 2 + 1
-            h10 = s ** 3 - 2 * s ** 2 + s
-            h01 = -2 * s ** 3 + 3 * s ** 2
-            h11 = s ** 3 - s ** 2
-            k = out.n[0]
-            out.t[k] = tau
-            for i in range(n):
-                out.q[k, i] = h00 * q[i] + h10 * h * v[i] + h01 * q1[i] + h11 * h * v1[i]
-                out.v[k, i] = h00 * v[i] + h10 * h * a[i] + h01 * v1[i] + h11 * h * a1[i]
-                out.a[k, i] = (1.0 - s) * a[i] + s * a1[i]
-            if arms.dof.shape[0] > 0:  # the dependent entries stay kinematically exact
-                complete(arms, out.q[k], out.v[k], out.a[k])
-            out.energy[k, 0] = kin
-            out.energy[k, 1] = pot
-            out.energy[k, 2] = th[WORK]
-            out.energy[k, 3] = th[DISS]
-            out.energy[k, 4] = kin + pot - th[WORK] + th[DISS] - th[E0]
-            for c in range(n_con):
-                out.reaction[k, c] = (1.0 - s) * state.R0[c] + s * R1[c]
-            out.n[0] += 1
-            th[T_OUT] += opts.dt_out
-        # slack events: smallest 2nd Piola-Kirchhoff force per span (E: the accepted state, the last
-        # one evaluated unless an energy evaluation gathered it again at q1)
-        bk.element_min_axial_force(E, belt.dS, belt.EA, min_elem)
-        for sp in range(belt.n_span):
-            min_span[sp] = np.inf
-        for e in range(n_elem):
-            sp = belt.elem_span[e]
-            if min_elem[e] < min_span[sp]:
-                min_span[sp] = min_elem[e]
-        sk.spring_min_force(belt.springs, q_ext, min_span)
-        for sp in range(belt.n_span):
-            now = 1.0 if min_span[sp] < 0.0 else 0.0
-            if now != ev.slack[sp] and ev.n[0] < ev.data.shape[0]:
-                ev.data[ev.n[0], 0] = t1
-                ev.data[ev.n[0], 1] = sp
-                ev.data[ev.n[0], 2] = now
-                ev.data[ev.n[0], 3] = min_span[sp]
-                ev.n[0] += 1
-            ev.slack[sp] = now
-        for i in range(n):
-            q[i] = q1[i]
-            v[i] = v1[i]
-            a[i] = a1[i]
-            state.f0[i] = fi[i]
-            state.fd0[i] = f_dmp[i]
-            state.F0[i] = F1[i]
-            Ma0[i] = Ma[i]
-            Cv0[i] = Cv[i]
-        if with_arms:
-            for i in range(nq):
-                Ma0_q[i] = Ma_q[i]
-                Cv0_q[i] = Cv_q[i]
-                f0_q[i] = fi_q[i]
-                F0_q[i] = F1_q[i]
-        for k in range(n_con):
-            state.R0[k] = R1[k]
-        th[TR_P0] = p_tr
-        slide_anchors(arms, q)
-        bristle0 = arm_friction(arms, q, tmp)  # after the return mapping (tmp: scratch)
+            c1 = transport_speed(model.transport, model.forcing, t1)[0]
+            kin, pot = balance_energy(state, model, q1, v1, c1, qbq, bristle1, work)
+        record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, work.react)
+        slack_events(model.belt, t1, ev, work)
+        accept(state, model, x, p_tr, work)
+        bristle0 = arm_friction(arms, q, wv[12])  # after the return mapping (scratch row)
         th[T_NOW] = t1
         th[STEPS] += 1.0
         th[ITERS] += it
         steps += 1
-        # an aging factor: the iterations its steps take beyond what it took fresh (the mean of its first
-        # REF_STEPS steps) add up; once they cost more than a new factor, the next step gets one (the
-        # rent-or-buy rule: within 2x of the best choice). A drive whose steps take as many iterations
-        # with any factor never pays for one.
-        if th[REF_N] < REF_STEPS:
-            th[REF_SUM] += it
-            th[REF_N] += 1.0
-        else:
-            th[STALE] = max(0.0, th[STALE] + it - th[REF_SUM] / th[REF_N])
-            if opts.refresh > 0.0 and th[STALE] > opts.refresh:
-                return REFACTOR
+        if factor_aged(th, it, opts.refresh):
+            return REFACTOR
 
 
 jitcache.lean_loads(sys.modules[__name__])  # cache hits skip numba's full context refresh

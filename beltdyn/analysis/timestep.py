@@ -79,18 +79,57 @@ def amplification(omega_h, rho_inf: float) -> np.ndarray:
     return A
 
 
+def characteristic_coefficients(omega_h, rho_inf: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(L3, L2, L1, L0): det(A - lambda I) = 0 written in mu = lambda - 1, free of cancellation.
+
+    Seeking (x, h v, h^2 a)_n = lambda^n (X, V, Acc) in the step's equations (module docstring) and
+    eliminating X and V gives, with W = Omega^2,
+
+        (1 + (1 - alpha_m) mu) mu^2 + W (1 + (1 - alpha_f) mu) (1 + (gamma + 1/2) mu + beta mu^2) = 0,
+
+    i.e. L3 mu^3 + L2 mu^2 + L1 mu + L0 = 0 with L3 = (1 - alpha_m) + W (1 - alpha_f) beta,
+    L2 = 1 + W (beta + (1 - alpha_f)(gamma + 1/2)), L1 = W (2 - alpha_m), L0 = W: sums of positive
+    terms, so each coefficient is accurate to round-off (the eigenvalues of A lose ~eps/Omega near
+    lambda = 1, where the principal pair meets)."""
+    am, af, beta, gamma = alpha_parameters(rho_inf)
+    W = np.asarray(omega_h, dtype=float) ** 2
+    L3 = (1.0 - am) + W * ((1.0 - af) * beta)
+    L2 = 1.0 + W * (beta + (1.0 - af) * (gamma + 0.5))
+    L1 = W * (gamma + 1.5 - af)
+    return L3, L2, L1, W
+
+
 def _error_of_omega(Om: np.ndarray, rho_inf: float) -> np.ndarray:
-    """e(Omega) for an array of Omega = 2 pi f h (NaN where no complex pair is left)."""
+    """e(Omega) for an array of Omega = 2 pi f h (NaN where no complex pair is left).
+
+    The cubic in mu = lambda - 1 (`characteristic_coefficients`), monic: mu^3 + c2 mu^2 + c1 mu + c0.
+    Its real (spurious) root mu3 from the companion matrix, polished by Newton to round-off; deflated,
+    mu^2 + a mu + b with b = -c0/mu3, a = c2 + mu3; the principal pair mu = -a/2 +- i sqrt(b - a^2/4),
+    so Omega_h = atan2(sqrt(b - a^2/4), 1 - a/2) to a few ulps relative and e = Omega_h/Omega - 1 to
+    a few ulps absolute (~1e-12 relative at e = 1e-4)."""
     Om = np.asarray(Om, dtype=float)
     out = np.zeros(Om.shape)
     pos = Om > 0.0
     if not np.any(pos):
         return out
-    lam = np.linalg.eigvals(amplification(Om[pos], rho_inf))  # (k, 3)
-    im = np.abs(lam.imag)
-    cplx = im > 1e-14 * np.abs(lam).max(axis=-1, keepdims=True)
-    phase = np.where(cplx, np.abs(np.angle(lam)), -1.0).max(axis=-1)
-    out[pos] = np.where(phase >= 0.0, phase / np.where(phase >= 0.0, Om[pos], 1.0) - 1.0, np.nan)
+    L3, L2, L1, L0 = characteristic_coefficients(Om[pos], rho_inf)
+    c2, c1, c0 = L2 / L3, L1 / L3, L0 / L3
+    companion = np.zeros(c0.shape + (3, 3))
+    companion[:, 0, :] = -np.stack([c2, c1, c0], axis=-1)
+    companion[:, 1, 0] = 1.0
+    companion[:, 2, 1] = 1.0
+    roots = np.linalg.eigvals(companion)  # (k, 3)
+    real = np.take_along_axis(roots, np.argmin(np.abs(roots.imag), axis=-1)[:, None], axis=-1)[:, 0].real
+    for _ in range(4):  # Newton on a simple, well separated root: round-off in two or three steps
+        value = ((real + c2) * real + c1) * real + c0
+        slope = (3.0 * real + 2.0 * c2) * real + c1
+        real = real - np.where(slope != 0.0, value / np.where(slope != 0.0, slope, 1.0), 0.0)
+    b = -c0 / real
+    a = c2 + real
+    disc = b - 0.25 * a * a
+    with np.errstate(invalid="ignore"):
+        phase = np.arctan2(np.sqrt(np.where(disc > 0.0, disc, 0.0)), 1.0 - 0.5 * a)
+    out[pos] = np.where(disc > 0.0, phase / Om[pos] - 1.0, np.nan)
     return out
 
 
@@ -242,3 +281,32 @@ def step_warnings(step: float, *, excitation_frequency: float | None = None,
                    f"{STEP_PER_PERIOD / step:.4g} Hz is resolved; use transient.step <= "
                    f"{STEP_PER_PERIOD / mode_frequency:.3g} s, or transient.accuracy and transient.fmax")
     return tuple(out)
+
+
+RESOLVE_ACCURACY = 0.1  # the frequency error (10 %) up to which a step is said to resolve a motion at all
+
+
+def unresolved_motion(step: float, *, duration: float, rho_inf: float, excitation_frequency: float | None = None,
+                      lowest_frequency: float | None = None, fmax: float | None = None,
+                      accuracy: float | None = None) -> str | None:
+    """Why a step resolves nothing of a run, or None: a step longer than the duration, or one whose
+    band at a 10 % frequency error (`resolved_band` at RESOLVE_ACCURACY) lies below the excitation
+    frequency (Hz) or the lowest non-rigid natural frequency (Hz). The sentence ends with the step
+    that resolves fmax (transient.fmax, else the frequency missed) to the accuracy (transient.accuracy,
+    else DEFAULT_ACCURACY)."""
+    if step > duration:
+        why = f"the step {step:g} s is longer than the duration {duration:g} s: not one step of the motion is resolved"
+        target = max(f for f in (excitation_frequency, lowest_frequency, 1.0 / duration) if f)
+    else:
+        band = resolved_band(step, RESOLVE_ACCURACY, rho_inf)
+        missed = [(f, what) for f, what in ((lowest_frequency, "the lowest natural frequency"),
+                                            (excitation_frequency, "the excitation frequency")) if f and band < f]
+        if not missed:
+            return None
+        f, what = min(missed)
+        why = (f"the step {step:g} s resolves motion only up to {band:.4g} Hz (frequency error "
+               f"{RESOLVE_ACCURACY:.0%}), below {what} {f:.6g} Hz: it resolves no mode of the model")
+        target = max(f for f, _ in missed)
+    target = fmax if fmax is not None else target
+    acc = accuracy if accuracy is not None else DEFAULT_ACCURACY
+    return f"{why}; the step {step_for_accuracy(target, acc, rho_inf):.3g} s resolves {target:.6g} Hz to {acc:g}"

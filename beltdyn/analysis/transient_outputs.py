@@ -1,0 +1,160 @@
+"""The transient's outputs and observers: the recorded quantities of each batch of output states
+(`Observers`) and the warnings on what they saw (slack and near-slack spans, strain, arm stops, slip)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from beltdyn.model.system import System
+from beltdyn.analysis.transient_setup import TransientSetup, nominal_rotation, transport_speed
+
+
+def tension_warnings(system: System, observer: "Observers", events: np.ndarray,
+                     mean_tension: float) -> tuple[str, ...]:
+    """The spans' tension outside the model's validity during the run (the static thresholds,
+    result_warnings.SLACK_WARNING and STRAIN_WARNING): a span that went slack (slack events), one that came
+    close to slack (its smaller end tension below 10 % of the static mean tension at a sample), and a
+    belt strain beyond 5 % at a sample (the last two from the recorded span tensions)."""
+    from beltdyn.analysis.result_warnings import SLACK_WARNING, strain_warning
+
+    lay = system.layout
+    out = []
+    went = set()
+    for s_ in np.unique(events[events[:, 2] == 1, 1].astype(int)) if len(events) else ():
+        rows = events[(events[:, 1] == s_) & (events[:, 2] == 1)]
+        went.add(int(s_))
+        out.append(f"span {lay.span_name(int(s_))} went slack {len(rows)} time(s), first at t = {rows[0, 0]:.6g} s "
+                   f"(axial force down to {events[events[:, 1] == s_, 3].min():.4g} N): a real belt carries no "
+                   f"compression, it flaps and may slip there; raise the tension or lower the excitation")
+    scale = abs(float(mean_tension))
+    for s_, (t_low, when) in enumerate(zip(observer.tension_low, observer.tension_low_time)):
+        if s_ in went or not np.isfinite(t_low):
+            continue
+        if t_low < 0.0:  # a span in compression is slack, whatever the slack events saw at the steps
+            out.append(f"span {lay.span_name(s_)} went slack: its tension reached {t_low:.4g} N at one end at "
+                       f"t = {when:.6g} s: a real belt carries no compression, it flaps and may slip there")
+        elif t_low < SLACK_WARNING * scale:
+            out.append(f"span {lay.span_name(s_)} came close to slack: {t_low:.4g} N at one end at t = {when:.6g} s, "
+                       f"{t_low / scale:.1%} of the static mean tension {scale:.4g} N")
+    T, when = observer.tension_high
+    out += strain_warning(T, float(system.EA), f" at t = {when:.6g} s")
+    return tuple(out)
+
+
+def stop_warning(hit) -> tuple[str, ...]:
+    if hit is None:
+        return ()
+    t, name, phi = hit
+    return (f"the arm of pulley {name} is beyond its stops (arm_range) at t = {t:.6g} s ({phi:.6g} rad): the transient "
+            f"does not model the stops, so the results from there on assume a free arm",)
+
+
+def slip_warning(worst: tuple[float, float, str]) -> tuple[str, ...]:
+    margin, t, name = worst
+    if margin < 1.0:
+        return (f"pulley {name} slips: slip margin {margin:.3g} < 1 at t = {t:.6g} s",)
+    return ()
+
+
+# ------------------------------------------------------------------------------------ observers
+@dataclass
+class Observers:
+    """The recorded quantities of output states (B, n), vectorized over the batch."""
+
+    system: System
+    setup: TransientSetup
+
+    def __post_init__(self) -> None:
+        self.names = {s.name for s in self.setup.series}
+        self.worst_slip = (np.inf, np.nan, "")  # smallest slip margin, its time and pulley
+        n_span = self.system.belt.n_span
+        self.tension_low = np.full(n_span, np.inf)  # (n_span,) smallest end tension of each span, N
+        self.tension_low_time = np.full(n_span, np.nan)  # (n_span,) s, when
+        self.tension_high = (-np.inf, np.nan)  # largest end tension of any span (N) and when (s)
+        self.stop_hit: tuple[float, str, float] | None = None  # first time an arm is beyond a stop, its pulley, angle
+
+    def _track_tension(self, t: np.ndarray, T: np.ndarray) -> None:
+        """The smallest end tension of each span (and when) and the largest of all, over the samples
+        T (B, n_span, 2) at times t (B,)."""
+        low = T.min(axis=2)  # (B, n_span)
+        k = np.argmin(low, axis=0)
+        lowest = low[k, np.arange(low.shape[1])]
+        better = lowest < self.tension_low
+        self.tension_low = np.where(better, lowest, self.tension_low)
+        self.tension_low_time = np.where(better, t[k], self.tension_low_time)
+        b = int(np.argmax(T.max(axis=(1, 2))))
+        if T[b].max() > self.tension_high[0]:
+            self.tension_high = (float(T[b].max()), float(t[b]))
+
+    def compute(self, t, q, v, a, energy, reaction) -> dict[str, np.ndarray]:
+        sysm, setup, names = self.system, self.setup, self.names
+        belt = sysm.belt
+        out: dict[str, np.ndarray] = {}
+        if "pulley_angle" in names or "pulley_speed" in names:
+            s_nom = np.zeros(len(t))
+            sd_nom = np.zeros(len(t))
+            if setup.nom_scale:
+                s_nom, sd_nom = nominal_rotation(setup, t)[:2]
+            ur = setup.u_nom[sysm.rot_dof]
+            if "pulley_angle" in names:
+                out["pulley_angle"] = q[:, sysm.rot_dof] + s_nom[:, None] * ur
+            if "pulley_speed" in names:
+                out["pulley_speed"] = v[:, sysm.rot_dof] + sd_nom[:, None] * ur
+        E = None
+        if names & {"span_tension", "hub_load", "midspan_displacement"}:
+            E = belt.element_coordinates_batch(q)
+        if "span_tension" in names or "hub_load" in names:
+            F = sysm.span_end_forces(q, v, E)  # internal (elastic + damping) - weight, spring spans included
+            if "span_tension" in names:
+                out["span_tension"] = sysm.span_end_tensions(q, F, E)
+                self._track_tension(t, out["span_tension"])
+                if "slip_margin" in names:
+                    from beltdyn.model.slip import required_friction, slip_margin
+
+                    m = slip_margin(required_friction(out["span_tension"], sysm.layout.wrap_angle),
+                                    sysm.pulley_friction)
+                    out["slip_margin"] = m
+                    finite = np.where(np.isnan(m), np.inf, m)
+                    b, j = np.unravel_index(int(np.argmin(finite)), finite.shape)
+                    if finite[b, j] < self.worst_slip[0]:
+                        self.worst_slip = (float(finite[b, j]), float(t[b]), sysm.layout.names[j])
+            if "hub_load" in names:  # the pulley also carries the inertia of the end elements' nodes
+                H = F + sysm.span_end_inertia(a)
+                tr = setup.transport
+                if tr is not None and (tr.follow or tr.speed):  # and the running belt's momentum flux
+                    Ed = belt.element_coordinates_batch(v, offset=False)
+                    H = H + sysm.span_transport_forces(E, Ed, *transport_speed(setup, t), p=q, vp=v)
+                out["hub_load"] = sysm.hub_loads(H)
+        for c in sysm.components:
+            for obs in c.observations(sysm):
+                if obs.name in names:
+                    out.update(c.observe(sysm, q, setup.preload))
+        if "midspan_displacement" in names:
+            out["midspan_displacement"] = belt.midspan_displacement(E)
+        if "arm_angle" in names:
+            arms = sysm.arms
+            out["arm_angle"] = arms.angle + q[:, arms.dof]
+            out["arm_speed"] = v[:, arms.dof].copy()
+            if self.stop_hit is None and arms.stops is not None:
+                from beltdyn.model.angles import TWO_PI
+
+                for k, (lo, hi) in enumerate(arms.stops):
+                    if np.isnan(lo):
+                        continue
+                    phi = out["arm_angle"][:, k]
+                    phi = phi + TWO_PI * np.round((0.5 * (lo + hi) - phi) / TWO_PI)
+                    bad = np.nonzero((phi < lo) | (phi > hi))[0]
+                    if bad.size and self.stop_hit is None:
+                        self.stop_hit = (float(t[bad[0]]), arms.names[k], float(phi[bad[0]]))
+        if "energy" in names:
+            out["energy"] = energy
+        if "driver_torque" in names:
+            out["driver_torque"] = reaction[:, 0].copy()
+        if "constraint_reaction" in names:
+            out["constraint_reaction"] = reaction.copy()
+        if "q" in names:  # the independent coordinates (the head of the joint coordinates)
+            out["q"] = q[:, : sysm.n_dof].copy()
+            out["v"] = v[:, : sysm.n_dof].copy()
+        return out

@@ -1,0 +1,80 @@
+"""The stepper's compiled arm kinematics (`integrator.complete`, `integrator.project`) held to the
+numpy one (`model.arms.ArmJoints`: expand, expand_motion, expand_acceleration, project, dense_jacobian)
+on random states, 1e-12; the dry-friction bristle (`arm_friction`, `slide_anchors`) against its
+closed form clip(k_b (phi - z), -T_f, T_f)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from beltdyn.analysis import integrator as itg
+from beltdyn.analysis.transient import stepper_arms
+from beltdyn.config import load_config
+from beltdyn.model.system import build_system
+
+ROOT = Path(__file__).resolve().parents[1]
+WITH_ARMS = [ROOT / "configs" / "examples" / "fead_4cyl.toml", ROOT / "configs" / "examples" / "three_pulley_tensioner.toml"]
+
+
+def _system(path):
+    system = build_system(load_config(path))
+    assert system.arms is not None and len(system.arms.dof) >= 1
+    return system
+
+
+def _close(a, b):
+    scale = max(np.abs(b).max(), 1.0)
+    np.testing.assert_allclose(a, b, rtol=0.0, atol=1e-12 * scale)
+
+
+@pytest.mark.parametrize("path", WITH_ARMS, ids=lambda p: p.stem)
+def test_complete_is_the_numpy_arm_kinematics(path):
+    system = _system(path)
+    joints, arms = system.arms, stepper_arms(system)
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        q, v, a = rng.normal(size=(3, joints.n_q))
+        q[joints.dof] = rng.uniform(-np.pi, np.pi, len(joints.dof))  # any arm angle, not just small turns
+        p, vp, ap = (np.concatenate([x, np.full(joints.n_p - joints.n_q, np.nan)]) for x in (q, v, a))
+        itg.complete(arms, p, vp, ap)
+        _close(p, joints.expand(q))
+        _close(vp, joints.expand_motion(q, v))
+        _close(ap, joints.expand_acceleration(q, v, a))
+
+
+@pytest.mark.parametrize("path", WITH_ARMS, ids=lambda p: p.stem)
+def test_project_is_the_numpy_transpose(path):
+    system = _system(path)
+    joints, arms = system.arms, stepper_arms(system)
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        q = rng.normal(size=joints.n_q)
+        q[joints.dof] = rng.uniform(-np.pi, np.pi, len(joints.dof))
+        p = joints.expand(q)
+        x = rng.normal(size=joints.n_p)
+        out = np.full(joints.n_q, np.nan)
+        itg.project(arms, p, x, out)
+        _close(out, joints.project(q, x))
+        J = joints.dense_jacobian(q)  # (n_p, n_q): an independent product J^T x, and |J|^T x
+        _close(out, J.T @ x)
+        itg.project(arms, p, x, out, True)
+        _close(out, np.abs(J).T @ x)
+
+
+def test_bristle_friction_is_the_clipped_spring():
+    # two arms with friction T_f, one without; torque clip(k_b (phi - z), -T_f, T_f), stored energy
+    # tau^2 / (2 k_b); the return mapping moves an anchor to within T_f / k_b of the angle
+    arms = itg.Arms(dof=np.array([0, 1, 2]), slot=np.array([3, 5, 7]), length=np.ones(3), angle=np.zeros(3),
+                    friction=np.array([2.0, 3.0, 0.0]), bristle=np.array([2000.0, 3000.0, 1.0]),
+                    anchor=np.zeros(3), n_q=3)
+    q = np.array([5e-4, -4e-3, 0.7, 0, 0, 0, 0, 0, 0])
+    f = np.zeros(9)
+    stored = itg.arm_friction(arms, q, f)
+    tau = np.array([2000.0 * 5e-4, -3.0, 0.0])
+    np.testing.assert_allclose(f[:3], tau, rtol=1e-15)
+    assert stored == pytest.approx(tau[0] ** 2 / 4000.0 + 9.0 / 6000.0, rel=1e-15)
+    itg.slide_anchors(arms, q)
+    np.testing.assert_allclose(arms.anchor, [0.0, -4e-3 + 1e-3, 0.0], rtol=1e-15)
