@@ -1083,4 +1083,3 @@ def run_steps(state, belt, lin, F, cons, chk, opts, fac, fresh, out, ev, info, a
                 return REFACTOR
 
 
-jitcache.lean_loads(sys.modules[__name__])  # cache hits skip numba's full context refresh
