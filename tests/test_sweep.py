@@ -164,6 +164,7 @@ def test_interrupted_sweep_resumes_to_the_same_file(tmp_path):
     resumed = subprocess.run([*BELTDYN, *args, "-o", str(out), "--resume"], cwd=tmp_path, capture_output=True,
                              text=True, timeout=600)
     assert resumed.returncode == 0, resumed.stderr
+    assert f"resuming: {kept} of 300 cases reused from {journal}" in resumed.stdout  # issue 26: says what it reuses
     assert not journal.exists()
     a, b = h5_dump(tmp_path / "full.h5"), h5_dump(out)
     assert a.keys() == b.keys()

@@ -37,6 +37,47 @@ class SweepResult:
     growth_rate: np.ndarray | None = None  # (n_cases, n_track) 1/s, tracked (> 0: divergence or flutter)
 
 
+@dataclass(frozen=True, kw_only=True)
+class Column:
+    """A column of the console's sweep table (issue 26): its title and one cell per case ("" where the
+    case failed or lacks the quantity)."""
+
+    title: str
+    cells: tuple[str, ...]  # (n_cases,)
+
+
+def _cells(values: np.ndarray, fmt: str, failed: np.ndarray) -> tuple[str, ...]:
+    return tuple("" if failed[i] or not np.isfinite(v) else format(v, fmt) for i, v in enumerate(values))
+
+
+def static_columns(result: SweepResult, pulleys: list[str]) -> tuple[Column, ...]:
+    """What the console shows of a sweep's static results besides the swept values: the mean tension;
+    each tensioner arm's angle and spring torque (its working curve over the sweep); the least slip margin
+    over the pulleys and the pulley it belongs to (those whose friction is given). `pulleys`: the
+    pulleys' names, in the configuration's order (the columns of the per-pulley extras)."""
+    x, failed = result.extras, result.failed.astype(bool)
+    columns = []
+    if "mean_tension" in x:
+        columns.append(Column(title="mean tension (N)", cells=_cells(x["mean_tension"], ".3f", failed)))
+    if "arm_angle" in x:
+        for j, name in enumerate(pulleys):
+            if np.isfinite(x["arm_angle"][:, j]).any():
+                columns.append(Column(title=f"{name} arm angle (deg)",
+                                      cells=_cells(np.degrees(x["arm_angle"][:, j]), ".3f", failed)))
+                if "arm_torque" in x:
+                    columns.append(Column(title=f"{name} arm torque (N m)",
+                                          cells=_cells(x["arm_torque"][:, j], ".4g", failed)))
+    if "slip_margin" in x and np.isfinite(x["slip_margin"]).any():
+        margin = x["slip_margin"]
+        known = np.isfinite(margin).any(axis=1)
+        least = np.where(known, np.nanmin(np.where(np.isfinite(margin), margin, np.inf), axis=1), np.nan)
+        where = np.where(np.isfinite(margin), margin, np.inf).argmin(axis=1)
+        columns.append(Column(title="least slip margin", cells=_cells(least, ".3f", failed)))
+        columns.append(Column(title="at pulley", cells=tuple(pulleys[where[i]] if known[i] and not failed[i] else ""
+                                                               for i in range(len(failed)))))
+    return tuple(columns)
+
+
 _MODAL_KEYS = ("frequency", "growth_rate", "shapes", "mshapes", "kind", "order", "span", "label")
 _NOT_EXTRA = ("failed", "error", "wall_time", *_MODAL_KEYS)
 

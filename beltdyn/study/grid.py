@@ -139,6 +139,23 @@ def make_spec(cfg: DriveConfig, params: list[tuple[str, str]], *, analysis: str,
     return spec
 
 
+def merge_params(table: tuple[tuple[str, str], ...] | list[tuple[str, str]],
+                 given: list[tuple[str, str]]) -> tuple[list[tuple[str, str]], tuple[str, ...]]:
+    """The swept parameters and the keys the command line overrode (issue 26): the file's [sweep.params]
+    (`table`) with the command line's --param (`given`) applied key by key. A key in both takes the
+    command line's spec, in the file's place; a key only on the command line is appended, in its order."""
+    merged = list(table)
+    at = {k: i for i, (k, _) in enumerate(merged)}
+    overridden = []
+    for k, v in given:
+        if k in at:
+            merged[at[k]] = (k, v)
+            overridden.append(k)
+        else:
+            merged.append((k, v))
+    return merged, tuple(overridden)
+
+
 CHECK_EVERY_CASE = 5000  # larger grids: every value of every parameter (the others at their first value)
 
 

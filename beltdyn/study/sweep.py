@@ -18,18 +18,18 @@ from typing import Callable
 from beltdyn.config import DriveConfig, resolved_toml
 from beltdyn.errors import ConfigError
 
-from beltdyn.study.assembly import Assembly, SweepResult, assemble
+from beltdyn.study.assembly import Assembly, Column, SweepResult, assemble, static_columns
 from beltdyn.study.cases import run_case, run_chunk
-from beltdyn.study.grid import (ANALYSES, Param, SweepSpec, case_assignments, make_spec, parse_values, spec_hash,
-                                sweep_tables)
+from beltdyn.study.grid import (ANALYSES, Param, SweepSpec, case_assignments, make_spec, merge_params, parse_values,
+                                spec_hash, sweep_tables)
 from beltdyn.study.journal import Journal
 from beltdyn.study.pool import available_cores, run_pool
 from beltdyn.study.refine import Refinement, refine_mesh, richardson
 from beltdyn.study.tracking import MAC_LOST
 
-__all__ = ["ANALYSES", "MAC_LOST", "Assembly", "Journal", "Param", "Refinement", "SweepResult", "SweepSpec",
-           "assemble", "available_cores", "case_assignments", "make_spec", "parse_values", "refine_mesh",
-           "richardson", "run_case", "run_sweep", "spec_hash", "sweep_tables"]
+__all__ = ["ANALYSES", "MAC_LOST", "Assembly", "Column", "Journal", "Param", "Refinement", "SweepResult", "SweepSpec",
+           "assemble", "available_cores", "case_assignments", "make_spec", "merge_params", "parse_values", "refine_mesh",
+           "richardson", "run_case", "run_sweep", "spec_hash", "static_columns", "sweep_tables"]
 
 SYNC_EVERY = 0.5  # s: the journal is fsync'ed after a batch of cases at most this often (and at the end)
 
@@ -52,15 +52,18 @@ Progress = Callable[[int, int], None]
 
 def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bool = False,
               workers: int | None = None, scheduler: str | None = None,
-              progress: Progress | None = None, restart: bool = False) -> "Assembly":
+              progress: Progress | None = None, restart: bool = False,
+              on_resume: Callable[[int, int], None] | None = None) -> "Assembly":
     """Run the missing cases of the sweep, journaling each as it finishes (any order), and assemble
     the results as they come (the returned Assembly, for `assemble`). restart discards an existing
-    journal (--force without --resume)."""
+    journal (--force without --resume). on_resume(reused, n_cases): called once a resumed sweep's journal
+    is accepted, with the number of its finished cases that are reused (not recomputed)."""
     digest = spec_hash(cfg, spec)
     client = _connect(scheduler, cfg) if scheduler else None
     if journal.exists() and restart and not resume:
         journal.remove()
-    if journal.exists():
+    resumed = journal.exists()
+    if resumed:
         if not resume:
             raise ConfigError(f"an unfinished sweep is journaled in {journal.dir}: continue it with --resume "
                               f"(or remove the folder)", file=cfg.source, key="--resume")
@@ -70,6 +73,8 @@ def run_sweep(cfg: DriveConfig, spec: SweepSpec, *, journal: Journal, resume: bo
     else:
         journal.start(spec.to_json(), digest)
     done = journal.done()
+    if resume and on_resume is not None and resumed:
+        on_resume(len(done), spec.n_cases)
     todo = [i for i in range(spec.n_cases) if i not in done]
     base = resolved_toml(cfg)
     tables = sweep_tables(cfg, spec)
