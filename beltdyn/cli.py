@@ -1060,7 +1060,7 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
     """A grid (or zip) of cases in parallel, modes tracked across the grid by MAC."""
 
     def body() -> None:
-        from beltdyn.study.sweep import Journal, assemble, available_cores, make_spec
+        from beltdyn.study.sweep import Journal, assemble, available_cores, make_spec, merge_params
 
         job = _Job(config, output, set_, force)
         cfg = job.cfg
@@ -1074,20 +1074,16 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
             params.append((k.strip(), v.strip()))
         zip_flag = zip_
         kind = analysis
-        if cfg.sweep is not None and cfg.sweep.params:
-            if params:
-                from beltdyn.errors import ConfigError
-
-                raise ConfigError("give the parameters either in [sweep.params] ("
-                                  + ", ".join(k for k, _ in cfg.sweep.params) + ") or with --param ("
-                                  + ", ".join(k for k, _ in params) + "), not both",
-                                  file=cfg.source, key="--param")
-            params = list(cfg.sweep.params)
+        overridden: tuple[str, ...] = ()
+        if cfg.sweep is not None and cfg.sweep.params:  # --param overrides the file's table key by key
+            params, overridden = merge_params(cfg.sweep.params, params)
         if cfg.sweep is not None:  # the table's analysis and zip are defaults for --analysis / --zip
             zip_flag = zip_flag or cfg.sweep.zip
             kind = kind or cfg.sweep.analysis
         spec = make_spec(cfg, params, analysis=kind or "modal", zip_=zip_flag, n_modes=modes)
         con = _console()
+        for k in overridden:
+            con.print(f"note: --param {k} overrides [sweep.params] {k} of {cfg.source}", markup=False)
         if workers is not None and scheduler is None and workers > available_cores():
             con.print(f"note: --workers {workers} is more than the {available_cores()} available cores; "
                       f"using {available_cores()}")
@@ -1101,7 +1097,7 @@ def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optio
             job.add(sweep_group(cfg, result))
             job.write()
             journal.remove()
-        _print_sweep(con, result)
+        _print_sweep(con, result, [p.name for p in cfg.pulleys])
         _print_campbell(con, cfg, result)
         if result.failed.all():
             from beltdyn.errors import SolverError
@@ -1126,7 +1122,9 @@ def _sweep_cases(con, cfg, spec, journal, *, resume, workers, scheduler, force):
     try:
         with bar:
             return run_sweep(cfg, spec, journal=journal, resume=resume, workers=workers, scheduler=scheduler,
-                             progress=lambda k, n: bar.update(task, completed=k), restart=force)
+                             progress=lambda k, n: bar.update(task, completed=k), restart=force,
+                             on_resume=lambda k, n: con.print(f"resuming: {k} of {n} cases reused from {journal.dir}",
+                                                              markup=False))
     except (Exception, KeyboardInterrupt) as exc:  # noqa: BLE001 - an interruption is told apart below
         stop = _interruption(exc)
         if stop is None:
@@ -1140,11 +1138,11 @@ def _sweep_cases(con, cfg, spec, journal, *, resume, workers, scheduler, force):
         raise stop from exc
 
 
-def _print_sweep(con, result) -> None:
+def _print_sweep(con, result, pulleys: list[str]) -> None:
     import numpy as np
     from rich.table import Table
 
-    from beltdyn.study.sweep import richardson
+    from beltdyn.study.sweep import richardson, static_columns
 
     spec = result.spec
     keys = [p.key for p in spec.params]
@@ -1158,8 +1156,10 @@ def _print_sweep(con, result) -> None:
         n_show = min(6, result.frequency.shape[1])
         for j in range(n_show):
             tbl.add_column(f"{result.label[j]} (Hz)" if j < len(result.label) else f"mode {j + 1}", justify="right")
-    elif "mean_tension" in result.extras:
-        tbl.add_column("mean tension (N)", justify="right")
+    columns = static_columns(result, pulleys) if result.frequency is None else ()
+    for c in columns:
+        tbl.add_column(c.title, justify="right")
+    n_show = n_show or len(columns)
     tbl.add_column("wall (ms)", justify="right")
     for i in show:
         row = [f"{v:g}" if isinstance(v, (int, float)) else str(v) for v in result.values[i]]
@@ -1167,8 +1167,8 @@ def _print_sweep(con, result) -> None:
             row += ["failed"] + [""] * (n_show - 1 if n_show else 0)
         elif result.frequency is not None:
             row += [f"{result.frequency[i, j]:.3f}" for j in range(n_show)]
-        elif "mean_tension" in result.extras:
-            row.append(f"{result.extras['mean_tension'][i]:.3f}")
+        else:
+            row += [c.cells[i] for c in columns]
         row.append(f"{result.wall_time[i] * 1e3:.1f}")
         tbl.add_row(*row)
     con.print(tbl)

@@ -1,58 +1,47 @@
-"""Where numba caches the compiled kernels, and whether they are cached already (issue 10, item 5).
+"""Where numba caches the compiled kernels, and whether they are cached already (issues 10 and 24).
 
-numba caches each ``@njit(**KERNEL)`` function (cache=True) next to its source (``beltdyn/__pycache__``). In a
-read-only installation (a system site-packages, a container image) numba falls back to its own user
+numba caches each ``@njit(**KERNEL)`` function (cache=True) next to its source (``beltdyn/*/__pycache__``). In
+a read-only installation (a system site-packages, a container image) numba falls back to its own user
 cache folder, and fails at import when that is not writable either. `configure` decides before
 numba compiles anything: the package folder when writable, else ``$XDG_CACHE_HOME/beltdyn/numba``
-(``~/.cache/beltdyn/numba``), else a folder in the temporary directory, set as NUMBA_CACHE_DIR. A
-user's NUMBA_CACHE_DIR is left as it is. Call it before ``import numba`` (`belt_kernel` and
-`integrator` do); numba reads the variable when it is first imported, so a numba imported earlier
-gets its ``config.CACHE_DIR`` set too.
+(``~/.cache/beltdyn/numba``), else a folder in the temporary directory, set as NUMBA_CACHE_DIR (numba's
+public setting). A user's NUMBA_CACHE_DIR is left as it is. Call it before ``import numba``
+(`belt_kernel` and `integrator` do); numba reads the variable when it is first imported, so a numba
+imported earlier gets its ``config.CACHE_DIR`` set too.
 
 `is_warm` tells whether the kernels a run calls from Python (its entry points, `transient.entry_kernels`)
-are in the cache for this source, so the CLI can say "compiling ..., once" only when it compiles. Only
-those: a kernel called inside another is compiled into its caller's library, so a cache hit of the
-caller never loads (nor compiles) it, and its own cache entry, stale or missing, does not matter.
-
-`lean_loads` makes loading a kernel from the cache initialize only what cached machine code needs.
-Before its first load numba refreshes its whole target context, importing and registering every
-lowering it knows (strings, lists, sets, dicts, random generators, polynomials, jitclasses, ...):
-~120 ms of a short `beltdyn transient`, spent on a code generator that a cache hit does not run. A
-cached library needs the modules its environments name, which unpickling imports itself, and numba's
-runtime (NRT, `rtsys.initialize`, which compiles the runtime's functions: ~20 ms) when its machine code
-calls it: the object code then names NRT_/nrt_ symbols (undefined ones), a kernel compiled with
-`KERNEL` (no runtime) names none and loads without it. A compile still refreshes in full (numba's
-compiler does so before every compile), and a load that fails the lean way is retried numba's way.
+were compiled into the cache for their current sources, so the CLI can say "compiling ..., once" only
+when it compiles. numba's cache files are its own business (their layout is no public API), so beltdyn
+keeps its own record: `mark_warm`, called by `pipeline.warm_up` once the kernels are compiled and cached,
+writes a stamp file into the cache folder (`stamp_folder`) whose name holds `kernel_key`, a hash of
+the kernels' module sources (with the modules whose kernels they call and this module, which holds
+their options), of the numba, llvmlite and Python versions and of the machine. An edited source,
+another numba or another Python is a new key, hence cold until the next `warm_up`. A cache emptied
+by hand with the stamp left in place reads warm: the run then compiles unannounced (correct results,
+a slower first run); a cache filled by a run outside `warm_up` reads cold: the CLI then runs `warm_up`,
+which loads the kernels from numba's cache and writes the stamp.
 """
 
 from __future__ import annotations
 
+import hashlib
 import os
+import platform
 import sys
 import tempfile
+import types
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent
 _CHOSEN: list[str | None] = []  # configure's answer, once per process
-# The njit options of beltdyn's kernels (`@njit(**KERNEL)`): cached, and without numba's runtime (NRT): the
-# kernels allocate nothing (their callers hand in the scratch), so their code keeps no reference counts
-# of the arrays and views it handles (a transient step ~11 % faster); a kernel that allocated would not
-# compile.
-KERNEL = {"cache": True, "_nrt": False}
+# The njit options of beltdyn's kernels (`@njit(**KERNEL)`): cached (numba's public options only; the
+# kernels compile with numba's defaults otherwise, its runtime included).
+KERNEL: dict = {"cache": True}
 
 
 def kernel_options() -> dict:
-    """`KERNEL` as the installed numba takes it (for the modules that define kernels; they import numba
-    anyway). `_nrt` is a private option, checked at the first compile, not at decoration: a numba that
-    no longer knows it would refuse every kernel on first use, so without it the kernels compile with
-    the runtime (the same results, ~11 % slower steps)."""
-    try:
-        from numba.core.cpu import CPUTargetOptions
-
-        known = isinstance(getattr(CPUTargetOptions, "_nrt", None), CPUTargetOptions.Mapping)
-    except (ImportError, AttributeError):
-        known = False
-    return dict(KERNEL) if known else {k: v for k, v in KERNEL.items() if k != "_nrt"}
+    """The njit options of beltdyn's kernels (a copy of `KERNEL`), for the modules that define kernels."""
+    return dict(KERNEL)
 
 
 def _writable(folder: Path) -> bool:
@@ -97,63 +86,64 @@ def configure() -> str | None:
     return _CHOSEN[0]
 
 
-def _kernels(module):
-    """The cached numba functions of `module` that are compiled on their own (not inlined)."""
-    for obj in vars(module).values():
-        if (hasattr(obj, "py_func") and getattr(obj, "_cache", None) is not None
-                and getattr(obj, "__module__", "") == module.__name__
-                and obj.targetoptions.get("inline") != "always"):  # (an inlined one lives in its callers)
-            yield obj
+def stamp_folder() -> Path:
+    """The folder of numba's cache as configured: NUMBA_CACHE_DIR when set (by the user or `configure`),
+    else the package's own ``__pycache__`` (numba then caches next to each source)."""
+    configure()
+    chosen = os.environ.get("NUMBA_CACHE_DIR")
+    return Path(chosen) if chosen else PACKAGE / "__pycache__"
 
 
-def is_warm(*kernels) -> bool | None:
-    """True if each of the cached numba functions `kernels` has an entry in the cache for its current
-    source (numba's index file, stamped with the source's hash), False if one has none, None if this
-    cannot be told (numba's internals differ)."""
+def _source_files(kernels) -> list[Path]:
+    """The source files whose text the compiled `kernels` depend on: each kernel's module, the modules of
+    the kernels (and the beltdyn modules) those modules name at their top level, and this module."""
+    files = {Path(__file__).resolve()}
+    for kernel in kernels:
+        module = sys.modules[kernel.py_func.__module__]
+        for obj in (module, *vars(module).values()):
+            if hasattr(obj, "py_func"):  # a compiled function: its module's source
+                obj = sys.modules.get(obj.py_func.__module__)
+            if isinstance(obj, types.ModuleType) and obj.__name__.split(".")[0] == "beltdyn" and getattr(
+                    obj, "__file__", None):
+                files.add(Path(obj.__file__).resolve())
+    return sorted(files)
+
+
+def kernel_key(*kernels) -> str:
+    """A hash of what a cached compile of `kernels` depends on: their sources (`_source_files`), the numba,
+    llvmlite and Python versions and the machine (hexadecimal, 24 digits)."""
+    import llvmlite
+    import numba
+
+    h = hashlib.sha256()
+    for part in (numba.__version__, llvmlite.__version__, sys.version, platform.machine(), repr(KERNEL)):
+        h.update(part.encode() + b"\0")
+    for path in _source_files(kernels):
+        h.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    return h.hexdigest()[:24]
+
+
+def stamp_path(*kernels) -> Path:
+    """The stamp file `mark_warm` writes for `kernels` (in `stamp_folder`)."""
+    return stamp_folder() / f"beltdyn-kernels-{kernel_key(*kernels)}.stamp"
+
+
+def is_warm(*kernels) -> bool:
+    """True if `mark_warm` recorded `kernels` as compiled into the cache for their current sources, numba
+    and Python (module docstring)."""
+    return stamp_path(*kernels).is_file()
+
+
+def mark_warm(*kernels) -> bool:
+    """Record that `kernels` are compiled into numba's cache (call after compiling them, as `warm_up`
+    does). Returns False when the cache folder cannot be written (numba then compiles in memory each
+    run, and `is_warm` rightly stays False)."""
+    path = stamp_path(*kernels)
     try:
-        return all(k._cache._cache_file._load_index() for k in kernels)
-    except Exception:  # noqa: BLE001 - private numba API: unknown is not an error
-        return None
-
-
-def _uses_runtime(data) -> bool:
-    """Whether a cached overload's machine code calls numba's runtime (NRT): its object code names an NRT_
-    or nrt_ symbol (every runtime symbol is so named; an undefined one is named in the object's string
-    table). True when this cannot be told."""
-    try:
-        _name, kind, (object_code, _bitcode) = data[0]  # CompileResult._reduce: the library's serialization
-        return kind != "object" or b"NRT_" in object_code or b"nrt_" in object_code
-    except Exception:  # noqa: BLE001 - private numba API: assume it does
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False, suffix=".tmp") as fh:
+            fh.write("numba cache of beltdyn's kernels, written by beltdyn.pipeline.warm_up\n")
+        os.replace(fh.name, path)
         return True
-
-
-def _lean_load_overload(cache, sig, target_context):
-    """numba's `Cache.load_overload` with the runtime initialized (when the machine code calls it)
-    instead of the whole target context refreshed (see the module docstring); numba's own on any
-    failure."""
-    try:
-        with cache._guard_against_spurious_io_errors():
-            if not cache._enabled:
-                return None
-            data = cache._cache_file.load(cache._index_key(sig, target_context.codegen()))  # (as _load_overload)
-            if data is None:
-                return None
-            if _uses_runtime(data):
-                from numba.core.runtime import rtsys
-
-                rtsys.initialize(target_context)
-            return cache._impl.rebuild(target_context, data)
-    except Exception:  # noqa: BLE001 - private numba API: numba's own way then
-        return type(cache).load_overload(cache, sig, target_context)
-
-
-def lean_loads(module) -> None:
-    """Load `module`'s cached kernels the lean way (module docstring). Call at the end of the module,
-    once its kernels exist; nothing changes where numba's internals differ."""
-    import types
-
-    for k in _kernels(module):
-        cache = k._cache
-        if all(hasattr(cache, a) for a in ("_guard_against_spurious_io_errors", "_cache_file", "_index_key", "_impl",
-                                           "_enabled")):
-            cache.load_overload = types.MethodType(_lean_load_overload, cache)
+    except OSError:
+        return False

@@ -205,14 +205,13 @@ def test_workers_beyond_the_cores_are_capped(tmp_path, monkeypatch):
     cores = sw.available_cores()
     assert f"note: --workers 64 is more than the {cores} available cores; using {cores}" in r.stdout
     seen = []
-    import concurrent.futures
+    pool = sw.run_pool  # beltdyn's own worker processes (issue 24)
 
-    class Spy(concurrent.futures.ProcessPoolExecutor):
-        def __init__(self, max_workers=None, **kw):
-            seen.append(max_workers)
-            super().__init__(max_workers=max_workers, **kw)
+    def spy(task, jobs, n_workers, on_result):
+        seen.append(n_workers)
+        return pool(task, jobs, n_workers, on_result)
 
-    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", Spy)
+    monkeypatch.setattr(sw, "run_pool", spy)
     from beltdyn.config import load_config
 
     cfg = load_config(SMOKE)
@@ -222,17 +221,20 @@ def test_workers_beyond_the_cores_are_capped(tmp_path, monkeypatch):
     assert len(sw.Journal(tmp_path / "in.h5").done()) == 40
 
 
-def test_param_and_sweep_table_together_is_a_usage_error(tmp_path):
-    # [sweep.params] in the file and --param on the command line: exit 2 naming both, nothing run.
+def test_param_and_sweep_table_together_are_merged_key_by_key(tmp_path):
+    # [sweep.params] in the file and --param on the command line (issue 26; this was a usage error): a key
+    # of its own joins the table's (2 x 2 cases, no note); the table's key given again overrides the
+    # table's values, with a note naming it; the table alone still works.
     cfg = tmp_path / "swept.toml"
     cfg.write_text(SMOKE.read_text() + '\n[sweep]\nanalysis = "static"\n[sweep.params]\n"tension.target" = "200,300"\n')
     r = run("sweep", cfg, "--param", "belt.EI=0.02,1", "-o", "x.h5", cwd=tmp_path)
-    assert r.returncode == 2, r.stdout + r.stderr
-    line = r.stderr.strip()
-    assert line.startswith(f"error: {cfg}: --param: give the parameters either in [sweep.params] (tension.target) "
-                           "or with --param (belt.EI), not both"), line
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["swept.toml"]
-    ok = run("sweep", cfg, "-o", "x.h5", cwd=tmp_path)  # the table alone still works
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "Sweep: static, 4 cases" in r.stdout and "overrides" not in r.stdout
+    r = run("sweep", cfg, "--param", "tension.target=250,350,450", "-o", "y.h5", cwd=tmp_path)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "Sweep: static, 3 cases" in r.stdout
+    assert f"note: --param tension.target overrides [sweep.params] tension.target of {cfg}" in r.stdout
+    ok = run("sweep", cfg, "-o", "z.h5", cwd=tmp_path)  # the table alone
     assert ok.returncode == 0, ok.stderr
     assert "Sweep: static, 2 cases" in ok.stdout
 

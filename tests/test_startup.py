@@ -1,6 +1,8 @@
-"""Start-up (issue 10, item 5): where numba's cache goes, whether it is warm, and that `warm_up` (what
-`make` runs at install) compiles every signature a transient uses, so a user's first run loads
-instead of compiling. Timings are in `make bench`, not here."""
+"""Start-up (issue 10, item 5; issue 24): where numba's cache goes, whether it is warm (beltdyn's stamp,
+told through public means only), and that `warm_up` (what `make` runs at install) compiles every signature
+a transient uses, so a user's first run loads instead of compiling. Whether numba compiled or loaded a
+kernel is read from its documented NUMBA_DEBUG_CACHE report ("data saved to" / "data loaded from").
+Timings are in `make bench`, not here."""
 
 from __future__ import annotations
 
@@ -125,79 +127,103 @@ def _python(code: str, env: dict | None = None) -> list[str]:
     return r.stdout.splitlines()
 
 
+def _cache_report(stdout: str) -> tuple[int, int]:
+    """(kernels compiled and saved, kernels loaded) in numba's NUMBA_DEBUG_CACHE report."""
+    lines = [ln for ln in stdout.splitlines() if ln.startswith("[cache]")]
+    return sum("data saved to" in ln for ln in lines), sum("data loaded from" in ln for ln in lines)
+
+
 def test_entry_kernels_are_the_kernels_transients_call_from_python():
     # In a fresh process with the cache warm, the compiled functions that transients of every kind of drive
-    # dispatch (a cache hit each; the kernels they call run inside them and are never dispatched) are
-    # exactly `entry_kernels`, the list `is_warm` checks.
+    # dispatch (each loaded from the cache, none compiled: numba's own cache report; the kernels they call
+    # run inside them and are never dispatched) are exactly `entry_kernels`, the list `is_warm` checks.
     from beltdyn.pipeline import warm_up
 
     warm_up()
-    dispatched, entries, all_hits = _python(_RUN_ALL.format(cases=TRANSIENTS, root=str(ROOT)) + textwrap.dedent("""
-        from beltdyn import jitcache
+    out = _python(_RUN_ALL.format(cases=TRANSIENTS, root=str(ROOT)) + textwrap.dedent("""
         from beltdyn.analysis import integrator
         from beltdyn.model import belt_kernel
         from beltdyn.model import spring_kernel
         from beltdyn.analysis.transient import entry_kernels
-        got = [k for m in (integrator, belt_kernel, spring_kernel) for k in jitcache._kernels(m) if k.signatures]
+        got = [o for m in (integrator, belt_kernel, spring_kernel) for o in vars(m).values()
+               if hasattr(o, "py_func") and o.py_func.__module__ == m.__name__ and o.signatures]
         print(sorted(k.__name__ for k in got))
         print(sorted(k.__name__ for k in entry_kernels()))
-        print(all(k.stats.cache_hits and not k.stats.cache_misses for k in got))
-    """))
-    assert dispatched == entries and all_hits == "True"
+    """), env=dict(os.environ, NUMBA_DEBUG_CACHE="1"))
+    dispatched, entries = [ln for ln in out if not ln.startswith("[cache]")]
+    assert dispatched == entries
+    saved, loaded = _cache_report("\n".join(out))
+    assert saved == 0 and loaded >= 2
 
 
-def test_a_stale_helper_kernel_does_not_make_the_cache_cold(tmp_path):
-    # A copy of the warm cache (NUMBA_CACHE_DIR) in which the index files of kernels that only run inside
-    # the entry points (integrator.run_steps, belt_kernel.gather) are stale (written for another source, as
-    # numba sees an index after an edit) or missing: `is_warm` says warm, and a transient indeed compiles
-    # nothing (every dispatched kernel a cache hit). Checking every kernel of the modules, as before, said
-    # cold: every run announced "compiling the transient kernels" and ran warm_up for nothing. A stale
-    # `advance` or a missing `band_lu_nopivot` is cold.
-    from beltdyn.pipeline import warm_up
+def _cli_env(cache: Path, **extra) -> dict:
+    env = {k: v for k, v in os.environ.items() if k not in ("NO_COLOR", "COLUMNS")}
+    env.update(NUMBA_CACHE_DIR=str(cache), NUMBA_DEBUG_CACHE="1", TTY_COMPATIBLE="1", **extra)  # rich: a terminal
+    return env
 
-    warm_up()
-    code = textwrap.dedent(f"""
-        import pickle, shutil
-        from pathlib import Path
-        from beltdyn import jitcache
-        from beltdyn.analysis import integrator
-        from beltdyn.model import belt_kernel
-        from beltdyn.model import spring_kernel
-        from beltdyn.analysis.transient import entry_kernels
-        modules = (integrator, belt_kernel, spring_kernel)
-        for m in modules:  # each module's kernels into the folder numba keeps for its source folder
-            cache = Path(next(iter(jitcache._kernels(m)))._cache._cache_path)
-            cache.mkdir(parents=True, exist_ok=True)
-            for f in (Path(m.__file__).parent / "__pycache__").glob(Path(m.__file__).stem + ".*.nb[ic]"):
-                shutil.copy(f, cache)
 
-        def index(k):
-            return Path(k._cache._cache_file._index_path)
+def test_a_cold_cache_announces_and_compiles_a_warm_one_does_not_an_edited_source_is_cold(tmp_path):
+    # A copy of the package with an empty numba cache (NUMBA_CACHE_DIR): the first `beltdyn transient`
+    # announces the compile and compiles (numba saves the kernels), the second neither announces nor
+    # compiles (every kernel loaded). Then an edited kernel source (the stepper, or the spring kernel it
+    # calls), another numba version or another cache folder reads cold; the unedited copy stays warm.
+    src = tmp_path / "src"
+    shutil.copytree(PACKAGE, src / "beltdyn", ignore=shutil.ignore_patterns("__pycache__"))
+    cache = tmp_path / "cache"
+    env = _cli_env(cache, PYTHONPATH=str(src))
+    args = [sys.executable, "-c", "from beltdyn.cli import run; run()", "transient",
+            str(ROOT / "configs/examples/bench_transient_small.toml"), "--duration", "0.002",
+            "--set", "transient.spectrum.enabled=false", "-o", "t.h5", "--force"]
+    announce = "compiling the transient kernels"
+    cold = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, env=env, timeout=900)
+    assert cold.returncode == 0, cold.stderr
+    assert announce in cold.stdout + cold.stderr and _cache_report(cold.stdout)[0] > 0
+    assert list(cache.glob("beltdyn-kernels-*.stamp"))
+    warm = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, env=env, timeout=300)
+    assert warm.returncode == 0, warm.stderr
+    assert announce not in warm.stdout + warm.stderr
+    saved, loaded = _cache_report(warm.stdout)
+    assert saved == 0 and loaded > 0
 
-        def stale(k):
-            with open(index(k), "rb") as fh:
-                version = pickle.load(fh)
-            with open(index(k), "wb") as fh:
-                pickle.dump(version, fh)
-                fh.write(pickle.dumps(((0.0, 0), {{}})))
+    ask = ("from beltdyn import jitcache; from beltdyn.analysis.transient import entry_kernels; "
+           "print(jitcache.is_warm(*entry_kernels()))")
 
-        def every_kernel():  # the old check
-            return all(k._cache._cache_file._load_index() for m in modules for k in jitcache._kernels(m))
+    def warm_now(**extra) -> str:
+        r = subprocess.run([sys.executable, "-c", ask], capture_output=True, text=True, timeout=120,
+                           env={**env, "NUMBA_DEBUG_CACHE": "0", **extra})
+        assert r.returncode == 0, r.stderr
+        return r.stdout.strip()
 
-        print(jitcache.is_warm(*entry_kernels()), every_kernel())
-        stale(integrator.run_steps)
-        index(belt_kernel.gather).unlink()
-        print(jitcache.is_warm(*entry_kernels()), every_kernel())
-    """) + _RUN_ALL.format(cases=TRANSIENTS[:2], root=str(ROOT)) + textwrap.dedent("""
-        got = [k for m in modules for k in jitcache._kernels(m) if k.signatures]
-        print(all(k.stats.cache_hits and not k.stats.cache_misses for k in got))
-        index(integrator.band_lu_nopivot).unlink()
-        print(jitcache.is_warm(*entry_kernels()))
-        stale(integrator.advance)
-        print(jitcache.is_warm(integrator.advance))
-    """)
-    got = _python(code, env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba")))
-    assert got == ["True True", "True False", "True", "False", "False"]
+    assert warm_now() == "True"
+    assert warm_now(NUMBA_CACHE_DIR=str(tmp_path / "other")) == "False"
+    numba_again = ("import numba; numba.__version__ = numba.__version__ + '.post1'; " + ask)
+    r = subprocess.run([sys.executable, "-c", numba_again], capture_output=True, text=True, timeout=120, env=env)
+    assert r.stdout.strip() == "False", r.stderr
+    for name in ("analysis/integrator.py", "model/spring_kernel.py"):
+        source = src / "beltdyn" / name
+        text = source.read_text()
+        source.write_text(text + "\n# edited\n")
+        assert warm_now() == "False", name
+        source.write_text(text)
+        assert warm_now() == "True", name
+
+
+def test_kernel_options_are_public_numba_options():
+    # The kernels' njit options name only numba's public options (no leading underscore; issue 24), and
+    # numba takes them: a function compiled with them runs.
+    import numpy as np
+    from numba import njit
+
+    assert jitcache.kernel_options() == jitcache.KERNEL and jitcache.KERNEL["cache"] is True
+    assert not [k for k in jitcache.KERNEL if k.startswith("_")]
+
+    def add(a, b):
+        a[0] += b[0]
+
+    options = {k: v for k, v in jitcache.KERNEL.items() if k != "cache"}  # (not cached: no files)
+    a = np.zeros(1)
+    njit(**options)(add)(a, np.ones(1))
+    assert a[0] == 1.0
 
 
 @pytest.mark.parametrize("example, loaded", [
@@ -218,52 +244,6 @@ def test_a_transient_enters_the_stepper_through_one_kernel(example, loaded):
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
     assert r.stdout.split() == loaded
-
-
-def test_cache_hits_skip_the_full_context_refresh():
-    # A transient (FEAD: arms, running belt) in a fresh process with the kernels in the cache loads them
-    # the lean way (jitcache.lean_loads): numba's lowering of things the kernels never use (typed dicts,
-    # random generators, polynomials), which its full context refresh imports, stays unimported; the
-    # results are those of the other tests (same kernels, same code).
-    from beltdyn.pipeline import warm_up
-
-    # Nor does it import numba's array modules (the kernels allocate nothing, so no function environment
-    # names them) or start numba's runtime (NRT: kernels compiled with jitcache.KERNEL never call it).
-    warm_up()  # (the cache warm, as after `make`)
-    unused = ["numba.typed.typeddict", "numba.np.random.generator_methods", "numba.np.polynomial.polynomial_functions",
-              "numba.np.arrayobj", "numba.np.arraymath"]
-    code = ("import sys; from beltdyn.config import load_config; from beltdyn.pipeline import analyse; "
-            "from beltdyn.analysis.transient import run_transient; from numba.core.runtime import rtsys; "
-            f"cfg = load_config({str(ROOT / 'configs' / 'examples' / 'fead_4cyl.toml')!r}, "
-            "['transient.duration=0.002', 'transient.spectrum.enabled=false']); run = analyse(cfg); "
-            "s = run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None); "
-            f"print(s.status, [m for m in {unused!r} if m in sys.modules], rtsys._init)")
-    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
-    assert r.returncode == 0, r.stderr
-    assert r.stdout.strip() == "complete [] False"
-
-
-def test_runtime_use_is_told_from_the_object_code():
-    # jitcache._uses_runtime reads a cached overload's object code: a function that allocates calls numba's
-    # runtime (its object code names NRT_ symbols), one compiled with jitcache.KERNEL's options does not.
-    import numpy as np
-    from numba import njit
-
-    def zeros(n):
-        return np.zeros(n)
-
-    def add(a, b):
-        a[0] += b[0]
-
-    options = {k: v for k, v in jitcache.KERNEL.items() if k != "cache"}  # (not cached: no files)
-    allocating, plain = njit(zeros), njit(**options)(add)
-    allocating(3)
-    plain(np.zeros(1), np.ones(1))
-    for f, uses in ((allocating, True), (plain, False)):
-        lib = f.overloads[f.signatures[0]].library
-        obj = lib._codegen._tm.emit_object(lib._final_module)  # its machine code, as the cache holds it
-        assert jitcache._uses_runtime(((lib.name, "object", (obj, b"")),)) is uses
-    assert jitcache._uses_runtime(((lib.name, "bitcode", b""),)) is True  # no object code: assume it does
 
 
 def test_command_line_values_are_read_without_pydantic():
@@ -310,16 +290,3 @@ def test_command_line_values_read_as_typer_reads_them(annotation, minimum, text)
 
     assert type(opt.get_runtime_param()).__name__ == "Plain"  # beltdyn's coercion is the one in use
     assert outcome(opt.get_runtime_param()) == outcome(build_runtime_param(desc))
-
-
-def test_kernel_options_drop_a_private_option_the_installed_numba_does_not_know(monkeypatch):
-    # `_nrt` (no runtime in the kernels) is a private numba option that numba checks only at a kernel's
-    # first compile; a numba without it must get the kernels' options without it (they then compile with
-    # the runtime) rather than refuse every kernel. Reference: numba's own option table.
-    from numba.core.cpu import CPUTargetOptions
-
-    from beltdyn import jitcache
-
-    assert jitcache.kernel_options() == jitcache.KERNEL  # this numba knows it
-    monkeypatch.setattr(CPUTargetOptions, "_nrt", None)  # (inherited: shadowed, as if gone)
-    assert jitcache.kernel_options() == {k: v for k, v in jitcache.KERNEL.items() if k != "_nrt"}

@@ -16,7 +16,8 @@ from beltdyn.config import load_config, with_overrides
 from beltdyn.errors import ConfigError
 from beltdyn.analysis.modal import solve_modes
 from beltdyn.pipeline import analyse
-from beltdyn.study.sweep import Journal, _keys, assemble, make_spec, parse_values, refine_mesh, richardson, run_sweep
+from beltdyn.study.refine import mode_keys
+from beltdyn.study.sweep import Journal, assemble, make_spec, parse_values, refine_mesh, richardson, run_sweep
 from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -163,6 +164,7 @@ def test_interrupted_sweep_resumes_to_the_same_file(tmp_path):
     resumed = subprocess.run([*BELTDYN, *args, "-o", str(out), "--resume"], cwd=tmp_path, capture_output=True,
                              text=True, timeout=600)
     assert resumed.returncode == 0, resumed.stderr
+    assert f"resuming: {kept} of 300 cases reused from {journal}" in resumed.stdout  # issue 26: says what it reuses
     assert not journal.exists()
     a, b = h5_dump(tmp_path / "full.h5"), h5_dump(out)
     assert a.keys() == b.keys()
@@ -193,8 +195,8 @@ def test_rtol_refinement_meets_tolerance_and_bounds_error(start, rtol, n_modes):
     assert ref.converged
     rc = with_overrides(cfg, ["mesh.elements_per_span=320"])
     rmd = analyse(rc, modal=True, n_modes=n_modes + 10).modal
-    ref_keys = _keys(rmd)
-    chosen_keys = _keys(md)
+    ref_keys = mode_keys(rmd)
+    chosen_keys = mode_keys(md)
     for j, lab in enumerate(ref.labels):
         f = ref.frequency[ref.chosen, j]
         key = next(k for k, idx in zip(chosen_keys, range(len(chosen_keys))) if abs(md.frequency[idx] - f) == 0)
@@ -284,7 +286,7 @@ def test_a_torn_journal_record_is_cut_off_and_the_case_recomputed(tmp_path):
     spec = make_spec(cfg, [("tension.target", "150:300:6")], analysis="modal", zip_=False)
     out = tmp_path / "cut.h5"
     from beltdyn.config import resolved_toml
-    from beltdyn.study.sweep import _assign
+    from beltdyn.study.grid import _assign
 
     with Journal(out) as j:
         j.start(spec.to_json(), spec_hash(cfg, spec))
@@ -493,7 +495,7 @@ def test_sweep_file_equals_the_analysis_of_each_case(tmp_path):
     # spans, labels, the static quantities, and which cases failed (the middle row: overlapping pulleys).
     from beltdyn.config import with_overrides
     from beltdyn.errors import BeltdynError
-    from beltdyn.study.sweep import _assign
+    from beltdyn.study.grid import _assign
 
     n_modes = 8
     out = tmp_path / "grid.h5"

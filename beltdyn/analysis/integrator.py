@@ -918,4 +918,3 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
             return REFACTOR
 
 
-jitcache.lean_loads(sys.modules[__name__])  # cache hits skip numba's full context refresh

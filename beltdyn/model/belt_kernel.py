@@ -563,4 +563,3 @@ def reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI,
     reduce_blocks(Ke, T, tsel, blocks_out, work.W)
 
 
-jitcache.lean_loads(sys.modules[__name__])  # cache hits skip numba's full context refresh

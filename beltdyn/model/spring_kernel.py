@@ -109,4 +109,3 @@ def spring_min_force(sp, q_ext, min_span):
             min_span[s] = v
 
 
-jitcache.lean_loads(sys.modules[__name__])  # cache hits skip numba's full context refresh

@@ -1,0 +1,111 @@
+"""One sweep case: the base configuration with the case's overrides applied (`config.with_overrides`),
+analysed by a top-level, picklable function (`run_case`, in chunks `run_chunk`), so the same code runs
+in beltdyn's local worker processes and on Dask workers.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+
+
+
+def run_case(base_toml: str, source: str, assignments: list[str], analysis: str, n_modes: int,
+             tables: dict[str, bytes] | None = None) -> dict:
+    """One case, self-contained (picklable arguments, plain-dict result) for any executor: the CSV
+    tables travel with it (`config.table_bytes`), so a worker on another machine needs no files."""
+    import tomllib
+
+    from beltdyn.config import apply_override, config_from_dict
+    from beltdyn.errors import BeltdynError
+
+    t0 = time.perf_counter()
+    out: dict[str, Any] = {"failed": 0, "error": ""}
+    try:
+        raw = tomllib.loads(base_toml)
+        for a in assignments:
+            apply_override(raw, a, file=source)
+        cfg = config_from_dict(raw, file=source, tables=tables)
+        if analysis == "transient" and cfg.transient is not None:
+            from dataclasses import replace
+
+            from beltdyn.analysis.timestep import resolve_step  # the step each case's accuracy (or step) asks for
+
+            cfg = replace(cfg, transient=resolve_step(cfg.transient)[0])
+        from beltdyn.pipeline import analyse
+
+        run = analyse(cfg, modal=analysis == "modal", n_modes=n_modes + 4)
+        model, st = run.system, run.static
+        out["mean_tension"] = st.mean_tension
+        out["span_tension"] = st.span_tension
+        out["hub_load"] = st.hub_load
+        out["pulley_center"] = st.pulley_center
+        if model.arms is not None:  # the tensioner's working curve over the swept load
+            out["arm_angle"] = st.arm_angle
+            out["arm_torque"] = st.arm_torque
+        if st.slip_margin is not None and not np.all(np.isnan(st.slip_margin)):
+            out["slip_margin"] = st.slip_margin
+        if model.belt_speed or cfg.running is not None:  # the running belt's speeds (a Campbell diagram)
+            from beltdyn.model.geometry import driver_speed_of
+
+            out["belt_speed"] = float(model.belt_speed)
+            out["driver_speed"] = driver_speed_of(model.belt_speed, model.layout, model.driver)
+        if analysis == "modal":
+            md = run.modal
+            out["frequency"] = md.frequency
+            out["growth_rate"] = md.growth_rate if md.growth_rate is not None else np.zeros(len(md.frequency))
+            out["shapes"] = md.shapes
+            out["mshapes"] = np.asarray((model.mass_matrix(st.q) @ md.shapes.T).T)
+            out["kind"] = np.array(md.kind)
+            out["order"] = md.order
+            out["span"] = md.span
+            out["label"] = np.array(md.label)
+        elif analysis == "transient":
+            out.update(_transient_case(run))
+    except BeltdynError as exc:
+        out = {"failed": 1, "error": str(exc)}
+    except Exception as exc:  # a defect in one case must not take the sweep down: record it
+        out = {"failed": 1, "error": f"{type(exc).__name__}: {exc}"}
+    out["wall_time"] = time.perf_counter() - t0
+    return out
+
+
+def _transient_case(run) -> dict:
+    """Steady-state amplitudes (first harmonic of the excitation, and half peak-to-peak) of the
+    span tensions, hub loads and bearing forces after transient.spectrum.start."""
+    from beltdyn.analysis.spectrum import amplitude_spectrum, harmonic_content
+    from beltdyn.analysis.transient import prepare, run_transient
+
+    from beltdyn.pipeline import transient_start
+
+    cfg = run.config
+    system, static = transient_start(run)
+    setup = prepare(system, static, cfg.transient)
+    keep = ("span_tension", "hub_load", "bearing_force")
+    got: dict[str, list] = {k: [] for k in keep if any(s.name == k for s in setup.series)}
+    times: list = []
+
+    def sink(t, batch):
+        sel = t >= cfg.transient.spectrum.start
+        times.append(t[sel])
+        for k in got:
+            got[k].append(batch[k][sel])
+
+    summary = run_transient(system, static, cfg.transient, sink=sink, setup=setup)
+    t = np.concatenate(times)
+    out: dict[str, Any] = {"n_slack_events": len(summary.slack_events)}
+    for k, parts in got.items():
+        x = np.concatenate(parts)
+        out[f"{k}_half_range"] = 0.5 * (x.max(axis=0) - x.min(axis=0))
+        if setup.excitation_frequency and len(t) >= 8:
+            spec = amplitude_spectrum(t, x, start=t[0])
+            out[f"{k}_first_harmonic"] = harmonic_content(spec, setup.excitation_frequency, n_harmonics=1)[0]
+    return out
+
+
+def run_chunk(base_toml: str, source: str, tables: dict[str, bytes], items: list[tuple[int, list[str]]],
+               analysis: str, n_modes: int):
+    return [(i, run_case(base_toml, source, a, analysis, n_modes, tables)) for i, a in items]
