@@ -27,7 +27,7 @@ from beltdyn.plot.data import (KINDS, NEEDS, Results, available, figure_paths, p
 from beltdyn.plot.drive import hermite_curves, plot_layout
 from beltdyn.plot.modes import plot_modes
 from beltdyn.plot.series import plot_response, plot_transient
-from beltdyn.plot.style import OKABE_ITO, alike_curves, overlapping_texts, set_interactive, sign
+from beltdyn.plot.style import OKABE_ITO, alike_curves, overlapping_texts, set_interactive, settle, sign
 from beltdyn.plot.sweep import crossings, plot_sweep, sweep_range
 
 __all__ = ["KINDS", "NEEDS", "OKABE_ITO", "Results", "alike_curves", "available", "crossings", "figure",
@@ -44,6 +44,7 @@ def figure(kind: str, res: Results, *, modes: tuple[int, ...] | None = None):
     fig = {"layout": plot_layout, "modes": lambda r: plot_modes(r, modes), "sweep": plot_sweep,
            "transient": plot_transient, "response": plot_response}[kind](res)
     sign(fig, corner_tag(kind, res))
+    settle(fig)  # positions final before anyone measures or saves it
     return fig
 
 

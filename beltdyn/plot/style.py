@@ -49,9 +49,17 @@ def sign(fig, tag: str) -> None:
 
 
 def renderer(fig):
-    """The figure's renderer after a full draw (the layout engine's positions final)."""
-    fig.canvas.draw()
+    """The figure's renderer after the layout engine has settled: constrained layout places the
+    texts from the previous draw's sizes, so it takes two draws to converge (measured: after one, a
+    mode panel's three-line title still overlapped the corner tag)."""
+    settle(fig)
     return fig.canvas.get_renderer()
+
+
+def settle(fig) -> None:
+    """Draw twice: the layout engine's positions final (see `renderer`)."""
+    fig.canvas.draw()
+    fig.canvas.draw()
 
 
 def separate(fig, texts, *, tries: int = 16) -> None:
