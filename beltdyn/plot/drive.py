@@ -153,8 +153,8 @@ def plot_layout(res: Results):
     plt = pyplot()
     centre, radius = pulley_centres(res), res.var("geometry", "pulley_radius")
     lo, hi = (centre - radius[:, None]).min(axis=0), (centre + radius[:, None]).max(axis=0)
-    aspect = float(np.clip((hi[1] - lo[1]) / max(hi[0] - lo[0], 1e-12), 0.3, 1.6))
-    fig, ax = plt.subplots(figsize=(7.0, 7.0 * 0.85 * aspect + 1.6), layout="constrained")
+    aspect = float(np.clip((hi[1] - lo[1]) / max(hi[0] - lo[0], 1e-12), 0.12, 1.6))  # a thin drive: a low canvas
+    fig, ax = plt.subplots(figsize=(7.0, 7.0 * 0.85 * aspect + 2.0), layout="constrained")
     labels = draw_drive(ax, res)
     a, b = tangent_points(res)
     ax.plot(np.r_[a[:, 0], b[:, 0]], np.r_[a[:, 1], b[:, 1]], "o", color=OKABE_ITO[5], ms=3.5, zorder=5,
@@ -171,7 +171,7 @@ def plot_layout(res: Results):
                   gid="hub load")
         title += f": mean span tension {float(res.var('static', 'mean_tension')):.4g} N"
     ax.margins(0.16)  # room for the pulley labels outside the pulleys
-    ax.set_aspect("equal")
+    ax.set_aspect("equal", adjustable="datalim")  # the panel fills the canvas; the limits give way
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     ax.set_title(title)
