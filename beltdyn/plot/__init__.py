@@ -22,12 +22,28 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from beltdyn.plot.data import (KINDS, NEEDS, Results, available, figure_paths, parse_modes, read_results, require,
-                               warnings_of)
+from beltdyn.plot.data import (
+    KINDS,
+    NEEDS,
+    Results,
+    available,
+    figure_paths,
+    parse_modes,
+    read_results,
+    require,
+    warnings_of,
+)
 from beltdyn.plot.drive import hermite_curves, plot_layout
 from beltdyn.plot.modes import plot_modes
 from beltdyn.plot.series import plot_response, plot_transient
-from beltdyn.plot.style import OKABE_ITO, alike_curves, overlapping_texts, set_interactive, settle, sign
+from beltdyn.plot.style import (
+    OKABE_ITO,
+    alike_curves,
+    overlapping_texts,
+    set_interactive,
+    settle,
+    sign,
+)
 from beltdyn.plot.sweep import crossings, plot_sweep, sweep_range
 
 __all__ = ["KINDS", "NEEDS", "OKABE_ITO", "Results", "alike_curves", "available", "crossings", "figure",

@@ -8,7 +8,6 @@ from __future__ import annotations
 import itertools
 
 import matplotlib
-import numpy as np
 
 OKABE_ITO = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9", "#F0E442", "#000000")
 LINESTYLES = ("-", "--", ":", "-.")

@@ -73,7 +73,7 @@ def table(table_id: str, caption: str, headers: list[str], rows: list[list[Cell]
             f"<tbody>{''.join(body)}</tbody></table>{foot}")
 
 
-_XML_HEAD = re.compile(r"^\s*<\?xml[^>]*>\s*(<!DOCTYPE[^>]*>\s*)?", re.S)
+_XML_HEAD = re.compile(r"^\s*<\?xml[^>]*>\s*(<!DOCTYPE[^>]*>\s*)?", re.DOTALL)
 
 
 def svg(fig, figure_id: str, caption: str) -> str:

@@ -11,7 +11,13 @@ from html import escape
 import numpy as np
 
 from beltdyn.plot import figure
-from beltdyn.plot.data import Results, channel_names, meaningful_margin, swept_parameter, warnings_of
+from beltdyn.plot.data import (
+    Results,
+    channel_names,
+    meaningful_margin,
+    swept_parameter,
+    warnings_of,
+)
 from beltdyn.plot.sweep import is_campbell, sweep_range
 from beltdyn.report.html import num, section, svg, table, text
 
