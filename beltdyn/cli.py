@@ -673,8 +673,9 @@ def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5).
          what: Optional[str] = typer.Argument(None, help="layout | modes | sweep | transient | response "
                                                          "[default: every figure the file holds]"),
          output: Optional[Path] = typer.Option(None, "-o", "--output",
-                                               help="Figure file (.png, .svg, .pdf); without WHAT a prefix: "
-                                                    "PREFIX_<what>.png [default: next to RESULT]"),
+                                               help="Figure file (.png, .svg, .pdf); without WHAT every figure "
+                                                    "as <stem>_<what><suffix>: -o fig.png writes fig_layout.png, "
+                                                    "fig_modes.png, ... [default: next to RESULT]"),
          modes: Optional[str] = typer.Option(None, "--modes", help="Modes to draw, e.g. 1-8 or 1,3,5 [default: 1-8]."),
          show: bool = typer.Option(False, "--show", help="Also open the figures in a window.")) -> None:
     """Figures of a results file: drive layout, mode shapes, frequency maps and Campbell diagrams,
