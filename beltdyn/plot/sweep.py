@@ -141,7 +141,7 @@ def plot_static_sweep(res: Results):
         title = lab.split(" (")[0] + (f" ({left} torque-free pulleys, margin infinite, left out)" if left else "")
         ax.set_title(title, fontsize=8)
         if keep:
-            ax.legend(fontsize=6, ncol=4, loc="best")
+            ax.legend(fontsize=6, ncol=2 if len(keep) > 8 else 1, loc="center left", bbox_to_anchor=(1.01, 0.5))
     axes[-1, 0].set_xlabel(f"{key} ({units})" if units else key)
     return fig
 
