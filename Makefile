@@ -35,6 +35,8 @@ paper: $(STAMP)
 	@echo "Paper Figs. 3b and 4 (beltdyn plot):"
 	$(BIN)/beltdyn plot results/paper/fig3b_tension_sweep.h5 sweep -o results/paper/fig3b.png
 	$(BIN)/beltdyn plot results/paper/bench_T200.h5 modes --modes 1-8 -o results/paper/fig4_modes.png
+	@echo "The drive report of the paper bench (beltdyn report):"
+	$(BIN)/beltdyn report results/paper/bench_T200.h5 -o results/paper/report.html
 
 trade: $(STAMP)
 	$(BIN)/python bench/trade.py README.md

@@ -673,8 +673,9 @@ def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5).
          what: Optional[str] = typer.Argument(None, help="layout | modes | sweep | transient | response "
                                                          "[default: every figure the file holds]"),
          output: Optional[Path] = typer.Option(None, "-o", "--output",
-                                               help="Figure file (.png, .svg, .pdf); without WHAT a prefix: "
-                                                    "PREFIX_<what>.png [default: next to RESULT]"),
+                                               help="Figure file (.png, .svg, .pdf); without WHAT every figure "
+                                                    "as <stem>_<what><suffix>: -o fig.png writes fig_layout.png, "
+                                                    "fig_modes.png, ... [default: next to RESULT]"),
          modes: Optional[str] = typer.Option(None, "--modes", help="Modes to draw, e.g. 1-8 or 1,3,5 [default: 1-8]."),
          show: bool = typer.Option(False, "--show", help="Also open the figures in a window.")) -> None:
     """Figures of a results file: drive layout, mode shapes, frequency maps and Campbell diagrams,
@@ -704,17 +705,8 @@ def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5).
             raise OutputError(f"{result}: holds no group a figure is drawn from (/geometry, /modal, /sweep, "
                               f"/transient or /response)")
         written = []
-        for kind in kinds:
-            fig = P.figure(kind, res, modes=chosen_modes)
-            if what and output is not None:
-                path = output
-            else:
-                base = output if output is not None else result.with_suffix("")
-                path = base.with_name(f"{base.name}_{kind}.png")
-            path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_name(f".{path.name}.tmp{path.suffix}")
-            fig.savefig(tmp)  # then renamed: an interrupted run leaves no half-written figure
-            tmp.replace(path)
+        for kind, path in P.figure_paths(result, kinds, output=output, single=bool(what)).items():
+            P.save(P.figure(kind, res, modes=chosen_modes), path)
             written.append(str(path))
         if show:
             import matplotlib.pyplot as plt
@@ -1418,6 +1410,28 @@ def run() -> None:
         pass
     atexit._run_exitfuncs()
     os._exit(code or 0)
+
+
+@app.command()
+def report(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5)."),
+           output: Optional[Path] = typer.Option(None, "-o", "--output",
+                                                 help="Report file (.html) [default: RESULT with .html]")) -> None:
+    """The drive report: one self-contained HTML page (figures inline, no script, printable on A4) of
+    what the results file holds (needs the plot extra: pip install 'beltdyn[plot]')."""
+
+    def body() -> None:
+        from beltdyn.errors import ConfigError
+
+        try:
+            import matplotlib  # noqa: F401
+        except ImportError:
+            raise ConfigError("matplotlib is not installed: pip install 'beltdyn[plot]'", file=str(result),
+                              key="report") from None
+        from beltdyn.report import write_report
+
+        _console().print(f"wrote {write_report(result, output)}")
+
+    _run(body)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -140,6 +140,13 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
                                  "(the figures draw the belt from them)"),
             Variable(name="node_span", data=node_spans(model), dims=("node",), units="1",
                      description="0-based span of each node"),
+            Variable(name="node_slope", data=belt_nodes(model, model.belt.element_coordinates(model.expand(res.q)),
+                                                     slope=True),
+                     dims=("node", "component"), units="1",
+                     description="the belt's slope r' = dr/dx at each node (x the reference arc length), with "
+                                 "node_position the Hermite data of the elements' cubic shape functions"),
+            Variable(name="span_element_length", data=_element_lengths(model), dims=("span",), units="m",
+                     description="reference length of each span's ANCF elements (NaN for a spring span)"),
             Variable(name="q", data=res.q, dims=("dof",), units=MIXED,
                      description="independent coordinates from the reference state, each in its dof_unit"),
             dof_unit_variable(model),
@@ -255,14 +262,23 @@ def _static_extras(res: StaticResult) -> tuple[Variable, ...]:
     )
 
 
-def belt_nodes(model: DriveModel, E: np.ndarray) -> np.ndarray:
+def belt_nodes(model: DriveModel, E: np.ndarray, *, slope: bool = False) -> np.ndarray:
     """(..., n_node, 2) the belt's node positions (or motions) of element states E (..., n_elem, 8): each
-    span's element start nodes and its last element's end node, span after span."""
+    span's element start nodes and its last element's end node, span after span; with slope=True the
+    nodes' slopes r' = dr/dx (or their motions) instead."""
+    k = 2 if slope else 0
     parts = [E[..., :0, 0:2]]
     for els in model.belt.span_elements:  # a spring span has no nodes (no elements)
-        parts.append(E[..., els, 0:2])
-        parts.append(E[..., els[-1:], 4:6])
+        parts.append(E[..., els, k:k + 2])
+        parts.append(E[..., els[-1:], 4 + k:6 + k])
     return np.concatenate(parts, axis=-2)
+
+
+def _element_lengths(model: DriveModel) -> np.ndarray:
+    """(n_span,) reference length of each span's (equal) elements, NaN for a spring span."""
+    counts = np.array([len(els) for els in model.belt.span_elements], dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(counts > 0, np.asarray(model.belt.reference_length, dtype=float) / counts, np.nan)
 
 
 def node_spans(model: DriveModel) -> np.ndarray:
@@ -281,10 +297,15 @@ def modal_group(model: DriveModel, res: ModalResult, q: np.ndarray | None = None
     if q is not None:
         motion = model.belt.element_coordinates_batch(model.expand_motion(q, res.shapes), offset=False)
         nodes = belt_nodes(model, motion)
+        turns = belt_nodes(model, motion, slope=True)
         extra = (Variable(name="node_shape", data=np.real(nodes), dims=("mode", "node", "component"),
                           units="m per sqrt(kg m^2)",
                           description="motion of the belt's nodes (/static node_position) in each mass-normalized "
-                                      "shape (at a belt speed the real part, see node_shape_imag)"),)
+                                      "shape (at a belt speed the real part, see node_shape_imag)"),
+                 Variable(name="node_shape_slope", data=np.real(turns), dims=("mode", "node", "component"),
+                          units="1 per sqrt(kg m^2)",
+                          description="motion of the belt's slopes (/static node_slope) in each mass-normalized "
+                                      "shape (real part): the Hermite data of the elements' shape functions"),)
         if np.iscomplexobj(nodes):
             extra += (Variable(name="node_shape_imag", data=np.imag(nodes), dims=("mode", "node", "component"),
                                units="m per sqrt(kg m^2)", description="imaginary part of node_shape"),)
