@@ -69,7 +69,8 @@ class RunningTerms:
     """The running belt's transport terms per unit speed (`BeltSpans.transport_blocks`, `SpringSpans.
     transport_blocks`) on the joint coordinates: A, B (dense (n_p, n_p) or CSR) and a0, b0 (n_p,), so
     that the gyroscopic matrix is c (A - A^T), the centripetal stiffness -c^2 B and the centripetal force
-    -c^2 (B p + b0); element_A, element_B (n_elem, 8, 8) the ANCF elements' own."""
+    -c^2 (B p + b0); element_A, element_B (n_elem, 8, 8) the ANCF elements' own, blocks_B (n_elem, m, m)
+    their T^T B_e T and spring_blocks_B (k, m_s, m_s) the spring spans' (None without)."""
 
     A: object
     B: object
@@ -77,6 +78,8 @@ class RunningTerms:
     b0: np.ndarray
     element_A: np.ndarray
     element_B: np.ndarray
+    blocks_B: np.ndarray
+    spring_blocks_B: np.ndarray | None = None
 
 
 EnergyComponents = tuple  # (DOFs (r,), block-diagonal mass (r, r), kind of each DOF (r, len(ENERGY_KINDS))) or Nones
@@ -218,10 +221,10 @@ class System:
         sp = self.springs
         if sp is None:
             return RunningTerms(A=self.assemble(Ab, linear=False), B=self.assemble(Bb, linear=False), a0=a0, b0=b0,
-                                element_A=A_e, element_B=B_e)
+                                element_A=A_e, element_B=B_e, blocks_B=Bb)
         As, Bs, a0s, b0s = sp.transport_blocks()  # + the spring spans' (their blocks on the same coordinates)
         return RunningTerms(A=self.assemble(Ab, linear=False, springs=As), B=self.assemble(Bb, linear=False, springs=Bs),
-                            a0=a0 + a0s, b0=b0 + b0s, element_A=A_e, element_B=B_e)
+                            a0=a0 + a0s, b0=b0 + b0s, element_A=A_e, element_B=B_e, blocks_B=Bb, spring_blocks_B=Bs)
 
     def centripetal_force(self, p: np.ndarray) -> np.ndarray:
         """-c^2 (B p + b0) (n_p,) at the joint coordinates p: the running belt's centripetal term of the
@@ -238,11 +241,11 @@ class System:
 
     def _running_blocks(self, blocks: np.ndarray) -> np.ndarray:
         """The element tangent blocks (n_elem, m, m) with the centripetal stiffness -c^2 T^T B_e T added."""
-        return blocks - (self.belt_speed * self.belt_speed) * self.belt.reduce_blocks(self.running_terms.element_B)
+        return blocks - (self.belt_speed * self.belt_speed) * self.running_terms.blocks_B
 
     def _running_spring_blocks(self, blocks: np.ndarray) -> np.ndarray:
         """The spring spans' tangent blocks (k, m, m) with their centripetal stiffness -c^2 T^T B_s T."""
-        return blocks - (self.belt_speed * self.belt_speed) * self.springs.transport_blocks()[1]
+        return blocks - (self.belt_speed * self.belt_speed) * self.running_terms.spring_blocks_B
 
     def gyroscopic_matrix(self, q: np.ndarray | None = None):
         """The gyroscopic matrix G = J^T c (A - A^T) J on q at the state q (skew-symmetric; zeros at rest)."""
