@@ -12,13 +12,11 @@ equal to the numpy `SpringSpans` on random states by tests/test_springs.py.
 
 from __future__ import annotations
 
-import sys
 from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
-from beltdyn import jitcache
 from beltdyn.jitcache import kernel_options
 from beltdyn.model import barlaw
 
@@ -114,6 +112,3 @@ def spring_min_force(sp, q_ext, min_span):
         s = sp.span[k]
         if v < min_span[s]:
             min_span[s] = v
-
-
-jitcache.lean_loads(sys.modules[__name__])  # cache hits skip numba's full context refresh
