@@ -104,6 +104,10 @@ def test_projections_dense_sparse_and_the_geometric_term(arms):
     assert np.array_equal(r_dense, r_sparse) and np.array_equal(r_dense, arms.project(q, f))
     assert np.abs(arms.project_matrix(q, K, f, dense=True) - K_dense).max() == 0.0
     assert np.abs(arms.project_matrix(q, K, None, dense=True) - J.T @ K @ J).max() <= 1e-13 * np.abs(K).max()
+    slopes = arms.first(arms.phi(q))
+    assert np.array_equal(arms.project_matrix_at(slopes, K, dense=True), arms.project_matrix(q, K, None, dense=True))
+    assert np.abs(arms.project_matrix_at(slopes, csr_matrix(K), dense=False).toarray() - J.T @ K @ J).max() \
+        <= 1e-13 * np.abs(K).max()
 
 
 def test_arm_joints_are_immutable_values(arms):

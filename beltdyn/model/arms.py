@@ -142,6 +142,10 @@ class ArmJoints:
         geo = np.einsum("kd,kd->k", fu, self.second(phi))  # f_u . d2c/dphi2
         return self._project(dc, f), self._project_matrix(dc, K, geo, dense=dense)
 
+    def project_matrix_at(self, slopes: np.ndarray, K, *, dense: bool):
+        """J^T K J with the arms' slopes dc/dphi (a, 2) at hand (`first`)."""
+        return self._project_matrix(slopes, K, None, dense=dense)
+
     def _project_matrix(self, dc: np.ndarray, K, geo: np.ndarray | None, *, dense: bool):
         """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`); dense for a dense
         K when `dense`, else CSR (the rows and columns of the offsets folded onto their arm angle)."""

@@ -289,7 +289,7 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     if not spans:
         return None
     n = layout.n
-    idx, T, (at, pulley) = spring_joints(dofs, spans, n)
+    idx, T, (at, pulley) = _spring_joints(dofs, spans, n)
     direction = layout.span_direction if direction is None else direction
     if reference_length is None:
         reference_length = layout.span_length / _span_stretch(prestrain_stretch, n)
@@ -307,7 +307,7 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
                        EI=float(cfg.belt.EI), curvature=cfg.model.curvature)
 
 
-def spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.ndarray, np.ndarray, tuple]:
+def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.ndarray, np.ndarray, tuple]:
     """The parts of the spring spans' joints that the DOF map fixes (`joint_pairs`): idx (k, m) the joint
     coordinates of each span, its start's columns (rotation, then the pulley's translations) before its
     end's, padded with n_dof (read-only); T (k, 4, m) with the translations' directions and zero rotation
