@@ -21,6 +21,7 @@ law as a parameter (`bar_law(cfg...)`) needs no copy of its own. The module-leve
 
 from __future__ import annotations
 
+import math
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -63,23 +64,44 @@ def stretch_start(x):
     """A start for the stretch lambda of a bar at N / EA = x (`stretch_for_tension`; a float or an
     array, the same type back): the series lambda = 1 + x - 3/2 x^2 + 4 x^3 + O(x^4) where the strain
     is small (one Newton step then reaches round-off for |x| < 1e-2), 1 + x beyond."""
-    return np.where(np.abs(x) < 0.05, 1.0 + x * (1.0 - x * (1.5 - 4.0 * x)), 1.0 + x)[()]
+    series = 1.0 + x * (1.0 - x * (1.5 - 4.0 * x))
+    small = abs(x) < 0.05
+    if isinstance(small, bool):  # a Python number: the choice np.where makes elementwise, without its cost
+        return series if small else 1.0 + x
+    return np.where(small, series, 1.0 + x)[()]
 
 
 def stretch_for_tension(tension, EA: float):
     """lambda with EA eps lambda = N, eps = (lambda^2 - 1)/2 (the inverse of `axial_force`), elementwise:
-    a float for a float, an array of the tensions' shape for an array. Newton from `stretch_start` until
-    the largest step is <= 1e-15 (lambda ~ 1: a few ulp; Newton is quadratic well before), at most 50
-    steps; NaN where the Newton step divides 0 by 0 (no stretch carries the tension)."""
+    a float for a number, an array of the tensions' shape for an array (`_newton`, one code for both: a
+    number in Python floats, the statics' many one-tension calls). NaN where no stretch carries the
+    tension (the Newton step divides 0 by 0)."""
+    if isinstance(tension, (int, float)):
+        try:
+            return float(_newton(float(tension) / float(EA), abs))
+        except ZeroDivisionError:  # (a float's x / 0, where numpy's gives inf or nan)
+            return math.nan
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        x = np.asarray(tension, dtype=float) / EA
-        lam = stretch_start(x)
-        for _ in range(50):
-            step = (lam * lam * lam - lam - 2.0 * x) / (3.0 * lam * lam - 1.0)
-            lam = lam - step
-            if np.max(np.abs(step), initial=0.0) <= 1e-15:
-                break
+        lam = _newton(np.asarray(tension, dtype=float) / EA, _largest)
     return float(lam) if np.ndim(lam) == 0 else lam
+
+
+def _largest(step) -> float:
+    """max |step| of an array (0 for an empty one)."""
+    return float(np.max(np.abs(step), initial=0.0))
+
+
+def _newton(x, largest):
+    """lambda^3 - lambda - 2 x = 0 by Newton from `stretch_start`(x) (x = N / EA, a float or an array) until
+    the largest step (`largest`(step)) is <= 1e-15 (lambda ~ 1: a few ulp; Newton is quadratic well
+    before), at most 50 steps."""
+    lam = stretch_start(x)
+    for _ in range(50):
+        step = (lam * lam * lam - lam - 2.0 * x) / (3.0 * lam * lam - 1.0)  # (a float's ** raises on overflow)
+        lam = lam - step
+        if largest(step) <= 1e-15:
+            break
+    return lam
 
 
 class BarLaw(NamedTuple):
