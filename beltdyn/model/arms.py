@@ -139,7 +139,8 @@ class ArmJoints:
         phi = self.phi(q)
         dc = self.first(phi)
         fu = f[self.n_q:].reshape(len(self.dof), 2)
-        geo = np.einsum("kd,kd->k", fu, self.second(phi))  # f_u . d2c/dphi2
+        d2c = self.second(phi)
+        geo = fu[:, 0] * d2c[:, 0] + fu[:, 1] * d2c[:, 1]  # f_u . d2c/dphi2
         return self._project(dc, f), self._project_matrix(dc, K, geo, dense=dense)
 
     def project_matrix_at(self, slopes: np.ndarray, K, *, dense: bool):
