@@ -47,6 +47,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from beltdyn.model import barlaw
+
 from beltdyn.config import DriveConfig
 
 SPRING_MARGIN = 1.05  # a spring span's own first mode must lie this far above fmax
@@ -88,10 +90,10 @@ def continuum_frequencies(*, length: float, stretch: float, EA: float, EI: float
     """The first n transverse and axial frequencies (Hz) of the converged ANCF span pinned at its ends,
     reference length `length`, stretched by `stretch` (module docstring, item 4)."""
     k = np.arange(1, n + 1) * np.pi / length
-    S = EA * 0.5 * (stretch**2 - 1.0)
+    S = barlaw.second_piola_force(stretch, EA)
     EI_eff = 0.0 if curvature == "none" else (EI / stretch**4 if curvature == "exact" else EI)
     f_t = np.sqrt(np.maximum(S * k**2 + EI_eff * k**4, 0.0) / rho) / (2 * np.pi)
-    f_a = np.sqrt(EA * (3.0 * stretch**2 - 1.0) / 2.0 * k**2 / rho) / (2 * np.pi)
+    f_a = np.sqrt(barlaw.axial_stiffness(stretch, EA) * k**2 / rho) / (2 * np.pi)
     return f_t, f_a
 
 
@@ -186,10 +188,8 @@ def span_state(system, static) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(tension (n_span,) N, reference length (n_span,) m, stretch (n_span,)) of each span at the static
     equilibrium: the mean of its end tensions N, and the stretch of the Green-Lagrange law that
     carries it, EA (lam^3 - lam) / 2 = N (the layout's chord at q = 0 is not the solved one)."""
-    from beltdyn.model.barlaw import stretch_for_tension
-
     T = static.span_tension.mean(axis=1)
-    return T, np.asarray(system.belt.reference_length, dtype=float), stretch_for_tension(T, system.EA)
+    return T, np.asarray(system.belt.reference_length, dtype=float), barlaw.stretch_for_tension(T, system.EA)
 
 
 def unrepresented_modes(system, static, band: float) -> tuple[tuple[int, str, int, float], ...]:
@@ -237,7 +237,7 @@ def spring_errors(system, q: np.ndarray, frequency: np.ndarray, shapes: np.ndarr
         return np.zeros((len(frequency), 0))
     p = system.expand(q)
     u, l, lam, _, N = sp.axial(sp.positions(p))
-    k_axial = sp.EA * (3.0 * lam**2 - 1.0) / (2.0 * sp.reference_length)
+    k_axial = barlaw.axial_stiffness(lam, sp.EA) / sp.reference_length
     k_across = N / l
     m = sp.rho * sp.reference_length
     Y = sp.positions_batch(system.expand_motion(q, shapes), offset=False).reshape(len(frequency), -1, 2, 2)

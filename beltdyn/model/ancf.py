@@ -61,6 +61,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from beltdyn.model import barlaw
+
 __all__ = [
     "CURVATURE_MODELS",
     "ElementSet",
@@ -491,22 +493,21 @@ def axial_force(el: ElementSet, e: np.ndarray, xi: np.ndarray) -> np.ndarray:
     by the stretch |r'| = sqrt(1 + 2 eps).
     """
     rp = slopes(el, e, xi)
-    A = np.einsum("npi,npi->np", rp, rp)
-    return el.EA[:, None] * 0.5 * (A - 1.0) * np.sqrt(A)
+    return barlaw.axial_force(np.sqrt(np.einsum("npi,npi->np", rp, rp)), el.EA[:, None])
 
 
 def axial_force_gradient(el: ElementSet, e: np.ndarray, xi: np.ndarray) -> np.ndarray:
     """Analytic gradient dN/de of `axial_force` at ``xi`` (n_pts,), shape (n_elem, n_pts, 8).
 
-    dN/de = EA (|r'| + eps/|r'|) S'^T r', with S'^T r' = ds/dx (x) r'.
+    dN/de = dN/dlambda dlambda/de = dN/dlambda S'^T r' / |r'| (`barlaw.axial_stiffness`), with
+    S'^T r' = ds/dx (x) r'.
     """
     e = _check_e(el, e)
     n = e.shape[0]
     _, D, _ = shape_functions(xi, el.length)
     rp = D @ e.reshape(n, 4, 2)
-    A = np.einsum("npi,npi->np", rp, rp)
-    lam = np.sqrt(A)
-    coef = el.EA[:, None] * (lam + 0.5 * (A - 1.0) / lam)
+    lam = np.sqrt(np.einsum("npi,npi->np", rp, rp))
+    coef = barlaw.axial_stiffness(lam, el.EA[:, None]) / lam
     return ((coef[..., None] * D)[:, :, :, None] * rp[:, :, None, :]).reshape(n, -1, 8)
 
 

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import functools
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +19,23 @@ def _last_pair(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return out
 
 
+def arm_offset(length: np.ndarray, angle: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """u(phi) = c(phi) - c(angle) = l (cos phi - cos angle, sin phi - sin angle) (..., a, 2): the offset of
+    each arm pulley's centre from its place at the reference arm angle, arm length l (a,), reference
+    angle `angle` (a,), arm angles phi (..., a) (rad)."""
+    return length[:, None] * _last_pair(np.cos(phi) - np.cos(angle), np.sin(phi) - np.sin(angle))
+
+
+def arm_slope(length: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """du/dphi = dc/dphi = l (-sin phi, cos phi) (..., a, 2) at arm angles phi (..., a)."""
+    return length[:, None] * _last_pair(-np.sin(phi), np.cos(phi))
+
+
+def arm_curvature(length: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """d2u/dphi2 = d2c/dphi2 = -l (cos phi, sin phi) (..., a, 2) at arm angles phi (..., a)."""
+    return -length[:, None] * _last_pair(np.cos(phi), np.sin(phi))
+
+
 @dataclass(frozen=True, kw_only=True)
 class ArmJoints:
     """Exact kinematics of the tensioner arms: joint coordinates p = P(q) from the independent q.
@@ -33,6 +48,8 @@ class ArmJoints:
     the pulley the geometric stiffness F . c''(phi) (paper Eq. 24 with the constraint eliminated).
 
     J = dp/dq (n_p, n_q): the identity on q, and dc/dphi = l (-sin phi, cos phi) in the arm columns.
+    One numpy implementation of u, u' = dc/dphi and u'' = d2c/dphi2 (`arm_offset`, `arm_slope`,
+    `arm_curvature`, for any number of states); every projection is built on them.
     """
 
     dof: np.ndarray  # (a,) q index of each arm angle
@@ -52,46 +69,22 @@ class ArmJoints:
         return self.angle + q[..., self.dof]
 
     def first(self, phi: np.ndarray) -> np.ndarray:
-        """dc/dphi (..., a, 2)."""
-        return self.length[:, None] * _last_pair(-np.sin(phi), np.cos(phi))
+        """dc/dphi (..., a, 2) (`arm_slope`)."""
+        return arm_slope(self.length, phi)
 
     def second(self, phi: np.ndarray) -> np.ndarray:
-        """d2c/dphi2 (..., a, 2)."""
-        return -self.length[:, None] * _last_pair(np.cos(phi), np.sin(phi))
+        """d2c/dphi2 (..., a, 2) (`arm_curvature`)."""
+        return arm_curvature(self.length, phi)
 
     def expand(self, q: np.ndarray) -> np.ndarray:
-        """p (..., n_p) from q (..., n_q) (one state: arm by arm on Python floats)."""
-        if q.ndim == 1:
-            out = np.empty(self.n_p)
-            out[: self.n_q] = q
-            for slot, dof, length, angle, cos0, sin0 in self._arm_floats:
-                phi = angle + q.item(dof)
-                out[slot], out[slot + 1] = length * (math.cos(phi) - cos0), length * (math.sin(phi) - sin0)
-            return out
-        phi = self.phi(q)
-        cos0, sin0 = self._reference_cos_sin
-        u = self.length[:, None] * _last_pair(np.cos(phi) - cos0, np.sin(phi) - sin0)
+        """p (..., n_p) from q (..., n_q): q, then the arm pulleys' offsets u (`arm_offset`)."""
+        u = arm_offset(self.length, self.angle, self.phi(q))
         return np.concatenate([q, u.reshape(*q.shape[:-1], -1)], axis=-1)
 
-    @functools.cached_property
-    def _arm_floats(self) -> list[tuple[int, int, float, float, float, float]]:
-        """(slot, dof, length, angle, cos angle, sin angle) of each arm, Python numbers (the one-state paths
-        `expand`, `dense_jacobian`, `project_both`)."""
-        return list(zip(self.slot.tolist(), self.dof.tolist(), self.length.tolist(), self.angle.tolist(),
-                        *(x.tolist() for x in self._reference_cos_sin)))
-
-    @functools.cached_property
-    def _reference_cos_sin(self) -> tuple[np.ndarray, np.ndarray]:
-        """cos and sin (a,) of the arm angles at q = 0."""
-        return np.cos(self.angle), np.sin(self.angle)
-
-    @functools.cached_property
+    @property
     def reference_slopes(self) -> np.ndarray:
-        """dc/dphi (a, 2) at q = 0 (`first`(angle); read-only)."""
-        cos0, sin0 = self._reference_cos_sin
-        out = self.length[:, None] * _last_pair(-sin0, cos0)
-        out.setflags(write=False)
-        return out
+        """dc/dphi (a, 2) at q = 0 (`first`(angle))."""
+        return self.first(self.angle)
 
     def expand_motion(self, q: np.ndarray, dq: np.ndarray, *, slopes: np.ndarray | None = None) -> np.ndarray:
         """J(q) dq (..., n_p): velocities, or mode shapes about q (slopes: `first` at q, if at hand)."""
@@ -102,20 +95,18 @@ class ArmJoints:
         """J a + (d2c/dphi2) phidot^2 (..., n_p)."""
         phi = self.phi(q)
         w = v[..., self.dof]
-        du = np.einsum("...kd,...k->...kd", self.first(phi), a[..., self.dof]) + \
-            np.einsum("...kd,...k->...kd", self.second(phi), w * w)
+        du = self.first(phi) * a[..., self.dof, None] + self.second(phi) * (w * w)[..., None]
         return np.concatenate([a, du.reshape(*a.shape[:-1], -1)], axis=-1)
 
     def project(self, q: np.ndarray | None, f: np.ndarray) -> np.ndarray:
         """J(q)^T f: a force (..., n_p) on the joint coordinates -> (..., n_q) (q None: at q = 0)."""
+        return self._project(self.reference_slopes if q is None else self.first(self.phi(q)), f)
+
+    def _project(self, slopes: np.ndarray, f: np.ndarray) -> np.ndarray:
+        """J^T f (..., n_q) for the arms' slopes dc/dphi (..., a, 2)."""
         out = f[..., : self.n_q].copy()
         fu = f[..., self.n_q:].reshape(*f.shape[:-1], len(self.dof), 2)
-        if q is None:
-            dc = self.reference_slopes
-            out[..., self.dof] += dc[:, 0] * fu[..., 0] + dc[:, 1] * fu[..., 1]
-            return out
-        phi = self.phi(q)
-        out[..., self.dof] += -(self.length * np.sin(phi)) * fu[..., 0] + (self.length * np.cos(phi)) * fu[..., 1]
+        out[..., self.dof] += slopes[..., 0] * fu[..., 0] + slopes[..., 1] * fu[..., 1]
         return out
 
     def jacobian(self, q: np.ndarray):
@@ -128,6 +119,14 @@ class ArmJoints:
         vals = np.concatenate([np.ones(self.n_q), dc[:, 0], dc[:, 1]])
         return coo_matrix((vals, (rows, cols)), shape=(self.n_p, self.n_q)).tocsr()
 
+    def dense_jacobian(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None) -> np.ndarray:
+        """J = dp/dq (n_p, n_q) dense at q: the identity on q, the arms' slopes dc/dphi in the arm columns
+        (slopes: `first` (a, 2) at q, if at hand)."""
+        dc = self.first(self.phi(q)) if slopes is None else slopes
+        J = np.eye(self.n_p, self.n_q)
+        J[self.slot, self.dof], J[self.slot + 1, self.dof] = dc[:, 0], dc[:, 1]
+        return J
+
     def project_matrix(self, q: np.ndarray, K, f: np.ndarray | None = None, *, dense: bool):
         """J^T K J (+ the geometric term sum_k (f_u,k . c''(phi_k)) on (phi_k, phi_k) for the force f
         (n_p,) on the joint coordinates whose derivative K (n_p, n_p) is; none for f = None)."""
@@ -136,37 +135,23 @@ class ArmJoints:
         return self.project_both(q, f, K, dense=dense)[1]
 
     def project_both(self, q: np.ndarray, f: np.ndarray, K, *, dense: bool):
-        """(`project`(q, f), `project_matrix`(q, K, f)): the arm's sine and cosine evaluated once (a dense
-        K: arm by arm on Python floats, from the dense jacobian's `dense_jacobian`)."""
-        if dense and not hasattr(K, "tocsr"):
-            J = self.dense_jacobian(q)
-            out = f[: self.n_q].copy()
-            geo = []
-            for slot, dof, *_ in self._arm_floats:
-                dx, dy, fx, fy = J.item(slot, dof), J.item(slot + 1, dof), f.item(slot), f.item(slot + 1)
-                out[dof] += dx * fx + dy * fy
-                geo.append((-dy) * fx + dx * fy)  # f_u . d2c/dphi2, d2c/dphi2 = (-dy, dx)
-            Kq = J.T @ np.asarray(K) @ J
-            Kq[self.dof, self.dof] += geo
-            return out, Kq
-        phi = self.angle + q[self.dof]
-        L = self.length
-        dx, dy = -(L * np.sin(phi)), L * np.cos(phi)  # dc/dphi (`first`); d2c/dphi2 = (-dy, dx) (`second`)
+        """(`project`(q, f), `project_matrix`(q, K, f)), the arms' angles evaluated once."""
+        phi = self.phi(q)
+        dc = self.first(phi)
         fu = f[self.n_q:].reshape(len(self.dof), 2)
-        fx, fy = fu[:, 0], fu[:, 1]
-        out = f[: self.n_q].copy()
-        out[self.dof] += dx * fx + dy * fy
-        return out, self._project_matrix(None, K, (-dy) * fx + dx * fy, dense=dense, dxy=(dx, dy))
+        d2c = self.second(phi)
+        geo = fu[:, 0] * d2c[:, 0] + fu[:, 1] * d2c[:, 1]  # f_u . d2c/dphi2
+        return self._project(dc, f), self._project_matrix(dc, K, geo, dense=dense)
 
     def project_matrix_at(self, slopes: np.ndarray, K, *, dense: bool):
         """J^T K J with the arms' slopes dc/dphi (a, 2) at hand (`first`)."""
         return self._project_matrix(slopes, K, None, dense=dense)
 
-    def _project_matrix(self, dc: np.ndarray | None, K, geo: np.ndarray | None, *, dense: bool, dxy=None):
-        """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`; or its columns dxy)."""
-        dx, dy = (dc[:, 0], dc[:, 1]) if dxy is None else dxy
+    def _project_matrix(self, dc: np.ndarray, K, geo: np.ndarray | None, *, dense: bool):
+        """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`); dense for a dense
+        K when `dense`, else CSR (the rows and columns of the offsets folded onto their arm angle)."""
         if dense and not hasattr(K, "tocsr"):
-            J = self._jacobian_of(dx, dy)
+            J = self.dense_jacobian(slopes=dc)
             out = J.T @ np.asarray(K) @ J
             if geo is not None:
                 out[self.dof, self.dof] += geo
@@ -176,47 +161,16 @@ class ArmJoints:
         K = csr_matrix(K)
         fold, ptr, idx, diag = self._folding(K)
         w = np.ones(self.n_p)
-        w[self.slot], w[self.slot + 1] = dx, dy
+        w[self.slot], w[self.slot + 1] = dc[:, 0], dc[:, 1]
         rows = np.repeat(np.arange(self.n_p), np.diff(K.indptr))
         data = np.bincount(fold, weights=K.data * w[rows] * w[K.indices], minlength=len(idx))
         if geo is not None:
             data[diag] += geo
         return csr_matrix((data, idx, ptr), shape=(self.n_q, self.n_q))
 
-    def dense_jacobian(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None) -> np.ndarray:
-        """J = dp/dq (n_p, n_q) dense at q: the identity on q, the arms' slopes dc/dphi in the arm columns,
-        from `first` (a, 2) at q if given (slopes), else from q arm by arm on Python floats (`first`'s
-        formula: a drive has a few arms)."""
-        if slopes is not None:
-            return self._jacobian_of(slopes[:, 0], slopes[:, 1])
-        n_q = self.n_q
-        J = np.zeros((self.n_p, n_q))
-        J.ravel()[: n_q * (n_q + 1): n_q + 1] = 1.0  # the identity on q
-        for slot, dof, length, angle, _, _ in self._arm_floats:
-            phi = angle + q.item(dof)
-            J[slot, dof], J[slot + 1, dof] = -(length * math.sin(phi)), length * math.cos(phi)
-        return J
-
-    def _jacobian_of(self, dx: np.ndarray, dy: np.ndarray) -> np.ndarray:
-        """The dense jacobian (n_p, n_q) of the arms' slopes dc/dphi = (dx, dy) (a,) each."""
-        J = self._eye.copy()
-        J[self.slot, self.dof], J[self.slot + 1, self.dof] = dx, dy
-        return J
-
-    @functools.cached_property
-    def _eye(self) -> np.ndarray:
-        """np.eye(n_p, n_q), the dense jacobian's identity part (a copy is taken)."""
-        return np.eye(self.n_p, self.n_q)
-
     def _folding(self, K):
         """For a CSR pattern on p: the slot of each entry in the pattern on q (rows and columns of the
-        dependent offsets folded onto their arm angle), that pattern, and the arms' diagonal slots.
-        Cached per pattern."""
-        cache = self.__dict__.setdefault("_fold_cache", {})
-        key = (K.shape, K.nnz)
-        hit = cache.get(key)
-        if hit is not None and np.array_equal(hit[0], K.indptr) and np.array_equal(hit[1], K.indices):
-            return hit[2:]
+        dependent offsets folded onto their arm angle), that pattern, and the arms' diagonal slots."""
         to = np.arange(self.n_p)
         to[self.slot], to[self.slot + 1] = self.dof, self.dof
         rows = np.repeat(np.arange(self.n_p), np.diff(K.indptr))
@@ -227,9 +181,7 @@ class ArmJoints:
         np.add.at(ptr, r + 1, 1)
         ptr = np.cumsum(ptr)
         diag = np.searchsorted(uniq, self.dof * self.n_q + self.dof)
-        out = (fold.ravel(), ptr, c.astype(np.int64), diag)
-        cache[key] = (K.indptr.copy(), K.indices.copy(), *out)
-        return out
+        return fold.ravel(), ptr, c.astype(np.int64), diag
 
 
 def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoints | None = None) -> ArmJoints | None:
@@ -238,8 +190,8 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoint
     if like is not None:
         length, angle = _arm_geometry(cfg, layout, like.pulleys, like.pivot.tolist())
         return ArmJoints(dof=like.dof, slot=like.slot, pivot=like.pivot, length=length, angle=angle,
-                            n_q=like.n_q, n_p=like.n_p, friction=like.friction, stops=like.stops, names=like.names,
-                            pulleys=like.pulleys)
+                         n_q=like.n_q, n_p=like.n_p, friction=like.friction, stops=like.stops, names=like.names,
+                         pulleys=like.pulleys)
     arms = [j for j, p in enumerate(cfg.pulleys) if p.support == "arm"]
     if not arms:
         return None
@@ -247,11 +199,11 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoint
     pivots = [p.arm_pivot for p in ps]
     length, angle = _arm_geometry(cfg, layout, arms, pivots)
     return ArmJoints(dof=dofs.arm_dof[arms],
-                        slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64),
-                        pivot=np.array(pivots, dtype=float), length=length, angle=angle, n_q=dofs.n_q, n_p=dofs.n,
-                        friction=np.array([p.arm_friction for p in ps], dtype=float),
-                        stops=np.array([p.arm_range or (np.nan, np.nan) for p in ps], dtype=float),
-                        names=tuple(p.name for p in ps), pulleys=tuple(arms))
+                     slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64),
+                     pivot=np.array(pivots, dtype=float), length=length, angle=angle, n_q=dofs.n_q, n_p=dofs.n,
+                     friction=np.array([p.arm_friction for p in ps], dtype=float),
+                     stops=np.array([p.arm_range or (np.nan, np.nan) for p in ps], dtype=float),
+                     names=tuple(p.name for p in ps), pulleys=tuple(arms))
 
 
 def _arm_geometry(cfg: DriveConfig, layout: Layout, arms, pivots: list) -> tuple[np.ndarray, np.ndarray]:

@@ -1,18 +1,28 @@
 """The bar law of the belt: the one place where the axial force of a stretch is written.
 
 Nomenclature: stretch lambda = |r'| (current over reference length), Green-Lagrange strain
-eps = (lambda^2 - 1) / 2, true (Cauchy) axial force N = EA eps lambda (a St. Venant-Kirchhoff bar,
-paper Eqs. 12-14), its derivative dN/dlambda = EA (3 lambda^2 - 1) / 2, and the strain energy per
-unit reference length EA eps^2 / 2. The inverse lambda(N) solves lambda^3 - lambda - 2 N / EA = 0
-by Newton from `stretch_start`.
+eps = (lambda^2 - 1) / 2, second Piola-Kirchhoff force S = EA eps, true (Cauchy) axial force
+N = S lambda = EA eps lambda (a St. Venant-Kirchhoff bar, paper Eqs. 12-14), its derivative
+dN/dlambda = EA (3 lambda^2 - 1) / 2, the strain energy per unit reference length EA eps^2 / 2, and
+the Kelvin-Voigt force of a stretch rate lambda' with retardation time eta,
+N_d = EA eta lambda d(eps)/dt = EA eta lambda^2 lambda'. The inverse lambda(N) solves
+lambda^3 - lambda - 2 N / EA = 0 by Newton from `stretch_start`.
 
-Every function takes floats or numpy arrays (elementwise); the compiled kernels call the same
-functions through numba (`njit` of these sources).
+Every function takes floats or numpy arrays (elementwise) and is plain arithmetic, so the compiled
+kernels use these very functions through numba (`njit(barlaw.axial_force)`, `spring_kernel`); only
+`stretch_for_tension` and `stretch_start` are numpy-only (set-up and statics).
+
+The law is one choice: `LAWS` names the laws this module knows and `bar_law(name)` gives the
+functions of one (`BarLaw`). There is one law today, "green" (St. Venant-Kirchhoff); a second
+(e.g. "linear", N = EA (lambda - 1)) is one more entry of `bar_law`, and a caller that takes the
+law as a parameter (`bar_law(cfg...)`) needs no copy of its own. The module-level functions are the
+"green" law's.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -20,6 +30,12 @@ import numpy as np
 def strain(stretch):
     """Green-Lagrange strain eps = (lambda^2 - 1) / 2 of a stretch lambda."""
     return 0.5 * (stretch * stretch - 1.0)
+
+
+def second_piola_force(stretch, EA):
+    """Second Piola-Kirchhoff axial force S = EA eps (N) of a stretch lambda (the force per unit
+    reference section: the slack test of the belt and its springs)."""
+    return EA * (0.5 * (stretch * stretch - 1.0))
 
 
 def axial_force(stretch, EA):
@@ -38,40 +54,76 @@ def strain_energy_density(stretch, EA):
     return 0.5 * EA * eps * eps
 
 
+def viscous_force(stretch, stretch_rate, EA, eta):
+    """Kelvin-Voigt axial force N_d = EA eta lambda d(eps)/dt = EA eta lambda^2 lambda' (N) of a stretch
+    rate lambda' (1/s), retardation time eta (s)."""
+    return EA * eta * stretch * stretch * stretch_rate
+
+
 def stretch_start(x):
     """A start for the stretch lambda of a bar at N / EA = x (`stretch_for_tension`; a float or an
-    array): the series lambda = 1 + x - 3/2 x^2 + 4 x^3 + O(x^4) where the strain is small (one Newton
-    step then reaches round-off for |x| < 1e-2), 1 + x beyond."""
+    array, the same type back): the series lambda = 1 + x - 3/2 x^2 + 4 x^3 + O(x^4) where the strain
+    is small (one Newton step then reaches round-off for |x| < 1e-2), 1 + x beyond."""
     series = 1.0 + x * (1.0 - x * (1.5 - 4.0 * x))
-    if isinstance(x, float):
-        return series if abs(x) < 0.05 else 1.0 + x
-    return np.where(np.abs(x) < 0.05, series, 1.0 + x)
+    small = abs(x) < 0.05
+    if isinstance(small, bool):  # a Python number: the choice np.where makes elementwise, without its cost
+        return series if small else 1.0 + x
+    return np.where(small, series, 1.0 + x)[()]
 
 
 def stretch_for_tension(tension, EA: float):
-    """lambda with EA * eps * lambda = N, eps = (lambda^2 - 1)/2 (St. Venant-Kirchhoff bar); elementwise
-    for an array of tensions (a float for a float: plain Python arithmetic, no numpy call)."""
-    if not isinstance(tension, (float, int)) and np.size(tension) <= 16:  # a few: element by element in floats
-        T = np.asarray(tension, dtype=float)
-        if T.ndim == 0:
-            return stretch_for_tension(float(T), EA)
-        return np.array([stretch_for_tension(t, EA) for t in T.ravel().tolist()]).reshape(T.shape)
-    if isinstance(tension, (float, int)):  # from `stretch_start`
-        x = float(tension) / EA
-        lam = stretch_start(x)
-        largest = abs
-    else:
-        x = np.asarray(tension, dtype=float) / EA
-        lam = stretch_start(x)
+    """lambda with EA eps lambda = N, eps = (lambda^2 - 1)/2 (the inverse of `axial_force`), elementwise:
+    a float for a number, an array of the tensions' shape for an array (`_newton`, one code for both: a
+    number in Python floats, the statics' many one-tension calls). NaN where no stretch carries the
+    tension (the Newton step divides 0 by 0)."""
+    if isinstance(tension, (int, float)):
+        try:
+            return float(_newton(float(tension) / float(EA), abs))
+        except ZeroDivisionError:  # (a float's x / 0, where numpy's gives inf or nan)
+            return math.nan
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        lam = _newton(np.asarray(tension, dtype=float) / EA, _largest)
+    return float(lam) if np.ndim(lam) == 0 else lam
 
-        def largest(step):
-            return float(np.max(np.abs(step), initial=0.0))
-    try:
-        for _ in range(50):
-            step = (lam * lam * lam - lam - 2.0 * x) / (3.0 * lam * lam - 1.0)  # (a float's ** raises on overflow)
-            lam = lam - step
-            if largest(step) <= 1e-15:  # lambda ~ 1: a few ulp; Newton is quadratic well before
-                break
-    except ZeroDivisionError:  # a float's 0 / 0 or x / 0 where numpy's would give nan or inf
-        return math.nan
-    return lam if isinstance(lam, float) or np.ndim(lam) else float(lam)
+
+def _largest(step) -> float:
+    """max |step| of an array (0 for an empty one)."""
+    return float(np.max(np.abs(step), initial=0.0))
+
+
+def _newton(x, largest):
+    """lambda^3 - lambda - 2 x = 0 by Newton from `stretch_start`(x) (x = N / EA, a float or an array) until
+    the largest step (`largest`(step)) is <= 1e-15 (lambda ~ 1: a few ulp; Newton is quadratic well
+    before), at most 50 steps."""
+    lam = stretch_start(x)
+    for _ in range(50):
+        step = (lam * lam * lam - lam - 2.0 * x) / (3.0 * lam * lam - 1.0)  # (a float's ** raises on overflow)
+        lam = lam - step
+        if largest(step) <= 1e-15:
+            break
+    return lam
+
+
+class BarLaw(NamedTuple):
+    """The functions of one axial law, each as the module's function of the same name (floats or arrays;
+    all but `stretch_for_tension` compile with numba)."""
+
+    name: str
+    axial_force: Callable
+    axial_stiffness: Callable
+    second_piola_force: Callable
+    strain_energy_density: Callable
+    viscous_force: Callable
+    stretch_for_tension: Callable
+
+
+LAWS = ("green",)  # the axial laws known: "green", the St. Venant-Kirchhoff bar (module docstring)
+
+
+def bar_law(name: str = "green") -> BarLaw:
+    """The functions of the axial law `name` (one of `LAWS`); the one switch between laws."""
+    if name == "green":
+        return BarLaw(name=name, axial_force=axial_force, axial_stiffness=axial_stiffness,
+                      second_piola_force=second_piola_force, strain_energy_density=strain_energy_density,
+                      viscous_force=viscous_force, stretch_for_tension=stretch_for_tension)
+    raise ValueError(f"unknown axial law {name!r}: one of {', '.join(LAWS)}")

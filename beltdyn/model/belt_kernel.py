@@ -49,13 +49,11 @@ compiled functions do not check shapes; outputs are written (not accumulated) un
 
 from __future__ import annotations
 
-import sys
 from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
 
-from beltdyn import jitcache
 from beltdyn.jitcache import configure, kernel_options
 
 
@@ -561,5 +559,3 @@ def reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI,
     f_out[:] = 0.0
     scatter_vector(fe, T, idx, tsel, f_out)
     reduce_blocks(Ke, T, tsel, blocks_out, work.W)
-
-

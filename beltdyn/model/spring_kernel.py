@@ -1,26 +1,32 @@
-"""Compiled (numba) forces of the spring spans for the time stepper: `system.SpringSpans` in loops.
+"""Compiled (numba) forces of the spring spans for the time stepper: `springs.SpringSpans` in loops.
 
-Nomenclature as `system.SpringSpans`: per spring span k, end positions x = x0 + T p[idx] (4,),
-chord d = x[2:4] - x[0:2] = d0 + D p[idx] (D = T[2:4] - T[0:2], precomputed), l = |d|, u = d / l, stretch lam = l / L, Green-Lagrange strain
-eps = (lam^2 - 1) / 2, true axial force N = EA eps lam, Kelvin-Voigt N_d = EA eta lam^2 (u . d') / L,
-strain energy EA L eps^2 / 2. The end forces [-N u, N u] go back through T^T. Held equal to the
-numpy `SpringSpans` by tests/test_ladder.py.
+Nomenclature as `springs.SpringSpans`: per spring span k, end positions x = x0 + T p[idx] (4,),
+chord d = x[2:4] - x[0:2] = d0 + D p[idx] (D = T[2:4] - T[0:2], precomputed), l = |d|, u = d / l,
+stretch lam = l / L, stretch rate lam' = (u . d') / L. The bar law is `barlaw`'s, compiled here from
+its very functions (`axial_force`: N, `viscous_force`: N_d, `strain_energy_density`: the energy per
+unit length, `second_piola_force`: S = EA eps); the end forces [-N u, N u] go back through T^T. Held
+equal to the numpy `SpringSpans` on random states by tests/test_springs.py.
 
 `SpringData` is a field of `integrator.BeltData` (`springs`); no spring spans: k = 0 (`no_springs`).
 """
 
 from __future__ import annotations
 
-import sys
 from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
-from beltdyn import jitcache
 from beltdyn.jitcache import kernel_options
+from beltdyn.model import barlaw
 
 KERNEL = kernel_options()  # the njit options of this module's kernels (numba loaded)
+
+# the bar law, compiled from barlaw's functions (the one place it is written)
+axial_force_kernel = njit(**KERNEL)(barlaw.axial_force)
+viscous_force_kernel = njit(**KERNEL)(barlaw.viscous_force)
+energy_density_kernel = njit(**KERNEL)(barlaw.strain_energy_density)
+second_piola_kernel = njit(**KERNEL)(barlaw.second_piola_force)
 
 
 # D (k, 2, m) the chord d = x[2:4] - x[0:2] per joint coordinate, idx (k, m) (padding n), d0 (k, 2) the chord at
@@ -67,7 +73,7 @@ def spring_forces(sp, q_ext, v_ext, f_el, f_dmp, gross, with_gross):
         l = np.sqrt(dx * dx + dy * dy)
         ux, uy = dx / l, dy / l
         lam = l / sp.L[k]
-        N = sp.EA * 0.5 * (lam * lam - 1.0) * lam
+        N = axial_force_kernel(lam, sp.EA)
         Nd = 0.0
         if sp.eta != 0.0:
             vx, vy = 0.0, 0.0
@@ -75,7 +81,7 @@ def spring_forces(sp, q_ext, v_ext, f_el, f_dmp, gross, with_gross):
                 vj = v_ext[sp.idx[k, j]]
                 vx += sp.D[k, 0, j] * vj
                 vy += sp.D[k, 1, j] * vj
-            Nd = sp.EA * sp.eta * lam * lam * (ux * vx + uy * vy) / sp.L[k]
+            Nd = viscous_force_kernel(lam, (ux * vx + uy * vy) / sp.L[k], sp.EA, sp.eta)
         for j in range(m):
             c = sp.D[k, 0, j] * ux + sp.D[k, 1, j] * uy  # u . d(chord)/dp_j
             f_el[sp.idx[k, j]] += N * c
@@ -91,8 +97,7 @@ def spring_energy(sp, q_ext):
     for k in range(sp.D.shape[0]):
         dx, dy = _chord(sp, k, q_ext)
         lam = np.sqrt(dx * dx + dy * dy) / sp.L[k]
-        eps = 0.5 * (lam * lam - 1.0)
-        total += 0.5 * sp.EA * sp.L[k] * eps * eps
+        total += energy_density_kernel(lam, sp.EA) * sp.L[k]
     return total
 
 
@@ -103,9 +108,7 @@ def spring_min_force(sp, q_ext, min_span):
     for k in range(sp.D.shape[0]):
         dx, dy = _chord(sp, k, q_ext)
         lam = np.sqrt(dx * dx + dy * dy) / sp.L[k]
-        v = sp.EA * 0.5 * (lam * lam - 1.0)
+        v = second_piola_kernel(lam, sp.EA)
         s = sp.span[k]
         if v < min_span[s]:
             min_span[s] = v
-
-

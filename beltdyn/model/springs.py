@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from beltdyn.config import DriveConfig
-from beltdyn.model.belt import NORMAL_SIGNS, span_stretch_of, transposed
+from beltdyn.model import barlaw
+from beltdyn.model.belt import NORMAL_SIGNS, span_stretch_of
 from beltdyn.model.dofs import DofMap
 from beltdyn.model.geometry import Layout
 
@@ -24,16 +24,19 @@ class SpringSpans:
     Nomenclature, per spring span (k of them): end positions x = [r_a, r_b] (4,) = x0 + T p[idx], the
     span's tangent points on its two pulleys through the same constant-Jacobian joints as an ANCF
     span's end nodes (`joint_pairs`; T (k, 4, m), idx (k, m), padding index n_dof); chord d = r_b - r_a,
-    l = |d|, u = d / l; reference length L; stretch lam = l / L; Green-Lagrange strain
-    eps = (lam^2 - 1) / 2 (the ANCF law of a uniformly stretched span); strain energy U = EA L eps^2 / 2;
-    true axial force N = dU/dl = EA eps lam, on the ends f = dU/dx = N [-u, u]. Tangent
-    K = [[K2, -K2], [-K2, K2]], K2 = k_a u u^T + (N / l) (I - u u^T), k_a = dN/dl = EA (3 lam^2 - 1) / (2 L)
+    l = |d|, u = d / l; reference length L; stretch lam = l / L; the bar law of `barlaw` (the ANCF law
+    of a uniformly stretched span): Green-Lagrange strain eps = (lam^2 - 1) / 2, strain energy
+    U = L EA eps^2 / 2, true axial force N = dU/dl = EA eps lam, on the ends f = dU/dx = N [-u, u]. Tangent
+    K = [[K2, -K2], [-K2, K2]], K2 = k_a u u^T + (N / l) (I - u u^T), k_a = dN/dl = (dN/dlam) / L
     along the chord and N / l (the string's geometric stiffness) across it. Kelvin-Voigt damping as the
-    belt's: N_d = EA eta lam d(eps)/dt = EA eta lam^2 (u . d') / L along u. Mass: the span's rho L lumped
+    belt's: N_d = EA eta lam^2 lam' with lam' = (u . d') / L along u. Mass: the span's rho L lumped
     at its ends, rho L / 2 on each tangent point, which moves with its pulley (no DOFs of its own, no
     transverse modes). A spring also carries compression, where a belt would go slack: the static
     analysis refuses a compressed span, the transient records it as a slack event. Evaluated in numpy
-    here (static, modal) and by `spring_kernel` in the time stepper, held equal by the tests.
+    here (static, modal: one implementation, every state shape) and by `spring_kernel` in the time
+    stepper, held equal on random states by tests/test_springs.py. Immutable: what derives from the
+    fields (D = dd/dp, the lumped masses, the transport blocks) is computed where it is used (a few
+    small arrays).
 
     Running belt (`running`): the material flows through the chord at c (m/s of undeformed length), so
     each lumped end moves at x' + c d / L. Its kinetic energy's terms in c are those of the ANCF span
@@ -64,8 +67,8 @@ class SpringSpans:
 
     @property
     def Tt(self) -> np.ndarray:
-        """(k, m, 4) transposed end transformation."""
-        return transposed(self.T)
+        """(k, m, 4) transposed end transformation (a view)."""
+        return self.T.transpose(0, 2, 1)
 
     def positions(self, p: np.ndarray) -> np.ndarray:
         """x (k, 4) at the joint coordinates p (n_dof,)."""
@@ -88,14 +91,13 @@ class SpringSpans:
         """u (..., k, 2), l, lam, eps, N (..., k) at end positions X (..., k, 4)."""
         u, l = self.chord(X)
         lam = l / self.reference_length
-        eps = 0.5 * (lam * lam - 1.0)
-        return u, l, lam, eps, self.EA * eps * lam
+        return u, l, lam, barlaw.strain(lam), barlaw.axial_force(lam, self.EA)
 
     def damping_force(self, X: np.ndarray, Xd: np.ndarray) -> np.ndarray:
         """N_d (..., k) of end velocities Xd."""
         u, l, lam, _, _ = self.axial(X)
-        rate = np.einsum("...d,...d->...", u, Xd[..., 2:4] - Xd[..., 0:2])
-        return self.EA * self.damping_axial * lam * lam * rate / self.reference_length
+        rate = np.einsum("...d,...d->...", u, Xd[..., 2:4] - Xd[..., 0:2]) / self.reference_length
+        return barlaw.viscous_force(lam, rate, self.EA, self.damping_axial)
 
     def reduce_vector(self, fe: np.ndarray) -> np.ndarray:
         """sum_k T^T fe (k, 4) -> (n_dof,)."""
@@ -126,7 +128,7 @@ class SpringSpans:
         """Reduced elastic force (n_dof,) and the tangent blocks T^T K_e T (k, m, m), through the chord's
         map D: T^T [[K2, -K2], [-K2, K2]] T = D^T K2 D."""
         f, u, l, lam, N = self._force(p)
-        k_a = self.EA * (3.0 * lam * lam - 1.0) / (2.0 * self.reference_length)
+        k_a = barlaw.axial_stiffness(lam, self.EA) / self.reference_length
         uu = u[:, :, None] * u[:, None, :]
         K2 = k_a[:, None, None] * uu + (N / l)[:, None, None] * (_EYE2 - uu)
         return f, np.matmul(np.matmul(self.chord_map_t, K2), self.chord_map)
@@ -138,13 +140,13 @@ class SpringSpans:
 
     @property
     def chord_map_t(self) -> np.ndarray:
-        """D^T (k, m, 2), contiguous."""
-        return transposed(self.chord_map)
+        """D^T (k, m, 2) (a view of a new `chord_map`)."""
+        return self.chord_map.transpose(0, 2, 1)
 
     def damping_blocks(self, p: np.ndarray) -> np.ndarray:
         """(k, m, m) the damping matrix dN_d/d(x') through the joints at p (Kelvin-Voigt)."""
         u, _, lam, _, _ = self.axial(self.positions(p))
-        c = self.EA * self.damping_axial * lam * lam / self.reference_length
+        c = barlaw.viscous_force(lam, 1.0 / self.reference_length, self.EA, self.damping_axial)  # dN_d/d(u . d')
         return self.reduce_blocks(self._pair(c[:, None, None] * u[:, :, None] * u[:, None, :]))
 
     def mass_blocks(self) -> np.ndarray:
@@ -188,8 +190,8 @@ class SpringSpans:
         return np.bincount(self.idx.ravel(), weights=fr.ravel(), minlength=self.n_dof + 1)[: self.n_dof]
 
     def strain_energy(self, p: np.ndarray) -> float:
-        _, _, _, eps, _ = self.axial(self.positions(p))
-        return float((0.5 * self.EA * self.reference_length * eps * eps).sum())
+        lam = self.axial(self.positions(p))[2]
+        return float((barlaw.strain_energy_density(lam, self.EA) * self.reference_length).sum())
 
     def tension_integral(self, p: np.ndarray, *, gradient: bool = True) -> tuple[float, np.ndarray | None]:
         """sum_k N_k L_k (N m) and its gradient (n_dof,) (None without gradient): the springs' share of the
@@ -197,14 +199,12 @@ class SpringSpans:
         u, _, lam, _, N = self.axial(self.positions(p))
         if not gradient:
             return float((N * self.reference_length).sum()), None
-        k_a = self.EA * (3.0 * lam * lam - 1.0) / (2.0 * self.reference_length)
-        g = (k_a * self.reference_length)[:, None] * u
+        g = barlaw.axial_stiffness(lam, self.EA)[:, None] * u  # d(N L)/dl = dN/dlam
         return float((N * self.reference_length).sum()), self.reduce_vector(np.concatenate([-g, g], axis=1))
 
     @property
     def span_rows(self) -> slice | np.ndarray:
-        """Where the springs' rows go among the spans: `span`, or a slice when every span is a spring
-        """
+        """Where the springs' rows go among the spans: `span`, or a slice when every span is a spring."""
         return slice(None) if len(self.span) == self.n_span else self.span  # (span: ascending, distinct)
 
     def scatter(self, x: np.ndarray) -> np.ndarray:
@@ -222,11 +222,17 @@ class SpringSpans:
         u, _, _, _, N = self.axial(X)
         if Xd is not None and self.damping_axial > 0.0:
             N = N + self.damping_force(X, Xd)
+        return self._end_forces_of(u, N, gravity)
+
+    def _end_forces_of(self, u: np.ndarray, N: np.ndarray, gravity: np.ndarray) -> np.ndarray:
+        """(B, n_span, 2, 2) end forces [-N u - w, N u - w] (w: the lumped ends' weight) of chord directions
+        u (B, k, 2) and axial forces N (B, k); zeros for the other spans."""
         w = self.end_mass[None, :, None] * np.asarray(gravity, dtype=float)
         Nu = N[..., None] * u
-        out = np.zeros((X.shape[0], self.n_span, 2, 2))
-        out[:, self.span_rows, 0] = -Nu - w
-        out[:, self.span_rows, 1] = Nu - w
+        rows = self.span_rows
+        out = np.zeros((u.shape[0], self.n_span, 2, 2))
+        out[:, rows, 0] = -Nu - w
+        out[:, rows, 1] = Nu - w
         return out
 
     def end_inertia(self, Xa: np.ndarray) -> np.ndarray:
@@ -237,37 +243,24 @@ class SpringSpans:
     def end_tensions(self, X: np.ndarray, F_end: np.ndarray) -> np.ndarray:
         """(B, n_span, 2) span tensions at the ends of the spring spans (zeros elsewhere) from the end
         forces F_end (B, n_span, 2, 2): N_start = -F_start . u, N_end = F_end . u."""
-        u = self.chord(X)[0]
-        F = F_end[:, self.span_rows]
-        out = np.zeros((X.shape[0], self.n_span, 2))
-        out[:, self.span_rows, 0] = -np.einsum("bkd,bkd->bk", F[:, :, 0], u)
-        out[:, self.span_rows, 1] = np.einsum("bkd,bkd->bk", F[:, :, 1], u)
+        return self._end_tensions_of(self.chord(X)[0], F_end)
+
+    def _end_tensions_of(self, u: np.ndarray, F_end: np.ndarray) -> np.ndarray:
+        """`end_tensions` of the chord directions u (B, k, 2)."""
+        rows = self.span_rows
+        F = F_end[:, rows]
+        out = np.zeros((u.shape[0], self.n_span, 2))
+        out[:, rows, 0] = -np.einsum("bkd,bkd->bk", F[:, :, 0], u)
+        out[:, rows, 1] = np.einsum("bkd,bkd->bk", F[:, :, 1], u)
         return out
 
     def static_ends(self, p: np.ndarray, gravity: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """At the joint coordinates p (n_dof,), the chord evaluated once: the spring spans' end forces
         (n_span, 2, 2) (`end_forces` without damping), their end tensions (n_span, 2) (`end_tensions`),
         zeros for the other spans, and sum_k N_k L_k (N m) (`tension_integral`)."""
-        gx, gy = (float(g) for g in gravity)
-        EA, half_rho = self.EA, 0.5 * self.rho
-        F, T, NL = [], [], 0.0
-        for (xa, ya, xb, yb), L in zip(self.positions(p).tolist(), self.reference_length.tolist()):  # (a few spans)
-            dx, dy = xb - xa, yb - ya
-            l = math.sqrt(dx * dx + dy * dy)
-            ux, uy = dx / l, dy / l
-            lam = l / L
-            N = EA * (0.5 * (lam * lam - 1.0)) * lam
-            m = half_rho * L  # the lumped ends' weight m g
-            wx, wy, Nux, Nuy = m * gx, m * gy, N * ux, N * uy
-            f0x, f0y, f1x, f1y = -Nux - wx, -Nuy - wy, Nux - wx, Nuy - wy
-            F.append(((f0x, f0y), (f1x, f1y)))
-            T.append((-(f0x * ux + f0y * uy), f1x * ux + f1y * uy))
-            NL += N * L
-        if len(self.span) == self.n_span:
-            return np.array(F), np.array(T), NL
-        F_all, T_all = np.zeros((self.n_span, 2, 2)), np.zeros((self.n_span, 2))
-        F_all[self.span], T_all[self.span] = F, T
-        return F_all, T_all, NL
+        u, _, _, _, N = self.axial(self.positions(p)[None])
+        F = self._end_forces_of(u, N, gravity)
+        return F[0], self._end_tensions_of(u, F)[0], float((N[0] * self.reference_length).sum())
 
     def kinetic_energy_split(self, P: np.ndarray) -> np.ndarray:
         """(k, 2, B): the lumped masses' quadratic energy form dX^T M dX along (0) and across (1) the chord
@@ -305,21 +298,21 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     if len(spans) < n:  # (every span a spring: the layout's arrays as they are)
         reference_length, direction = reference_length[sp], direction[sp]
         start, end, start_normal, end_normal = start[sp], end[sp], start_normal[sp], end_normal[sp]
-    T = T.copy()  # the rotation columns R (z x n) = R (-n_y, n_x) of each end (`joint_pairs`): the layout's
+    # the rotation columns R (z x n) = R (-n_y, n_x) of each end (`joint_pairs`): the layout's
     normal = np.concatenate([start_normal, end_normal])  # (2k, 2)
     T.ravel()[at] = (normal[:, ::-1] * NORMAL_SIGNS * layout.radius[pulley][:, None]).ravel()
     return SpringSpans(span=sp, T=T, idx=idx, x0=np.concatenate([start, end], axis=1),
-                        reference_length=reference_length, reference_direction=direction, EA=float(cfg.belt.EA),
-                        rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=n, damping_axial=0.0,
-                        EI=float(cfg.belt.EI), curvature=cfg.model.curvature)
+                       reference_length=reference_length, reference_direction=direction, EA=float(cfg.belt.EA),
+                       rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=n, damping_axial=0.0,
+                       EI=float(cfg.belt.EI), curvature=cfg.model.curvature)
 
 
 def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.ndarray, np.ndarray, tuple]:
-    """The parts of the spring spans' joints that the DOF map fixes (`joint_pairs`) (read-only):
-    idx (k, m) the joint coordinates of each span, its start's columns (rotation, then the pulley's
-    translations) before its end's, padded with n_dof; T (k, 4, m) with the translations' directions and
-    zero rotation columns; and where the rotation columns' entries are in T's flat order ((4k,): the x and
-    y rows of each end) and their pulleys (2k,), the k starts, then the k ends."""
+    """The parts of the spring spans' joints that the DOF map fixes (`joint_pairs`): idx (k, m) the joint
+    coordinates of each span, its start's columns (rotation, then the pulley's translations) before its
+    end's, padded with n_dof (read-only); T (k, 4, m) with the translations' directions and zero rotation
+    columns (a new array, for the caller to fill); and where the rotation columns' entries are in T's
+    flat order ((4k,): the x and y rows of each end) and their pulleys (2k,), the k starts, then the k ends."""
     k = len(spans)
     ends = [(s, (s + 1) % n) for s in spans]
     m = max(2 + len(dofs.trans_dof[a]) + len(dofs.trans_dof[b]) for a, b in ends)
@@ -335,11 +328,9 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
                 idx[i, col] = dof
                 T[i, 2 * side: 2 * side + 2, col] = v
             col += 1
-    for a in (idx, T):
-        a.setflags(write=False)
+    idx.setflags(write=False)
     sp = np.array(spans, dtype=np.int64)
     rows = np.repeat([0, 2], k)
     at = np.ravel_multi_index((np.repeat(np.tile(np.arange(k), 2), 2), np.stack([rows, rows + 1], axis=1).ravel(),
                                np.repeat(rot_col.ravel(), 2)), T.shape)
     return idx, T, (at, np.concatenate([sp, (sp + 1) % n]))
-
