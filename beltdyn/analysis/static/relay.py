@@ -102,7 +102,7 @@ def _adjust_offset(plan: _Plan, old: Layout, centers: np.ndarray) -> float | Non
         return None
     if old.adjust_kind == "arm":  # the further turn of the arm about its pivot
         pv = plan.system.arms.pivot[plan.arm_of[d.trans_dof[a][0]]]
-        return old.adjust_offset + float(wrap_angle(pivot_angle(centers[a], pv) - pivot_angle(old.center[a], pv)))
+        return float(wrap_angle(old.adjust_offset + pivot_angle(centers[a], pv) - pivot_angle(old.center[a], pv)))
     return old.adjust_offset + float((centers[a] - old.center[a]) @ d.trans_dir[a][0])
 
 
@@ -178,7 +178,7 @@ def _adjust_fit(plan: _Plan):
                                arc_weight=lam_T, orientation=lay0.orientation, pivot=pivot,
                                base=lay0 if np.array_equal(centers, lay0.center) else None)
         if pivot is not None:
-            lay_f = replace(lay_f, adjust_offset=lay0.adjust_offset + lay_f.adjust_offset)
+            lay_f = replace(lay_f, adjust_offset=float(wrap_angle(lay0.adjust_offset + lay_f.adjust_offset)))
         return lay_f
     return fit
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from beltdyn.errors import SolverError
-from beltdyn.model.angles import unwrap_near
+from beltdyn.model.angles import unwrap_near, wrap_angle
 from beltdyn.model.slip import required_friction, slip_margin
 from beltdyn.model.system import System
 
@@ -115,7 +115,7 @@ def static_result(model: System, q, preload, hist_r, hist_l, iterations, driver_
     if a is None:
         offset = 0.0
     elif lay.adjust_kind == "arm":
-        offset = lay.adjust_offset + float(q[model.dofs.arm_dof[a]])
+        offset = float(wrap_angle(lay.adjust_offset + float(q[model.dofs.arm_dof[a]])))  # a turn: a direction
     else:
         offset = lay.adjust_offset + float(q[model.trans_dof[a][0]])
 
