@@ -88,8 +88,7 @@ def loop_orientation(center: np.ndarray) -> int:
     area2 = float(np.dot(x, y[nxt]) - np.dot(x[nxt], y))
     if area2 >= 0.0:  # counter-clockwise: the size of the drive only decides a negative area
         return 1
-    xs, ys = center.T.tolist()
-    scale = max(max(xs) - min(xs), max(ys) - min(ys)) ** 2
+    scale = float(np.ptp(center, axis=0).max()) ** 2
     return -1 if area2 < -1e-12 * max(scale, 1e-300) else 1
 
 
