@@ -366,7 +366,7 @@ TRANSIENT_SMALL = ROOT / "configs" / "examples" / "bench_transient_small.toml"
 
 
 def _declared_classes():
-    from beltdyn import config as c
+    from beltdyn.config import schema as c
 
     return [c.Belt, c.Pulley, c.Tension, c.Mesh, c.ModelOptions, c.StaticOptions, c.ModalOptions, c.Rotation,
             c.Record, c.Damping, c.SpectrumOptions, c.TransientOptions, c.SweepTable, c.DriveConfig,

@@ -178,28 +178,3 @@ def test_infeasible_layouts_raise(c, r, side, key):
         assert err.value.key == key
 
 
-@pytest.mark.parametrize("config", ["examples/fead_4cyl.toml", "paper/bench_T200.toml",
-                                    "examples/three_pulley_tensioner.toml"])
-@settings(max_examples=15, deadline=None)
-@given(data=st.data())
-def test_moving_pulley_path_equals_the_full_layout(config, data):
-    # MovingPulley recomputes only pulley j's two spans and three wraps in floats: against the whole
-    # layout laid anew (`relay`, unchecked) with pulley j moved up to 5 mm, angles, lengths and arcs
-    # agree to 1e-12 (rad, m).
-    from beltdyn.model.geometry import MovingPulley, relay
-
-    lay = layout_from_config(load_config(CONFIGS / config))
-    j = data.draw(st.integers(0, lay.n - 1))
-    dx, dy = data.draw(st.floats(-5e-3, 5e-3)), data.draw(st.floats(-5e-3, 5e-3))
-    center = lay.center.copy()
-    center[j] += (dx, dy)
-    full = relay(lay, center, check=False)
-    angle, length, arc = MovingPulley(lay, j).at(float(center[j, 0]), float(center[j, 1]))
-    turn = (np.array(angle) - full.span_angle + np.pi) % (2 * np.pi) - np.pi
-    assert np.abs(turn).max() <= 1e-12
-    np.testing.assert_allclose(length, full.span_length, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(arc, full.arc_length, rtol=0, atol=1e-12)
-    # of_centres lays the whole path in floats: the layout's numbers (1e-14)
-    path = MovingPulley.of_centres(center, lay.radius, lay.side_sign, lay.orientation, j)
-    for got, want in ((path.angle, full.span_angle), (path.length, full.span_length), (path.arc, full.arc_length)):
-        np.testing.assert_allclose(got, want, rtol=0, atol=1e-14)

@@ -394,18 +394,18 @@ def test_bearing_forces_balance_the_belt_on_the_solved_layout():
 
 @pytest.mark.parametrize("where", [0, 1, 2])
 def test_carried_reference_refuses_a_span_without_a_length(where):
-    # The rigid-belt prediction carries the reference lengths to an unchecked iterate's path (`_carried`,
-    # floats): a span whose carried length is not a positive number (NaN: the angle of an iterate's span
+    # The rigid-belt prediction carries the reference lengths to an unchecked iterate's path
+    # (`tension.carried_lengths`): a span whose carried length is not a positive number (NaN: the angle of an iterate's span
     # between coincident centres) is refused by name (SolverError, which the prediction catches and
     # starts from the L0 fit), wherever it sits in the loop; as the array version (`np.all(out > 0)`).
-    from beltdyn.analysis.static import _carried
+    from beltdyn.analysis.static.tension import carried_lengths as _carried
 
     old = [0.1, 1.7, 3.5]
     new = old.copy()
     new[where] = float("nan")
     with pytest.raises(SolverError, match=f"span S{where}"):
         _carried(old, new, [0.05, 0.08, -0.03], [0.4, 0.5, 0.6], lambda s: f"S{s}")
-    assert _carried(old, old, [0.05, 0.08, -0.03], [0.4, 0.5, 0.6], str) == [0.4, 0.5, 0.6]  # (no turn: unchanged)
+    assert _carried(old, old, [0.05, 0.08, -0.03], [0.4, 0.5, 0.6], str).tolist() == [0.4, 0.5, 0.6]  # (no turn: unchanged)
 
 
 @pytest.mark.parametrize("shrink", [0.9999, 0.997, 0.98, 0.8])
@@ -413,7 +413,7 @@ def test_conserved_tension_meets_its_definition(shrink):
     # _conserved_tension: span tensions T_ref + split whose stretches lambda(T) (EA eps lambda = T) on
     # the reference lengths fill the path: sum_s lambda_s reference_s = sum_s L_s (relative 1e-14), the
     # split kept exactly, from small strains (the series start) to 20 % (the solved stretches start).
-    from beltdyn.analysis.static import _conserved_tension
+    from beltdyn.analysis.static.tension import conserved_tension as _conserved_tension
     from beltdyn.model.barlaw import stretch_for_tension
 
     EA, L = 1.2e5, [0.30, 0.25, 0.12, 0.08, 0.21]

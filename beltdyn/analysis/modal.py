@@ -31,7 +31,6 @@ the envelope |w(x)| (a travelling wave has no fixed nodes).
 from __future__ import annotations
 
 import functools
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -160,8 +159,7 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
         w, v = w[order], v[:, order]
         name = "sparse"
     tol = zero_tolerance(float(np.maximum.reduce(K.diagonal() / M.diagonal())))  # (dense or sparse)
-    wl = w.tolist()  # (a few numbers: Python floats)
-    if wl[0] < -tol:  # (w ascending)
+    if w[0] < -tol:  # (w ascending)
         i = int(np.argmin(w))
         dof = model.dof_labels[int(np.argmax(np.abs(v[:, i])))]
         raise SolverError(
@@ -169,16 +167,15 @@ def solve_modes(model: System, q: np.ndarray, *, n_modes: int, solver: str = "au
             f"slack span?)", analysis="modal", item=dof)
     # the zero modes lead: w ascends from above -tol, so the candidates |w| <= tol come first, and
     # `zero_modes` keeps the smallest of them up to a gap
-    n_rigid = 0
-    while n_rigid < len(wl) and abs(wl[n_rigid]) <= tol:
-        n_rigid += 1
+    small = np.abs(w) <= tol
+    n_rigid = int(np.argmin(small)) if not small.all() else len(w)  # the leading run of |w| <= tol
     if n_rigid > 1:
         n_rigid = int(np.count_nonzero(zero_modes(w, tol)))
         if n_rigid > 1:  # beyond the belt turning with the pulleys: a mechanism (no stiffness somewhere)
             _mechanism(model, v[:, :n_rigid], np.asarray(M.diagonal()))
     shapes = v.T[n_rigid: n_rigid + n_modes].copy()
     # sqrt |omega^2| / 2 pi: the zero modes' round-off and the elastic modes' frequencies (their w > 0)
-    root = np.array([math.sqrt(abs(x)) / TWO_PI for x in wl[: n_rigid + n_modes]])
+    root = np.sqrt(np.abs(w[: n_rigid + n_modes])) / TWO_PI
     freq = root[n_rigid:]
     kind, order, span, label, share, sshare, mid = _shape_outputs(
         model, q, shapes, freq, slopes=slopes, joint=None if J is None else shapes @ J.T)

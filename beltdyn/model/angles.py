@@ -8,6 +8,11 @@ import math
 TWO_PI = 2.0 * math.pi
 
 
+def wrap_angle(angle):
+    """angle wrapped to [-pi, pi) (a float or an array, elementwise): a turn as a direction change."""
+    return (angle + math.pi) % TWO_PI - math.pi
+
+
 def unwrap_near(angle: float, ref: float) -> float:
     """angle + 2 pi k, the one nearest to ref."""
     return float(angle + TWO_PI * round((ref - angle) / TWO_PI))

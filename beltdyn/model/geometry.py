@@ -26,7 +26,7 @@ import numpy as np
 
 from beltdyn.config import DriveConfig
 from beltdyn.errors import ConfigError
-from beltdyn.model.angles import TWO_PI, pivot_angle, unwrap_near
+from beltdyn.model.angles import TWO_PI, pivot_angle, unwrap_near, wrap_angle
 
 
 
@@ -88,8 +88,7 @@ def loop_orientation(center: np.ndarray) -> int:
     area2 = float(np.dot(x, y[nxt]) - np.dot(x[nxt], y))
     if area2 >= 0.0:  # counter-clockwise: the size of the drive only decides a negative area
         return 1
-    xs, ys = center.T.tolist()
-    scale = max(max(xs) - min(xs), max(ys) - min(ys)) ** 2
+    scale = float(np.ptp(center, axis=0).max()) ** 2
     return -1 if area2 < -1e-12 * max(scale, 1e-300) else 1
 
 
@@ -303,77 +302,139 @@ def _not_own(n: int) -> np.ndarray:
     return out
 
 
-def span_line(x0: float, y0: float, rho0: float, x1: float, y1: float, rho1: float) -> tuple[float, float]:
-    """(angle, length) of the tangent line from a pulley at (x0, y0) of signed radius rho0 to one at
-    (x1, y1) of rho1 (the module docstring), in Python floats; q clipped to [-1, 1] as in an unchecked
-    `compute_layout`, nan for coincident centres."""
-    dx, dy = x1 - x0, y1 - y0
-    dist = math.hypot(dx, dy)
-    if not dist > 0.0:
-        return math.nan, math.nan
-    drho = rho0 - rho1
-    q = drho / dist
-    h2 = dist * dist - drho * drho
-    return (math.atan2(dy, dx) + math.asin(-1.0 if q < -1.0 else 1.0 if q > 1.0 else q),
-            math.sqrt(0.0 if h2 < 0.0 else h2))  # the clips of min(max(...)) (NaN passes), without the calls
-
-
-class MovingPulley:
-    """The belt path while pulley j alone moves from a base layout: the spans j-1 and j and the wraps
-    of pulleys j-1, j, j+1 recomputed in Python floats, the rest kept. For the iterates of the L0 fit
-    and of a tensioner arm's balance (a handful of numbers: numpy calls would cost more than the
-    arithmetic); the answer is laid out in full (`compute_layout`). Unchecked, like an iterate of
-    `compute_layout(check=False)`."""
-
-    def __init__(self, base: Layout, j: int) -> None:
-        self._set(base.center, base.radius, base.side_sign, base.orientation, j)
-        self.angle = base.span_angle.tolist()  # (n,) the base layout's, replaced at j-1 and j by `at`
-        self.length = base.span_length.tolist()
-        self.arc = base.arc_length.tolist()
-
-    @classmethod
-    def of_centres(cls, center: np.ndarray, radius: np.ndarray, side_sign: np.ndarray, orientation: int,
-                   j: int) -> "MovingPulley":
-        """The same from the pulleys (center (n, 2), radius (n,), side_sign (n,)) without a base layout:
-        every span and wrap in floats (an unchecked `compute_layout`)."""
-        self = cls.__new__(cls)
-        self._set(center, radius, side_sign, orientation, j)
-        c, rho = self.center, self.rho
-        lines = [span_line(x0, y0, r0, x1, y1, r1)
-                 for (x0, y0), r0, (x1, y1), r1 in zip(c, rho, c[1:] + c[:1], rho[1:] + rho[:1])]
-        self.angle = [a for a, _ in lines]
-        self.length = [ell for _, ell in lines]
-        self.arc = [r * ((t * (a - b)) % TWO_PI)
-                    for r, t, a, b in zip(self.radius, self.turn_sign, self.angle, self.angle[-1:] + self.angle[:-1])]
-        return self
-
-    def _set(self, center: np.ndarray, radius: np.ndarray, side_sign: np.ndarray, orientation: int, j: int) -> None:
-        n = len(radius)
-        self.j, self.n, self.o = j, n, orientation
-        self.turn_sign = [orientation * v for v in side_sign.tolist()]  # o sigma of each pulley
-        self.radius = radius.tolist()
-        self.rho = [t * r for t, r in zip(self.turn_sign, self.radius)]
-        self.center = center.tolist()
-        self.prev, self.next = (j - 1) % n, (j + 1) % n
-        self.wrapped = sorted({self.prev, j, self.next})  # pulleys whose wrap changes
-        self._wraps = [(i, self.radius[i], self.turn_sign[i]) for i in self.wrapped]
-
-    def at(self, x: float, y: float) -> tuple[list[float], list[float], list[float]]:
-        """(span angles, span lengths, arc lengths), each (n,) lists, with pulley j's centre at (x, y)."""
-        j, p, nx, rho = self.j, self.prev, self.next, self.rho
-        (px, py), (nxx, nxy) = self.center[p], self.center[nx]
-        angle, length, arc = self.angle[:], self.length[:], self.arc[:]
-        angle[p], length[p] = span_line(px, py, rho[p], x, y, rho[j])
-        angle[j], length[j] = span_line(x, y, rho[j], nxx, nxy, rho[nx])
-        for i, r, t in self._wraps:
-            arc[i] = r * ((t * (angle[i] - angle[i - 1])) % TWO_PI)
-        return angle, length, arc
-
-
 def belt_length_gradient(layout: Layout, j: int) -> np.ndarray:
     """dL/dc_j (2,): arriving span direction minus departing span direction at pulley j."""
     t = layout.span_direction
     return t[(j - 1) % layout.n] - t[j]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Motion:
+    """How the adjustable pulley moves with its offset s: along a slide (s in m along the unit
+    `direction` from the drawn centre) or on a tensioner arm (s the angle in rad the arm turns
+    counter-clockwise about `pivot` from the drawn arm angle, a direction change: wrapped to [-pi, pi))."""
+
+    center: np.ndarray  # (2,) m, the pulley's drawn centre
+    direction: np.ndarray  # (2,) unit vector of the slide (unused on an arm)
+    pivot: np.ndarray | None = None  # (2,) m, the arm's pivot; None: a slide
+
+    @property
+    def kind(self) -> str:
+        return "slide" if self.pivot is None else "arm"
+
+    @property
+    def unit(self) -> str:
+        return "m" if self.pivot is None else "rad"
+
+    def point(self, s: float) -> tuple[np.ndarray, np.ndarray]:
+        """The pulley's centre (2,) at offset s, and d centre / ds (2,)."""
+        if self.pivot is None:
+            return self.center + s * self.direction, self.direction
+        r = self.center - self.pivot
+        c, sn = math.cos(s), math.sin(s)
+        rot = np.array([c * r[0] - sn * r[1], sn * r[0] + c * r[1]])
+        return self.pivot + rot, np.array([-rot[1], rot[0]])
+
+    def normalized(self, s: float) -> float:
+        """The offset on its one branch: an arm's turn wrapped to [-pi, pi) (the branch nearest the
+        drawing), a slide's travel as it is."""
+        return s if self.pivot is None else float(wrap_angle(s))
+
+    def slope_scale(self) -> float:
+        """What a slope d length / ds is measured against (m per unit offset)."""
+        return 1.0 if self.pivot is None else float(np.hypot(*(self.center - self.pivot)))
+
+
+@dataclass(frozen=True, kw_only=True)
+class _FitProblem:
+    """The L0 fit of pulley `index` of the pulleys (center (n, 2), radius (n,), side_sign (n,)):
+    fitted length sum(span lengths) + w sum(arc lengths) = target_length."""
+
+    center: np.ndarray
+    radius: np.ndarray
+    side_sign: np.ndarray
+    names: tuple[str, ...]
+    orientation: int
+    index: int
+    motion: Motion
+    target_length: float
+    arc_weight: float
+
+    @property
+    def name(self) -> str:
+        return self.names[self.index]
+
+    def layout_at(self, s: float, check: bool) -> Layout:
+        c = self.center.copy()
+        c[self.index] = self.motion.point(s)[0]
+        return compute_layout(c, self.radius, self.side_sign, self.names, orientation=self.orientation, check=check)
+
+    def length(self, lay: Layout) -> float:
+        return lay.belt_length + (self.arc_weight - 1.0) * float(lay.arc_length.sum())
+
+    def slope(self, lay: Layout, s: float) -> float:
+        """d (fitted length) / ds at offset s on its layout (the weighted arcs' change neglected: the
+        iteration then converges linearly for w != 1)."""
+        return float(belt_length_gradient(lay, self.index) @ self.motion.point(s)[1])
+
+    def where(self) -> tuple[str, str]:
+        if self.motion.pivot is None:
+            return "moving pulley", "along its slide"
+        return "turning the arm of pulley", "about its pivot"
+
+
+def _fit_newton(fit: _FitProblem, start: Layout, *, check: bool, tol: float, max_iter: int) -> tuple[float, Layout]:
+    """Newton on the offset s from 0 (layout `start`) until the fitted length meets the target,
+    backtracking when a step leaves the feasible region (check: the iterates' layouts checked) or does
+    not reduce the misfit. Returns (s, layout at s); GeometryError when L0 cannot be reached."""
+    how, where = fit.where()
+    target, motion = fit.target_length, fit.motion
+    s, lay = 0.0, start
+    for _ in range(max_iter):
+        f = fit.length(lay) - target
+        if abs(f) <= tol * target:
+            return s, lay
+        slope = fit.slope(lay, s)
+        if not abs(slope) >= 1e-9 * motion.slope_scale():
+            raise GeometryError(
+                f"{how} '{fit.name}' {where} does not change the belt length "
+                + ("(slide_direction perpendicular to the belt pull)" if motion.pivot is None else
+                   "(the arm points along the belt pull)"),
+                f"pulleys[{fit.index}].{'slide_direction' if motion.pivot is None else 'arm_pivot'}")
+        step = -f / slope
+        trial = None
+        for _ in range(60):
+            try:
+                trial = fit.layout_at(s + step, check)
+            except GeometryError:
+                step *= 0.5
+                continue
+            if abs(fit.length(trial) - target) < abs(f) or abs(step) < 1e-15:
+                break
+            step *= 0.5
+        if trial is None or not abs(fit.length(trial) - target) < abs(f):
+            word = "short" if f > 0 else "long"
+            raise GeometryError(
+                f"L0 = {target:.6g} m is too {word}: {how} '{fit.name}' {where} cannot make the belt fit "
+                f"(closest belt length {fit.length(lay):.6g} m at offset {s:.6g} {motion.unit})", "belt.length")
+        s, lay = motion.normalized(s + step), trial
+    raise GeometryError(f"L0 fit did not converge (belt length {fit.length(lay):.9g} m)", "belt.length")
+
+
+def _range_error(fit: _FitProblem, s: float, lay: Layout, slide_range: tuple[float, float]) -> GeometryError:
+    """The fitted offset s outside slide_range (an arm: its stops about the drawn arm angle)."""
+    word = "short" if s * fit.slope(lay, s) < 0 else "long"
+    if fit.motion.pivot is None:
+        return GeometryError(
+            f"L0 = {fit.target_length:.6g} m is too {word} to reach along the slide of pulley '{fit.name}': "
+            f"needs an offset of {s:.6g} m, slide_range is [{slide_range[0]:g}, {slide_range[1]:g}] m",
+            "belt.length")
+    phi0 = pivot_angle(fit.motion.center, fit.motion.pivot)  # the drawn arm angle, as the stops are counted from
+    return GeometryError(
+        f"the stops exclude the fitted arm angle: L0 = {fit.target_length:.6g} m needs the arm of pulley "
+        f"'{fit.name}' at {phi0 + s:.6g} rad ({math.degrees(phi0 + s):.4g} deg), its stops are "
+        f"[{phi0 + slide_range[0]:g}, {phi0 + slide_range[1]:g}] rad (move the stops or change L0)",
+        f"pulleys[{fit.index}].arm_range")
 
 
 def fit_adjustable(
@@ -396,155 +457,41 @@ def fit_adjustable(
     """Newton on the offset s along `direction` of pulley `index` until the belt length equals L0.
 
     With a `pivot` (a tensioner arm) s is the angle (rad, counter-clockwise) the arm turns about the
-    pivot instead, and slide_range bounds that angle offset. With arc_weight w != 1 the length fitted
-    is sum(span lengths) + w sum(arc lengths) (the path of a belt whose spans are stretched by w and
-    whose wraps are not, times w: see `static`); the slope is then that of the belt length, and the
-    iteration converges linearly. Backtracks when a step leaves the feasible region; raises
-    GeometryError (key belt.length) when L0 cannot be reached. base: the layout at `center`, if known.
+    pivot instead, wrapped to [-pi, pi) (the branch nearest the drawing), and slide_range bounds that
+    angle offset. With arc_weight w != 1 the length fitted is sum(span lengths) + w sum(arc lengths)
+    (the path of a belt whose spans are stretched by w and whose wraps are not, times w: see `static`);
+    the slope is then that of the belt length, and the iteration converges linearly. Backtracks when a
+    step leaves the feasible region; raises GeometryError (key belt.length) when L0 cannot be reached.
+    base: the layout at `center`, if known.
+
+    The iterates are laid out unchecked (the drawn centre is only where the fit starts) and the answer
+    laid out and checked; on any failure the fit runs again with every iterate checked, from the checked
+    layout at the drawn centre, for the error that names the cause.
     """
     center = np.array(center, dtype=float)
-    direction = np.asarray(direction, dtype=float)
-    name = names[index]
-    arm = None if pivot is None else np.asarray(pivot, dtype=float)
-    how = "moving pulley" if arm is None else "turning the arm of pulley"
-    where = "along its slide" if arm is None else "about its pivot"
-
-    def offset_point(s: float) -> np.ndarray:
-        """The pulley's centre at offset s, and d centre / ds."""
-        if arm is None:
-            return center[index] + s * direction, direction
-        r = center[index] - arm
-        c, sn = math.cos(s), math.sin(s)
-        rot = np.array([c * r[0] - sn * r[1], sn * r[0] + c * r[1]])
-        return arm + rot, np.array([-rot[1], rot[0]])
-    def checked_base() -> Layout:
-        try:
-            return compute_layout(center, radius, side_sign, names, orientation=orientation)
-        except GeometryError as exc:
-            raise GeometryError(f"at the given centre of the adjustable pulley: {exc}", exc.key) from None
-
-    # base: the layout at `center` if the caller has it; for the quick way the path there in floats, unchecked
-    # (the drawn centre is only where the fit starts: the fitted layout is checked); checked before the checked way
+    motion = Motion(center=center[index].copy(), direction=np.asarray(direction, dtype=float),
+                    pivot=None if pivot is None else np.asarray(pivot, dtype=float))
     if base is not None:
-        orientation, path = base.orientation, MovingPulley(base, index)
-    else:
-        orientation = loop_orientation(center) if orientation is None else orientation
-        path = MovingPulley.of_centres(center, radius, side_sign, orientation, index)
-
-    def layout_at(s: float, check: bool) -> Layout:
-        c = center.copy()
-        c[index] = offset_point(s)[0]
-        return compute_layout(c, radius, side_sign, names, orientation=orientation, check=check)
-
-    def length(lay: Layout) -> float:
-        return lay.belt_length + (arc_weight - 1.0) * float(lay.arc_length.sum())
-
-    def newton(check: bool) -> tuple[float, Layout]:
-        s, lay = 0.0, base
-        for _ in range(max_iter):
-            f = length(lay) - target_length
-            if abs(f) <= tol * target_length:
-                break
-            slope = float(belt_length_gradient(lay, index) @ offset_point(s)[1])
-            if abs(slope) < 1e-9 * (1.0 if arm is None else float(np.hypot(*(center[index] - arm)))):
-                raise GeometryError(
-                    f"{how} '{name}' {where} does not change the belt length "
-                    + ("(slide_direction perpendicular to the belt pull)" if arm is None else
-                       "(the arm points along the belt pull)"),
-                    f"pulleys[{index}].{'slide_direction' if arm is None else 'arm_pivot'}")
-            step = -f / slope
-            for _ in range(60):
-                try:
-                    trial = layout_at(s + step, check)
-                except GeometryError:
-                    step *= 0.5
-                    continue
-                if abs(length(trial) - target_length) < abs(f) or abs(step) < 1e-15:
-                    break
-                step *= 0.5
-            else:
-                trial = None
-            if trial is None or abs(length(trial) - target_length) >= abs(f):
-                word = "short" if f > 0 else "long"
-                raise GeometryError(
-                    f"L0 = {target_length:.6g} m is too {word}: {how} '{name}' {where} "
-                    f"cannot make the belt fit (closest belt length {length(lay):.6g} m at offset {s:.6g} m)",
-                    "belt.length")
-            s, lay = s + step, trial
-        else:
-            raise GeometryError(f"L0 fit did not converge (belt length {length(lay):.9g} m)", "belt.length")
-        return s, lay
-
-    def quick() -> tuple[float, float, float] | None:
-        """Newton's offset as `newton(False)` takes it, the iterates in floats (`MovingPulley`), and the
-        pulley's centre there (x, y: `offset_point`'s arithmetic); None where the iteration would fail
-        (the checked way then says why)."""
-        cx, cy = center[index].tolist()
-        ax, ay = (cx, cy) if arm is None else arm.tolist()
-        dx, dy = direction.tolist()
-        rx, ry = cx - ax, cy - ay
-        p = path.prev
-        w = arc_weight - 1.0
-
-        def state(s: float, base_path: bool = False) -> tuple[float, float, float, float]:
-            """(fitted length, slope d length / ds, x, y) at offset s (the base layout's path: s = 0)."""
-            if arm is None:
-                x, y, vx, vy = cx + s * dx, cy + s * dy, dx, dy
-            else:
-                cs, sn = math.cos(s), math.sin(s)
-                vx, vy = -(sn * rx + cs * ry), cs * rx - sn * ry  # d centre / ds
-                x, y = ax + vy, ay - vx
-            angle, length, arc = (path.angle, path.length, path.arc) if base_path else path.at(x, y)
-            total_arc, a_in, a_out = sum(arc), angle[p], angle[index]
-            slope = (math.cos(a_in) - math.cos(a_out)) * vx + (math.sin(a_in) - math.sin(a_out)) * vy
-            return sum(length) + total_arc + w * total_arc, slope, x, y
-
-        s = 0.0
-        ell, slope, x, y = state(0.0, base_path=True)
-        scale = 1.0 if arm is None else math.hypot(rx, ry)
-        for _ in range(max_iter):
-            f = ell - target_length
-            if abs(f) <= tol * target_length:
-                return s, x, y
-            if not abs(slope) >= 1e-9 * scale:
-                return None
-            step = -f / slope
-            for _ in range(60):
-                ell_t, slope_t, x_t, y_t = state(s + step)
-                if abs(ell_t - target_length) < abs(f) or abs(step) < 1e-15:
-                    break
-                step *= 0.5
-            if not abs(ell_t - target_length) < abs(f):
-                return None
-            s, ell, slope, x, y = s + step, ell_t, slope_t, x_t, y_t
-        return None
-
-    kind = "slide" if arm is None else "arm"
-    try:  # the iterates in floats and unchecked (`quick`), the answer laid out and checked; on any doubt the
-        fitted = quick()  # checked way
-        if fitted is None:
-            raise GeometryError("", "")
-        s, x, y = fitted
-        c = center.copy()
-        c[index] = x, y
-        lay = compute_layout(c, radius, side_sign, names, orientation=orientation, adjust_offset=s,
-                             adjust_index=index, adjust_kind=kind)
+        orientation = base.orientation
+    elif orientation is None:
+        orientation = loop_orientation(center)
+    fit = _FitProblem(center=center, radius=np.asarray(radius, dtype=float), side_sign=np.asarray(side_sign, dtype=float),
+                      names=tuple(names), orientation=orientation, index=index, motion=motion,
+                      target_length=float(target_length), arc_weight=float(arc_weight))
+    try:
+        start = base if base is not None else fit.layout_at(0.0, check=False)
+        s, _ = _fit_newton(fit, start, check=False, tol=tol, max_iter=max_iter)
+        lay = fit.layout_at(s, check=True)
     except GeometryError:
-        base = checked_base() if base is None else base
-        s, lay = newton(True)
-        lay = replace(lay, adjust_offset=s, adjust_index=index, adjust_kind=kind)
+        if base is None:
+            try:
+                base = fit.layout_at(0.0, check=True)
+            except GeometryError as exc:
+                raise GeometryError(f"at the given centre of the adjustable pulley: {exc}", exc.key) from None
+        s, lay = _fit_newton(fit, base, check=True, tol=tol, max_iter=max_iter)
+    lay = replace(lay, adjust_offset=s, adjust_index=index, adjust_kind=motion.kind)
     if slide_range is not None and not (slide_range[0] <= s <= slide_range[1]):
-        word = "short" if s * float(belt_length_gradient(lay, index) @ offset_point(s)[1]) < 0 else "long"
-        if arm is None:
-            raise GeometryError(
-                f"L0 = {target_length:.6g} m is too {word} to reach along the slide of pulley '{name}': "
-                f"needs an offset of {s:.6g} m, slide_range is [{slide_range[0]:g}, {slide_range[1]:g}] m",
-                "belt.length")
-        phi0 = math.atan2(*(center[index] - arm)[::-1])
-        raise GeometryError(
-            f"the stops exclude the fitted arm angle: L0 = {target_length:.6g} m needs the arm of pulley "
-            f"'{name}' at {phi0 + s:.6g} rad, its stops are [{phi0 + slide_range[0]:g}, {phi0 + slide_range[1]:g}] "
-            f"rad (move the stops or change L0)", f"pulleys[{index}].arm_range")
+        raise _range_error(fit, s, lay, slide_range)
     return lay
 
 

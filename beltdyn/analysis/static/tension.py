@@ -1,0 +1,142 @@
+"""The belt's length and tension over layouts: the reference lengths carried between span and wrap
+when a tangent point moves (`carried_reference`), the span tensions of a belt of conserved length
+(`conserved_tension`), the accessory torques' split of the span tensions (`torque_split`) and the
+prestrain secant that meets the target tension (`meet_prestrain`).
+
+Nomenclature: L_s span lengths, reference_s their stress-free lengths, lambda stretch, T tension
+(N), EA axial stiffness (N), rho = orientation x side x radius the signed pulley radii (m)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from beltdyn.analysis.static.newton import Budget, solve_static
+from beltdyn.config import StaticOptions
+from beltdyn.errors import SolverError
+from beltdyn.model.angles import wrap_angle
+from beltdyn.model.barlaw import axial_force, axial_stiffness, stretch_for_tension, stretch_start
+
+
+def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
+    """Span reference lengths (n,) on layout `new` of the belt whose spans had `reference_length` on
+    layout `old`, the wraps unstretched: where a tangent point moves along its pulley by an arc
+    R dpsi in the direction of belt travel, that much belt passes from the span onto the wrap (or
+    back). The total, sum(reference lengths) + sum(arc lengths), is kept. Pulley rotations stay
+    coordinates of the system (the joints slide the span ends along the tangent lines).
+
+    Both tangent points of span s turn with its tangent line: their normals are +-(sin a_s, -cos a_s),
+    so dpsi = a_s(new) - a_s(old) (wrapped to [-pi, pi)) at both ends, and with the signed radii
+    rho = orientation x side x R the span leaves rho_s dpsi onto pulley s and takes rho_(s+1) dpsi
+    from pulley s+1: reference_s - dpsi_s (rho_s - rho_(s+1))."""
+    return carried_lengths(old.span_angle, new.span_angle, radius_steps(new), reference_length, new.span_name)
+
+
+def radius_steps(layout) -> np.ndarray:
+    """rho_s - rho_(s+1) (n,) of each span s, rho = orientation x side x radius (`carried_reference`)."""
+    rho = layout.orientation * layout.side_sign * layout.radius
+    return rho - np.roll(rho, -1)
+
+
+def carried_lengths(old_angle: np.ndarray, new_angle: np.ndarray, radius_step: np.ndarray, reference: np.ndarray,
+                    span_name) -> np.ndarray:
+    """`carried_reference` on arrays (n,): the old and new span angles a_s, the spans' `radius_steps`
+    and the old reference lengths; span_name(s) names span s in the error. (A span whose angle is
+    unchanged keeps its length: the turn wraps to an exact 0 there.) A span left without a positive
+    reference length (or with NaN, an iterate's span between coincident centres) is a SolverError."""
+    turn = wrap_angle(np.asarray(new_angle, dtype=float) - np.asarray(old_angle, dtype=float))
+    out = np.asarray(reference, dtype=float) - turn * np.asarray(radius_step, dtype=float)
+    if not np.all(out > 0.0):  # (NaN fails too)
+        s = int(np.argmin(np.where(np.isnan(out), -np.inf, out)))
+        raise SolverError(f"span {span_name(s)} has no belt left at the solved pulley positions (reference "
+                          f"length {out[s]:.3g} m)", analysis="static", step="re-lay", item=f"span {s + 1}")
+    return out
+
+
+def meet_prestrain(build, layout, lam: float, free: np.ndarray, options: StaticOptions, slope: float | None,
+                    budget: Budget | None = None):
+    """Secant on the spans' uniform prestrain stretch lam until the static mean tension equals the
+    target (the pulleys free on their bearings). Returns (system, static, lam, slope, solves)."""
+    system = build(layout, lam, free)
+    target = float(system.tension.target)
+    EA = system.EA
+    tol_T = options.tolerance * abs(target) + 100 * np.finfo(float).eps * EA
+    if slope is None:
+        slope = float(axial_stiffness(lam, EA))  # rigid supports
+    prev = None
+    for it in range(options.max_iterations):
+        if it:
+            system = build(layout, lam, free)
+        st = solve_static(system, options, budget=budget)
+        g = st.mean_tension - target
+        if abs(g) <= tol_T:
+            return system, st, lam, slope, it + 1
+        if prev is not None and lam == prev[0]:  # no representable step left (the stretch is at 1)
+            raise SolverError(
+                f'tension.mode = "prestrain" cannot reach tension.target = {target:g} N: the mean span tension is '
+                f"{st.mean_tension:.6g} N at span stretch {lam:.12g}" + (" (unstretched spans: the weight and the "
+                "supports alone give it)" if lam == 1.0 else "") + '; lower the target or use mode = "adjust"',
+                analysis="static", step=f"prestrain iteration {it + 1}", residual=abs(g) / tol_T, item="tension.target")
+        if prev is not None:
+            secant = (g - prev[1]) / (lam - prev[0])
+            if not (np.isfinite(secant) and secant > 1e-9 * EA):
+                raise SolverError(
+                    f'tension.mode = "prestrain" cannot reach tension.target = {target:g} N: the mean span tension '
+                    f"({st.mean_tension:.6g} N at span stretch {lam:.9g}) does not grow with the prestrain "
+                    f"(dT/dstretch = {secant:.3g} N); a support gives way without limit", analysis="static",
+                    step=f"prestrain iteration {it + 1}", residual=abs(g) / tol_T, item="tension.target")
+            slope = secant
+        prev = (lam, g)
+        new = lam - g / slope
+        lam = new if new > 1.0 else 1.0 + 0.5 * (lam - 1.0)
+    raise SolverError(f'tension.mode = "prestrain": the mean span tension did not reach tension.target = '
+                      f"{target:g} N in {options.max_iterations} prestrain iterations (last {st.mean_tension:.9g} N)",
+                      analysis="static", step="prestrain iteration", residual=abs(g) / tol_T, item="tension.target")
+
+
+def torque_split(layout, loads: np.ndarray | None, rot_dof: np.ndarray, driver: int) -> np.ndarray:
+    """(n,) span tensions relative to the span leaving the driver (its pulley index) that the static
+    accessory torques ask for on a rigid belt: the belt's torque on pulley j is rho_j (T_j - T_(j-1)), rho = orientation x
+    side x radius, so every other pulley has T_j = T_(j-1) - tau_j / rho_j (the driver reacts the rest)."""
+    n = layout.n
+    split = np.zeros(n)
+    if loads is None:
+        return split
+    rho = layout.orientation * layout.side_sign * layout.radius
+    tau = loads[rot_dof]
+    for i in range(1, n):  # (a recurrence around the belt, from the driver)
+        j = (driver + i) % n
+        split[j] = split[j - 1] - tau[j] / rho[j]
+    return split
+
+
+def conserved_tension(total_length: float, split: np.ndarray, reference: np.ndarray, EA: float) -> np.ndarray:
+    """(n,) span tensions T_ref + split of a belt whose spans' reference lengths are `reference` (n,)
+    (`carried_reference`: the wraps unstretched) on a path whose spans are total_length long together,
+    its pulleys turning freely: the rotations slide the span ends along the tangent lines (the joints),
+    which moves chord between neighbouring spans and keeps their sum, so
+    sum_s lambda(T_s) reference_s = sum_s L_s (Newton on T_ref, the bar law of `model.barlaw`)."""
+    L = float(total_length)
+    ref, sp = np.asarray(reference, dtype=float), np.asarray(split, dtype=float)
+    total = float(ref.sum())
+    T_ref = EA * (L / total - 1.0) - float(ref @ sp) / total  # the start: lambda = 1 + x,
+    x = (T_ref + sp) / EA
+    T_ref += 1.5 * EA * float((ref * x * x).sum()) / total  # then 1 + x - 3/2 x^2 (one step)
+    lam = stretch_start((T_ref + sp) / EA)
+    if np.abs((T_ref + sp) / EA).max() >= 0.05:
+        lam = stretch_for_tension(T_ref + sp, EA)
+    for _ in range(50):  # Newton on T_ref, each stretch first stepped to its span's tension (one Newton step)
+        slope = axial_stiffness(lam, EA)  # dT/dlambda
+        d = (axial_force(lam, EA) - (T_ref + sp)) / slope
+        lam = lam - d
+        worst = float(np.abs(d).max())
+        step = (float(lam @ ref) - L) / float((ref / slope).sum())
+        T_ref -= step
+        # done when the stretches were exact (Newton on the cubic leaves about 1.5 d^2 after a step d, below
+        # 2e-16 for d <= 1e-8) and what T_ref still lacks is below 1e-12 EA: Newton leaves c step^2 / EA after
+        # a step, c = |g''| EA / (2 g') <= 6 lambda_max / (3 lambda_min^2 - 1)^2 (1.5 at lambda = 1)
+        if worst <= 1e-8:
+            lo = float(lam.min())
+            h = 3.0 * lo * lo - 1.0
+            if abs(step) <= 1e-12 * EA or (h > 0.1 and 6.0 * float(lam.max()) * step * step <= 1e-12 * EA * EA * h * h):
+                break
+    return T_ref + sp
