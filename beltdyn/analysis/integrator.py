@@ -86,6 +86,8 @@ from beltdyn.model import belt_kernel as bk
 from beltdyn.model import spring_kernel as sk
 
 KERNEL = kernel_options()  # the njit options of this module's kernels (numba loaded)
+PART = dict(KERNEL, inline="always")  # the stepper's parts: inlined into `run_steps` at numba's IR level (public
+# option), as the one loop they were: called as functions they cost ~30 % of a small drive's step time
 
 # the stepper's data and band solvers (re-exported: `integrator.X` is where the transient reads them)
 from beltdyn.analysis.band_solve import (  # noqa: E402,F401
@@ -462,7 +464,7 @@ def clear(work):
     work.held[:] = 0
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def hold_prescribed(cons, t, q, v, a):
     """Constraints: the prescribed DOFs' q, v, a at time t (the static rotation params[k, 7] plus the
     prescribed fluctuation of `rotation_state`)."""
@@ -515,7 +517,7 @@ def start_forces(state, model, work):
     th[TR_P0] = -cd0 * (c0 * qbq + vaq)
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def predict(h, q, v, a, q1, v1, a1, nq):
     """The predictor on the independent coordinates: the same acceleration over the step h."""
     for i in range(nq):
@@ -524,7 +526,7 @@ def predict(h, q, v, a, q1, v1, a1, nq):
         v1[i] = v[i] + h * a[i]
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def step_forces(model, q1, v1, a1, c1, cd1, with_gross, work):
     """The forces at the new state (q1, v1, a1), into the scratch rows (`Work`): f_el, f_dmp (belt and
     arm friction), K (q1 - q_ref), C v1, M a1, the transport terms f_tr at the belt speed c1 and rate
@@ -564,7 +566,7 @@ def step_forces(model, q1, v1, a1, c1, cd1, with_gross, work):
 Terms = namedtuple("Terms", ["Ma", "Ma0", "Cv", "Cv0", "fi", "f0", "F1", "F0", "Fc", "fl"])
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def project_new(model, q1, work, terms):
     """The arms' part: the new terms (work rows M a, C v, fi, F1, fl and the constant force) projected
     on q by J(q1)^T into `terms` (nothing to do without arms: the terms are the rows)."""
@@ -579,7 +581,7 @@ def project_new(model, q1, work, terms):
         project(arms, q1, wv[11], terms.fl, True)
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def scaled_residual(chk, held, am, af, x, R, work):
     """The generalized-alpha residual R (n_q,) of the terms x (`Terms`), zero on the prescribed rows
     (held), and its size against the allowed one per DOF group (module docstring):
@@ -620,7 +622,7 @@ def scaled_residual(chk, held, am, af, x, R, work):
     return res, worst, True
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def correct(fac, cons, R, c_v, c_a, q1, v1, a1, work):
     """One Newton correction with the factor: dx = S^-1 R (zero on the prescribed DOFs), q1 -= dx,
     v1 -= c_v dx, a1 -= c_a dx. Returns |dx|^2."""
@@ -638,7 +640,7 @@ def correct(fac, cons, R, c_v, c_a, q1, v1, a1, work):
     return norm
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def solve_step(state, model, opts, fac, t1, h, x, work):
     """Newton on the step ending at t1 from the predictor (in work rows q1, v1, a1): at most max_iter
     corrections, the residual after the last one checked. Returns (converged, scaled residual, worst
@@ -672,7 +674,7 @@ def solve_step(state, model, opts, fac, t1, h, x, work):
         prev = norm
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def count_outputs(t_out, t1, h, dt_out):
     """The output times in (t, t1] still to come from t_out."""
     n_pend = 0
@@ -683,7 +685,7 @@ def count_outputs(t_out, t1, h, dt_out):
     return n_pend
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def step_power(state, model, x, v1, p_tr, work):
     """The trapezoid of the step's power: (external forces and reactions, dissipated), on p (power is
     invariant: F . v_p = (J^T F) . v_q); the reactions R1 (work.react) of the prescribed DOFs."""
@@ -706,7 +708,7 @@ def step_power(state, model, x, v1, p_tr, work):
     return p_ext, p_dis
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def balance_energy(state, model, q1, v1, c1, qbq, bristle1, work):
     """Observer: kinetic and potential energy at the accepted step (exact, not interpolated), the
     balance error's running maximum scal[WORST] and the energy moved scal[MOVED]. Returns (kin, pot)."""
@@ -724,7 +726,7 @@ def balance_energy(state, model, q1, v1, c1, qbq, bristle1, work):
     return kin, pot
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, R1):
     """Observer: the samples at the output times in (t, t1] (Hermite interpolation within the step, the
     arms' dependent entries kinematically exact), the step's energy terms and the reactions."""
@@ -758,7 +760,7 @@ def record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, R1):
         th[T_OUT] += opts.dt_out
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def slack_events(belt, t1, ev, work):
     """Observer: slack events, the smallest 2nd Piola-Kirchhoff force per span (work.elem[0]: the
     accepted state, the last one evaluated unless an energy evaluation gathered it again at q1)."""
@@ -782,7 +784,7 @@ def slack_events(belt, t1, ev, work):
         ev.slack[sp] = now
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def accept(state, model, x, p_tr, work):
     """The new state becomes the old one: q, v, a, the forces, the projected terms, the reactions,
     the transport power; the arms' friction anchors slide (return mapping)."""
@@ -810,7 +812,7 @@ def accept(state, model, x, p_tr, work):
     slide_anchors(model.arms, state.q)
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def factor_aged(th, it, refresh):
     """An aging factor: the iterations its steps take beyond what it took fresh (the mean of its first
     REF_STEPS steps) add up; once they cost more than a new factor (refresh > 0), True: the next step
@@ -824,7 +826,7 @@ def factor_aged(th, it, refresh):
     return refresh > 0.0 and th[STALE] > refresh
 
 
-@njit(**KERNEL)
+@njit(**PART)
 def terms_of(state, model, work):
     """The residual's `Terms` on q: views of the work rows and the state (no arms: q = p, J = I, the
     terms themselves, no copies) or of the projection rows (arms)."""
