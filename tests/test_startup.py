@@ -175,7 +175,7 @@ def test_a_cold_cache_announces_and_compiles_a_warm_one_does_not_an_edited_sourc
             str(ROOT / "configs/examples/bench_transient_small.toml"), "--duration", "0.002",
             "--set", "transient.spectrum.enabled=false", "-o", "t.h5", "--force"]
     announce = "compiling the transient kernels"
-    cold = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, env=env, timeout=900)
+    cold = subprocess.run(args, cwd=tmp_path, capture_output=True, text=True, env=env, timeout=1800)
     assert cold.returncode == 0, cold.stderr
     assert announce in cold.stdout + cold.stderr and _cache_report(cold.stdout)[0] > 0
     assert list(cache.glob("beltdyn-kernels-*.stamp"))
