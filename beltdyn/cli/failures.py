@@ -34,7 +34,8 @@ def fail(exc: BaseException) -> None:
                                 "its samples so far, marked 'interrupted'"))
         raise typer.Exit(EXIT_TERMINATED if isinstance(exc, Terminated) else EXIT_INTERRUPTED)
     if isinstance(exc, BeltdynError):
-        err.print(Text.assemble(("error", "bold red"), f": {one_line(str(exc))}"))
+        said = "; ".join([str(exc), *getattr(exc, "__notes__", ())])  # (a note: what closing the output did)
+        err.print(Text.assemble(("error", "bold red"), f": {one_line(said)}"))
         raise typer.Exit(exc.exit_code)
     if STATE["debug"]:
         import traceback

@@ -31,6 +31,13 @@ _TOKEN_HEX = 8
 # --------------------------------------------------------------------------------------------
 
 
+class WriteFailure(OutputError):
+    """An I/O error (a full disk, a failing device) while the results were being written: not bad input,
+    so exit 1 (a solver-like failure), naming the file and the error."""
+
+    exit_code = 1
+
+
 class LockBusy(Exception):
     """`take_lock`: another process holds the lock (its pid, if it wrote one)."""
 
