@@ -268,12 +268,13 @@ def print_unrepresented(job) -> None:
         console().print(f"[bold yellow]note:[/] the spring spans leave out {len(modes)} mode(s) below {band:.4g} Hz "
                          f"(their own modes, not in the table above): {text}")
 
+
 def print_transient(con, summary, spans, peaks, f_exc, shown=()) -> None:
     from rich.table import Table
 
-    con.print(f"transient {summary.status}: {summary.steps} steps to t = {summary.final_time:.6g} s "
+    con.print(f"transient {summary.status}: {plural(summary.steps, 'step')} to t = {summary.final_time:.6g} s "
               f"({summary.newton_iterations / max(summary.steps, 1):.2f} Newton iterations per step), "
-              f"{summary.refactorizations} refactorizations, {summary.step_halvings} step halvings "
+              f"{plural(summary.refactorizations, 'refactorization')}, {plural(summary.step_halvings, 'step halving')} "
               f"(smallest step {summary.min_step:.3g} s); energy balance error {summary.energy_error:.2e} "
               f"of the energy moved")
     for w in summary.warnings:
