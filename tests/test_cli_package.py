@@ -94,3 +94,25 @@ def test_switching_to_spring_mode_needs_no_file_edit(tmp_path):
                              timeout=60)
     assert removed.returncode == 2 and "tension.target" not in removed.stderr, removed.stderr
     assert "arm_free_angle" in removed.stderr
+
+
+def test_the_kernel_compile_is_announced_with_its_time(tmp_path):
+    # numba's first compile takes up to minutes on a busy machine: it is said before and its time after
+    # (piped: on stderr; in a terminal a spinner with the elapsed time). The compile is stood in for by a
+    # 1.2 s sleep, the kernels reported not cached.
+    code = """
+import time
+import beltdyn.pipeline as p
+import beltdyn.jitcache as j
+p.warm_up = lambda: time.sleep(1.2)
+j.is_warm = lambda *modules: False
+import sys
+from beltdyn.cli import app
+sys.argv = ["beltdyn", "transient", %r, "--duration", "0.05", "--set", "transient.spectrum.enabled=false", "-o", "t.h5"]
+app()
+""" % str(ROOT / "configs" / "examples" / "bench_transient_small.toml")
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    assert "compiling the transient kernels" in r.stderr and "about 20 s" not in r.stderr + r.stdout
+    assert "note: done in 1 s" in r.stderr
+    assert "compiling" not in r.stdout  # stdout keeps the results
