@@ -150,6 +150,9 @@ def test_every_layer_module_is_placed(module):
 DOCUMENTED_PUBLIC = frozenset({"os._exit"})
 
 
+ATTRIBUTE_BUILTINS = ("getattr", "setattr", "hasattr", "delattr")
+
+
 def _private(part: str) -> bool:
     return part.startswith("_") and not (part.startswith("__") and part.endswith("__"))
 
@@ -180,6 +183,10 @@ def private_uses(source: str, package: str = "beltdyn") -> list[str]:
                 else:
                     modules[a.asname or a.name] = path  # (a module or a name: its private attributes count too)
     for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ATTRIBUTE_BUILTINS \
+                and len(node.args) > 1 and isinstance(node.args[1], ast.Constant) \
+                and isinstance(node.args[1].value, str) and _private(node.args[1].value):
+            found.append(f"{node.lineno}: {ast.unparse(node)}")  # a private attribute by name, of anything
         if isinstance(node, ast.Attribute) and _private(node.attr):
             base = node.value
             while isinstance(base, ast.Attribute):
@@ -210,11 +217,13 @@ def f(executor):
     numba.__version__
     atexit.register(f)
     os._exit(0)
+    getattr(executor, "_processes", None)
+    getattr(executor, "__name__")
 """
     assert private_uses(snippet) == [
         "4: import numba.core._internal", "5: from typer._coercion import build_runtime_param",
         "6: from numba.core import _nrt_python", "12: from typer import _click", "13: atexit._run_exitfuncs",
-        "14: numba.core._x"]
+        "14: numba.core._x", "20: getattr(executor, '_processes', None)"]
     assert private_uses("import os\nos._exit(1)\n") == []  # documented public
     assert private_uses("import os\nos.path.join('a')\nfrom typer import Typer\n") == []
 
