@@ -9,9 +9,9 @@ import typer
 
 from beltdyn.cli.console import console
 from beltdyn.cli.failures import guarded
-from beltdyn.cli.job import (Job)
+from beltdyn.cli.job import Job
 from beltdyn.cli.options import ConfigArg, ForceOpt, OutOpt, SetOpt, UnsetOpt, overrides
-from beltdyn.cli.tables import (print_geometry)
+from beltdyn.cli.tables import print_geometry
 
 
 def geometry(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,

@@ -9,9 +9,9 @@ import typer
 
 from beltdyn.cli.console import console
 from beltdyn.cli.failures import guarded
-from beltdyn.cli.job import (Job, add_results, announce_cost, choose_spans, ladder_not_met, refined_modal, static_pipeline)
+from beltdyn.cli.job import Job, add_results, announce_cost, choose_spans, ladder_not_met, refined_modal, static_pipeline
 from beltdyn.cli.options import ConfigArg, FmaxOpt, ForceOpt, OutOpt, SetOpt, UnsetOpt, overrides
-from beltdyn.cli.tables import (print_modal, print_static, print_unrepresented)
+from beltdyn.cli.tables import print_modal, print_static, print_unrepresented
 
 
 def modal(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,

@@ -8,9 +8,9 @@ import typer
 
 from beltdyn.cli.console import console
 from beltdyn.cli.failures import guarded
-from beltdyn.cli.job import (Job, static_pipeline)
+from beltdyn.cli.job import Job, static_pipeline
 from beltdyn.cli.options import ForceOpt
-from beltdyn.cli.tables import (print_paper)
+from beltdyn.cli.tables import print_paper
 
 
 def paper(outdir: Path = typer.Option(Path("results/paper"), "--outdir", help="Folder for the HDF5 files and tables.md."),

@@ -12,7 +12,7 @@ from beltdyn.cli.failures import guarded
 from beltdyn.cli.job import (Job, failed_group,
                                  static_pipeline)
 from beltdyn.cli.options import ConfigArg, ForceOpt, OutOpt, SetOpt, UnsetOpt, overrides
-from beltdyn.cli.tables import (print_response)
+from beltdyn.cli.tables import print_response
 
 
 def response(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,

@@ -9,10 +9,10 @@ import typer
 
 from beltdyn.cli.console import console
 from beltdyn.cli.failures import guarded
-from beltdyn.cli.job import (Job)
+from beltdyn.cli.job import Job
 from beltdyn.cli.options import ConfigArg, ForceOpt, OutOpt, SetOpt, UnsetOpt, overrides
 from beltdyn.cli.signals import interruption
-from beltdyn.cli.tables import (print_campbell, print_sweep)
+from beltdyn.cli.tables import print_campbell, print_sweep
 
 
 def sweep(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,

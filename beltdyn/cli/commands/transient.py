@@ -9,7 +9,7 @@ import typer
 
 from beltdyn.cli.console import console, print_notes, progress_bar, spinner, warn
 from beltdyn.cli.failures import guarded
-from beltdyn.cli.job import (Job, announce_cost, check_output_volume, choose_spans, ladder_not_met, static_pipeline)
+from beltdyn.cli.job import Job, announce_cost, check_output_volume, choose_spans, ladder_not_met, static_pipeline
 from beltdyn.cli.options import ConfigArg, FmaxOpt, ForceLargeOpt, ForceOpt, OutOpt, SetOpt, UnsetOpt, overrides
 from beltdyn.cli.signals import held_back
 from beltdyn.cli.tables import print_transient
