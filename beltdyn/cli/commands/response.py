@@ -9,8 +9,7 @@ import typer
 
 from beltdyn.cli.console import console
 from beltdyn.cli.failures import guarded
-from beltdyn.cli.job import (Job, failed_group,
-                                 static_pipeline)
+from beltdyn.cli.job import Job, failed_group, static_pipeline
 from beltdyn.cli.options import ConfigArg, ForceOpt, OutOpt, SetOpt, UnsetOpt, overrides
 from beltdyn.cli.tables import print_response
 
