@@ -3,6 +3,10 @@ one way, top to bottom.
 
 Every import statement of every module counts, at module level or inside a function, except those
 under `if TYPE_CHECKING:` (annotations only, never run).
+
+No private API of a dependency: no module imports a name or module whose dotted path has a private part
+(`_x`, not a dunder) from another package, or reads an attribute `_x` of an imported third-party module
+(`atexit._run_exitfuncs`, `numba._x`).
 """
 
 from __future__ import annotations
@@ -16,12 +20,12 @@ PACKAGE = Path(__file__).resolve().parents[1] / "beltdyn"
 
 # The layers, bottom to top: a module may import its own layer and the ones below, never one above.
 LAYERS = (
-    ("beltdyn", "beltdyn.errors", "beltdyn.jitcache"),
+    ("beltdyn", "beltdyn.errors", "beltdyn.jitcache", "beltdyn.cleanup"),
     ("beltdyn.config",),
     ("beltdyn.model",),
     ("beltdyn.analysis",),
     ("beltdyn.results",),
-    ("beltdyn.pipeline",),
+    ("beltdyn.pipeline", "beltdyn.workflow"),
     ("beltdyn.study",),
 )
 
@@ -139,3 +143,91 @@ def test_layers_import_downward_only():
 @pytest.mark.parametrize("module", ["beltdyn.model.system", "beltdyn.analysis.static", "beltdyn.results.io"])
 def test_every_layer_module_is_placed(module):
     assert layer_of(module) is not None
+
+
+# underscored names their library documents as public: os._exit ("the standard way to exit in a child
+# process after a fork", Python's os documentation)
+DOCUMENTED_PUBLIC = frozenset({"os._exit"})
+
+
+ATTRIBUTE_BUILTINS = ("getattr", "setattr", "hasattr", "delattr")
+
+
+def _private(part: str) -> bool:
+    return part.startswith("_") and not (part.startswith("__") and part.endswith("__"))
+
+
+def private_uses(source: str, package: str = "beltdyn") -> list[str]:
+    """What `source` (a module of `package`) uses of another package's private API: "line: dotted path"
+    for every import (any statement, at module level or in a function) whose dotted path has a private
+    part, and for every attribute `_x` read from a name bound to an imported third-party module (or
+    from a dotted chain of such modules, `numba.core._x`). Relative imports and `package` itself are its own."""
+    tree = ast.parse(source)
+    found = []
+    modules: dict[str, str] = {}  # local name -> the third-party module it is bound to
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.split(".")[0] == package:
+                    continue
+                if any(_private(p) for p in a.name.split(".")):
+                    found.append(f"{node.lineno}: import {a.name}")
+                modules[a.asname or a.name.split(".")[0]] = a.name if a.asname else a.name.split(".")[0]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level or (node.module or "").split(".")[0] == package:
+                continue
+            for a in node.names:
+                path = f"{node.module}.{a.name}"
+                if any(_private(p) for p in path.split(".")):
+                    found.append(f"{node.lineno}: from {node.module} import {a.name}")
+                else:
+                    modules[a.asname or a.name] = path  # (a module or a name: its private attributes count too)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ATTRIBUTE_BUILTINS \
+                and len(node.args) > 1 and isinstance(node.args[1], ast.Constant) \
+                and isinstance(node.args[1].value, str) and _private(node.args[1].value):
+            found.append(f"{node.lineno}: {ast.unparse(node)}")  # a private attribute by name, of anything
+        if isinstance(node, ast.Attribute) and _private(node.attr):
+            base = node.value
+            while isinstance(base, ast.Attribute):
+                base = base.value
+            if isinstance(base, ast.Name) and base.id in modules and ast.unparse(node) not in DOCUMENTED_PUBLIC:
+                found.append(f"{node.lineno}: {ast.unparse(node)}")
+    return sorted(set(found), key=lambda s: int(s.split(":")[0]))
+
+
+def test_private_api_checker_finds_each_kind():
+    # the check itself can fail: each kind of private use in a snippet is found, public uses are not
+    snippet = """
+import atexit
+import numba
+import numba.core._internal
+from typer._coercion import build_runtime_param
+from numba.core import _nrt_python as nrt
+from beltdyn.results import files
+from beltdyn._private import fine
+from . import _local
+
+def f(executor):
+    from typer import _click
+    atexit._run_exitfuncs()
+    numba.core._x = 1
+    files._release(1, 2)
+    executor._processes
+    numba.__version__
+    atexit.register(f)
+    os._exit(0)
+    getattr(executor, "_processes", None)
+    getattr(executor, "__name__")
+"""
+    assert private_uses(snippet) == [
+        "4: import numba.core._internal", "5: from typer._coercion import build_runtime_param",
+        "6: from numba.core import _nrt_python", "12: from typer import _click", "13: atexit._run_exitfuncs",
+        "14: numba.core._x", "20: getattr(executor, '_processes', None)"]
+    assert private_uses("import os\nos._exit(1)\n") == []  # documented public
+    assert private_uses("import os\nos.path.join('a')\nfrom typer import Typer\n") == []
+
+
+def test_no_module_uses_a_private_api_of_a_dependency():
+    found = {m: uses for m, path in modules().items() if (uses := private_uses(path.read_text()))}
+    assert found == {}

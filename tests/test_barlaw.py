@@ -7,7 +7,6 @@ stretches."""
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest

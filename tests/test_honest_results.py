@@ -697,14 +697,14 @@ def test_an_error_a_signal_caused_in_a_library_is_the_interruption(sig, code, mo
     # internal error (exit 1).
     import typer
 
-    from beltdyn import cli
+    from beltdyn.cli import failures, signals
 
-    monkeypatch.setitem(cli._STATE, "signal", sig)
+    monkeypatch.setitem(signals.STATE, "signal", sig)
     with pytest.raises(typer.Exit) as got:
-        cli._fail(ImportError("initialization failed"))
+        failures.fail(ImportError("initialization failed"))
     assert got.value.exit_code == code
-    monkeypatch.setitem(cli._STATE, "signal", None)
-    assert cli._interruption(ImportError("initialization failed")) is None
+    monkeypatch.setitem(signals.STATE, "signal", None)
+    assert signals.interruption(ImportError("initialization failed")) is None
     with pytest.raises(typer.Exit) as got:
-        cli._fail(ImportError("initialization failed"))
+        failures.fail(ImportError("initialization failed"))
     assert got.value.exit_code == 1

@@ -70,12 +70,10 @@ index n, tsel, e0 (n_elem, 8), dS/d2S (n_elem, n_qp, 4), wEA/wEI (n_elem, n_qp),
 
 from __future__ import annotations
 
-import sys
 from collections import namedtuple
 
 import numpy as np
 
-from beltdyn import jitcache
 from beltdyn.jitcache import configure, kernel_options
 
 

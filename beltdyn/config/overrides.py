@@ -51,17 +51,20 @@ def _parse_literal(text: str) -> Any:
 
 
 def apply_override(raw: dict[str, Any], assignment: str, *, file: str) -> None:
-    """Apply one ``KEY=VALUE`` override in place (VALUE a TOML literal; never eval)."""
+    """Apply one ``KEY=VALUE`` override in place (VALUE a TOML literal; never eval). An empty VALUE
+    (``KEY=``, what the CLI's ``--unset KEY`` passes) removes the key: ConfigError if it is not there."""
     where = f"--set {assignment}"
     if "=" not in assignment:
         raise ConfigError("expected KEY=VALUE", file=file, key=where)
     key, text = (s.strip() for s in assignment.split("=", 1))
+    remove = text == ""
+    where = f"--unset {key}" if remove else where
     try:
         parts = _split_key(key)
     except ValueError as exc:
         raise ConfigError(f"bad key '{key}': {exc}", file=file, key=where) from None
     try:
-        value = _parse_literal(text)
+        value = None if remove else _parse_literal(text)
     except tomllib.TOMLDecodeError:
         raise ConfigError(f"value '{text}' is not a TOML literal", file=file, key=where) from None
     node: Any = raw
@@ -83,16 +86,26 @@ def apply_override(raw: dict[str, Any], assignment: str, *, file: str) -> None:
         if part not in node:
             if i == 0 and part not in _names(DriveConfig):
                 raise _Checker(file).unknown(where, str(part), list(_names(DriveConfig)))
+            if remove:
+                raise ConfigError(f"no '{part}' in the configuration: nothing to remove", file=file, key=where)
             node[part] = [] if isinstance(nxt, int) else {}
         node = node[part]
     last = parts[-1]
     if isinstance(node, list):
         if not isinstance(last, int) or last >= len(node):
             raise ConfigError(f"bad index '{last}'", file=file, key=where)
-        node[last] = value
+        if remove:
+            del node[last]
+        else:
+            node[last] = value
     elif isinstance(node, dict):
         if len(parts) == 1 and last not in _names(DriveConfig):
             raise _Checker(file).unknown(where, str(last), list(_names(DriveConfig)))
-        node[last] = value
+        if remove and last not in node:
+            raise ConfigError(f"no '{key}' in the configuration: nothing to remove", file=file, key=where)
+        if remove:
+            del node[last]
+        else:
+            node[last] = value
     else:
         raise ConfigError(f"'{parts[-2]}' is not a table", file=file, key=where)

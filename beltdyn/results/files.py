@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Iterator
 
 from beltdyn import SCHEMA_VERSION
+from beltdyn import cleanup
 from beltdyn.errors import OutputError
 from beltdyn.results.schema import decode_attr, h5py_module
 
@@ -28,6 +29,13 @@ _TOKEN_HEX = 8
 # --------------------------------------------------------------------------------------------
 # One writer per file: <name>.lock (flock)
 # --------------------------------------------------------------------------------------------
+
+
+class WriteFailure(OutputError):
+    """An I/O error (a full disk, a failing device) while the results were being written: not bad input,
+    so exit 1 (a solver-like failure), naming the file and the error."""
+
+    exit_code = 1
 
 
 class LockBusy(Exception):
@@ -126,9 +134,8 @@ def lock_output(path: Path) -> None:
     """Hold `<path>.lock` (flock, exclusive, no waiting) for the rest of this process: a second beltdyn
     command writing the same results file is refused (OutputError, exit 2, naming the holder's pid)
     instead of racing it. Readers never take it. Released when the process exits (the lock file is
-    removed then); after a kill -9 the kernel releases the flock and the stale file is simply reused."""
-    import atexit
-
+    removed then, by beltdyn's cleanup list); after a kill -9 the kernel releases the flock and the stale
+    file is simply reused."""
     if holds_lock(path):
         return
     fd = _acquire(path)
@@ -140,7 +147,7 @@ def lock_output(path: Path) -> None:
         if os.getpid() == pid:  # not in a forked child
             _release(path, fd)
 
-    atexit.register(release)
+    cleanup.at_exit(release)
 
 
 @contextmanager

@@ -110,6 +110,7 @@ from beltdyn.results.files import (
     fsync_dir,
     lock_output,
     lock_pid,
+    WriteFailure,
     take_lock,
 )
 from beltdyn.results.read import GroupState, group_names, group_states, read_group, read_root_attrs
@@ -139,4 +140,5 @@ __all__ = [
     "take_lock",
     "write_group",
     "write_groups",
+    "WriteFailure",
 ]

@@ -129,6 +129,15 @@ class JournalWriter:
         os.pwrite(self._fd, _counts(self.written, self.synced), 8)
         os.fdatasync(self._fd)
 
+    def trim(self) -> None:
+        """Cut the file after the rows recorded as written (a write that failed half-way, on a full disk,
+        leaves bytes beyond them: their space is given back). Errors are ignored (nothing is lost)."""
+        if self._fd >= 0:
+            try:
+                os.ftruncate(self._fd, self._offset + 8 * self.columns * self.written)
+            except OSError:
+                pass
+
     def close(self) -> None:
         if self._fd >= 0:
             os.close(self._fd)

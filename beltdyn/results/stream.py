@@ -18,6 +18,7 @@ import numpy as np
 from beltdyn import SCHEMA_VERSION
 from beltdyn.errors import OutputError
 from beltdyn.results.files import (
+    WriteFailure,
     parts_folder,
     remove_leftovers,
     resolve_target,
@@ -198,7 +199,7 @@ class StreamWriter:
             elif self._journal is not None:  # committed: the file names the journal; the next run recovers it
                 self._journal.close()
             if isinstance(exc, OSError):
-                raise OutputError(f"{self._path}: cannot start group /{self._name}: {exc}") from exc
+                raise WriteFailure(f"{self._path}: cannot start group /{self._name}: {exc}") from exc
             raise
 
     # -- context manager ----------------------------------------------------------------------
@@ -286,8 +287,8 @@ class StreamWriter:
                 self._journal.sync()
                 self._last_sync = now
         except OSError as exc:
-            raise OutputError(f"{self._path}: cannot append to /{self._name} (journal {self.journal_path}): "
-                              f"{exc}") from exc
+            raise WriteFailure(f"{self._path}: cannot append to /{self._name} (journal {self.journal_path}): "
+                               f"{exc}") from exc
 
     def read(self, name: str, start_row: int = 0) -> np.ndarray:
         """The rows of series `name` (or "time") appended so far, from `start_row` (read from the journal,
@@ -387,11 +388,37 @@ class StreamWriter:
             self._drain()  # (not synced: the commit makes the samples durable in the results file)
             self._finish(status, error)
         except OSError as exc:
-            raise OutputError(f"{self._path}: cannot finish group /{self._name}: {exc}; its samples are kept in "
-                              f"{self.journal_path} and recovered by the next beltdyn command on this file") from exc
+            marked = self._mark(status, error, exc)
+            raise WriteFailure(f"{self._path}: cannot finish group /{self._name}: {exc}; {marked}") from exc
         finally:
             self._journal.close()
             self._lock.__exit__(None, None, None)
+
+    def _mark(self, status: str, error: str, exc: OSError) -> str:
+        """After the samples could not be copied into the file (`exc`, e.g. a full disk): the group marked
+        "failed" (or "interrupted") in one small commit without them, its stream journal still named by
+        the group (so it is kept until the group is written anew); if even that cannot be
+        written, the group stays "running" with its journal, which the next beltdyn command on the file
+        recovers (status "interrupted"). Returns what was done, for the message."""
+        self._journal.trim()  # the rows of a write that failed half-way: their space back
+        why = f"{error + '; ' if error else ''}its samples could not be copied into the file ({exc})"
+        final = "interrupted" if status == "interrupted" else "failed"
+        tx = None
+        try:
+            tx = Transaction(self._path, config_sha256=self._sha)
+            g = tx.group(self._name)
+            if g is None or str(decode_attr(g.attrs.get("stream_journal", ""))) != self._journal_rel:
+                tx.abort()
+                return f"its samples are in {self.journal_path}"
+            set_status(g, final, f"{why}; they are kept in the stream journal {self._journal_rel}")
+            g.attrs["stream_journal"] = self._journal_rel  # (set_status drops it): the journal stays referenced
+            tx.commit()
+        except (OSError, OutputError):
+            if tx is not None:
+                tx.abort()
+            return (f"/{self._name} stays marked 'running' with its samples in {self.journal_path}; the next beltdyn "
+                    f"command on this file recovers them (marked 'interrupted')")
+        return f"/{self._name} is marked '{final}', its samples kept in {self.journal_path}"
 
     # -- internals ------------------------------------------------------------------------------
 

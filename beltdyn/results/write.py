@@ -32,6 +32,7 @@ from beltdyn import __version__
 from beltdyn.errors import OutputError
 from beltdyn.results.copy import copy_attrs, copy_group
 from beltdyn.results.files import (
+    WriteFailure,
     fsync_dir,
     fsync_file,
     inspect_target,
@@ -168,7 +169,7 @@ class Transaction:
         except BaseException as exc:
             self.abort()
             if isinstance(exc, OSError):
-                raise OutputError(f"{path}: cannot create a temporary file next to it: {exc}") from exc
+                raise WriteFailure(f"{path}: cannot create a temporary file next to it: {exc}") from exc
             raise
         self.fresh = not update
 
@@ -461,7 +462,7 @@ def write_groups(
         except BaseException as exc:
             tx.abort()
             if isinstance(exc, OSError):
-                raise OutputError(f"{path}: cannot write {names}: {exc}") from exc
+                raise WriteFailure(f"{path}: cannot write {names}: {exc}") from exc
             raise
     return [f"{path}: removed {len(removed)} leftover file(s) of an earlier write that did not finish: "
             + ", ".join(removed)] if removed else []

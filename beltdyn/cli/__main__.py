@@ -1,0 +1,5 @@
+"""`python -m beltdyn.cli`: the console script."""
+
+from beltdyn.cli import run
+
+run()

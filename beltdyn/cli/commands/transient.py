@@ -1,0 +1,96 @@
+"""`beltdyn transient`: the nonlinear time response, streamed into the results file (`beltdyn.workflow`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from beltdyn.cli.console import console, print_notes, progress_bar, spinner, warn
+from beltdyn.cli.failures import guarded
+from beltdyn.cli.job import Job, announce_cost, check_output_volume, choose_spans, ladder_not_met, static_pipeline
+from beltdyn.cli.options import ConfigArg, FmaxOpt, ForceLargeOpt, ForceOpt, OutOpt, SetOpt, UnsetOpt, overrides
+from beltdyn.cli.signals import held_back
+from beltdyn.cli.tables import print_transient
+
+
+def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: Optional[List[str]] = SetOpt,
+              unset: Optional[List[str]] = UnsetOpt,
+              force: bool = ForceOpt, force_large: bool = ForceLargeOpt,
+              duration: Optional[float] = typer.Option(None, "--duration", min=0.0, help="Simulated time, s [default: transient.duration]."),
+              step: Optional[float] = typer.Option(None, "--step", min=0.0, help="Time step, s, used as given [default: transient.step, or from transient.accuracy and fmax]."),
+              fmax: Optional[float] = FmaxOpt,
+              rtol: Optional[float] = typer.Option(None, "--rtol", min=0.0,
+                                                   help="With --fmax: the relative tolerance of the span choice.")) -> None:
+    """Nonlinear time response (generalized-alpha) with streamed histories and their spectra."""
+
+    def body() -> None:
+        sets = overrides(set_, unset)
+        if duration is not None:
+            sets.append(f"transient.duration={duration!r}")
+        if step is not None:
+            sets.append(f"transient.step={step!r}")
+        job = Job(config, output, sets, force)
+        cfg = job.cfg
+        if cfg.transient is None:
+            from beltdyn.errors import ConfigError
+
+            raise ConfigError("no [transient] table: add one (duration, step, excitations)", file=cfg.source,
+                              key="transient")
+        from beltdyn.analysis.timestep import resolve_step
+
+        resolved, origin = resolve_step(cfg.transient, manual=step)
+        if resolved.step != cfg.transient.step:  # the chosen step goes into the resolved configuration
+            job = Job(config, output, sets + [f"transient.step={resolved.step!r}"], force)  # (provenance)
+        job.step_origin = origin
+        choose_spans(job, fmax, rtol, command="transient")
+        announce_cost(job.cfg, resolved)
+        check_output_volume(job, force_large)
+        spec_opts = cfg.transient.spectrum
+        run = static_pipeline(job, modal=spec_opts.enabled)
+        run_transient_command(job, run)
+        ladder_not_met(job)
+
+    guarded(body)
+
+
+COMPILE_SECONDS = 120  # numba's first compile of the transient kernels: 20 s alone, up to 2 min on a busy 2-core machine
+
+
+def warm_kernels(con) -> None:
+    """Compile the transient kernels before any output file is opened when they are not in numba's
+    cache yet (`jitcache.is_warm`), with a spinner and the elapsed time, and with Ctrl-C and SIGTERM
+    held back until the compiler is done (`signals.held_back`). Cached kernels are loaded as the run
+    first calls them."""
+    from beltdyn import jitcache, pipeline
+    from beltdyn.analysis.transient import entry_kernels
+
+    if jitcache.is_warm(*entry_kernels()):
+        return  # in numba's cache: loaded as the run first calls them (~0.2 s)
+    with held_back(), spinner(con, "compiling the transient kernels, once (numba; up to "
+                                   f"{COMPILE_SECONDS // 60} min on a busy machine; later runs load them from its cache)"):
+        pipeline.warm_up()
+
+
+def run_transient_command(job: Job, run) -> None:
+    """The transient of an analysed drive into the job's output (`workflow`), said on the console."""
+    from beltdyn.workflow import plan_transient, transient_to_file
+
+    opts = job.cfg.transient
+    plan = plan_transient(run, step_origin=job.step_origin)
+    for w in plan.warnings:  # before the work: a step that resolves nothing is said at once
+        warn(w)
+    con = console()
+    warm_kernels(con)
+    progress, update = progress_bar(con, opts.duration)
+    with progress:
+        done = transient_to_file(plan, opts, output=job.output, config_toml=job.toml, config_sha256=job.sha,
+                                 notes=print_notes, progress=update)
+    con.print(f"time step ({plan.attrs['step_origin']}): {plan.step_text}")
+    print_transient(con, done.summary, done.spans, done.peaks, done.excitation_frequency, shown=plan.warnings)
+    con.print(f"wrote [bold]/transient[/] ({done.summary.n_outputs} samples) to {job.output}")
+
+
+def register(app: typer.Typer) -> None:
+    app.command()(transient)
