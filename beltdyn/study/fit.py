@@ -315,13 +315,6 @@ def pair_rows(data: MeasuredData, rows: np.ndarray, modal: ModalResult) -> tuple
     return out, warnings  # type: ignore[return-value]
 
 
-@dataclass(frozen=True, kw_only=True)
-class _Evaluation:
-    frequency: np.ndarray  # (m,) Hz, the paired candidates' frequencies
-    derivative: np.ndarray | None  # (m, n) df/dp, Hz per unit of each parameter
-    method: tuple[str, ...]  # (n,)
-
-
 class Model:
     """The measured rows' computed frequencies as functions of the parameters (one analysis per load
     case), with their derivatives, for a fixed pairing. Holds the configurations of the cases."""
@@ -341,6 +334,7 @@ class Model:
         self.labels: list[str] = [""] * data.n_rows
         self.warnings: list[str] = []
         self.analyses = 0
+        self.rebuilt: dict[int, bool] = {}  # per case: `system_at_state` reproduces its drive
 
     def config(self, c: int, values: np.ndarray) -> DriveConfig:
         """Case c's configuration at parameter values (n,)."""
@@ -364,18 +358,13 @@ class Model:
             out[a] = modal.frequency[idx].mean()
         return out
 
-    def evaluate(self, values: np.ndarray, *, derivatives: bool, active: np.ndarray | None = None) -> _Evaluation:
-        """Computed frequencies of the rows at parameter values (n,), and with derivatives their
-        derivatives df/dp (m, n) for the `active` parameters (bool (n,), default all; zero columns
-        for the others)."""
-        n = len(self.params)
-        active = np.ones(n, dtype=bool) if active is None else active
+    def frequencies(self, values: np.ndarray) -> tuple[np.ndarray, tuple[Analysis, ...]]:
+        """Computed frequencies (m,) of the rows at parameter values (n,), and each case's analysis.
+        The first call pairs the rows with the computed modes (kept for the later calls)."""
         freq = np.empty(self.data.n_rows)
-        deriv = np.zeros((self.data.n_rows, n)) if derivatives else None
-        method = ["modal"] * n
+        runs = []
         for c, rows in enumerate(self.rows):
-            cfg_c = self.config(c, values)
-            run = self._analyse(cfg_c, c)
+            run = self._analyse(self.config(c, values), c)
             if self.pairing is None or len(self.pairing) <= c:
                 pairs, warns = pair_rows(self.data, rows, run.modal)
                 self.pairing = (self.pairing or []) + [pairs]
@@ -383,9 +372,20 @@ class Model:
                 for r, cand in zip(rows.tolist(), pairs):
                     self.labels[r] = cand.label(run.modal)
             freq[rows] = self._frequencies(c, run.modal)
-            if not derivatives:
-                continue
-            base = None
+            runs.append(run)
+        return freq, tuple(runs)
+
+    def derivatives(self, values: np.ndarray, runs: tuple[Analysis, ...], active: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, tuple[str, ...]]:
+        """df/dp (m, n) of the rows at parameter values (n,) (`runs`: the cases' analyses there, from
+        `frequencies`) for the `active` parameters (bool (n,), default all; zero columns for the
+        others), and how each was taken ("modal": from the eigenvectors at a fixed state;
+        "analyses": central differences of whole analyses)."""
+        n = len(self.params)
+        active = np.ones(n, dtype=bool) if active is None else active
+        deriv = np.zeros((self.data.n_rows, n))
+        method = ["modal"] * n
+        for c, (rows, run) in enumerate(zip(self.rows, runs)):
             for j, p in enumerate(self.params):
                 if not active[j]:
                     continue
@@ -394,23 +394,27 @@ class Model:
                 lo[j] -= h
                 hi[j] += h
                 col = None
-                if state_key(p.key) and not run.system.belt_speed:
-                    if base is None:
-                        base = system_at_state(cfg_c, run)
-                        base = base if same_matrices(base, run.system, run.static.q) else False
-                    if base is not False:
-                        col = self._state_derivative(c, run, base, lo, hi, h)
+                if state_key(p.key) and not run.system.belt_speed and self._rebuilds(c, run):
+                    col = self._state_derivative(c, run, lo, hi, h)
                 if col is None:
                     method[j] = "analyses"
                     f_lo = self._frequencies(c, self._analyse(self.config(c, lo), c).modal)
                     f_hi = self._frequencies(c, self._analyse(self.config(c, hi), c).modal)
                     col = (f_hi - f_lo) / (2.0 * h)
                 deriv[rows, j] = col
-        return _Evaluation(frequency=freq, derivative=deriv, method=tuple(method))
+        return deriv, tuple(method)
 
-    def _state_derivative(self, c: int, run: Analysis, base: System, lo: np.ndarray, hi: np.ndarray, h: float
+    def _rebuilds(self, c: int, run: Analysis) -> bool:
+        """Whether `system_at_state` rebuilds case c's drive exactly (checked once per case: the
+        derivatives at a fixed state need it)."""
+        if c not in self.rebuilt:
+            self.rebuilt[c] = same_matrices(system_at_state(run.config, run), run.system, run.static.q)
+        return self.rebuilt[c]
+
+    def _state_derivative(self, c: int, run: Analysis, lo: np.ndarray, hi: np.ndarray, h: float
                           ) -> np.ndarray | None:
         """The rows' df/dp of case c from the eigenvectors, or None if the equilibrium moves with p."""
+        base = run.system
         s_lo = system_at_state(self.config(c, lo), run)
         s_hi = system_at_state(self.config(c, hi), run)
         q = run.static.q
@@ -467,10 +471,10 @@ def fit(cfg: DriveConfig, data: MeasuredData, params: tuple[FitParameter, ...] |
     fm = data.frequency
     sw = np.sqrt(data.weight)
     p0 = np.array([p.initial for p in params])
-    first = model.evaluate(p0, derivatives=True)
-    before = first.frequency
+    before, first_runs = model.frequencies(p0)
+    first_derivative, method = model.derivatives(p0, first_runs)
     slope0 = np.array([p.slope(0.0) for p in params])
-    J0 = (sw / fm)[:, None] * first.derivative * slope0[None, :]
+    J0 = (sw / fm)[:, None] * first_derivative * slope0[None, :]
     ok, notes = _identifiable(J0, keys)
     warnings = list(model.warnings) + notes
     if not ok.any():
@@ -480,37 +484,36 @@ def fit(cfg: DriveConfig, data: MeasuredData, params: tuple[FitParameter, ...] |
     idx = np.flatnonzero(ok)
     if m < len(free):
         raise ConfigError(f"{m} measured rows cannot determine {len(free)} parameters", file=data.file, key="--param")
-    cache: dict[bytes, _Evaluation] = {}
+    point: dict = {"x": np.zeros(len(free)), "freq": before, "runs": first_runs, "deriv": first_derivative}
 
     def values(x: np.ndarray) -> np.ndarray:
         v = p0.copy()
         v[idx] = [p.value(float(xi)) for p, xi in zip(free, x)]
         return v
 
-    def at(x: np.ndarray) -> _Evaluation:
-        k = np.asarray(x, dtype=float).tobytes()
-        if k not in cache:
-            if not np.any(x):
-                cache[k] = first
-            else:
-                cache.clear()  # the optimizer asks for residuals, then the Jacobian, at the same point
-                cache[k] = model.evaluate(values(x), derivatives=True, active=ok)
-                if progress is not None:
-                    progress(f"evaluation {model.analyses}: " + ", ".join(f"{p.key} = {v:.6g}" for p, v in zip(free, values(x)[idx])))
-        return cache[k]
+    def at(x: np.ndarray, *, derivatives: bool) -> dict:
+        """The last point's frequencies (and derivatives, computed when first asked for): the optimizer
+        asks for the residuals, then, at an accepted step only, for the Jacobian at the same point."""
+        if not np.array_equal(x, point["x"]):
+            freq, runs = model.frequencies(values(x))
+            point.update(x=np.array(x, dtype=float), freq=freq, runs=runs, deriv=None)
+            if progress is not None:
+                progress(f"analyses {model.analyses}: " + ", ".join(f"{p.key} = {v:.6g}" for p, v in zip(free, values(x)[idx])))
+        if derivatives and point["deriv"] is None:
+            point["deriv"] = model.derivatives(values(x), point["runs"], ok)[0]
+        return point
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        return sw * (at(x).frequency - fm) / fm
+        return sw * (at(x, derivatives=False)["freq"] - fm) / fm
 
     def jacobian(x: np.ndarray) -> np.ndarray:
         slope = np.array([p.slope(float(xi)) for p, xi in zip(free, x)])
-        return (sw / fm)[:, None] * at(x).derivative[:, idx] * slope[None, :]
+        return (sw / fm)[:, None] * at(x, derivatives=True)["deriv"][:, idx] * slope[None, :]
 
     bounds = np.array([p.scaled_bounds() for p in free]).T
     sol = least_squares(residuals, np.zeros(len(free)), jac=jacobian, bounds=(bounds[0], bounds[1]), method="trf",
-                        xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=max_evaluations)
-    last = at(sol.x)
-    after = last.frequency
+                        xtol=1e-8, ftol=1e-10, gtol=1e-10, max_nfev=max_evaluations)
+    after = at(sol.x, derivatives=False)["freq"]
     J = jacobian(sol.x)
     r = residuals(sol.x)
     dof = m - len(free)
@@ -541,7 +544,7 @@ def fit(cfg: DriveConfig, data: MeasuredData, params: tuple[FitParameter, ...] |
     rel = lambda f: float(np.sqrt(np.mean(((f - fm) / fm) ** 2)))  # noqa: E731
     return FitResult(
         keys=keys, initial=p0, fitted=fitted, std=std, lower=np.array([p.lower for p in params]),
-        upper=np.array([p.upper for p in params]), correlation=corr, identifiable=ok, method=first.method,
+        upper=np.array([p.upper for p in params]), correlation=corr, identifiable=ok, method=method,
         measured=fm.copy(), weight=data.weight.copy(), reference=data.reference.copy(), row_line=data.line.copy(),
         case=data.case.copy(), cases=tuple(data.case_name(c) for c in range(len(data.cases))),
         mode_label=tuple(model.labels), before=before, after=after, rms_before=rel(before), rms_after=rel(after),
