@@ -676,7 +676,9 @@ def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5).
                                                help="Figure file (.png, .svg, .pdf); without WHAT a prefix: "
                                                     "PREFIX_<what>.png [default: next to RESULT]"),
          modes: Optional[str] = typer.Option(None, "--modes", help="Modes to draw, e.g. 1-8 or 1,3,5 [default: 1-8]."),
-         show: bool = typer.Option(False, "--show", help="Also open the figures in a window.")) -> None:
+         show: bool = typer.Option(False, "--show", help="Also open the figures in a window."),
+         measured: Optional[Path] = typer.Option(None, "--measured", help="A measured-frequency CSV (beltdyn fit) "
+                                                 "drawn over the sweep figure.")) -> None:
     """Figures of a results file: drive layout, mode shapes, frequency maps and Campbell diagrams,
     histories and spectra, forced response (needs the plot extra: pip install 'beltdyn[plot]')."""
 
@@ -688,10 +690,12 @@ def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5).
         except ImportError:
             raise ConfigError("matplotlib is not installed: pip install 'beltdyn[plot]'", file=str(result),
                               key="plot") from None
+        from beltdyn import fit_plot as FP
         from beltdyn import plot as P
 
-        if what is not None and what not in P.KINDS:
-            raise ConfigError(f"unknown figure {what!r}; one of {', '.join(P.KINDS)}", file=str(result), key="WHAT")
+        if what is not None and what not in P.KINDS + FP.KINDS:
+            raise ConfigError(f"unknown figure {what!r}; one of {', '.join(P.KINDS + FP.KINDS)}", file=str(result),
+                              key="WHAT")
         try:
             chosen_modes = P.parse_modes(modes)
         except ValueError:
@@ -699,13 +703,13 @@ def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5).
                               key="--modes") from None
         P.set_interactive(show)
         res = P.read_results(result)
-        kinds = (what,) if what else P.available(res)
+        kinds = (what,) if what else P.available(res) + FP.available(res)
         if not kinds:
             raise OutputError(f"{result}: holds no group a figure is drawn from (/geometry, /modal, /sweep, "
                               f"/transient or /response)")
         written = []
         for kind in kinds:
-            fig = P.figure(kind, res, modes=chosen_modes)
+            fig = FP.figure(kind, res, modes=chosen_modes, measured=measured)
             if what and output is not None:
                 path = output
             else:
