@@ -231,3 +231,59 @@ def test_bad_param_specs_are_config_errors():
         parse_parameter(cfg, "belt.EI=0.1")
     p = parse_parameter(cfg, "belt.EI=0.01:0.1")
     assert p.log and p.scaled_bounds() == pytest.approx((np.log(0.5), np.log(5.0)))
+
+
+def _artist(fig, gid: str):
+    found = [a for ax in fig.axes for a in ax.get_children() if a.get_gid() == gid]
+    assert found, gid
+    return found[0]
+
+
+def test_fit_figure_draws_the_fit_group(tmp_path):
+    # `beltdyn plot FIT.h5 fit`: measured against computed before and after: the points are /fit's
+    # datasets, unchanged.
+    pytest.importorskip("matplotlib")
+    from beltdyn import fit_plot as FP
+    from beltdyn import plot as P
+    from beltdyn.config import config_hash, resolved_toml
+    from beltdyn.results.fit import fit_group
+    from beltdyn.results.io import write_groups
+
+    cfg = load_config(BENCH)
+    res = fit(cfg, read_measured(ROOT / "configs/paper/table1_measured.csv"), [parse_parameter(cfg, "belt.EI")])
+    out = tmp_path / "fit.h5"
+    write_groups(out, [fit_group(res)], config_toml=resolved_toml(cfg), config_sha256=config_hash(cfg), force=True)
+    data = P.read_results(out)
+    assert FP.available(data) == ("fit",)
+    fig = FP.figure("fit", data)
+    x, y = _artist(fig, "after").get_data()
+    np.testing.assert_array_equal(x, res.measured)
+    np.testing.assert_array_equal(y, res.after)
+    np.testing.assert_array_equal(_artist(fig, "before").get_data()[1], res.before)
+    r = beltdyn("plot", out, "-o", tmp_path / "figs", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "figs_fit.png").stat().st_size > 0
+
+
+def test_measured_points_over_the_sweep_figure(tmp_path):
+    # `beltdyn plot SWEEP.h5 sweep --measured CSV`: the Table 1 rows drawn at their tension (200 and
+    # 400 N, from the rows' tension.target column) and measured frequency; a row without the swept
+    # key is drawn at the sweep configuration's value (200 N).
+    pytest.importorskip("matplotlib")
+    from beltdyn import fit_plot as FP
+    from beltdyn import plot as P
+
+    sweep = tmp_path / "sweep.h5"
+    r = beltdyn("sweep", BENCH, "--param", "tension.target=100:400:3", "--modes", "4", "--workers", "1",
+                "--set", "mesh.elements_per_span=4", "-o", sweep, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    fig = FP.figure("sweep", P.read_results(sweep), measured=ROOT / "configs/paper/table1_measured.csv")
+    x, y = _artist(fig, "measured").get_data()
+    np.testing.assert_array_equal(x, [200.0] * 6 + [400.0] * 6)
+    np.testing.assert_array_equal(y, read_measured(ROOT / "configs/paper/table1_measured.csv").frequency)
+    (tmp_path / "m.csv").write_text("frequency\n30.3\n")
+    x, _ = _artist(FP.figure("sweep", P.read_results(sweep), measured=tmp_path / "m.csv"), "measured").get_data()
+    assert x.tolist() == [200.0]
+    r = beltdyn("plot", sweep, "sweep", "--measured", ROOT / "configs/paper/table1_measured.csv", "-o",
+                tmp_path / "s.png", cwd=tmp_path)
+    assert r.returncode == 0 and (tmp_path / "s.png").stat().st_size > 0, r.stderr

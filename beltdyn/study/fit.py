@@ -50,6 +50,7 @@ from beltdyn.study.measured import MeasuredData, check_cases
 DEGENERATE_RTOL = 1e-3  # two modes of one kind and order closer than this (relative) are one candidate
 SINGULAR_RTOL = 1e-6  # a column-normalized Jacobian this close to rank deficient leaves parameters undetermined
 ZERO_SENSITIVITY = 1e-9  # |dr/dx| below this: the parameter changes no measured frequency
+POORLY_DETERMINED = 0.5  # a relative standard deviation above this is a warning
 STEP = 1e-4  # relative step of the central differences (matrices and whole analyses)
 # keys that enter the system's matrices only (not the belt path): their derivative may be taken at a fixed state
 STATE_KEYS = ("belt.EI", "belt.EA", "belt.mass_per_length")
@@ -541,6 +542,10 @@ def fit(cfg: DriveConfig, data: MeasuredData, params: tuple[FitParameter, ...] |
                             "assumes an interior minimum")
     fitted = p0.copy()
     fitted[idx] = [p.value(float(xi)) for p, xi in zip(free, sol.x)]
+    for j in idx.tolist():
+        if std[j] > POORLY_DETERMINED * abs(fitted[j]):
+            warnings.append(f"{keys[j]} is poorly determined by these measurements: {fitted[j]:.6g} +- {std[j]:.3g} "
+                            f"({std[j] / abs(fitted[j]):.0%})")
     rel = lambda f: float(np.sqrt(np.mean(((f - fm) / fm) ** 2)))  # noqa: E731
     return FitResult(
         keys=keys, initial=p0, fitted=fitted, std=std, lower=np.array([p.lower for p in params]),
