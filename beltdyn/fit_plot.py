@@ -121,4 +121,4 @@ def add_measured(fig, res: Results, measured: Path) -> None:
     fig.legend(fontsize=6, ncol=3, loc="outside lower center")
 
 
-__all__ = ["KINDS", "available", "figure", "plot_fit", "add_measured", "measured_positions"]
+__all__ = ["KINDS", "add_measured", "available", "figure", "measured_positions", "plot_fit"]

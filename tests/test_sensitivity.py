@@ -10,7 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from beltdyn.analysis.sensitivity import eigenvalue_derivatives, equilibrium_moves, frequency_derivatives
+from beltdyn.analysis.sensitivity import (
+    eigenvalue_derivatives,
+    equilibrium_moves,
+    frequency_derivatives,
+)
 from beltdyn.config import load_config
 from beltdyn.study.fit import FitParameter, Model, parameter_value, system_at_state
 from beltdyn.study.measured import MeasuredData
@@ -23,9 +27,11 @@ def measured(freq, kinds, orders, spans=None, case_keys=(), cases=((),), case=No
     """A MeasuredData made in memory (rows as given)."""
     m = len(freq)
     return MeasuredData(file="<synthetic>", line=np.arange(1, m + 1), frequency=np.asarray(freq, dtype=float),
-                        kind=tuple(kinds), order=np.asarray(orders), span=np.zeros(m, int) if spans is None else np.asarray(spans),
+                        kind=tuple(kinds), order=np.asarray(orders),
+                        span=np.zeros(m, int) if spans is None else np.asarray(spans),
                         weight=np.ones(m), scatter=0.01 * np.asarray(freq, dtype=float), reference=np.full(m, np.nan),
-                        case_keys=tuple(case_keys), case=np.zeros(m, int) if case is None else np.asarray(case), cases=cases)
+                        case_keys=tuple(case_keys), case=np.zeros(m, int) if case is None else np.asarray(case),
+                        cases=cases)
 
 
 # the bench's lowest modes: six transverse pairs, the rotational and the translational mode
@@ -74,7 +80,7 @@ def test_bench_sensitivities_match_finite_differences_of_whole_analyses():
     # (the fit differences whole analyses for them, and says so).
     cfg = load_config(BENCH)
     model, p0 = _model(cfg, KEYS)
-    f0, runs = model.frequencies(p0)
+    _, runs = model.frequencies(p0)
     D, method = model.derivatives(p0, runs)
     assert method == ("modal",) * 6 + ("analyses",) * 2
     for j, key in enumerate(KEYS):
@@ -137,7 +143,7 @@ def test_mass_under_gravity_moves_the_equilibrium():
 
     cfg = with_overrides(load_config(BENCH), ["model.gravity=[0.0, -9.81]"])
     model, p0 = _model(cfg, ["belt.mass_per_length"])
-    f0, runs = model.frequencies(p0)
+    _, runs = model.frequencies(p0)
     D, method = model.derivatives(p0, runs)
     assert method == ("analyses",)
     h = 1e-3 * p0[0]
@@ -161,7 +167,7 @@ def test_tensioner_drive_sensitivities_match_finite_differences(key):
     data = measured([f for _, f in rows], [k for (k, _, _), _ in rows], [o for (_, o, _), _ in rows],
                     spans=[s for (_, _, s), _ in rows])
     model, p0 = _model(cfg, [key], data)
-    f0, runs = model.frequencies(p0)
+    _, runs = model.frequencies(p0)
     D, method = model.derivatives(p0, runs)
     assert method == ("modal",)
     est = []

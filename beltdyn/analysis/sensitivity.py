@@ -88,10 +88,18 @@ def same_matrices(a: System, b: System, q: np.ndarray, *, rtol: float = 1e-12) -
     pairs = ((_dense(a.equilibrium(q)[1]), _dense(b.equilibrium(q)[1])),
              (_dense(a.mass_matrix(q)), _dense(b.mass_matrix(q))),
              (a.equilibrium(q, tangent=False)[0], b.equilibrium(q, tangent=False)[0]))
-    return a.n_dof == b.n_dof and all(
-        x.shape == y.shape and float(np.max(np.abs(x - y), initial=0.0)) <= rtol * max(float(np.max(np.abs(x), initial=0.0)), 1e-300)
-        for x, y in pairs)
+    def close(x: np.ndarray, y: np.ndarray) -> bool:
+        big = max(float(np.max(np.abs(x), initial=0.0)), 1e-300)
+        return x.shape == y.shape and float(np.max(np.abs(x - y), initial=0.0)) <= rtol * big
+
+    return a.n_dof == b.n_dof and all(close(x, y) for x, y in pairs)
 
 
-__all__ = ["matrix_derivatives", "eigenvalue_derivatives", "frequency_derivatives", "equilibrium_moves",
-           "same_matrices", "MOVE_TOLERANCE"]
+__all__ = [
+    "MOVE_TOLERANCE",
+    "eigenvalue_derivatives",
+    "equilibrium_moves",
+    "frequency_derivatives",
+    "matrix_derivatives",
+    "same_matrices",
+]

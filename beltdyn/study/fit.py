@@ -34,13 +34,18 @@ SINGULAR_RTOL of its largest), is named and held at its initial value, never fit
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
 from beltdyn.analysis.modal import ModalResult, ordinal
-from beltdyn.analysis.sensitivity import equilibrium_moves, frequency_derivatives, matrix_derivatives, same_matrices
+from beltdyn.analysis.sensitivity import (
+    equilibrium_moves,
+    frequency_derivatives,
+    matrix_derivatives,
+    same_matrices,
+)
 from beltdyn.config import DriveConfig, config_to_dict, with_overrides
 from beltdyn.errors import ConfigError, SolverError
 from beltdyn.model.system import System, build_system, drive_facts
@@ -134,7 +139,8 @@ def parse_parameter(cfg: DriveConfig, text: str) -> FitParameter:
             lo = float(parts[0]) if parts[0].strip() else -math.inf
             hi = float(parts[1]) if parts[1].strip() else math.inf
         except ValueError:
-            raise ConfigError(f"bounds must be LOW:HIGH, got {spec!r}", file=cfg.source, key=f"--param {text}") from None
+            raise ConfigError(f"bounds must be LOW:HIGH, got {spec!r}", file=cfg.source,
+                              key=f"--param {text}") from None
         if not lo < hi:
             raise ConfigError(f"LOW must be below HIGH, got {spec!r}", file=cfg.source, key=f"--param {text}")
         if not lo <= p0 <= hi:
@@ -143,8 +149,6 @@ def parse_parameter(cfg: DriveConfig, text: str) -> FitParameter:
     log = p0 > 0.0 and lo >= 0.0 if math.isfinite(lo) else p0 > 0.0
     if log and not math.isfinite(lo):
         lo = 0.0
-    if log and lo == p0:
-        log = False  # a bound at the start: fitted linearly
     return FitParameter(key=key, initial=p0, lower=lo, upper=hi, log=log)
 
 
@@ -259,7 +263,8 @@ def _clusters(modal: ModalResult, pool: np.ndarray) -> list[np.ndarray]:
 
 def _candidate(modal: ModalResult, members: np.ndarray) -> Candidate:
     i = int(members[0])
-    return Candidate(kind=modal.kind[i], order=int(modal.order[i]), spans=tuple(sorted(int(modal.span[j]) for j in members)))
+    spans = tuple(sorted(int(modal.span[j]) for j in members))
+    return Candidate(kind=modal.kind[i], order=int(modal.order[i]), spans=spans)
 
 
 def pair_rows(data: MeasuredData, rows: np.ndarray, modal: ModalResult) -> tuple[list[Candidate], list[str]]:
@@ -284,9 +289,11 @@ def pair_rows(data: MeasuredData, rows: np.ndarray, modal: ModalResult) -> tuple
         if len(pool) and span:
             pool, column = pool[modal.span[pool] == span], "span"
         if not len(pool):
-            what = " ".join(x for x in (ordinal(order) if order else "", kind) if x) + (f" of span {span}" if span else "")
+            what = " ".join(x for x in (ordinal(order) if order else "", kind) if x)
+            what += f" of span {span}" if span else ""
+            kinds = ", ".join(sorted(set(modal.kind)))
             raise ConfigError(f"no computed mode is a {what} among the lowest {n} modes of the case "
-                              f"'{data.case_name(int(data.case[r]))}' (kinds there: {', '.join(sorted(set(modal.kind)))})",
+                              f"'{data.case_name(int(data.case[r]))}' (kinds there: {kinds})",
                               file=data.file, key=f"row {line}, column '{column}'")
         near = int(pool[np.argmin(np.abs(f[pool] - data.frequency[r]))])
         members = np.array([near]) if span else next(c for c in _clusters(modal, pool) if near in c)
@@ -310,7 +317,8 @@ def pair_rows(data: MeasuredData, rows: np.ndarray, modal: ModalResult) -> tuple
             out[a] = _candidate(modal, clusters[j])
             close = np.flatnonzero(np.abs(fc - fm[i]) <= data.scatter[r])
             if len(close) >= 2:
-                names = " and ".join(f"{_candidate(modal, clusters[k]).label(modal)} ({fc[k]:.5g} Hz)" for k in close[:2])
+                names = " and ".join(f"{_candidate(modal, clusters[k]).label(modal)} ({fc[k]:.5g} Hz)"
+                                     for k in close[:2])
                 warnings.append(f"{data.file}: row {int(data.line[r])}: pairing of {fm[i]:.5g} Hz is ambiguous: "
                                 f"{names} are within its scatter {data.scatter[r]:.3g} Hz")
     return out, warnings  # type: ignore[return-value]
@@ -444,15 +452,17 @@ def _identifiable(J: np.ndarray, keys: tuple[str, ...]) -> tuple[np.ndarray, lis
     while ok.sum() > 1:
         idx = np.flatnonzero(ok)
         A = J[:, idx] / norms[idx]
-        _, s, vt = np.linalg.svd(A, full_matrices=False)
-        if s[-1] > SINGULAR_RTOL * s[0] and A.shape[0] >= A.shape[1]:
+        _, s, vt = np.linalg.svd(A)  # vt (k, k): its last row spans the smallest (or a null) direction
+        smallest = float(s[-1]) if A.shape[0] >= A.shape[1] else 0.0  # fewer rows than columns: rank deficient
+        if smallest > SINGULAR_RTOL * s[0]:
             break
         v = np.abs(vt[-1])
         names = [keys[int(idx[k])] for k in np.flatnonzero(v > 0.3)]
         drop = int(idx[int(np.argmax(v))])
         ok[drop] = False
         notes.append(f"{keys[drop]} is not identifiable: the measured frequencies cannot separate "
-                     f"{', '.join(names)} (singular values {s[-1]:.2e} of {s[0]:.2e}); held at its initial value")
+                     f"{', '.join(names)} (smallest singular value {smallest:.2e} of {s[0]:.2e}); held at its "
+                     "initial value")
     return ok, notes
 
 
@@ -499,7 +509,8 @@ def fit(cfg: DriveConfig, data: MeasuredData, params: tuple[FitParameter, ...] |
             freq, runs = model.frequencies(values(x))
             point.update(x=np.array(x, dtype=float), freq=freq, runs=runs, deriv=None)
             if progress is not None:
-                progress(f"analyses {model.analyses}: " + ", ".join(f"{p.key} = {v:.6g}" for p, v in zip(free, values(x)[idx])))
+                progress(f"analyses {model.analyses}: "
+                         + ", ".join(f"{p.key} = {v:.6g}" for p, v in zip(free, values(x)[idx])))
         if derivatives and point["deriv"] is None:
             point["deriv"] = model.derivatives(values(x), point["runs"], ok)[0]
         return point
@@ -546,7 +557,10 @@ def fit(cfg: DriveConfig, data: MeasuredData, params: tuple[FitParameter, ...] |
         if std[j] > POORLY_DETERMINED * abs(fitted[j]):
             warnings.append(f"{keys[j]} is poorly determined by these measurements: {fitted[j]:.6g} +- {std[j]:.3g} "
                             f"({std[j] / abs(fitted[j]):.0%})")
-    rel = lambda f: float(np.sqrt(np.mean(((f - fm) / fm) ** 2)))  # noqa: E731
+
+    def rel(f: np.ndarray) -> float:  # the RMS relative error
+        return float(np.sqrt(np.mean(((f - fm) / fm) ** 2)))
+
     return FitResult(
         keys=keys, initial=p0, fitted=fitted, std=std, lower=np.array([p.lower for p in params]),
         upper=np.array([p.upper for p in params]), correlation=corr, identifiable=ok, method=method,
@@ -563,6 +577,19 @@ def fitted_config(cfg: DriveConfig, result: FitResult) -> DriveConfig:
                                 zip(result.keys, result.fitted, result.identifiable) if ok])
 
 
-__all__ = ["FitParameter", "FitResult", "Candidate", "Model", "fit", "fitted_config", "parse_parameter",
-           "parameter_value", "pair_rows", "system_at_state", "state_key", "DEGENERATE_RTOL", "SINGULAR_RTOL",
-           "STEP"]
+__all__ = [
+    "DEGENERATE_RTOL",
+    "SINGULAR_RTOL",
+    "STEP",
+    "Candidate",
+    "FitParameter",
+    "FitResult",
+    "Model",
+    "fit",
+    "fitted_config",
+    "pair_rows",
+    "parameter_value",
+    "parse_parameter",
+    "state_key",
+    "system_at_state",
+]

@@ -92,7 +92,8 @@ def read_measured(path: Path | str) -> MeasuredData:
     try:
         text = Path(path).read_text(encoding="utf-8-sig")
     except OSError as exc:
-        raise ConfigError(f"cannot read the measured file: {exc.strerror or exc}", file=file, key="--measured") from None
+        raise ConfigError(f"cannot read the measured file: {exc.strerror or exc}", file=file,
+                          key="--measured") from None
     lines = [(i + 1, s) for i, s in enumerate(text.splitlines()) if s.strip() and not s.lstrip().startswith("#")]
     if not lines:
         raise ConfigError("no header and no rows", file=file, key="--measured")
@@ -169,4 +170,4 @@ def check_cases(cfg: DriveConfig, data: MeasuredData) -> tuple[DriveConfig, ...]
     return tuple(out)
 
 
-__all__ = ["MeasuredData", "read_measured", "check_cases", "KINDS", "OWN_COLUMNS", "DEFAULT_SCATTER"]
+__all__ = ["DEFAULT_SCATTER", "KINDS", "OWN_COLUMNS", "MeasuredData", "check_cases", "read_measured"]
