@@ -34,6 +34,7 @@ from beltdyn.plot.data import (
     warnings_of,
 )
 from beltdyn.plot.drive import hermite_curves, plot_layout
+from beltdyn.plot.fit import add_measured, fit_summary, plot_fit
 from beltdyn.plot.modes import plot_modes
 from beltdyn.plot.series import plot_response, plot_transient
 from beltdyn.plot.style import (
@@ -51,14 +52,17 @@ __all__ = ["KINDS", "NEEDS", "OKABE_ITO", "Results", "alike_curves", "available"
            "save", "set_interactive", "warnings_of"]
 
 TITLES = {"layout": "drive layout", "modes": "mode shapes", "sweep": "sweep", "transient": "transient response",
-          "response": "steady forced response"}
+          "response": "steady forced response", "fit": "fit to measured frequencies"}
 
 
-def figure(kind: str, res: Results, *, modes: tuple[int, ...] | None = None):
-    """The figure `kind` of the results (a matplotlib Figure), with its corner tag."""
+def figure(kind: str, res: Results, *, modes: tuple[int, ...] | None = None, measured: Path | None = None):
+    """The figure `kind` of the results (a matplotlib Figure), with its corner tag; `measured` (a
+    measured-frequency CSV of `beltdyn fit`) draws its rows over a sweep figure."""
     require(res, kind)
     fig = {"layout": plot_layout, "modes": lambda r: plot_modes(r, modes), "sweep": plot_sweep,
-           "transient": plot_transient, "response": plot_response}[kind](res)
+           "transient": plot_transient, "response": plot_response, "fit": plot_fit}[kind](res)
+    if measured is not None and kind == "sweep":
+        add_measured(fig, res, measured)
     sign(fig, corner_tag(kind, res))
     settle(fig)  # positions final before anyone measures or saves it
     return fig
@@ -70,6 +74,8 @@ def corner_tag(kind: str, res: Results) -> str:
     version = f"beltdyn {res.attrs.get('beltdyn_version', '')}".strip()
     if kind == "sweep":
         return f"{TITLES[kind]}: {sweep_range(res)}; base case: {res.title} | {version}"
+    if kind == "fit":
+        return f"{TITLES[kind]}: {fit_summary(res)} | {res.title} | {version}"
     return f"{TITLES[kind]} | {res.title} | {version}"
 
 

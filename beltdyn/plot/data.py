@@ -17,13 +17,14 @@ from beltdyn.errors import OutputError
 from beltdyn.results.io import read_group, read_root_attrs
 
 SLIP_CAP = 1e6  # slip margins above this (torque-free pulleys: ~1e12 or inf) are left out of panels and tables
-KINDS = ("layout", "modes", "sweep", "transient", "response")
+KINDS = ("layout", "modes", "sweep", "transient", "response", "fit")
 NEEDS = MappingProxyType({  # figure -> (groups it reads, the command that writes the first)
     "layout": (("geometry",), "beltdyn geometry (or static, modal)"),
     "modes": (("static", "modal"), "beltdyn modal"),
     "sweep": (("sweep",), "beltdyn sweep"),
     "transient": (("transient",), "beltdyn transient"),
     "response": (("response",), "beltdyn response"),
+    "fit": (("fit",), "beltdyn fit --measured MEASURED.csv --param KEY"),
 })
 
 

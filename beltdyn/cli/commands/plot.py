@@ -12,14 +12,16 @@ from beltdyn.cli.failures import guarded
 
 
 def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5)."),
-         what: Optional[str] = typer.Argument(None, help="layout | modes | sweep | transient | response "
+         what: Optional[str] = typer.Argument(None, help="layout | modes | sweep | transient | response | fit "
                                                          "[default: every figure the file holds]"),
          output: Optional[Path] = typer.Option(None, "-o", "--output",
                                                help="Figure file (.png, .svg, .pdf); without WHAT every figure "
                                                     "as <stem>_<what><suffix>: -o fig.png writes fig_layout.png, "
                                                     "fig_modes.png, ... [default: next to RESULT]"),
          modes: Optional[str] = typer.Option(None, "--modes", help="Modes to draw, e.g. 1-8 or 1,3,5 [default: 1-8]."),
-         show: bool = typer.Option(False, "--show", help="Also open the figures in a window.")) -> None:
+         show: bool = typer.Option(False, "--show", help="Also open the figures in a window."),
+         measured: Optional[Path] = typer.Option(None, "--measured", help="A measured-frequency CSV (beltdyn fit) "
+                                                 "drawn over the sweep figure.")) -> None:
     """Figures of a results file: drive layout, mode shapes, frequency maps and Campbell diagrams,
     histories and spectra, forced response (needs the plot extra: pip install 'beltdyn[plot]')."""
 
@@ -48,7 +50,7 @@ def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5).
                               f"/transient or /response)")
         written = []
         for kind, path in P.figure_paths(result, kinds, output=output, single=bool(what)).items():
-            P.save(P.figure(kind, res, modes=chosen_modes), path)
+            P.save(P.figure(kind, res, modes=chosen_modes, measured=measured), path)
             written.append(str(path))
         if show:
             import matplotlib.pyplot as plt
