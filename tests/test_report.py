@@ -46,6 +46,8 @@ CASES = {
                   ["table-pulleys", "table-spans", "table-tensioner", "table-modes"]),
     "campbell": (["sweep", CAMPBELL, "--set", 'sweep.params={"running.driver_speed"="0:600:5"}', "--workers", "1",
                   "--set", "mesh.elements_per_span=4"], ["figure-sweep"], ["table-crossings"]),
+    "working_curve": (["sweep", FEAD, "--param", "static.torque[0].value=-12:0:3", "--analysis", "static",
+                       "--workers", "1", "--set", "mesh.elements_per_span=4"], ["figure-sweep"], ["table-sweep"]),
     "response": (["response", FEAD, "--set", "response.points=12", "--set", "mesh.elements_per_span=4"],
                  ["figure-layout", "figure-response"], ["table-pulleys", "table-response"]),
 }
@@ -242,6 +244,14 @@ def test_report_renders_in_chromium_and_its_tables_are_the_files(kind, workdir, 
                 _shown(row[0], x[i])
                 for k in range(freq.shape[1]):
                     _shown(row[1 + k], freq[i, k])
+        if kind == "working_curve":  # the tensioner's arm angle and spring torque against the torque
+            x = _var(f, "sweep/param_static_torque_0__value")
+            angle, torque = _var(f, "sweep/arm_angle"), _var(f, "sweep/arm_torque")
+            arm = int(np.flatnonzero(np.isfinite(angle[0]))[0])
+            for i, row in zip(np.argsort(x, kind="stable"), tables["table-sweep"]):
+                _shown(row[0], x[i])
+                _shown(row[1], angle[i, arm])
+                _shown(row[2], torque[i, arm])
         if kind == "campbell":
             cx, cf = _var(f, "sweep/crossing_driver_speed"), _var(f, "sweep/crossing_frequency")
             rows = tables["table-crossings"]

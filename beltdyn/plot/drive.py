@@ -32,7 +32,7 @@ def hermite_curves(position: np.ndarray, slope: np.ndarray | None, span: np.ndar
     xi = np.arange(points) / points
     for s in np.unique(span):
         r = position[span == s]
-        if slope is None or element_length is None or not np.isfinite(element_length[s]) or len(r) < 2:
+        if slope is None or element_length is None or not element_length[s] > 0 or len(r) < 2:
             out[int(s)] = r.copy()
             continue
         d = slope[span == s]

@@ -146,7 +146,7 @@ def static_group(model: DriveModel, res: StaticResult, target: float | None) -> 
                      description="the belt's slope r' = dr/dx at each node (x the reference arc length), with "
                                  "node_position the Hermite data of the elements' cubic shape functions"),
             Variable(name="span_element_length", data=_element_lengths(model), dims=("span",), units="m",
-                     description="reference length of each span's ANCF elements (NaN for a spring span)"),
+                     description="reference length of each span's ANCF elements (0 for a spring span: no elements)"),
             Variable(name="q", data=res.q, dims=("dof",), units=MIXED,
                      description="independent coordinates from the reference state, each in its dof_unit"),
             dof_unit_variable(model),
@@ -275,10 +275,10 @@ def belt_nodes(model: DriveModel, E: np.ndarray, *, slope: bool = False) -> np.n
 
 
 def _element_lengths(model: DriveModel) -> np.ndarray:
-    """(n_span,) reference length of each span's (equal) elements, NaN for a spring span."""
+    """(n_span,) reference length of each span's (equal) elements, 0 for a spring span (none)."""
     counts = np.array([len(els) for els in model.belt.span_elements], dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(counts > 0, np.asarray(model.belt.reference_length, dtype=float) / counts, np.nan)
+    length = np.asarray(model.belt.reference_length, dtype=float)
+    return np.divide(length, counts, out=np.zeros_like(length), where=counts > 0)
 
 
 def node_spans(model: DriveModel) -> np.ndarray:
