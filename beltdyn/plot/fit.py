@@ -13,6 +13,7 @@ Plotted data are the files' data, unchanged (the tests read them back from the a
 
 from __future__ import annotations
 
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -88,7 +89,7 @@ def measured_positions(res: Results, measured: Path) -> tuple[np.ndarray, np.nda
                                   key=f"row {int(data.line[i])}, column '{key}'") from None
         else:
             if default is None:
-                default = parameter_value(config_from_dict(res.config, file=str(res.path)), key)
+                default = parameter_value(config_from_dict(tomllib.loads(res.config_text), file=str(res.path)), key)
             x[i] = default
     return x, data.frequency, key
 
