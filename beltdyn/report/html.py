@@ -73,6 +73,7 @@ def table(table_id: str, caption: str, headers: list[str], rows: list[list[Cell]
             f"<tbody>{''.join(body)}</tbody></table>{foot}")
 
 
+_METADATA = re.compile(r"<metadata>.*?</metadata>\s*", re.DOTALL)
 _XML_HEAD = re.compile(r"^\s*<\?xml[^>]*>\s*(<!DOCTYPE[^>]*>\s*)?", re.DOTALL)
 
 
@@ -84,7 +85,7 @@ def svg(fig, figure_id: str, caption: str) -> str:
     buf = io.StringIO()
     with matplotlib.rc_context({"svg.fonttype": "path", "svg.hashsalt": figure_id}):
         fig.savefig(buf, format="svg")
-    body = _XML_HEAD.sub("", buf.getvalue())
+    body = _METADATA.sub("", _XML_HEAD.sub("", buf.getvalue()))  # (the RDF block: creator, date)
     return (f'<figure id="{escape(figure_id)}">{body}<figcaption>{escape(caption)}</figcaption></figure>')
 
 
