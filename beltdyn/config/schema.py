@@ -4,7 +4,6 @@ doc=..., units=...)`; the keys and their docs derived from the declarations (`va
 
 from __future__ import annotations
 
-import functools
 import math
 import re
 from collections.abc import Iterator
@@ -495,26 +494,26 @@ class DriveConfig:
     title: str = key(TEXT, "", omit_default=True, doc="a title for the results")
     source: str = ""  # file the config came from (not part of the resolved TOML)
 
-    @functools.cached_property  # a frozen config: computed once (its __dict__, not a field)
+    @property  # (derived on each use: a frozen config holds nothing but its fields)
     def adjustable_index(self) -> int | None:
         for i, p in enumerate(self.pulleys):
             if p.adjustable:
                 return i
         return None
 
-    @functools.cached_property
+    @property
     def driver_index(self) -> int:
         for i, p in enumerate(self.pulleys):
             if p.driver:
                 return i
         return 0
 
-    @functools.cached_property
+    @property
     def span_names(self) -> tuple[str, ...]:
         """Span i runs from pulley i to pulley i + 1: "A-C" (as the console names it)."""
         return span_names(self.pulleys)
 
-    @functools.cached_property
+    @property
     def span_models(self) -> tuple[str, ...]:
         """The resolved model of each span: "ancf", "string" or "spring" ([spans], else "ancf", or
         "string" where model.curvature = "none")."""
@@ -522,7 +521,7 @@ class DriveConfig:
         default = "string" if self.model.curvature == "none" else "ancf"
         return tuple((given[n].model if n in given and given[n].model else default) for n in self.span_names)
 
-    @functools.cached_property
+    @property
     def span_elements(self) -> tuple[int, ...]:
         """The resolved elements of each span (0 for a spring span)."""
         given = dict(self.spans)
