@@ -113,7 +113,15 @@ from beltdyn.results.files import (
     WriteFailure,
     take_lock,
 )
-from beltdyn.results.read import GroupState, group_names, group_states, read_group, read_root_attrs
+from beltdyn.results.read import (
+    FileSummary,
+    GroupState,
+    file_summary,
+    group_names,
+    group_states,
+    read_group,
+    read_root_attrs,
+)
 from beltdyn.results.schema import GroupData, Variable
 from beltdyn.results.stream import SYNC_SECONDS, WRITE_SECONDS, StreamWriter, recover
 from beltdyn.results.write import INLINE_BYTES, write_group, write_groups
@@ -123,12 +131,14 @@ __all__ = [
     "INLINE_BYTES",
     "SYNC_SECONDS",
     "WRITE_SECONDS",
+    "FileSummary",
     "GroupData",
     "GroupState",
     "LockBusy",
     "StreamWriter",
     "Variable",
     "check_target",
+    "file_summary",
     "fsync_dir",
     "group_states",
     "lock_output",
