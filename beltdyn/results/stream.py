@@ -10,6 +10,7 @@ copy for a group whose writer died, marking it `interrupted`.
 
 from __future__ import annotations
 
+import os
 import time as _time
 from pathlib import Path
 
@@ -515,10 +516,11 @@ def recover(path: Path, *, if_free: bool = False) -> list[str]:
                     refs = references(f)
             except OSError:
                 return []
-            if read_only(path):
+            if dead and (read_only(path) or not os.access(path.parent, os.W_OK | os.X_OK)):
                 return [f"{path}: /{name} was left 'running' by pid {gattrs.get('writer_pid', '?')}, which no longer "
-                        "runs; the file is read-only, so it is not recovered (its samples are read from the stream "
-                        f"journal {gattrs.get('stream_journal', '') or '(none)'})" for name, gattrs in dead]
+                        "runs; the file (or its folder) is read-only, so it is not recovered (readers get its samples "
+                        f"from the stream journal {gattrs.get('stream_journal', '') or '(none)'})"
+                        for name, gattrs in dead]
         folder = str(attrs.get("parts_folder", parts_folder(path)))
         file_id = str(attrs.get("file_id", ""))
         notes = []
