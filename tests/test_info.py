@@ -114,6 +114,28 @@ def test_info_on_a_missing_file_is_exit_2_naming_it(tmp_path):
     assert not list(tmp_path.iterdir()), "info created something"
 
 
+def test_info_on_files_that_are_not_results_is_exit_2_naming_them(tmp_path):
+    text = tmp_path / "notes.h5"
+    text.write_text("not HDF5\n")
+    other = tmp_path / "other.h5"
+    with h5py.File(other, "w") as f:
+        f["x"] = np.arange(3)
+    for path, says in ((text, "cannot be read as an HDF5 file"), (other, "is not a beltdyn results file")):
+        r = run("info", path, cwd=tmp_path)
+        assert r.returncode == 2 and f"{path.name}: {says}" in r.stderr and "Traceback" not in r.stderr, r.stderr
+    assert text.read_text() == "not HDF5\n"
+
+
+def test_info_prints_a_title_with_brackets_as_written(tmp_path):
+    # the title is the user's text, not console markup
+    out = tmp_path / "g.h5"
+    r = run("geometry", SMALL, "-o", out, "--set", 'title="Drive [bold] [v2] [/]"', cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    r = run("info", out, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "configuration: Drive [bold] [v2] [/], sha256" in r.stdout
+
+
 def test_info_and_another_configuration_recover_a_killed_transient(tmp_path):
     # 1. info while the writer runs: the group running, its writer alive, never blocked by its lock
     out = tmp_path / "k.h5"

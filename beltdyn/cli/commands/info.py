@@ -70,16 +70,16 @@ def print_summary(summary) -> None:
     from rich.text import Text
 
     con = console()
-    con.print(Text.assemble(("results file", "bold"), f": {summary.path}"))
-    con.print(f"configuration: {one_line(summary.title) or '(no title)'}, sha256 {summary.config_sha256}")
-    con.print(f"written by beltdyn {summary.beltdyn_version} (results schema {summary.schema_version}), created "
-              f"{summary.created_utc}, modified {summary.modified_utc}")
+    con.print(Text.assemble(("results file", "bold"), f": {one_line(str(summary.path))}"))
+    con.print(Text(f"configuration: {one_line(summary.title) or '(no title)'}, sha256 {summary.config_sha256}"))
+    con.print(Text(f"written by beltdyn {summary.beltdyn_version} (results schema {summary.schema_version}), "
+                   f"created {summary.created_utc}, modified {summary.modified_utc}"))
     tbl = Table(title="Groups")
     for column, justify in (("group", "left"), ("status", "left"), ("samples", "right"), ("writer", "left"),
                             ("warnings", "right")):
         tbl.add_column(column, justify=justify)
     for g in summary.groups:
-        tbl.add_row(f"/{g.name}", Text(g.status, style=STATUS_STYLE.get(g.status, "")),
+        tbl.add_row(Text(f"/{g.name}"), Text(g.status, style=STATUS_STYLE.get(g.status, "")),
                     str(g.samples) if g.samples else "-", writer_text(g), str(len(g.warnings)))
     con.print(tbl)
     for g in summary.groups:
