@@ -195,3 +195,23 @@ def test_duration_before_the_spectral_window_moves_it_and_says_so(tmp_path):
     bad = run("transient", SMALL, "-o", tmp_path / "e.h5", "--duration", "0.03", "--set",
               "transient.spectrum.start=0.5", cwd=tmp_path)
     assert bad.returncode == 2 and "transient.spectrum.start" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_info_on_a_read_only_file_with_a_dead_writer_reports_it_and_leaves_it(tmp_path):
+    # a read-only results file is the user's protection: info shows the dead writer and the journal's
+    # samples and says why it does not recover them; the file is not replaced
+    out = tmp_path / "r.h5"
+    pid, live = killed_transient(out, tmp_path)
+    before = out.read_bytes()
+    out.chmod(0o444)
+    try:
+        r = run("info", out, "--json", cwd=tmp_path)
+    finally:
+        out.chmod(0o644)
+    assert r.returncode == 0, r.stderr
+    assert f"/transient was left 'running' by pid {pid}" in r.stderr and "read-only, so it is not recovered" in r.stderr
+    group = {g["name"]: g for g in json.loads(r.stdout)["groups"]}["transient"]
+    assert group["status"] == "running" and group["writer"] == {"pid": pid, "host": group["writer"]["host"],
+                                                                "alive": False}
+    assert group["samples"] == len(live["coords"]["time"])
+    assert out.read_bytes() == before
