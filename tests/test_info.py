@@ -15,7 +15,7 @@ import json
 import os
 import signal
 import subprocess
-import time
+import tomllib
 from pathlib import Path
 
 import h5py
@@ -186,8 +186,6 @@ def test_duration_before_the_spectral_window_moves_it_and_says_so(tmp_path):
     assert any("spectral window is moved to start at 0.015 s" in w for w in g["attrs"]["warnings"])
     with h5py.File(out, "r") as f:
         toml = f["provenance/config_toml"].asstr()[()]
-    import tomllib
-
     resolved = tomllib.loads(toml)["transient"]
     assert resolved["duration"] == 0.03 and resolved["spectrum"]["start"] == 0.015
 
