@@ -5,11 +5,15 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import typer
 
 from beltdyn.cli.console import console, one_line, print_notes
 from beltdyn.cli.failures import guarded
+
+if TYPE_CHECKING:  # (the results package is imported by the command's body, as by every command's)
+    from beltdyn.results.io import FileSummary, GroupState
 
 
 def info(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5)."),
@@ -36,7 +40,7 @@ def info(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5).
     guarded(body)
 
 
-def summary_dict(summary) -> dict:
+def summary_dict(summary: FileSummary) -> dict:
     """A `results.read.FileSummary` as plain JSON-ready values."""
     return {
         "path": str(summary.path),
@@ -56,7 +60,7 @@ def summary_dict(summary) -> dict:
 STATUS_STYLE = {"complete": "green", "running": "cyan", "interrupted": "yellow", "failed": "red"}
 
 
-def writer_text(state) -> str:
+def writer_text(state: GroupState) -> str:
     """'pid 123 (alive)', 'pid 123 (dead)', 'pid 123 on HOST (unknown)' or '-' for a group not running."""
     if state.writer_pid is None:
         return "-"
@@ -64,7 +68,7 @@ def writer_text(state) -> str:
     return f"pid {state.writer_pid} ({alive})"
 
 
-def print_summary(summary) -> None:
+def print_summary(summary: FileSummary) -> None:
     """The file's identity, then one row per group, then each group's warnings and errors."""
     from rich.table import Table
     from rich.text import Text
