@@ -27,17 +27,17 @@ class Job:
         self.force = force
         self.ladder = None  # the automatic choice of the span models (--fmax/--rtol), if made
         self.output = output if output is not None else Path("results") / f"{config.stem}.h5"
-        from beltdyn.results.io import check_target
+        from beltdyn.results.io import check_target, recover
 
+        # what a killed earlier command left (its samples recovered, leftovers removed), whatever its
+        # configuration: before the check, which may refuse a file of another configuration
+        print_notes(recover(self.output))
         # early check (before any analysis); a file of a derived configuration (from this base) passes
         # here and is checked strictly, against the configuration actually written, by `write`
         check_target(self.output, config_sha256=self.sha, force=force, base_config_sha256=self.base_sha)
         from beltdyn.results.io import lock_output
 
         lock_output(self.output)  # held until this command ends: no other beltdyn command writes it meanwhile
-        from beltdyn.results.io import recover
-
-        print_notes(recover(self.output))  # what a killed earlier command left: its samples recovered, leftovers removed
         self.groups: list = []
         self.step_origin = "config"  # where a transient's step came from (`timestep.resolve_step`)
         self.unrepresented: tuple = (0.0, None, ())  # (band, layout, modes the spring spans leave out)

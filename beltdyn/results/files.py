@@ -38,6 +38,10 @@ class WriteFailure(OutputError):
     exit_code = 1
 
 
+class OutputBusy(OutputError):
+    """The results-file lock is held by another process (a live beltdyn command writing the file)."""
+
+
 class LockBusy(Exception):
     """`take_lock`: another process holds the lock (its pid, if it wrote one)."""
 
@@ -111,7 +115,7 @@ def _acquire(path: Path) -> int | None:
         except OSError:
             return None
         except LockBusy as busy:
-            raise OutputError(f"results file {path} is being written by {busy.who} (another beltdyn command on the "
+            raise OutputBusy(f"results file {path} is being written by {busy.who} (another beltdyn command on the "
                               f"same output); wait for it to finish or write to another file with -o") from None
         if fd is not None:
             _OUTPUT_LOCKS[os.path.abspath(lock)] = fd
@@ -151,15 +155,23 @@ def lock_output(path: Path) -> None:
 
 
 @contextmanager
-def writing(path: Path) -> Iterator[None]:
+def writing(path: Path, *, if_free: bool = False) -> Iterator[bool]:
     """Hold the results-file lock of `path` for the block, unless this process holds it already (the
-    CLI takes it for the whole command with `lock_output`). Every write of the library runs inside."""
+    CLI takes it for the whole command with `lock_output`). Every write of the library runs inside.
+    Yields True; when another process holds the lock, OutputBusy (exit 2, naming its pid), or with
+    `if_free` a block that yields False and holds nothing (a reader never waits for a writer)."""
     if holds_lock(path):
-        yield
+        yield True
         return
-    fd = _acquire(path)
     try:
-        yield
+        fd = _acquire(path)
+    except OutputBusy:
+        if not if_free:
+            raise
+        yield False
+        return
+    try:
+        yield True
     finally:
         if fd is not None:
             _release(path, fd)

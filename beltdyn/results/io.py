@@ -87,7 +87,9 @@ What a reader sees after a kill -9 at any moment: before a commit's rename, the 
 complete (the temporary root and new parts are invisible leftovers); after it, the new one. During
 a run: the group `running`, its writer dead (`group_states(...)[name].orphaned`, `read_group(...)
 ["writer"]["alive"] is False`), and its samples so far read from the journal by `read_group`. The
-next beltdyn command on the file (`recover`, which the CLI runs first and reports) copies the
+next beltdyn command on the file (`recover`, which the CLI runs first and reports, keyed on the file
+alone: a writer of any configuration before it checks the file, and the readers `info`, `plot`,
+`report` when no live writer holds the lock) copies the
 journal's samples into the file and marks the group `interrupted` with an `error` saying what
 happened, and removes the temporary roots, journals and parts that the file does not reference
 (saying so); a power loss also leaves at most these, as every commit is fsync'ed in order.
@@ -113,7 +115,15 @@ from beltdyn.results.files import (
     WriteFailure,
     take_lock,
 )
-from beltdyn.results.read import GroupState, group_names, group_states, read_group, read_root_attrs
+from beltdyn.results.read import (
+    FileSummary,
+    GroupState,
+    file_summary,
+    group_names,
+    group_states,
+    read_group,
+    read_root_attrs,
+)
 from beltdyn.results.schema import GroupData, Variable
 from beltdyn.results.stream import SYNC_SECONDS, WRITE_SECONDS, StreamWriter, recover
 from beltdyn.results.write import INLINE_BYTES, write_group, write_groups
@@ -123,12 +133,14 @@ __all__ = [
     "INLINE_BYTES",
     "SYNC_SECONDS",
     "WRITE_SECONDS",
+    "FileSummary",
     "GroupData",
     "GroupState",
     "LockBusy",
     "StreamWriter",
     "Variable",
     "check_target",
+    "file_summary",
     "fsync_dir",
     "group_states",
     "lock_output",

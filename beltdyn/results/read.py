@@ -6,6 +6,7 @@ finds a part or journal gone (a writer replaced the root meanwhile) reads the ne
 from __future__ import annotations
 
 import os
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -35,7 +36,8 @@ class GroupState:
     writer_pid: int | None = None
     writer_host: str = ""
     writer_alive: bool | None = None  # None: not running, or the writer is on another host
-    samples: int = 0  # rows in the stream journal of a running group
+    samples: int = 0  # rows of its `time` axis (of the stream journal while it is running); 0 without one
+    warnings: tuple[str, ...] = ()  # its `warnings` attribute
 
     @property
     def orphaned(self) -> bool:
@@ -193,6 +195,49 @@ def group_names(path: Path) -> list[str]:
         return [k for k in f.keys() if k != "provenance"]
 
 
+def _strings(value: Any) -> tuple[str, ...]:
+    """A string or string-array attribute as a tuple of str."""
+    if isinstance(value, str):
+        return (value,) if value else ()
+    return tuple(str(v) for v in np.asarray(value).reshape(-1))
+
+
+@dataclass(frozen=True, kw_only=True)
+class FileSummary:
+    """What a results file holds, at a glance (`beltdyn info`): its root attributes, the title of the
+    configuration it records, and the state of each analysis group (`group_states`)."""
+
+    path: Path
+    title: str
+    config_sha256: str
+    beltdyn_version: str
+    schema_version: str
+    created_utc: str
+    modified_utc: str
+    groups: tuple[GroupState, ...]
+
+
+def file_summary(path: Path) -> FileSummary:
+    """The `FileSummary` of the results file at `path` (read only: a group left running by a dead writer
+    is reported so; `stream.recover` puts it right). OutputError if the file is missing or unreadable."""
+    path = Path(path)
+    attrs = read_root_attrs(path)
+    if "config_sha256" not in attrs:
+        raise OutputError(f"{path}: is not a beltdyn results file (no config_sha256 attribute)")
+    states = group_states(path)
+    with open_read(path) as f:
+        text = f["provenance/config_toml"].asstr()[()] if "provenance/config_toml" in f else ""
+    try:
+        title = str(tomllib.loads(text).get("title", ""))
+    except tomllib.TOMLDecodeError:
+        title = ""
+    return FileSummary(path=path, title=title, config_sha256=str(attrs["config_sha256"]),
+                       beltdyn_version=str(attrs.get("beltdyn_version", "")),
+                       schema_version=str(attrs.get("schema_version", "")),
+                       created_utc=str(attrs.get("created_utc", "")), modified_utc=str(attrs.get("modified_utc", "")),
+                       groups=tuple(states.values()))
+
+
 def group_states(path: Path) -> dict[str, GroupState]:
     """The analysis groups of a results file and their status; for a `running` group whether its
     writer still runs (`GroupState.orphaned`: it does not) and how many samples its journal holds."""
@@ -209,7 +254,10 @@ def _group_states(path: Path) -> dict[str, GroupState]:
             if not isinstance(obj, h5py.Group) or "status" not in obj.attrs:
                 continue
             attrs = {k: decode_attr(v) for k, v in obj.attrs.items()}
-            state = dict(name=name, status=str(attrs["status"]), error=str(attrs.get("error", "")))
+            time = obj.get(TIME_DIM)
+            state = dict(name=name, status=str(attrs["status"]), error=str(attrs.get("error", "")),
+                         samples=int(time.shape[0]) if isinstance(time, h5py.Dataset) and time.ndim == 1 else 0,
+                         warnings=_strings(attrs.get("warnings", ())))
             if attrs["status"] == "running" and "writer_pid" in attrs:
                 view = _journal_of(path, attrs, replaced)
                 state.update(writer_pid=int(attrs["writer_pid"]), writer_host=str(attrs.get("writer_host", "")),

@@ -10,6 +10,7 @@ copy for a group whose writer died, marking it `interrupted`.
 
 from __future__ import annotations
 
+import os
 import time as _time
 from pathlib import Path
 
@@ -20,6 +21,7 @@ from beltdyn.errors import OutputError
 from beltdyn.results.files import (
     WriteFailure,
     parts_folder,
+    read_only,
     remove_leftovers,
     resolve_target,
     same_boot,
@@ -481,18 +483,26 @@ def _dead_groups(f) -> list[tuple[str, dict]]:
     return out
 
 
-def recover(path: Path) -> list[str]:
+def recover(path: Path, *, if_free: bool = False) -> list[str]:
     """What a killed writer left in the results file at `path`, put right (under the results-file lock):
     a group left "running" by a process that is gone gets the samples of its stream journal (those
     written before the kill, or only those synced if the machine restarted since) and is marked
     "interrupted" with an `error` saying so; temporary roots and unreferenced parts of a writer that
-    died before its commit are removed. Returns one message per thing done (empty: nothing to do). A
-    file that is missing, unreadable or not a beltdyn results file of this schema is left alone."""
+    died before its commit are removed. Returns one message per thing done (empty: nothing to do).
+
+    Keyed on the file alone: whatever configuration the killed command had, and whatever the caller
+    is about to do with the file (write another configuration, or only read it). A file that is
+    missing, unreadable or not a beltdyn results file of this schema is left alone; a read-only one
+    too (a note says so: readers still read the samples from the journal). With `if_free`, a file
+    whose lock another process holds is left alone (that live writer recovered it when it started)
+    instead of OutputBusy (exit 2): what a command that only reads the file calls."""
     h5py = h5py_module()
     path = resolve_target(path)
     if not path.parent.is_dir() or (path.exists() and not path.is_file()):
         return []
-    with writing(path):
+    with writing(path, if_free=if_free) as held:
+        if not held:
+            return []
         attrs: dict = {}
         dead: list = []
         refs: set[str] = set()
@@ -506,6 +516,11 @@ def recover(path: Path) -> list[str]:
                     refs = references(f)
             except OSError:
                 return []
+            if dead and (read_only(path) or not os.access(path.parent, os.W_OK | os.X_OK)):
+                return [f"{path}: /{name} was left 'running' by pid {gattrs.get('writer_pid', '?')}, which no longer "
+                        "runs; the file (or its folder) is read-only, so it is not recovered (readers get its samples "
+                        f"from the stream journal {gattrs.get('stream_journal', '') or '(none)'})"
+                        for name, gattrs in dead]
         folder = str(attrs.get("parts_folder", parts_folder(path)))
         file_id = str(attrs.get("file_id", ""))
         notes = []

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from beltdyn.cli.console import console
+from beltdyn.cli.console import console, print_notes
 from beltdyn.cli.failures import guarded
 
 
@@ -43,6 +43,9 @@ def plot(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5).
             raise ConfigError(f"--modes must be like 1-8 or 1,3,5, got {modes!r}", file=str(result),
                               key="--modes") from None
         P.set_interactive(show)
+        from beltdyn.results.io import recover
+
+        print_notes(recover(result, if_free=True))  # a killed writer's group: recovered, as by any command
         res = P.read_results(result)
         kinds = (what,) if what else P.available(res)
         if not kinds:

@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from beltdyn.cli.console import console
+from beltdyn.cli.console import console, print_notes
 from beltdyn.cli.failures import guarded
 
 
@@ -26,7 +26,9 @@ def report(result: Path = typer.Argument(..., help="A beltdyn results file (HDF5
             raise ConfigError("matplotlib is not installed: pip install 'beltdyn[plot]'", file=str(result),
                               key="report") from None
         from beltdyn.report import write_report
+        from beltdyn.results.io import recover
 
+        print_notes(recover(result, if_free=True))  # a killed writer's group: recovered, as by any command
         console().print(f"wrote {write_report(result, output)}")
 
     guarded(body)

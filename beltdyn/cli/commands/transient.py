@@ -27,7 +27,12 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
 
     def body() -> None:
         sets = overrides(set_, unset)
+        window = ""
         if duration is not None:
+            moved = spectrum_window(config, sets, duration)
+            if moved is not None:
+                start, window = moved
+                sets.append(f"transient.spectrum.start={start!r}")
             sets.append(f"transient.duration={duration!r}")
         if step is not None:
             sets.append(f"transient.step={step!r}")
@@ -49,7 +54,7 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
         check_output_volume(job, force_large)
         spec_opts = cfg.transient.spectrum
         run = static_pipeline(job, modal=spec_opts.enabled)
-        run_transient_command(job, run)
+        run_transient_command(job, run, (window,) if window else ())
         ladder_not_met(job)
 
     guarded(body)
@@ -73,12 +78,40 @@ def warm_kernels(con) -> None:
         pipeline.warm_up()
 
 
-def run_transient_command(job: Job, run) -> None:
-    """The transient of an analysed drive into the job's output (`workflow`), said on the console."""
+def moved_start(start: float, configured: float, duration: float) -> float:
+    """The start of the spectral window moved to the same fraction of a run of `duration` s as `start` is
+    of the `configured` duration (`--duration` shorter than the window's start)."""
+    return start * duration / configured
+
+
+def spectrum_window(config: Path, sets: List[str], duration: float) -> tuple[float, str] | None:
+    """With `--duration`: (the new transient.spectrum.start, the warning that says so) when the
+    configuration's start is not before the end of the shorter run; None when it is, when spectra are
+    off, or when `--set` gives the start itself (then the configuration's check speaks)."""
+    if any(s.split("=", 1)[0].strip() == "transient.spectrum.start" for s in sets):
+        return None
+    from beltdyn.config import load_config
+
+    t = load_config(config, sets).transient
+    if t is None or not t.spectrum.enabled or t.spectrum.start < duration:
+        return None
+    start = moved_start(t.spectrum.start, t.duration, duration)
+    return start, (f"--duration {duration:g} s ends before transient.spectrum.start = {t.spectrum.start:g} s: the "
+                   f"spectral window is moved to start at {start:g} s, the same fraction "
+                   f"({t.spectrum.start / t.duration:.3g}) of the run as in the configuration (set "
+                   "transient.spectrum.start to choose it)")
+
+
+def run_transient_command(job: Job, run, warnings: tuple[str, ...] = ()) -> None:
+    """The transient of an analysed drive into the job's output (`workflow`), said on the console;
+    `warnings` (the CLI's own, e.g. a moved spectral window) go with the step's to /transient `warnings`."""
+    from dataclasses import replace
+
     from beltdyn.workflow import plan_transient, transient_to_file
 
     opts = job.cfg.transient
     plan = plan_transient(run, step_origin=job.step_origin)
+    plan = replace(plan, warnings=tuple(warnings) + plan.warnings)
     for w in plan.warnings:  # before the work: a step that resolves nothing is said at once
         warn(w)
     con = console()
