@@ -4,7 +4,8 @@ its static equilibrium, over a range of driver speeds and engine orders (`beltdy
 Nomenclature (independent coordinates q, n = n_dof):
     q0          the static equilibrium (`static.StaticResult.q`)
     M           J^T M J at q0, the mass matrix on q (`System.mass_matrix`)
-    K           the loaded tangent at q0 (`System.equilibrium`: belt, springs, the arms' geometric terms)
+    K           the loaded tangent at q0 (`System.equilibrium`: belt, springs, the arms' geometric terms) and
+                the arms' dry friction while they stick, T_f / delta on their angles (below)
     C           J^T (C_c + alpha M + beta K_0 + C_belt(q0)) J: the components' dampers, Rayleigh damping
                 (K_0 the tangent on the joint coordinates, as in the transient) and the belt's Kelvin-Voigt
                 damping matrix at q0 (retardation times [response.damping] belt_axial / belt_bending)
