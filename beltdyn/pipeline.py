@@ -163,9 +163,7 @@ def response_of(cfg: DriveConfig, run: Analysis) -> "ResponseResult":
     """The response of an analysed drive (`pipeline.analyse`) to cfg.response: with response.transport
     (default) linearized at each speed about the running equilibrium at the belt speed
     speed x R_driver (one static solve per speed, warm from the L0 fit), else once about `run`."""
-    from dataclasses import replace
-
-    from beltdyn.analysis.response import solve_response, speeds_of
+    from beltdyn.analysis.response import merge_responses, solve_response, speeds_of
     from beltdyn.model.geometry import travel_sense
 
     opts = cfg.response
@@ -185,9 +183,4 @@ def response_of(cfg: DriveConfig, run: Analysis) -> "ResponseResult":
     for omega in speeds_of(opts):
         at = analyse(cfg, belt_speed=float(omega) * per_metre, layout=lay)
         parts.append(solve_response(damped(at.system), at.static, opts, np.array([omega])))
-    first = parts[0]
-    outputs = {k: np.concatenate([p.outputs[k] for p in parts]) for k in first.outputs}
-    warnings = tuple(dict.fromkeys(w for p in parts for w in p.warnings))
-    return replace(first, speed=np.concatenate([p.speed for p in parts]),
-                   frequency=np.concatenate([p.frequency for p in parts]),
-                   belt_speed=np.concatenate([p.belt_speed for p in parts]), outputs=outputs, warnings=warnings)
+    return merge_responses(parts)

@@ -4,7 +4,8 @@ its static equilibrium, over a range of driver speeds and engine orders (`beltdy
 Nomenclature (independent coordinates q, n = n_dof):
     q0          the static equilibrium (`static.StaticResult.q`)
     M           J^T M J at q0, the mass matrix on q (`System.mass_matrix`)
-    K           the loaded tangent at q0 (`System.equilibrium`: belt, springs, the arms' geometric terms)
+    K           the loaded tangent at q0 (`System.equilibrium`: belt, springs, the arms' geometric terms) and
+                the arms' dry friction while they stick, T_f / delta on their angles (below)
     C           J^T (C_c + alpha M + beta K_0 + C_belt(q0)) J: the components' dampers, Rayleigh damping
                 (K_0 the tangent on the joint coordinates, as in the transient) and the belt's Kelvin-Voigt
                 damping matrix at q0 (retardation times [response.damping] belt_axial / belt_bending)
@@ -32,19 +33,31 @@ gyroscopic G joins C, K holds the centripetal -c^2 B; the hub loads carry the mo
 static solve per speed; transport = false linearizes once about the equilibrium of [running] (or at
 rest), the travelling frame of the transient's transport = false.
 
-Left out, and why: the arms' dry friction (not linear: a sticking damper is a spring, a sliding one a
-constant torque; the transient models it).
+The tensioner arms' dry friction T_f (N m) is, as in the transient (`integrator`), an elasto-plastic
+element: a torsion spring k_f = T_f / delta (delta = `stepper_data.ARM_PRESLIDING`, the presliding
+angle) from an anchor at the static angle, saturating at T_f. While the arm's amplitude stays below
+delta the arm sticks and that law is exactly the linear spring k_f, which K holds (`linearize`): the
+linear response is the arm sticking, the transient's small-amplitude limit. Beyond delta the arm
+slides (a torque of T_f against the motion, not linear): the response is not valid there, and says so.
+
+Limits (`limit_warnings`, in `ResponseResult.warnings`): a span whose tension amplitude |Y| at an end
+exceeds that end's static tension T0 (at the equilibrium the speed is linearized about) would go slack,
+T0 + |Y| cos(...) < 0; both vary along a span about linearly between its ends and T0 - |Y| is then
+concave, so its least value lies at an end and the ends are checked. An arm with dry friction whose
+angle amplitude exceeds delta slides. Each is reported with the first (lowest) speed where it happens
+and the worst (largest ratio), with the order.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from beltdyn.analysis.static import StaticResult
+from beltdyn.analysis.stepper_data import ARM_PRESLIDING
 from beltdyn.config import Damping, ResponseOptions
 from beltdyn.errors import SolverError
-from beltdyn.analysis.static import StaticResult
 from beltdyn.model.system import System
 
 OUTPUTS = ("span_tension", "hub_load", "pulley_angle", "pulley_speed", "arm_angle", "midspan_displacement",
@@ -63,7 +76,12 @@ class ResponseResult:
     dims: dict  # name -> the trailing dimension names of the output
     units: dict  # name -> units
     prescribed: tuple[str, ...]  # the pulleys whose rotation is prescribed
-    warnings: tuple[str, ...] = ()
+    static_tension: np.ndarray  # (n_speed, n_span, 2) N, the span-end tensions of the equilibrium of each speed
+    span_names: tuple[str, ...]  # (n_span,) as /static names the spans
+    arm_names: tuple[str, ...]  # (n_arm,) as outputs["arm_angle"]'s last axis
+    arm_friction: np.ndarray  # (n_arm,) N m, each arm's dry friction torque (0: none)
+    notes: tuple[str, ...] = ()  # warnings about the model (damping, friction), not about the amplitudes
+    warnings: tuple[str, ...] = ()  # notes + limit_warnings(self)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -82,7 +100,23 @@ def linearize(system: System, static: StaticResult, damping: Damping) -> LinearD
     from beltdyn.analysis.running import linearized_matrices
 
     lin = linearized_matrices(system, static.q, damping)
-    return LinearDrive(M=lin.M, C=lin.C + lin.G if system.belt_speed else lin.C, K=lin.K, q0=lin.q0)
+    K = lin.K
+    stick = sticking_stiffness(system)
+    if np.any(stick):
+        from scipy.sparse import diags, issparse
+
+        K = (K + diags(stick)).tocsr() if issparse(K) else np.asarray(K) + np.diag(stick)
+    return LinearDrive(M=lin.M, C=lin.C + lin.G if system.belt_speed else lin.C, K=K, q0=lin.q0)
+
+
+def sticking_stiffness(system: System) -> np.ndarray:
+    """(n_dof,) N m/rad: the arms' dry friction while they stick, k_f = T_f / delta on each arm's angle
+    (the transient's elasto-plastic law below its presliding angle delta), 0 elsewhere."""
+    k = np.zeros(system.n_dof)
+    arms = system.arms
+    if arms is not None and arms.friction is not None:
+        k[np.asarray(arms.dof, dtype=np.int64)] += np.asarray(arms.friction, dtype=float) / ARM_PRESLIDING
+    return k
 
 
 def excitation_sets(system: System, opts: ResponseOptions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -233,20 +267,91 @@ def solve_response(system: System, static: StaticResult, opts: ResponseOptions,
     dims, units = {}, {}
     for name in outputs:
         dims[name], units[name] = _dims_units(system, name, outputs[name].ndim - 2)
-    warnings = []
+    notes = []
     if not (opts.damping.rayleigh_mass or opts.damping.rayleigh_stiffness or opts.damping.belt_axial
             or opts.damping.belt_bending) and system.linear_damping is None:
-        warnings.append("no damping: the amplitudes at the resonances are bounded only by the speed grid "
-                        "(give [response.damping])")
-    if system.arms is not None and system.arms.friction is not None and np.any(system.arms.friction):
-        warnings.append("the tensioner arms' dry friction is not in the linear response (the transient models it)")
+        notes.append("no damping: the amplitudes at the resonances are bounded only by the speed grid "
+                     "(give [response.damping])")
+    arms = system.arms
+    friction = (np.zeros(0) if arms is None else
+                np.zeros(len(arms.dof)) if arms.friction is None else np.asarray(arms.friction, dtype=float))
+    if np.any(friction > 0):
+        notes.append(f"the tensioner arms' dry friction is linear only while they stick: the response holds it as "
+                     f"the spring T_f / {ARM_PRESLIDING:g} rad of the transient's presliding law (valid for arm "
+                     f"amplitudes below {ARM_PRESLIDING:g} rad; beyond, the arm slides)")
     from beltdyn.model.geometry import travel_sense
 
     R_d = float(lay.radius[system.driver]) * travel_sense(lay, system.driver)
     names = tuple(lay.names[j] for j in range(lay.n) if int(system.rot_dof[j]) in set(presc.tolist()))
-    return ResponseResult(speed=speed, orders=orders, frequency=(speed[:, None] * orders[None, :]) / (2 * np.pi),
-                          belt_speed=speed * R_d, outputs=outputs, dims=dims, units=units, prescribed=names,
-                          warnings=tuple(warnings))
+    result = ResponseResult(speed=speed, orders=orders, frequency=(speed[:, None] * orders[None, :]) / (2 * np.pi),
+                            belt_speed=speed * R_d, outputs=outputs, dims=dims, units=units, prescribed=names,
+                            static_tension=np.broadcast_to(np.asarray(static.span_tension, dtype=float),
+                                                           (len(speed), *np.shape(static.span_tension))).copy(),
+                            span_names=tuple(lay.span_name(i) for i in range(lay.n)),
+                            arm_names=() if arms is None else tuple(arms.names), arm_friction=friction,
+                            notes=tuple(notes))
+    return replace(result, warnings=result.notes + limit_warnings(result))
+
+
+def merge_responses(parts: list[ResponseResult]) -> ResponseResult:
+    """One result of results over successive speeds (each linearized about its own equilibrium), with the
+    limit warnings of the whole speed range."""
+    first = parts[0]
+    merged = replace(first, speed=np.concatenate([p.speed for p in parts]),
+                     frequency=np.concatenate([p.frequency for p in parts]),
+                     belt_speed=np.concatenate([p.belt_speed for p in parts]),
+                     outputs={k: np.concatenate([p.outputs[k] for p in parts]) for k in first.outputs},
+                     static_tension=np.concatenate([p.static_tension for p in parts]),
+                     notes=tuple(dict.fromkeys(n for p in parts for n in p.notes)))
+    return replace(merged, warnings=merged.notes + limit_warnings(merged))
+
+
+def limit_warnings(res: ResponseResult) -> tuple[str, ...]:
+    """Where the linear response leaves its range (module docstring): one warning per span that would go
+    slack and per arm that would slide, naming the first (lowest) speed and the worst, with the order."""
+    out = []
+    T0 = res.static_tension[:, None]  # (S, 1, span, 2)
+    Y = np.abs(res.outputs["span_tension"])  # (S, O, span, 2)
+    ratio = np.where(T0 > 0, Y / np.where(T0 > 0, T0, 1.0), np.inf)
+    for i, name in enumerate(res.span_names):
+        r = ratio[:, :, i, :]  # (S, O, 2)
+        over = np.argwhere(r > 1.0)
+        if not len(over):
+            continue
+        first = tuple(over[np.lexsort((-r[tuple(over.T)], over[:, 0]))[0]])
+        worst = np.unravel_index(int(np.argmax(r)), r.shape)
+        out.append(f"span {name} would go slack (its tension amplitude exceeds its static tension: the linear "
+                   f"response is not valid there): from {_slack_at(res, i, first)}; worst {_slack_at(res, i, worst)}")
+    if "arm_angle" in res.outputs and np.any(res.arm_friction > 0):
+        A = np.abs(res.outputs["arm_angle"])  # (S, O, arm)
+        for a, name in enumerate(res.arm_names):
+            if not res.arm_friction[a] > 0:
+                continue
+            r = A[:, :, a] / ARM_PRESLIDING
+            over = np.argwhere(r > 1.0)
+            if not len(over):
+                continue
+            first = tuple(over[np.lexsort((-r[tuple(over.T)], over[:, 0]))[0]])
+            worst = np.unravel_index(int(np.argmax(r)), r.shape)
+            out.append(f"arm {name} would slide (its angle amplitude exceeds the presliding angle "
+                       f"{ARM_PRESLIDING:g} rad of its dry friction {res.arm_friction[a]:g} N m; the linear response "
+                       f"holds it stuck): from {_slide_at(res, A[:, :, a], first)}; worst "
+                       f"{_slide_at(res, A[:, :, a], worst)}")
+    return tuple(out)
+
+
+def _slack_at(res: ResponseResult, span: int, at: tuple) -> str:
+    s, o, e = (int(i) for i in at)
+    Y = abs(res.outputs["span_tension"][s, o, span, e])
+    T0 = res.static_tension[s, span, e]
+    return (f"{res.speed[s]:.5g} rad/s, order {res.orders[o]:g} ({res.frequency[s, o]:.4g} Hz): {Y:.4g} N about "
+            f"{T0:.4g} N at its {('start', 'end')[e]}")
+
+
+def _slide_at(res: ResponseResult, A: np.ndarray, at: tuple) -> str:
+    s, o = (int(i) for i in at)
+    return (f"{res.speed[s]:.5g} rad/s, order {res.orders[o]:g} ({res.frequency[s, o]:.4g} Hz): "
+            f"{A[s, o]:.3g} rad ({np.degrees(A[s, o]):.3g} deg)")
 
 
 def _dims_units(system: System, name: str, ndim: int) -> tuple[tuple[str, ...], str]:

@@ -482,6 +482,9 @@ def response_group(system, res) -> GroupData:
                  description="excitation frequency order x speed / (2 pi)"),
         Variable(name="belt_speed", data=res.belt_speed, dims=("speed",), units="m/s",
                  description="belt speed speed x R_driver"),
+        Variable(name="static_span_tension", data=res.static_tension, dims=("speed", "span", "end"), units="N",
+                 description="span-end tensions of the equilibrium each speed is linearized about (a span goes "
+                             "slack where span_tension_amplitude exceeds them)"),
     ]
     for name, y in res.outputs.items():
         dims = ("speed", "order", *res.dims[name])
