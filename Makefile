@@ -11,7 +11,7 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
 	@$(BIN)/python -m compileall -q beltdyn  # the bytecode a pip install writes (PYTHONDONTWRITEBYTECODE may be set)
-	@echo "compiling the transient kernels once (numba cache, about 20 s)"
+	@echo "compiling the transient kernels once (numba cache: about 20 s on an idle machine, minutes on a busy one)"
 	$(BIN)/python -c "from beltdyn.pipeline import warm_up; warm_up()"
 	@touch $(STAMP)
 
