@@ -90,7 +90,7 @@ def plan_transient(run: Analysis, *, step_origin: str = "config") -> TransientPl
                          step_text=step_text, attrs=MappingProxyType(attrs))
 
 
-CHECKPOINT_SECONDS = 2.0  # wall time between checkpoints of a running transient (its resume journal)
+CHECKPOINT_SECONDS = 1.0  # wall time between checkpoints of a running transient (its resume journal)
 RESUME_STATE = "state.bin"
 RESUME_SPEC = "spec.json"
 
@@ -143,11 +143,11 @@ def read_checkpoint(output: Path, config_sha256: str, *, source: str = "") -> Tr
     try:
         spec = json.loads((folder / RESUME_SPEC).read_text())
     except (OSError, ValueError):
-        raise ConfigError(f"--resume: no interrupted transient to resume for {output} (no journal {folder}); "
+        raise ConfigError(f"no interrupted transient to resume for {output} (no journal {folder}); "
                           "run without --resume", file=source, key="--resume") from None
     journaled = str(spec.get("config_sha256", ""))
     if journaled != config_sha256:
-        raise ConfigError(f"--resume: the interrupted transient of {output} ran configuration sha256 {journaled}, "
+        raise ConfigError(f"the interrupted transient of {output} ran configuration sha256 {journaled}, "
                           f"this one is sha256 {config_sha256}: resume with the same configuration and options "
                           "(or run without --resume)", file=source, key="--resume")
     try:
