@@ -9,8 +9,8 @@ when it ends). Nothing here prints: notes and progress go to the callbacks given
 Resume. While a transient runs, its resume journal `<output>.transient/` holds `spec.json` (the
 configuration's SHA-256, written at the start) and `state.bin`, the stepper's last checkpoint
 (`transient.TransientSnapshot` as one checksummed record, `snapshot_bytes`), replaced atomically
-(temporary file, fsync, rename) every CHECKPOINT_SECONDS of wall time once the samples up to it are
-in the group's stream journal. A run that ends (complete or failed) removes the folder; an interrupted
+(temporary file, rename) every CHECKPOINT_SECONDS of wall time once the samples up to it are in the
+group's stream journal, fsync'ed every DURABLE_SECONDS. A run that ends (complete or failed) removes the folder; an interrupted
 one (Ctrl-C, SIGTERM, kill -9) leaves it, and `transient_to_file(resume=True)` continues from the
 checkpoint: the group is written again with the samples up to the checkpoint, then the rest of the
 run, one time axis, no sample twice.
@@ -22,6 +22,7 @@ import itertools
 import json
 import os
 import shutil
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -91,6 +92,8 @@ def plan_transient(run: Analysis, *, step_origin: str = "config") -> TransientPl
 
 
 CHECKPOINT_SECONDS = 1.0  # wall time between checkpoints of a running transient (its resume journal)
+DURABLE_SECONDS = 5.0  # ... of which one this often is fsync'ed (~20 ms on a busy disk); the others are safe from
+# a kill -9 (the page cache), and one torn by a power loss fails its checksum (resume refused, exit 2)
 RESUME_STATE = "state.bin"
 RESUME_SPEC = "spec.json"
 
@@ -100,19 +103,23 @@ def resume_folder(output: Path) -> Path:
     return Path(str(output) + ".transient")
 
 
-def _replace_file(folder: Path, name: str, data: bytes) -> None:
-    """`folder/name` replaced by `data` atomically and durably (temporary file, fsync, rename)."""
+def _replace_file(folder: Path, name: str, data: bytes, *, durable: bool = True) -> None:
+    """`folder/name` replaced by `data` atomically (temporary file, rename: a reader, or the next run
+    after a kill -9, sees the old or the new file whole); durable: fsync'ed first and the folder after
+    (also safe from a power loss)."""
     tmp = folder / f"{name}.tmp-{os.getpid()}"
     try:
         with open(tmp, "wb") as fh:
             fh.write(data)
             fh.flush()
-            os.fsync(fh.fileno())
+            if durable:
+                os.fsync(fh.fileno())
         os.replace(tmp, folder / name)
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
-    fsync_dir(folder)
+    if durable:
+        fsync_dir(folder)
 
 
 def start_resume_journal(output: Path, config_sha256: str) -> Path:
@@ -127,10 +134,11 @@ def start_resume_journal(output: Path, config_sha256: str) -> Path:
     return folder
 
 
-def write_checkpoint(folder: Path, snap: TransientSnapshot) -> None:
-    """The snapshot as the resume journal's state (replacing the previous one atomically)."""
+def write_checkpoint(folder: Path, snap: TransientSnapshot, *, durable: bool = True) -> None:
+    """The snapshot as the resume journal's state (replacing the previous one atomically; durable: on
+    the disk too, see `_replace_file`)."""
     try:
-        _replace_file(folder, RESUME_STATE, snapshot_bytes(snap))
+        _replace_file(folder, RESUME_STATE, snapshot_bytes(snap), durable=durable)
     except OSError as exc:
         raise OutputError(f"{folder / RESUME_STATE}: cannot write the transient's checkpoint: {exc}") from exc
 
@@ -211,9 +219,15 @@ def transient_to_file(plan: TransientPlan, opts, *, output: Path, config_toml: s
         if before is not None:
             writer.append(*before)
 
+        durable_at = [-np.inf]
+
         def checkpoint(state: TransientSnapshot) -> None:
             writer.flush()  # the samples it follows are in the stream journal first
-            write_checkpoint(folder, state)
+            now = time.monotonic()
+            durable = now - durable_at[0] >= DURABLE_SECONDS
+            write_checkpoint(folder, state, durable=durable)
+            if durable:
+                durable_at[0] = now
 
         try:
             summary = run_transient(model, res, opts, sink=writer.append, progress=progress, setup=setup,
