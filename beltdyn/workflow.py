@@ -36,7 +36,7 @@ from beltdyn.analysis.timestep import describe, frequency_error, step_warnings
 from beltdyn.analysis.transient import TransientSnapshot, prepare, run_transient, snapshot_bytes, snapshot_from_bytes
 from beltdyn.errors import ConfigError, OutputError
 from beltdyn.pipeline import Analysis, transient_start
-from beltdyn.results.io import GroupData, StreamWriter, Variable, fsync_dir, read_group, recover
+from beltdyn.results.io import GroupData, StreamWriter, Variable, WriteFailure, fsync_dir, read_group, recover
 
 SPECTRUM_SERIES = ("span_tension", "hub_load", "bearing_force", "midspan_displacement", "pulley_speed", "driver_torque",
                    "arm_angle")
@@ -130,7 +130,7 @@ def start_resume_journal(output: Path, config_sha256: str) -> Path:
         folder.mkdir(parents=True)
         _replace_file(folder, RESUME_SPEC, json.dumps({"config_sha256": config_sha256, "group": "transient"}).encode())
     except OSError as exc:
-        raise OutputError(f"{folder}: cannot start the transient's resume journal: {exc}") from exc
+        raise WriteFailure(f"{folder}: cannot start the transient's resume journal: {exc}") from exc
     return folder
 
 
@@ -140,13 +140,14 @@ def write_checkpoint(folder: Path, snap: TransientSnapshot, *, durable: bool = T
     try:
         _replace_file(folder, RESUME_STATE, snapshot_bytes(snap), durable=durable)
     except OSError as exc:
-        raise OutputError(f"{folder / RESUME_STATE}: cannot write the transient's checkpoint: {exc}") from exc
+        raise WriteFailure(f"{folder / RESUME_STATE}: cannot write the transient's checkpoint: {exc}") from exc
 
 
 def read_checkpoint(output: Path, config_sha256: str, *, source: str = "") -> TransientSnapshot | None:
     """The last checkpoint of the interrupted transient of `output` (None: it was interrupted before
     its first). ConfigError (exit 2) when there is no resume journal, or when it belongs to another
-    configuration (both hashes named); OutputError when its checkpoint fails its checksum."""
+    configuration (both hashes named); OutputError (exit 2) when its checkpoint fails its checksum,
+    WriteFailure (exit 1) when it cannot be read."""
     folder = resume_folder(output)
     try:
         spec = json.loads((folder / RESUME_SPEC).read_text())
@@ -163,7 +164,7 @@ def read_checkpoint(output: Path, config_sha256: str, *, source: str = "") -> Tr
     except FileNotFoundError:
         return None
     except OSError as exc:
-        raise OutputError(f"{folder / RESUME_STATE}: cannot read the checkpoint: {exc}") from exc
+        raise WriteFailure(f"{folder / RESUME_STATE}: cannot read the checkpoint: {exc}") from exc
     try:
         return snapshot_from_bytes(data)
     except ValueError as exc:

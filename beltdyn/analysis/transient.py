@@ -97,7 +97,8 @@ def _frozen(x) -> np.ndarray:
 class TransientSnapshot:
     """The stepper's full state at an accepted step, taken after every sample up to it reached the
     sink: what a resumed run (`run_transient(resume=...)`) restarts from, so that it continues as the
-    uninterrupted run would have. Arrays are read-only copies (float64).
+    uninterrupted run would have. Arrays are float64, read-only copies where `drive` and
+    `snapshot_from_bytes` make them (`_frozen`).
 
     Stepper (`integrator.State`, n DOFs, m = max(constraints, 1)): q, v, a (n,) the state (generalized
     alpha in the form M a + ... with the real acceleration a: no auxiliary acceleration), f0, fd0, F0
