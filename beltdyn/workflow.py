@@ -5,11 +5,24 @@ Two steps, so that a caller can speak in between (the CLI prints the step's warn
 kernels with a spinner before the output is opened): `plan_transient` (the start state, the step's
 warnings, the group's attributes) and `transient_to_file` (the run, streamed; its summaries written
 when it ends). Nothing here prints: notes and progress go to the callbacks given.
+
+Resume. While a transient runs, its resume journal `<output>.transient/` holds `spec.json` (the
+configuration's SHA-256, written at the start) and `state.bin`, the stepper's last checkpoint
+(`transient.TransientSnapshot` as one checksummed record, `snapshot_bytes`), replaced atomically
+(temporary file, rename) every CHECKPOINT_SECONDS of wall time once the samples up to it are in the
+group's stream journal, fsync'ed every DURABLE_SECONDS. A run that ends (complete or failed) removes the folder; an interrupted
+one (Ctrl-C, SIGTERM, kill -9) leaves it, and `transient_to_file(resume=True)` continues from the
+checkpoint: the group is written again with the samples up to the checkpoint, then the rest of the
+run, one time axis, no sample twice.
 """
 
 from __future__ import annotations
 
 import itertools
+import json
+import os
+import shutil
+import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,9 +33,10 @@ import numpy as np
 
 from beltdyn.analysis.spectrum import amplitude_spectrum, find_peaks
 from beltdyn.analysis.timestep import describe, frequency_error, step_warnings
-from beltdyn.analysis.transient import prepare, run_transient
+from beltdyn.analysis.transient import TransientSnapshot, prepare, run_transient, snapshot_bytes, snapshot_from_bytes
+from beltdyn.errors import ConfigError, OutputError
 from beltdyn.pipeline import Analysis, transient_start
-from beltdyn.results.io import GroupData, StreamWriter, Variable
+from beltdyn.results.io import GroupData, StreamWriter, Variable, WriteFailure, fsync_dir, read_group, recover
 
 SPECTRUM_SERIES = ("span_tension", "hub_load", "bearing_force", "midspan_displacement", "pulley_speed", "driver_torque",
                    "arm_angle")
@@ -77,19 +91,125 @@ def plan_transient(run: Analysis, *, step_origin: str = "config") -> TransientPl
                          step_text=step_text, attrs=MappingProxyType(attrs))
 
 
+CHECKPOINT_SECONDS = 1.0  # wall time between checkpoints of a running transient (its resume journal)
+DURABLE_SECONDS = 5.0  # ... of which one this often is fsync'ed (~20 ms on a busy disk); the others are safe from
+# a kill -9 (the page cache), and one torn by a power loss fails its checksum (resume refused, exit 2)
+RESUME_STATE = "state.bin"
+RESUME_SPEC = "spec.json"
+
+
+def resume_folder(output: Path) -> Path:
+    """The resume journal of the transient written to `output`: `<output>.transient/`."""
+    return Path(str(output) + ".transient")
+
+
+def _replace_file(folder: Path, name: str, data: bytes, *, durable: bool = True) -> None:
+    """`folder/name` replaced by `data` atomically (temporary file, rename: a reader, or the next run
+    after a kill -9, sees the old or the new file whole); durable: fsync'ed first and the folder after
+    (also safe from a power loss)."""
+    tmp = folder / f"{name}.tmp-{os.getpid()}"
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            if durable:
+                os.fsync(fh.fileno())
+        os.replace(tmp, folder / name)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    if durable:
+        fsync_dir(folder)
+
+
+def start_resume_journal(output: Path, config_sha256: str) -> Path:
+    """A new resume journal for a run of the configuration `config_sha256` (an older one removed)."""
+    folder = resume_folder(output)
+    shutil.rmtree(folder, ignore_errors=True)
+    try:
+        folder.mkdir(parents=True)
+        _replace_file(folder, RESUME_SPEC, json.dumps({"config_sha256": config_sha256, "group": "transient"}).encode())
+    except OSError as exc:
+        raise WriteFailure(f"{folder}: cannot start the transient's resume journal: {exc}") from exc
+    return folder
+
+
+def write_checkpoint(folder: Path, snap: TransientSnapshot, *, durable: bool = True) -> None:
+    """The snapshot as the resume journal's state (replacing the previous one atomically; durable: on
+    the disk too, see `_replace_file`)."""
+    try:
+        _replace_file(folder, RESUME_STATE, snapshot_bytes(snap), durable=durable)
+    except OSError as exc:
+        raise WriteFailure(f"{folder / RESUME_STATE}: cannot write the transient's checkpoint: {exc}") from exc
+
+
+def read_checkpoint(output: Path, config_sha256: str, *, source: str = "") -> TransientSnapshot | None:
+    """The last checkpoint of the interrupted transient of `output` (None: it was interrupted before
+    its first). ConfigError (exit 2) when there is no resume journal, or when it belongs to another
+    configuration (both hashes named); OutputError (exit 2) when its checkpoint fails its checksum,
+    WriteFailure (exit 1) when it cannot be read."""
+    folder = resume_folder(output)
+    try:
+        spec = json.loads((folder / RESUME_SPEC).read_text())
+    except (OSError, ValueError):
+        raise ConfigError(f"no interrupted transient to resume for {output} (no journal {folder}); "
+                          "run without --resume", file=source, key="--resume") from None
+    journaled = str(spec.get("config_sha256", ""))
+    if journaled != config_sha256:
+        raise ConfigError(f"the interrupted transient of {output} ran configuration sha256 {journaled}, "
+                          f"this one is sha256 {config_sha256}: resume with the same configuration and options "
+                          "(or run without --resume)", file=source, key="--resume")
+    try:
+        data = (folder / RESUME_STATE).read_bytes()
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise WriteFailure(f"{folder / RESUME_STATE}: cannot read the checkpoint: {exc}") from exc
+    try:
+        return snapshot_from_bytes(data)
+    except ValueError as exc:
+        raise OutputError(f"{folder / RESUME_STATE}: {exc}; run without --resume") from exc
+
+
+def samples_before(output: Path, snap: TransientSnapshot, names: list[str]) -> tuple[np.ndarray, dict]:
+    """The first snap.delivered samples of /transient in `output` (time (k,), {series: (k, ...)}), the
+    part of the interrupted run that the checkpoint follows. OutputError when the file holds fewer."""
+    group = read_group(output, "transient")
+    t = np.asarray(group["coords"].get("time", np.zeros(0)), dtype=float)
+    k = snap.delivered
+    if len(t) < k or any(name not in group["variables"] for name in names):
+        raise OutputError(f"{output}: /transient holds {len(t)} samples, its checkpoint at t = {snap.time:.6g} s "
+                          f"follows {k}: run without --resume")
+    return t[:k], {name: np.asarray(group["variables"][name])[:k] for name in names}
+
+
 def transient_to_file(plan: TransientPlan, opts, *, output: Path, config_toml: str, config_sha256: str,
                       notes: Callable[[list[str]], None] = lambda notes: None,
-                      progress: Callable[[float], None] | None = None) -> TransientOutcome:
+                      progress: Callable[[float], None] | None = None, resume: bool = False,
+                      source: str = "") -> TransientOutcome:
     """Run the planned transient (options `opts`, the configuration's [transient]) streaming its histories
     into /transient of `output` (`results.io.StreamWriter`: running while it runs; complete, failed or
     interrupted at the end, the samples so far kept), then its summaries, slack events, spectra and
-    peaks. notes: called with what the results layer did on its own (a recovered group); progress:
-    called with the simulated time."""
+    peaks. notes: called with what the results layer did on its own (a recovered group) and with what
+    a resume starts from; progress: called with the simulated time. resume: continue the interrupted
+    run of `output` from its last checkpoint (`read_checkpoint`; source: the configuration file, for
+    its messages); the outcome is that of the whole run."""
     model, res, setup, early = plan.system, plan.static, plan.setup, plan.warnings
     shapes = {name: len(v) for name, v in setup.coords.items()}
     series = {s.name: (tuple(shapes[d] for d in s.dims), s.units, s.dims) for s in setup.series}
     keep = {s.name for s in setup.series if s.name in SPECTRUM_SERIES} if opts.spectrum.enabled else set()
     spans = tuple(model.layout.span_name(i) for i in range(model.layout.n))
+    snap, before = None, None
+    if resume:
+        snap = read_checkpoint(output, config_sha256, source=source)
+        notes(recover(output))  # a writer killed (kill -9): its samples into the file first
+        if snap is None:
+            notes([f"{output}: the interrupted transient made no checkpoint yet: it starts over"])
+        else:
+            before = samples_before(output, snap, list(series))
+            notes([f"{output}: resuming the transient at t = {snap.time:.6g} s (step {snap.steps}, "
+                   f"{snap.delivered} samples kept)"])
+    folder = start_resume_journal(output, config_sha256) if snap is None else resume_folder(output)
     with StreamWriter(output, "transient", series=series, coords=setup.coords, attrs=dict(plan.attrs),
                       config_toml=config_toml, config_sha256=config_sha256, force=True) as writer:
         notes(writer.notes)
@@ -97,7 +217,25 @@ def transient_to_file(plan: TransientPlan, opts, *, output: Path, config_toml: s
             from beltdyn.results.export import dof_unit_variable
 
             writer.add_variables((dof_unit_variable(model),))
-        summary = run_transient(model, res, opts, sink=writer.append, progress=progress, setup=setup)
+        if before is not None:
+            writer.append(*before)
+
+        durable_at = [-np.inf]
+
+        def checkpoint(state: TransientSnapshot) -> None:
+            writer.flush()  # the samples it follows are in the stream journal first
+            now = time.monotonic()
+            durable = now - durable_at[0] >= DURABLE_SECONDS
+            write_checkpoint(folder, state, durable=durable)
+            if durable:
+                durable_at[0] = now
+
+        try:
+            summary = run_transient(model, res, opts, sink=writer.append, progress=progress, setup=setup,
+                                    resume=snap, on_checkpoint=checkpoint, checkpoint_seconds=CHECKPOINT_SECONDS)
+        except Exception:  # a failed run is not resumed: it would fail again (the samples stay, marked failed)
+            shutil.rmtree(folder, ignore_errors=True)
+            raise
         ev = summary.slack_events
         writer.set_attrs(steps=summary.steps, refactorizations=summary.refactorizations,
                          newton_iterations=summary.newton_iterations,
@@ -118,6 +256,7 @@ def transient_to_file(plan: TransientPlan, opts, *, output: Path, config_toml: s
             if len(t_all) - first >= 8:
                 kept = {name: writer.read(name, first) for name in keep}
                 peaks = spectra(writer, setup, t_all[first:], kept, plan.modal, opts)
+    shutil.rmtree(folder, ignore_errors=True)  # complete: nothing to resume
     return TransientOutcome(summary=summary, spans=spans, peaks=tuple(peaks),
                             excitation_frequency=setup.excitation_frequency)
 

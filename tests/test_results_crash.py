@@ -101,8 +101,12 @@ def files_beside(path: Path) -> list[str]:
 
 
 def assert_nothing_unexplained(path: Path) -> None:
-    """Only the root and the parts it references: no journal, temporary root, lock or stray part."""
-    assert sorted(files_beside(path)) == sorted([path.name, *referenced_parts(path)])
+    """Only the root and the parts it references: no journal, temporary root, lock or stray part (but
+    an interrupted transient's resume journal, `<output>.transient/`, which `transient --resume` reads)."""
+    resume = f"{path.name}.transient/"
+    assert sorted(f for f in files_beside(path) if not f.startswith(resume)) \
+        == sorted([path.name, *referenced_parts(path)])
+    assert {f[len(resume):] for f in files_beside(path) if f.startswith(resume)} <= {"spec.json", "state.bin"}
 
 
 # ------------------------------------------------------------------------------ signals, kills

@@ -31,9 +31,12 @@ the moving-string closed form gives (-6 % at 10 m/s), see tests/test_running.py.
 
 from __future__ import annotations
 
+import json
 import math
+import struct
 import time
-from dataclasses import dataclass
+import zlib
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -76,6 +79,118 @@ class TransientSummary:
 
 ENERGY_LIMIT = 0.01  # energy-balance error, as a share of the energy moved, above which a run fails (SolverError;
 # an error within round-off, `energy_roundoff`, never does)
+
+
+SNAPSHOT_MAGIC = b"BDSNAP01"
+_SNAPSHOT_HEAD = struct.Struct("<8sQI")  # magic, payload length, CRC-32 of the payload
+SNAPSHOT_ARRAYS = ("q", "v", "a", "f0", "fd0", "F0", "R0", "scal", "anchor", "slack", "events", "factor_q", "factor_v",
+                   "tension_low", "tension_low_time")
+
+
+def _frozen(x) -> np.ndarray:
+    a = np.array(x, dtype=np.float64)  # a copy of its own
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, kw_only=True)
+class TransientSnapshot:
+    """The stepper's full state at an accepted step, taken after every sample up to it reached the
+    sink: what a resumed run (`run_transient(resume=...)`) restarts from, so that it continues as the
+    uninterrupted run would have. Arrays are float64, read-only copies where `drive` and
+    `snapshot_from_bytes` make them (`_frozen`).
+
+    Stepper (`integrator.State`, n DOFs, m = max(constraints, 1)): q, v, a (n,) the state (generalized
+    alpha in the form M a + ... with the real acceleration a: no auxiliary acceleration), f0, fd0, F0
+    (n,) the internal, damping and external forces at it, R0 (m,) the constraint reactions, scal
+    (integrator.N_SCAL,) the time, the step size, the next output time, the energy-balance accumulators
+    (work, dissipated, reference energies, worst error, energy moved), the step and iteration counts
+    and the factor's age. Arms: anchor (n_arms,) the friction bristles' anchors. Slack: slack (n_span,)
+    the spans' slack flags, events (k, 4) the slack events so far. Factor: factor_q, factor_v (n,),
+    factor_h, factor_t, the state the current iteration matrix was computed at (recomputed on resume:
+    the same matrix), fresh (the factor not used yet), calm (calm calls since a halving). Driver
+    counts: delivered (samples handed to the sink), steps, refactorizations, halvings, min_step, refresh
+    (the refresh rule's current factor cost).
+    Observers (`transient_outputs.Observers`): tension_low, tension_low_time (n_span,), tension_high
+    (N, s), worst_slip (margin, s, pulley), stop_hit (s, pulley, rad) or None."""
+
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    f0: np.ndarray
+    fd0: np.ndarray
+    F0: np.ndarray
+    R0: np.ndarray
+    scal: np.ndarray
+    anchor: np.ndarray
+    slack: np.ndarray
+    events: np.ndarray
+    factor_q: np.ndarray
+    factor_v: np.ndarray
+    factor_h: float
+    factor_t: float
+    fresh: bool
+    calm: int
+    delivered: int
+    steps: int
+    refactorizations: int
+    halvings: int
+    min_step: float
+    refresh: float = 0.0  # the refresh rule's factor cost in residual evaluations (`integrator.factor_aged`)
+    tension_low: np.ndarray = field(default_factory=lambda: _frozen(np.zeros(0)))
+    tension_low_time: np.ndarray = field(default_factory=lambda: _frozen(np.zeros(0)))
+    tension_high: tuple[float, float] = (-np.inf, np.nan)
+    worst_slip: tuple[float, float, str] = (np.inf, np.nan, "")
+    stop_hit: tuple[float, str, float] | None = None
+
+    @property
+    def time(self) -> float:
+        """The simulated time of the snapshot (s)."""
+        from beltdyn.analysis import integrator as itg
+
+        return float(self.scal[itg.T_NOW])
+
+
+def snapshot_bytes(snap: TransientSnapshot) -> bytes:
+    """The snapshot as one checksummed record: a 20-byte head (SNAPSHOT_MAGIC, payload length u64,
+    CRC-32 of the payload u32; little-endian), then the payload: a u32 length of a JSON text (the
+    scalars and each array's shape), the JSON, then the arrays' float64 bytes in SNAPSHOT_ARRAYS order."""
+    arrays = [np.ascontiguousarray(getattr(snap, k), dtype="<f8") for k in SNAPSHOT_ARRAYS]
+    meta = {"shapes": [list(a.shape) for a in arrays], "factor_h": snap.factor_h, "factor_t": snap.factor_t,
+            "fresh": snap.fresh, "calm": snap.calm, "delivered": snap.delivered, "steps": snap.steps,
+            "refactorizations": snap.refactorizations, "halvings": snap.halvings, "min_step": snap.min_step,
+            "refresh": snap.refresh,
+            "tension_high": list(snap.tension_high), "worst_slip": list(snap.worst_slip),
+            "stop_hit": None if snap.stop_hit is None else list(snap.stop_hit)}
+    text = json.dumps(meta).encode()  # (json writes inf and nan as Infinity and NaN, and reads them back)
+    payload = struct.pack("<I", len(text)) + text + b"".join(a.tobytes() for a in arrays)
+    return _SNAPSHOT_HEAD.pack(SNAPSHOT_MAGIC, len(payload), zlib.crc32(payload)) + payload
+
+
+def snapshot_from_bytes(data: bytes) -> TransientSnapshot:
+    """The snapshot of a record written by `snapshot_bytes`; ValueError if it is torn or fails its CRC."""
+    if len(data) < _SNAPSHOT_HEAD.size:
+        raise ValueError("the snapshot is cut short")
+    magic, length, crc = _SNAPSHOT_HEAD.unpack_from(data)
+    payload = data[_SNAPSHOT_HEAD.size:]
+    if magic != SNAPSHOT_MAGIC or len(payload) != length or zlib.crc32(payload) != crc:
+        raise ValueError("the snapshot fails its checksum (torn or damaged)")
+    (n_text,) = struct.unpack_from("<I", payload)
+    meta = json.loads(payload[4:4 + n_text])
+    arrays, pos = {}, 4 + n_text
+    for key, shape in zip(SNAPSHOT_ARRAYS, meta["shapes"]):
+        count = int(np.prod(shape, dtype=np.int64))
+        arrays[key] = _frozen(np.frombuffer(payload, dtype="<f8", count=count, offset=pos).reshape(shape))
+        pos += 8 * count
+    worst = meta["worst_slip"]
+    stop = meta["stop_hit"]
+    return TransientSnapshot(
+        **arrays, factor_h=float(meta["factor_h"]), factor_t=float(meta["factor_t"]), fresh=bool(meta["fresh"]),
+        calm=int(meta["calm"]), delivered=int(meta["delivered"]), steps=int(meta["steps"]),
+        refactorizations=int(meta["refactorizations"]), halvings=int(meta["halvings"]),
+        min_step=float(meta["min_step"]), refresh=float(meta["refresh"]), tension_high=(float(meta["tension_high"][0]), float(meta["tension_high"][1])),
+        worst_slip=(float(worst[0]), float(worst[1]), str(worst[2])),
+        stop_hit=None if stop is None else (float(stop[0]), str(stop[1]), float(stop[2])))
 
 
 def energy_roundoff(scal: np.ndarray) -> float:
@@ -193,11 +308,20 @@ REFRESH = True  # a new factor once the old one's extra Newton iterations cost m
 
 def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float, duration: float,
           output_interval: float, tolerance: float, max_iterations: int, on_batch: Callable,
-          progress: Progress | None = None, batch: int = 256, n_span: int = 0):
+          progress: Progress | None = None, batch: int = 256, n_span: int = 0,
+          resume: TransientSnapshot | None = None, on_checkpoint: Callable | None = None,
+          checkpoint_seconds: float = 0.0):
     """Integrate the problem: outputs in batches to on_batch(t, q, v, a, energy, reaction); returns
     (status, run bookkeeping, final scal, slack events). Raises SolverError when the step cannot be
     reduced further (the batches before the failure have been delivered); KeyboardInterrupt
-    propagates after the last complete batch was delivered."""
+    propagates after the last complete batch was delivered.
+
+    Restart hooks: with on_checkpoint, every checkpoint_seconds of wall time (0: before every step
+    call) at an accepted step, the samples so far are delivered and then on_checkpoint(snapshot) is
+    called with the stepper's `TransientSnapshot` (its observer fields left at their defaults). With
+    resume (such a snapshot), the run continues from it instead of the initial state: the same
+    state, factor (recomputed at the state it was computed at), counts and slack events, so the
+    samples after it are those of the uninterrupted run."""
     from beltdyn.analysis import integrator as itg
 
     am, af, beta, gamma = itg.alpha_parameters(rho_inf)
@@ -226,24 +350,44 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     def advance(task, st, fac, fresh):  # the compiled stepper (`integrator.advance`), opts as they are now
         return itg.advance(task, st, model, opts, fac, fresh, out, ev, info, work)
 
-    state = initial_state(problem, step, lambda st: advance(itg.START, st, itg.no_factor(), False))
+    if resume is None:
+        state = initial_state(problem, step, lambda st: advance(itg.START, st, itg.no_factor(), False))
+    else:
+        state = itg.State(q=resume.q.copy(), v=resume.v.copy(), a=resume.a.copy(), f0=resume.f0.copy(),
+                          fd0=resume.fd0.copy(), F0=resume.F0.copy(), R0=resume.R0.copy(), scal=resume.scal.copy())
+        arms.anchor[:] = resume.anchor
+        ev.slack[:] = resume.slack
+        if len(resume.events):
+            all_events.append(np.array(resume.events))
+        opts = opts._replace(refresh=float(resume.refresh))
     th = state.scal
     clock = {"factor": 0.0, "factors": 0, "stepping": 0.0, "iterations": 0.0, "counted": 0.0, "calls": 0}
+    at_factor = {}  # the state the current factor was computed at (q, v, h, t): a snapshot's
 
-    def new_factor():
-        """The factor at the current state; its wall time feeds the refresh rule (`integrator.run_steps`)."""
+    def new_factor(q=None, v=None, h=None, t=None):
+        """The factor at the current state (or at the one given); its wall time feeds the refresh rule
+        (`integrator.run_steps`)."""
+        args = (state.q.copy() if q is None else q, float(th[itg.H]) if h is None else h,
+                state.v.copy() if v is None else v, float(th[itg.T_NOW]) if t is None else t)
         started = time.perf_counter()
-        got = problem.factor(state.q, th[itg.H], state.v, th[itg.T_NOW])
+        got = problem.factor(*args)
         clock["factor"] += time.perf_counter() - started
         clock["factors"] += 1
+        at_factor.update(q=args[0], h=args[1], v=args[2], t=args[3])
         return got
 
-    fac = new_factor()
-    fresh = True
     run = _Run()
-    run.refactors = 1
-    min_h = th[itg.H]
-    calm = 0
+    if resume is None:
+        fac = new_factor()
+        fresh = True
+        run.refactors = 1
+        min_h = th[itg.H]
+        calm = 0
+    else:
+        fac = new_factor(np.array(resume.factor_q), np.array(resume.factor_v), resume.factor_h, resume.factor_t)
+        fresh, calm, min_h = bool(resume.fresh), int(resume.calm), float(resume.min_step)
+        run.steps, run.refactors, run.halvings, run.delivered = (int(resume.steps), int(resume.refactorizations),
+                                                                  int(resume.halvings), int(resume.delivered))
 
     def drain() -> None:
         k = int(out.n[0])
@@ -259,9 +403,27 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
             all_events.append(ev.data[: int(ev.n[0])].copy())
             ev.n[0] = 0
 
-    last_drain = time.perf_counter()
+    def snapshot() -> TransientSnapshot:
+        collect_events()
+        return TransientSnapshot(
+            q=_frozen(state.q), v=_frozen(state.v), a=_frozen(state.a), f0=_frozen(state.f0), fd0=_frozen(state.fd0),
+            F0=_frozen(state.F0), R0=_frozen(state.R0), scal=_frozen(th), anchor=_frozen(arms.anchor),
+            slack=_frozen(ev.slack),
+            events=_frozen(np.concatenate(all_events) if all_events else np.zeros((0, 4))),
+            factor_q=_frozen(at_factor["q"]), factor_v=_frozen(at_factor["v"]), factor_h=float(at_factor["h"]),
+            factor_t=float(at_factor["t"]), fresh=bool(fresh), calm=int(calm), delivered=run.delivered,
+            steps=int(th[itg.STEPS]), refactorizations=run.refactors, halvings=run.halvings, min_step=float(min_h),
+            refresh=float(opts.refresh))
+
+    last_drain = last_checkpoint = time.perf_counter()
     try:
         while True:
+            # a checkpoint: here every count and the factor belong to the accepted state (an interrupt
+            # elsewhere in the loop leaves the previous checkpoint the last one)
+            if on_checkpoint is not None and time.perf_counter() - last_checkpoint >= checkpoint_seconds:
+                drain()
+                on_checkpoint(snapshot())
+                last_checkpoint = time.perf_counter()
             started, steps_before = time.perf_counter(), th[itg.STEPS]
             code = advance(itg.STEP, state, fac, fresh)
             now = time.perf_counter()
@@ -325,12 +487,18 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
 
 def run_transient(system: System, static: StaticResult, opts: TransientOptions, *, sink: Sink,
                   progress: Progress | None = None, setup: TransientSetup | None = None, batch: int | None = None,
-                  status: Callable | None = None) -> TransientSummary:
+                  status: Callable | None = None, resume: TransientSnapshot | None = None,
+                  on_checkpoint: Callable[[TransientSnapshot], None] | None = None,
+                  checkpoint_seconds: float = 0.0) -> TransientSummary:
     """Integrate, feeding (time (B,), {series: (B, ...)}) batches to `sink`.
 
     Raises SolverError (with the failure time, residual and DOF) when the step cannot be reduced
     further; the batches before the failure have been delivered. KeyboardInterrupt propagates after
     the last complete batch was delivered. `status(text)` is told about a first-time kernel compile.
+    on_checkpoint(snapshot): every checkpoint_seconds of wall time, the full state (stepper and
+    observers, `TransientSnapshot`) once the samples up to it reached the sink; resume: such a
+    snapshot of the same system and options, the run continues from it (the sink then gets only the
+    samples after it, and the summary covers the whole run).
     """
     from beltdyn.analysis import integrator as itg
 
@@ -350,11 +518,22 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
         groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels, factor=factor,
         arms=arms, transport=tr)
     observer = Observers(system=system, setup=setup)
+    if resume is not None:
+        observer.restore(tension_low=resume.tension_low, tension_low_time=resume.tension_low_time,
+                         tension_high=resume.tension_high, worst_slip=resume.worst_slip, stop_hit=resume.stop_hit)
+
+    def checkpoint(snap: TransientSnapshot) -> None:
+        on_checkpoint(replace(snap, tension_low=_frozen(observer.tension_low),
+                              tension_low_time=_frozen(observer.tension_low_time),
+                              tension_high=tuple(map(float, observer.tension_high)),
+                              worst_slip=observer.worst_slip, stop_hit=observer.stop_hit))
+
     run, th, min_h, events = drive(
         problem, rho_inf=opts.rho_inf, step=opts.step, min_step=opts.min_step, duration=opts.duration,
         output_interval=opts.output_interval, tolerance=opts.tolerance, max_iterations=opts.max_iterations,
         on_batch=lambda *b: sink(b[0], observer.compute(*b)), progress=progress, batch=batch,
-        n_span=system.belt.n_span)
+        n_span=system.belt.n_span, resume=resume, on_checkpoint=None if on_checkpoint is None else checkpoint,
+        checkpoint_seconds=checkpoint_seconds)
     moved = float(th[itg.MOVED])
     error = float(th[itg.WORST]) / moved if moved > 0 else 0.0
     if error > ENERGY_LIMIT and float(th[itg.WORST]) > energy_roundoff(th):  # every sample has reached the sink:

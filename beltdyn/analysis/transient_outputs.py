@@ -75,6 +75,15 @@ class Observers:
         self.tension_high = (-np.inf, np.nan)  # largest end tension of any span (N) and when (s)
         self.stop_hit: tuple[float, str, float] | None = None  # first time an arm is beyond a stop, its pulley, angle
 
+    def restore(self, *, tension_low: np.ndarray, tension_low_time: np.ndarray, tension_high: tuple[float, float],
+                worst_slip: tuple[float, float, str], stop_hit: tuple[float, str, float] | None) -> None:
+        """The running extrema of an earlier part of the run (a resumed transient, `TransientSnapshot`)."""
+        self.tension_low = np.array(tension_low, dtype=float)
+        self.tension_low_time = np.array(tension_low_time, dtype=float)
+        self.tension_high = (float(tension_high[0]), float(tension_high[1]))
+        self.worst_slip = (float(worst_slip[0]), float(worst_slip[1]), str(worst_slip[2]))
+        self.stop_hit = stop_hit
+
     def _track_tension(self, t: np.ndarray, T: np.ndarray) -> None:
         """The smallest end tension of each span (and when) and the largest of all, over the samples
         T (B, n_span, 2) at times t (B,)."""

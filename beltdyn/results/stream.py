@@ -292,6 +292,16 @@ class StreamWriter:
             raise WriteFailure(f"{self._path}: cannot append to /{self._name} (journal {self.journal_path}): "
                                f"{exc}") from exc
 
+    def flush(self) -> None:
+        """Write the buffered rows to the stream journal now: from here on they survive the writer's
+        death (as `append`'s own writes do; a checkpoint that names them needs them there)."""
+        self._check_open()
+        try:
+            self._drain()
+        except OSError as exc:
+            raise WriteFailure(f"{self._path}: cannot append to /{self._name} (journal {self.journal_path}): "
+                               f"{exc}") from exc
+
     def read(self, name: str, start_row: int = 0) -> np.ndarray:
         """The rows of series `name` (or "time") appended so far, from `start_row` (read from the journal,
         so a caller need not keep its own copy while streaming)."""

@@ -22,7 +22,11 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
               step: Optional[float] = typer.Option(None, "--step", min=0.0, help="Time step, s, used as given [default: transient.step, or from transient.accuracy and fmax]."),
               fmax: Optional[float] = FmaxOpt,
               rtol: Optional[float] = typer.Option(None, "--rtol", min=0.0,
-                                                   help="With --fmax: the relative tolerance of the span choice.")) -> None:
+                                                   help="With --fmax: the relative tolerance of the span choice."),
+              resume: bool = typer.Option(False, "--resume",
+                                          help="Continue the interrupted transient of the output (Ctrl-C, SIGTERM, "
+                                               "kill -9) from its last checkpoint; the same configuration and "
+                                               "options as the interrupted run.")) -> None:
     """Nonlinear time response (generalized-alpha) with streamed histories and their spectra."""
 
     def body() -> None:
@@ -36,7 +40,9 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
             sets.append(f"transient.duration={duration!r}")
         if step is not None:
             sets.append(f"transient.step={step!r}")
-        job = Job(config, output, sets, force)
+        # --resume: the output's own configuration is checked against the resume journal below (not
+        # refused here as a different file: the journal's message names both hashes)
+        job = Job(config, output, sets, force or resume)
         cfg = job.cfg
         if cfg.transient is None:
             from beltdyn.errors import ConfigError
@@ -47,14 +53,18 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
 
         resolved, origin = resolve_step(cfg.transient, manual=step)
         if resolved.step != cfg.transient.step:  # the chosen step goes into the resolved configuration
-            job = Job(config, output, sets + [f"transient.step={resolved.step!r}"], force)  # (provenance)
+            job = Job(config, output, sets + [f"transient.step={resolved.step!r}"], force or resume)  # (provenance)
         job.step_origin = origin
         choose_spans(job, fmax, rtol, command="transient")
+        if resume:  # before any work: a journal of this configuration, or exit 2
+            from beltdyn.workflow import read_checkpoint
+
+            read_checkpoint(job.output, job.sha, source=str(job.cfg.source))
         announce_cost(job.cfg, resolved)
         check_output_volume(job, force_large)
         spec_opts = cfg.transient.spectrum
         run = static_pipeline(job, modal=spec_opts.enabled)
-        run_transient_command(job, run, (window,) if window else ())
+        run_transient_command(job, run, (window,) if window else (), resume=resume)
         ladder_not_met(job)
 
     guarded(body)
@@ -102,9 +112,10 @@ def spectrum_window(config: Path, sets: List[str], duration: float) -> tuple[flo
                    "transient.spectrum.start to choose it)")
 
 
-def run_transient_command(job: Job, run, warnings: tuple[str, ...] = ()) -> None:
+def run_transient_command(job: Job, run, warnings: tuple[str, ...] = (), *, resume: bool = False) -> None:
     """The transient of an analysed drive into the job's output (`workflow`), said on the console;
-    `warnings` (the CLI's own, e.g. a moved spectral window) go with the step's to /transient `warnings`."""
+    `warnings` (the CLI's own, e.g. a moved spectral window) go with the step's to /transient `warnings`;
+    resume: continue the output's interrupted transient from its last checkpoint."""
     from dataclasses import replace
 
     from beltdyn.workflow import plan_transient, transient_to_file
@@ -119,7 +130,7 @@ def run_transient_command(job: Job, run, warnings: tuple[str, ...] = ()) -> None
     progress, update = progress_bar(con, opts.duration)
     with progress:
         done = transient_to_file(plan, opts, output=job.output, config_toml=job.toml, config_sha256=job.sha,
-                                 notes=print_notes, progress=update)
+                                 notes=print_notes, progress=update, resume=resume, source=str(job.cfg.source))
     con.print(f"time step ({plan.attrs['step_origin']}): {plan.step_text}")
     print_transient(con, done.summary, done.spans, done.peaks, done.excitation_frequency, shown=plan.warnings)
     con.print(f"wrote [bold]/transient[/] ({done.summary.n_outputs} samples) to {job.output}")
