@@ -155,6 +155,9 @@ def tensioner_positions(cfg: DriveConfig, *, length_tolerance: float | None = No
         except SolverError as exc:
             status[k], message[k] = _status(exc), str(exc)
             continue
+        except ConfigError as exc:  # the belt of this length cannot be laid (the L0 fit): beyond stops or no fit
+            status[k], message[k] = ("beyond stops" if exc.key.endswith("arm_range") else "no fit"), exc.detail
+            continue
         angle[k], torque[k] = st.arm_angle[arm], st.arm_torque[arm]
         tension[k], hub[k] = st.span_tension, st.hub_load
         if st.slip_margin is not None:
@@ -177,7 +180,7 @@ def positions_group(cfg: DriveConfig, res: PositionsResult) -> GroupData:
                 "component": ["x", "y"]},
         variables=(
             Variable(name="status", data=list(res.status), dims=("position",), units="1",
-                     description='"ok", "beyond stops", "slack span" or "failed" (the values are then NaN); '
+                     description='"ok", "beyond stops", "slack span", "no fit" or "failed" (the values are then NaN); '
                                  'FREE: "at stop" when the free angle lies beyond the stops'),
             Variable(name="message", data=list(res.message), dims=("position",), units="1",
                      description="the solver's message of a position that failed, or why FREE rests on a stop "
