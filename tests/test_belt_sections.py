@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from beltdyn.config import config_from_dict, config_to_dict, load_config, resolved_toml, with_overrides
+from beltdyn.config import apply_override, config_from_dict, config_to_dict, load_config, resolved_toml, with_overrides
 from beltdyn.errors import ConfigError
 from processes import BELTDYN  # tests/processes.py
 
@@ -67,21 +67,31 @@ def test_given_values_override_the_section():
 
 def test_resolved_toml_shows_what_was_used_and_round_trips():
     cfg = config_from_dict(fead_raw(section="6PK", EA=1.5e5), file="fead.toml")
-    belt = tomllib.loads(resolved_toml(cfg))["belt"]
+    text = resolved_toml(cfg)
     entry = shipped()["PK"]
-    assert belt == {"length": cfg.belt.length, "EA": 1.5e5, "EI": 6 * entry["EI_per_rib"]["value"],
-                    "mass_per_length": 6 * entry["mass_per_rib"]["value"], "section": "PK", "ribs": 6}
-    again = config_from_dict(tomllib.loads(resolved_toml(cfg)), file="fead.toml")
-    assert resolved_toml(again) == resolved_toml(cfg)
+    EI, mass = 6 * entry["EI_per_rib"]["value"], 6 * entry["mass_per_rib"]["value"]
+    # the section's values as a comment (in the hash), the keys as given
+    assert f"[belt]\n# from belt.section 6 x PK (beltdyn/data/belt_sections.toml): EI = {EI!r}, " \
+           f"mass_per_length = {mass!r}\n" in text
+    assert tomllib.loads(text)["belt"] == {"length": cfg.belt.length, "EA": 1.5e5, "section": "PK", "ribs": 6}
+    again = config_from_dict(tomllib.loads(text), file="fead.toml")
+    assert resolved_toml(again) == text and again.belt == cfg.belt
 
 
-def test_a_new_rib_count_takes_the_sections_values_anew_given_ones_kept():
+@pytest.mark.parametrize("how", ["with_overrides", "resolved toml"])  # a sweep case: the resolved TOML + --set
+def test_a_new_rib_count_takes_the_sections_values_anew_given_ones_kept(how):
     cfg = config_from_dict(fead_raw(section="6PK", EA=1.5e5), file="fead.toml")
-    eight = with_overrides(cfg, ["belt.ribs=8"])
+    if how == "with_overrides":
+        eight = with_overrides(cfg, ["belt.ribs=8"])
+    else:
+        raw = tomllib.loads(resolved_toml(cfg))
+        apply_override(raw, "belt.ribs=8", file="fead.toml")
+        eight = config_from_dict(raw, file="fead.toml")
     entry = shipped()["PK"]
     assert eight.belt.EI == 8 * entry["EI_per_rib"]["value"]
     assert eight.belt.mass_per_length == 8 * entry["mass_per_rib"]["value"]
     assert eight.belt.EA == 1.5e5
+    assert with_overrides(cfg, ["belt.EI=0.03"]).belt.EI == 0.03  # an override of a section value wins
 
 
 def test_plain_belt_unchanged_and_still_needs_its_values():

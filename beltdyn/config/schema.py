@@ -25,9 +25,9 @@ class Belt:
     section: a V-ribbed section of the shipped table (`beltdyn/data/belt_sections.toml`: PH, PJ, PK, PL,
     PM), "6PK" or "PK" with ribs = 6; it gives EA, EI and mass_per_length (per rib x ribs) where they
     are not given (given ones win), and the offset of a pulley's effective_diameter. Once loaded, EA,
-    EI and mass_per_length are always set (the section's values written out: the resolved TOML shows
-    what was used), section is the bare section ("PK") and ribs the count; `derived` names the values
-    that came from the section (not a TOML key).
+    EI and mass_per_length are always set, section is the bare section ("PK") and ribs the count;
+    `derived` names the values that came from the section (not a TOML key: the resolved TOML leaves
+    them out, so that a changed section or rib count gives them anew, and shows them in a comment).
     """
 
     length: float = key(POSFLOAT, doc="undeformed loop length L0", units="m")
