@@ -19,9 +19,9 @@ def positions(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
               unset: Optional[List[str]] = UnsetOpt, force: bool = ForceOpt,
               length_tolerance: Optional[float] = typer.Option(
                   None, "--length-tolerance", min=0.0,
-                  help="Belt length tolerance (m): MIN / MAX are L0 -/+ it [default: 0.3 % of L0]."),
+                  help="Belt length tolerance (m): MIN / MAX are L0 -/+ it (default 0.3 % of L0)."),
               wear: Optional[float] = typer.Option(
-                  None, "--wear", min=0.0, help="WORN: the belt lengthened by this fraction of L0 [default: 0.01].")
+                  None, "--wear", min=0.0, help="WORN: the belt lengthened by this fraction of L0 (default 0.01).")
               ) -> None:
     """Tensioner positions (spring mode): FREE, MIN / NOMINAL / MAX length, WORN, LOAD; the take-up used."""
 
