@@ -18,6 +18,7 @@ class Job:
         from beltdyn.model.geometry import layout_from_config
 
         self.cfg = load_config(config, sets or [])
+        print_belt_section(self.cfg.belt)
         self.layout = layout_from_config(self.cfg)  # geometric config errors come before the output check
         self.toml = resolved_toml(self.cfg)
         self.sha = config_hash(self.cfg)
@@ -50,6 +51,16 @@ class Job:
 
         print_notes(write_groups(self.output, self.groups, config_toml=self.toml, config_sha256=self.sha,
                             force=self.force, base_config_sha256=self.base_sha))
+
+def print_belt_section(belt) -> None:
+    """The belt values used when belt.section gave some: which came from the shipped table."""
+    if belt.section is None:
+        return
+    units = {"EA": "N", "EI": "N m^2", "mass_per_length": "kg/m"}
+    parts = [f"{name} {getattr(belt, name):.6g} {unit} ({'section' if name in belt.derived else 'given'})"
+             for name, unit in units.items()]
+    console().print(f"belt {belt.ribs}{belt.section}: " + ", ".join(parts))
+
 
 def failed_group(name: str, exc: BaseException):
     from beltdyn.results.io import GroupData

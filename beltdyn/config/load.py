@@ -12,6 +12,7 @@ from beltdyn.config.schema import DriveConfig
 from beltdyn.config.checks import (_check_pulleys, _check_response, _check_spans, _check_spring_tension,
                                    _check_static_torques, _check_transient)
 from beltdyn.config.overrides import apply_override, parse_toml_file
+from beltdyn.config.sections import _resolve_belt, _resolve_radii
 
 
 def load_config(path: Path | str, overrides: tuple[str, ...] | list[str] = ()) -> DriveConfig:
@@ -30,7 +31,8 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>", tables: dic
     (`table_bytes`), for a process that cannot read them next to `file` (a remote sweep worker)."""
     chk = _Checker(file, tables)
     cfg = _parse(chk, "", raw, DriveConfig)
-    pulleys = _check_pulleys(chk, raw["pulleys"], cfg.pulleys)
+    belt = _resolve_belt(chk, cfg.belt)
+    pulleys = _check_pulleys(chk, raw["pulleys"], _resolve_radii(chk, belt, cfg.pulleys))
     adjustable = any(p.adjustable for p in pulleys)
     tension = cfg.tension
     if "mode" not in raw.get("tension", {}):  # default: move the adjustable pulley if there is one
@@ -49,4 +51,4 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>", tables: dic
         _check_response(chk, cfg.response, pulleys)
     if cfg.running is not None and cfg.running.belt_speed is not None and cfg.running.driver_speed is not None:
         raise chk.fail("running.driver_speed", "give either running.belt_speed or running.driver_speed, not both")
-    return replace(cfg, pulleys=pulleys, tension=tension, transient=transient, source=file)
+    return replace(cfg, belt=belt, pulleys=pulleys, tension=tension, transient=transient, source=file)

@@ -19,12 +19,26 @@ from beltdyn.config.kinds import (_Array, BOOL, _Checker, _Choice, CURVATURES, D
 # ------------------------------------------------------------------------------ the declarations
 @dataclass(frozen=True, kw_only=True)
 class Belt:
-    """Belt properties. length: undeformed loop length L0 (m); EA (N); EI (N m^2); kg/m."""
+    """Belt properties. length: undeformed loop length L0 (m); EA (N); EI (N m^2); kg/m.
+
+    section: a V-ribbed section of the shipped table (`beltdyn/data/belt_sections.toml`: PH, PJ, PK, PL,
+    PM), "6PK" or "PK" with ribs = 6; it gives EA, EI and mass_per_length (per rib x ribs) where they
+    are not given (given ones win), and the offset of a pulley's effective_diameter. Once loaded, EA,
+    EI and mass_per_length are always set, section is the bare section ("PK") and ribs the count;
+    `derived` names the values that came from the section (not a TOML key: the resolved TOML leaves
+    them out, so that a changed section or rib count gives them anew, and shows them in a comment).
+    """
 
     length: float = key(POSFLOAT, doc="undeformed loop length L0", units="m")
-    EA: float = key(POSFLOAT, doc="axial stiffness", units="N")
-    EI: float = key(NONNEGFLOAT, doc="bending stiffness", units="N m^2")
-    mass_per_length: float = key(POSFLOAT, doc="mass per unit length", units="kg/m")
+    EA: float = key(POSFLOAT, None, doc="axial stiffness (not set: belt.section's EA per rib x ribs)", units="N")
+    EI: float = key(NONNEGFLOAT, None, doc="bending stiffness (not set: belt.section's EI per rib x ribs)",
+                    units="N m^2")
+    mass_per_length: float = key(POSFLOAT, None, doc="mass per unit length (not set: belt.section's mass per "
+                                                     "rib x ribs)", units="kg/m")
+    section: str | None = key(STR, None, doc='V-ribbed section of the shipped table ("PK" or "6PK"; PH, PJ, PK, '
+                                             "PL, PM): EA, EI, mass per length and the effective-diameter offset")
+    ribs: int | None = key(POSINT, None, doc="number of ribs of belt.section (or in its name, \"6PK\")")
+    derived: tuple[str, ...] = field(default=(), compare=False)  # the values taken from the section
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -47,7 +61,12 @@ class Pulley:
 
     name: str = key(NAME, doc="name, unique; loads and rotations refer to it")
     center: tuple[float, float] = key(VEC2, doc="centre (x right, y up); a slide's origin", units="m")
-    radius: float = key(POSFLOAT, doc="radius at the belt's neutral line", units="m")
+    radius: float = key(POSFLOAT, None, doc="radius at the belt's neutral line (or effective_diameter)",
+                        units="m")
+    effective_diameter: float | None = key(POSFLOAT, None, doc="grooved pulley's effective diameter (ISO "
+                                                               "9981/9982), instead of radius: radius = "
+                                                               "(effective_diameter + belt.section's diameter "
+                                                               "offset) / 2", units="m")
     mass: float = key(POSFLOAT, doc="mass", units="kg")
     inertia: float = key(POSFLOAT, doc="moment of inertia about its axis", units="kg m^2")
     side: str = key(_Choice(*SIDES), "inside", doc="the belt touches it from the inside of the loop or on its backside")
