@@ -188,8 +188,8 @@ class System:
         out = assemble_system(self.layout, self.dofs, self.belt, self.components + tuple(extra),
                               pulley_names=self.pulley_names, driver=self.driver, tension=self.tension,
                               gravity=self.gravity, dense=self.dense, loads=self.loads, arms=self.arms,
-                              friction=self.pulley_friction, springs=self.springs)
-        return out.with_speed(self.belt_speed) if self.belt_speed else out
+                              friction=self.pulley_friction, springs=self.springs, belt_speed=self.belt_speed)
+        return out
 
     def with_belt(self, **changes) -> "System":
         """The same system with belt fields changed (e.g. damping_axial, compiled); the spring spans
@@ -732,6 +732,8 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
     arms = facts.arms
     if arms is not None and layout is not facts.layout:
         arms = arm_joints(cfg, layout, dofs, like=arms)
+    if belt_speed is None:
+        belt_speed = belt_speed_of(cfg, layout)
     belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam, no_elements=facts.no_elements)
     springs = build_springs(cfg, layout, dofs, prestrain_stretch=lam, direction=belt.reference_direction,
                             reference_length=belt.reference_length)
@@ -739,10 +741,8 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
                                                                    parts=facts.pulleys) + tuple(extra),
                              pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
                              gravity=facts.gravity, dense=dense, loads=facts.loads, arms=arms, friction=facts.friction,
-                             springs=springs)
-    if belt_speed is None:
-        belt_speed = belt_speed_of(cfg, layout)
-    return system.with_speed(belt_speed) if belt_speed else system
+                             springs=springs, belt_speed=float(belt_speed))
+    return system
 
 
 def tension_setting(cfg: DriveConfig, dofs: DofMap) -> TensionSetting:
@@ -870,9 +870,11 @@ __all__ = ["System", "DofMap", "BeltSpans", "SpringSpans", "build_springs", "Ten
 def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[LinearComponent, ...], *,
                     pulley_names: tuple[str, ...], driver: int, tension: TensionSetting, gravity: np.ndarray,
                     dense: bool | None, loads: np.ndarray | None = None, arms: ArmJoints | None = None,
-                    friction: np.ndarray | None = None, springs: SpringSpans | None = None) -> System:
+                    friction: np.ndarray | None = None, springs: SpringSpans | None = None,
+                    belt_speed: float = 0.0) -> System:
     """The system of a belt and components: its pattern, mass, weight and the components' constant
-    matrices, one assembly for dense and sparse (`assembly`)."""
+    matrices, one assembly for dense and sparse (`assembly`); belt_speed (m/s): the running belt's speed
+    (the system built at that speed at once, its derived fields computed once)."""
     n = dofs.n
     use_dense = n <= DENSE_LIMIT if dense is None else dense
     if springs is not None:  # the spring spans' blocks: entries of the pattern like the components'
@@ -905,5 +907,5 @@ def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: t
     return System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names,
                   driver=driver, tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M,
                   gravity_force=fg + sums.weight, linear_stiffness=sums.stiffness, linear_damping=sums.damping,
-                  linear_offset=sums.offset, loads=loads, arms=arms, pulley_friction=friction, belt_speed=0.0,
+                  linear_offset=sums.offset, loads=loads, arms=arms, pulley_friction=friction, belt_speed=belt_speed,
                   springs=springs, spring_scatter=scatter)
