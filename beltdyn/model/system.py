@@ -48,7 +48,7 @@ from beltdyn.model.assembly import (DENSE_LIMIT, NO_INDEX, Pattern, assemble_blo
                                     component_nonzeros, component_sums, element_pairs, make_pattern)
 from beltdyn.model.belt import BeltSpans, build_belt, empty_element_set, plus
 from beltdyn.model.dofs import DofMap, number_dofs
-from beltdyn.model.springs import SpringSpans, build_springs
+from beltdyn.model.springs import SpringSpans, build_springs, spring_joints
 
 
 # ------------------------------------------------------------------------------------ the system
@@ -697,6 +697,7 @@ class DriveFacts:
     pulleys: PulleyParts  # `pulley_parts`
     arms: ArmJoints | None
     no_elements: ancf.ElementSet | None = None  # `belt.empty_element_set` when every span is a spring, else None
+    spring_joints: tuple | None = None  # `springs.spring_joints` (None without spring spans)
 
 
 def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
@@ -707,7 +708,8 @@ def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
                       friction=np.array([np.nan if p.friction is None else p.friction for p in pulleys]),
                       pulley_names=tuple([p.name for p in pulleys]), gravity=np.asarray(cfg.model.gravity, dtype=float),
                       pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
-                      no_elements=empty_element_set(cfg) if sum(cfg.span_elements) == 0 else None)
+                      no_elements=empty_element_set(cfg) if sum(cfg.span_elements) == 0 else None,
+                      spring_joints=spring_joints(cfg, dofs))
 
 
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
@@ -736,7 +738,7 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
         belt_speed = belt_speed_of(cfg, layout)
     belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam, no_elements=facts.no_elements)
     springs = build_springs(cfg, layout, dofs, prestrain_stretch=lam, direction=belt.reference_direction,
-                            reference_length=belt.reference_length)
+                            reference_length=belt.reference_length, joints=facts.spring_joints)
     system = assemble_system(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free,
                                                                    parts=facts.pulleys) + tuple(extra),
                              pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
