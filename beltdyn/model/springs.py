@@ -279,17 +279,34 @@ class SpringSpans:
         return e
 
 
+def spring_joints(cfg: DriveConfig, dofs: DofMap) -> tuple | None:
+    """What the configuration and the DOF map fix of the spring spans' joints, whatever the layout
+    (`_spring_joints` of the spring spans; None without any): one analysis's builds share it
+    (`DriveFacts.spring_joints`, handed to `build_springs`)."""
+    spans = tuple([s for s, m in enumerate(cfg.span_models) if m == "spring"])
+    if not spans:
+        return None
+    idx, T, (at, pulley) = _spring_joints(dofs, spans, len(cfg.span_models))
+    for a in (T, at, pulley):  # (idx is already)
+        a.setflags(write=False)
+    return idx, T, (at, pulley)
+
+
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
                   prestrain_stretch: float | np.ndarray = 1.0, direction: np.ndarray | None = None,
-                  reference_length: np.ndarray | None = None) -> SpringSpans | None:
+                  reference_length: np.ndarray | None = None, joints: tuple | None = None) -> SpringSpans | None:
     """The spring spans of the configuration (None without any), on the layout's tangent points.
     direction: the layout's `span_direction`; reference_length (n_span,): every span's reference length at
-    this prestrain_stretch (`BeltSpans.reference_length`); each if at hand."""
+    this prestrain_stretch (`BeltSpans.reference_length`); joints: `spring_joints` of cfg and dofs (not
+    changed here); each if at hand."""
     spans = tuple([s for s, m in enumerate(cfg.span_models) if m == "spring"])
     if not spans:
         return None
     n = layout.n
-    idx, T, (at, pulley) = _spring_joints(dofs, spans, n)
+    if joints is None:
+        idx, T, (at, pulley) = _spring_joints(dofs, spans, n)
+    else:  # (T filled below: a copy of the shared one)
+        idx, T, (at, pulley) = joints[0], joints[1].copy(), joints[2]
     direction = layout.span_direction if direction is None else direction
     if reference_length is None:
         reference_length = layout.span_length / span_stretch_of(prestrain_stretch, n)

@@ -48,7 +48,7 @@ from beltdyn.model.assembly import (DENSE_LIMIT, NO_INDEX, Pattern, assemble_blo
                                     component_nonzeros, component_sums, element_pairs, make_pattern)
 from beltdyn.model.belt import BeltSpans, build_belt, empty_element_set, plus
 from beltdyn.model.dofs import DofMap, number_dofs
-from beltdyn.model.springs import SpringSpans, build_springs
+from beltdyn.model.springs import SpringSpans, build_springs, spring_joints
 
 
 # ------------------------------------------------------------------------------------ the system
@@ -188,8 +188,8 @@ class System:
         out = assemble_system(self.layout, self.dofs, self.belt, self.components + tuple(extra),
                               pulley_names=self.pulley_names, driver=self.driver, tension=self.tension,
                               gravity=self.gravity, dense=self.dense, loads=self.loads, arms=self.arms,
-                              friction=self.pulley_friction, springs=self.springs)
-        return out.with_speed(self.belt_speed) if self.belt_speed else out
+                              friction=self.pulley_friction, springs=self.springs, belt_speed=self.belt_speed)
+        return out
 
     def with_belt(self, **changes) -> "System":
         """The same system with belt fields changed (e.g. damping_axial, compiled); the spring spans
@@ -697,6 +697,7 @@ class DriveFacts:
     pulleys: PulleyParts  # `pulley_parts`
     arms: ArmJoints | None
     no_elements: ancf.ElementSet | None = None  # `belt.empty_element_set` when every span is a spring, else None
+    spring_joints: tuple | None = None  # `springs.spring_joints` (None without spring spans)
 
 
 def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
@@ -707,7 +708,8 @@ def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
                       friction=np.array([np.nan if p.friction is None else p.friction for p in pulleys]),
                       pulley_names=tuple([p.name for p in pulleys]), gravity=np.asarray(cfg.model.gravity, dtype=float),
                       pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
-                      no_elements=empty_element_set(cfg) if sum(cfg.span_elements) == 0 else None)
+                      no_elements=empty_element_set(cfg) if sum(cfg.span_elements) == 0 else None,
+                      spring_joints=spring_joints(cfg, dofs))
 
 
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
@@ -732,17 +734,17 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
     arms = facts.arms
     if arms is not None and layout is not facts.layout:
         arms = arm_joints(cfg, layout, dofs, like=arms)
+    if belt_speed is None:
+        belt_speed = belt_speed_of(cfg, layout)
     belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam, no_elements=facts.no_elements)
     springs = build_springs(cfg, layout, dofs, prestrain_stretch=lam, direction=belt.reference_direction,
-                            reference_length=belt.reference_length)
+                            reference_length=belt.reference_length, joints=facts.spring_joints)
     system = assemble_system(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free,
                                                                    parts=facts.pulleys) + tuple(extra),
                              pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
                              gravity=facts.gravity, dense=dense, loads=facts.loads, arms=arms, friction=facts.friction,
-                             springs=springs)
-    if belt_speed is None:
-        belt_speed = belt_speed_of(cfg, layout)
-    return system.with_speed(belt_speed) if belt_speed else system
+                             springs=springs, belt_speed=float(belt_speed))
+    return system
 
 
 def tension_setting(cfg: DriveConfig, dofs: DofMap) -> TensionSetting:
@@ -870,9 +872,11 @@ __all__ = ["System", "DofMap", "BeltSpans", "SpringSpans", "build_springs", "Ten
 def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: tuple[LinearComponent, ...], *,
                     pulley_names: tuple[str, ...], driver: int, tension: TensionSetting, gravity: np.ndarray,
                     dense: bool | None, loads: np.ndarray | None = None, arms: ArmJoints | None = None,
-                    friction: np.ndarray | None = None, springs: SpringSpans | None = None) -> System:
+                    friction: np.ndarray | None = None, springs: SpringSpans | None = None,
+                    belt_speed: float = 0.0) -> System:
     """The system of a belt and components: its pattern, mass, weight and the components' constant
-    matrices, one assembly for dense and sparse (`assembly`)."""
+    matrices, one assembly for dense and sparse (`assembly`); belt_speed (m/s): the running belt's speed
+    (the system built at that speed at once, its derived fields computed once)."""
     n = dofs.n
     use_dense = n <= DENSE_LIMIT if dense is None else dense
     if springs is not None:  # the spring spans' blocks: entries of the pattern like the components'
@@ -905,5 +909,5 @@ def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: t
     return System(layout=layout, dofs=dofs, belt=belt, components=components, pulley_names=pulley_names,
                   driver=driver, tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M,
                   gravity_force=fg + sums.weight, linear_stiffness=sums.stiffness, linear_damping=sums.damping,
-                  linear_offset=sums.offset, loads=loads, arms=arms, pulley_friction=friction, belt_speed=0.0,
+                  linear_offset=sums.offset, loads=loads, arms=arms, pulley_friction=friction, belt_speed=belt_speed,
                   springs=springs, spring_scatter=scatter)
