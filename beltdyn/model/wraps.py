@@ -127,13 +127,15 @@ def rim_speed_ratio(t_entry, driver: int, EA: float, stretch: Callable = stretch
 
 def creep_power_loss(t_entry, t_exit, belt_speed: float, EA: float,
                      stretch: Callable = stretch_for_tension) -> np.ndarray:
-    """(n,) P = |v| |int_{T_x}^{T_e} (lambda(T_e) - lambda(T)) dT| (W), v the reference belt speed."""
+    """(n,) P = |v| |int_{T_x}^{T_e} (lambda(T_e) - lambda(T)) dT| (W), v the reference belt speed; 0
+    where the two tensions are equal to round-off (`ROUND_OFF`: no slip arc)."""
     te, tx = np.asarray(t_entry, dtype=float), np.asarray(t_exit, dtype=float)
     if not belt_speed:
         return np.zeros(te.shape)
     T = tx[:, None] + (te - tx)[:, None] * _XI[None, :]
     integral = (te - tx) * ((_W[None, :] * (stretch(te, EA)[:, None] - stretch(T, EA))).sum(axis=1))
-    return abs(float(belt_speed)) * np.abs(integral)
+    equal = np.abs(te - tx) <= ROUND_OFF * np.maximum(np.abs(te), np.abs(tx))  # no slip arc: no loss
+    return np.where(equal, 0.0, abs(float(belt_speed)) * np.abs(integral))
 
 
 def wrap_state(*, t_in: np.ndarray, t_out: np.ndarray, radius: np.ndarray, wrap: np.ndarray, friction,
@@ -142,6 +144,7 @@ def wrap_state(*, t_in: np.ndarray, t_out: np.ndarray, radius: np.ndarray, wrap:
     """The wraps of a drive (`WrapState`) from the span tensions at each pulley (`slip.pulley_tensions`),
     the radii and wrap angles (n,), the friction coefficients (n,; NaN: none given, or None), the
     belt's EA (N), mass per unit reference length (kg/m) and reference speed (m/s), the driver's index.
+    A pulley without friction has no slip arc and no creep loss (it never slips).
     model "rigid": no slip arc, the wraps inextensible (reference length R beta), rim speeds equal."""
     te, tx = entry_exit(np.asarray(t_in, dtype=float), np.asarray(t_out, dtype=float), belt_speed)
     n = te.shape[0]
@@ -160,7 +163,7 @@ def wrap_state(*, t_in: np.ndarray, t_out: np.ndarray, radius: np.ndarray, wrap:
                      gross_slip=arc > beta,
                      stress_free_length=stress_free_length(R, beta, te, tx, arc, EA, c, stretch),
                      rim_speed_ratio=rim_speed_ratio(te, driver, EA, stretch),
-                     creep_power_loss=creep_power_loss(te, tx, belt_speed, EA, stretch))
+                     creep_power_loss=np.where(mu == mu, creep_power_loss(te, tx, belt_speed, EA, stretch), 0.0))
 
 
 def centrifugal_tension(t_entry, mass_per_length: float, belt_speed: float, EA: float,
