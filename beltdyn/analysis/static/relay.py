@@ -249,9 +249,14 @@ def _predicted_start(plan: _Plan):
         if plan.prestrain:
             return system, lay, free, None, stretch_for_tension(float(ts.target), EA)
         T = span_tension(lay.span_angle, lay.span_length)
+        lam = stretch_for_tension(T, EA)
         if ts.target is None:  # the belt's conserved length settled on the spans: references L_s / lambda(T_s)
-            built = plan.build(lay, stretch_for_tension(T, EA), free)
-        warm = predictor(built, stretch_for_tension(T, EA), ts.adjust_dof, built.driver_dof)
+            built = plan.build(lay, lam, free)
+        elif plan.conserve:  # the same, scaled to the belt's carried reference total (exact without torques)
+            ref = lay.span_length / lam
+            ref *= float(built.belt.reference_length.sum()) / float(ref.sum())
+            built = plan.build(lay, lay.span_length / ref, free)
+        warm = predictor(built, lam, ts.adjust_dof, built.driver_dof)
         return built, lay, free, warm, lam_p
     except (GeometryError, SolverError, ArithmeticError, ValueError, np.linalg.LinAlgError):
         return system, lay0, np.zeros(n_dof), None, lam_p  # no prediction: start from the L0 fit
