@@ -171,10 +171,11 @@ def _spring_free(plan: _Plan, centers: np.ndarray) -> np.ndarray:
     return free
 
 
-def _lay_out(plan: _Plan, old: Layout, centers: np.ndarray, ref_old: np.ndarray, step: str, *, carry: bool = False):
+def _lay_out(plan: _Plan, old: Layout, centers: np.ndarray, ref_old: np.ndarray, step: str, *, carry: bool = False,
+             build: bool = True):
     """(layout, spring_free, system or None) at `centers`, the belt carried over from `old` (its
     reference lengths carried, `carried_reference`, where the mode conserves the belt or `carry`: the
-    spans' references already hold the material the rotations moved)."""
+    spans' references already hold the material the rotations moved); build=False: no system (None)."""
     try:
         new = relay(old, centers, adjust_offset=_adjust_offset(plan, old, centers))
     except GeometryError as exc:
@@ -182,6 +183,8 @@ def _lay_out(plan: _Plan, old: Layout, centers: np.ndarray, ref_old: np.ndarray,
         raise SolverError(f"no belt path through the solved pulley positions: {exc}", analysis="static",
                           step=step, item=f"pulley {old.names[j]}") from None
     free = _spring_free(plan, centers)
+    if not build:
+        return new, free, None
     if plan.conserve or (carry and not plan.prestrain):
         return new, free, plan.build(new, new.span_length / carried_reference(old, new, ref_old), free)
     if plan.prestrain:
@@ -245,7 +248,8 @@ def _predicted_start(plan: _Plan):
     fit = _adjust_fit(plan) if ts.mode == "adjust" else None
     try:
         centers = predicted_centers(system, plan.anchored, fit, plan.tol_x, span_tension)
-        lay, free, built = _lay_out(plan, lay0, centers, system.belt.reference_length, "prediction")
+        settled = not plan.prestrain and (ts.target is None or plan.conserve)
+        lay, free, built = _lay_out(plan, lay0, centers, system.belt.reference_length, "prediction", build=not settled)
         if plan.prestrain:
             return system, lay, free, None, stretch_for_tension(float(ts.target), EA)
         T = span_tension(lay.span_angle, lay.span_length)
@@ -254,7 +258,7 @@ def _predicted_start(plan: _Plan):
             built = plan.build(lay, lam, free)
         elif plan.conserve:  # the same, scaled to the belt's carried reference total (exact without torques)
             ref = lay.span_length / lam
-            ref *= float(built.belt.reference_length.sum()) / float(ref.sum())
+            ref *= float(carried_reference(lay0, lay, system.belt.reference_length).sum()) / float(ref.sum())
             built = plan.build(lay, lay.span_length / ref, free)
         warm = predictor(built, lam, ts.adjust_dof, built.driver_dof)
         return built, lay, free, warm, lam_p

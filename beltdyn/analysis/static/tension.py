@@ -152,12 +152,14 @@ def settled_tension(lengths: np.ndarray, split: np.ndarray, total_reference: flo
     sp = np.asarray(split, dtype=float)
     total = float(total_reference)
     T_ref = EA * (float(L.sum()) / total - 1.0) - float(L @ sp) / float(L.sum())  # the linear start
-    for _ in range(60):
-        lam = stretch_for_tension(T_ref + sp, EA)
+    lam = stretch_for_tension(T_ref + sp, EA)
+    for _ in range(60):  # Newton on T_ref, each stretch first stepped to its span's tension (one Newton step)
+        k = axial_stiffness(lam, EA)  # dT/dlambda
+        d = (axial_force(lam, EA) - (T_ref + sp)) / k
+        lam = lam - d
         f = float((L / lam).sum()) - total
-        slope = -float((L / (lam * lam * axial_stiffness(lam, EA))).sum())  # d f / d T_ref
-        step = f / slope
+        step = f / -float((L / (lam * lam * k)).sum())  # f / (d f / d T_ref)
         T_ref -= step
-        if abs(step) <= 1e-13 * max(abs(T_ref), 1e-6 * EA):
+        if float(np.abs(d).max()) <= 1e-8 and abs(step) <= 1e-13 * max(abs(T_ref), 1e-6 * EA):
             break
     return T_ref + sp
