@@ -43,3 +43,19 @@ def test_span_ends_sit_on_the_tangent_points_of_the_solved_geometry(name, cfg):
     assert np.abs(lay.radius * st.pulley_rotation).max() <= 1e-9 * lay.span_length.min()
     if cfg.tension.mode in ("adjust", "spring"):  # the belt's undeformed length conserved (rigid wraps)
         assert system.belt.reference_length.sum() + system.layout.arc_length.sum() == pytest.approx(cfg.belt.length, rel=1e-12)
+
+
+@pytest.mark.parametrize("shrink", [1e-4, 3e-3, 0.05])
+def test_settled_tension_meets_its_definition(shrink):
+    """settled_tension: tensions T_ref + split whose stretches (EA eps lambda = T, solved here by numpy's
+    cubic roots, independently of the bar law's Newton) hold sum L_s / lambda_s = the reference total."""
+    from beltdyn.analysis.static.tension import settled_tension
+
+    EA = 1.2e5
+    L = np.array([0.31, 0.084, 0.22, 0.15, 0.4])
+    split = np.array([0.0, 120.0, -40.0, 35.0, 80.0])
+    total = float(L.sum()) * (1.0 - shrink)
+    T = settled_tension(L, split, total, EA)
+    np.testing.assert_allclose(T - T[0], split - split[0], rtol=0.0, atol=1e-9 * EA)
+    lam = np.array([max(r.real for r in np.roots([1.0, 0.0, -1.0, -2.0 * t / EA]) if abs(r.imag) < 1e-12) for t in T])
+    assert float((L / lam).sum()) == pytest.approx(total, rel=1e-13)
