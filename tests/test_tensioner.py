@@ -406,8 +406,9 @@ def test_every_group_has_warnings_and_static_names_a_slipping_pulley(tmp_path):
     with h5py.File(tmp_path / "w.h5") as f:
         assert len(f["geometry"].attrs["warnings"]) == 0 and len(f["modal"].attrs["warnings"]) == 0
         w = [str(x) for x in f["static"].attrs["warnings"]]
-        assert len(w) == 1 and "pulley A slips" in w[0]
-        assert f["static/slip_margin"][0] < 1.0
+        # (and, since issue 25, C: it transmits the torque without a friction value, so it never slips)
+        assert len(w) == 2 and "pulley A slips" in w[0] and "pulley C transmits 10 N m but has no friction" in w[1]
+        assert f["static/slip_margin"][0] < 1.0 and f["static/gross_slip"][0] == 1
 
 
 # ------------------------------------------------------------------------------ review findings

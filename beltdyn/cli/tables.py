@@ -79,6 +79,15 @@ def print_static(layout, model, res) -> None:
                     f"{res.required_friction[j]:.4g}", "-" if np.isnan(res.slip_margin[j]) else f"{res.slip_margin[j]:.3g}"]
         h.add_row(*row)
     con.print(h)
+    if slip and res.wraps is not None:
+        w = res.wraps
+        wt = Table(title="Wraps (creep)")
+        for col in ("pulley", "adhesion arc (deg)", "slip arc (deg)", "rim speed ratio", "creep loss (W)", "gross slip"):
+            wt.add_column(col, justify="right" if col != "pulley" else "left")
+        for j, name in enumerate(layout.names):
+            wt.add_row(name, f"{math.degrees(w.adhesion_arc[j]):.2f}", f"{math.degrees(w.slip_arc[j]):.2f}",
+                       f"{w.rim_speed_ratio[j]:.6f}", f"{w.creep_power_loss[j]:.4g}", "yes" if w.gross_slip[j] else "no")
+        con.print(wt)
     if res.arm_angle is not None and not np.all(np.isnan(res.arm_angle)):
         a = Table(title="Tensioner arms")
         for col in ("pulley", "arm angle (deg)", "spring torque (N m)", "spring free angle (deg)",

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from beltdyn.analysis.result_warnings import SLACK_WARNING, STRAIN_WARNING, strain_warning  # noqa: F401
+from beltdyn.model.slip import ROUND_OFF
 from beltdyn.results.io import GroupData, Variable
 
 if TYPE_CHECKING:  # keep `beltdyn geometry` from importing the solvers
@@ -232,6 +233,15 @@ def static_warnings(model: DriveModel, res: StaticResult) -> list[str]:
             if m < 1.0:
                 out.append(f"pulley {model.layout.names[j]} slips: slip margin {m:.3g} < 1 "
                            f"(needs friction {res.required_friction[j]:.4g})")
+    if res.wraps is not None:
+        w, friction = res.wraps, model.pulley_friction
+        step = np.abs(w.entry_tension - w.exit_tension) > ROUND_OFF * np.maximum(np.abs(w.entry_tension),
+                                                                                 np.abs(w.exit_tension))
+        for j in np.flatnonzero(step):
+            if friction is None or friction[j] != friction[j]:
+                torque = float(model.layout.radius[j] * abs(w.entry_tension[j] - w.exit_tension[j]))
+                out.append(f"pulley {model.layout.names[j]} transmits {torque:.4g} N m but has no friction value: "
+                           f"its wrap is taken as never slipping (no slip arc, no creep loss)")
     return out
 
 
@@ -259,6 +269,29 @@ def _static_extras(res: StaticResult) -> tuple[Variable, ...]:
                  description="ln(T_tight / T_slack) / wrap angle (capstan); inf where a span is slack"),
         Variable(name="slip_margin", data=val(res.slip_margin, nan), dims=("pulley",), units="1",
                  description="friction / required_friction (< 1: slips; NaN: no friction given)"),
+    ) + _wrap_variables(res)
+
+
+def _wrap_variables(res: StaticResult) -> tuple[Variable, ...]:
+    """The wraps' creep state (`beltdyn.model.wraps`), none without it."""
+    w = res.wraps
+    if w is None:
+        return ()
+    return (
+        Variable(name="slip_arc", data=w.slip_arc, dims=("pulley",), units="rad",
+                 description="capstan slip arc at the wrap's exit, |ln((T_e - c)/(T_x - c))| / friction (0: no "
+                             "tension step or no friction given; above the wrap: gross slip)"),
+        Variable(name="adhesion_arc", data=w.adhesion_arc, dims=("pulley",), units="rad",
+                 description="adhesion arc at the wrap's entry, max(wrap - slip_arc, 0)"),
+        Variable(name="rim_speed_ratio", data=w.rim_speed_ratio, dims=("pulley",), units="1",
+                 description="rim speed over the driver's: stretch at this wrap's entry / stretch at the driver's"),
+        Variable(name="creep_power_loss", data=w.creep_power_loss, dims=("pulley",), units="W",
+                 description="power lost to creep in the slip arc at the belt speed (0 at rest)"),
+        Variable(name="gross_slip", data=w.gross_slip.astype(np.int8), dims=("pulley",), units="1",
+                 description="1 where the slip arc would exceed the wrap (slip margin < 1)"),
+        Variable(name="wrap_reference_length", data=w.stress_free_length, dims=("pulley",), units="m",
+                 description="stress-free belt length on the wrap (adhesion arc at the entry stretch, slip arc "
+                             "integrated over the capstan profile)"),
     )
 
 

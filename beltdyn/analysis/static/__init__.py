@@ -27,6 +27,11 @@ a tangent point moves along its pulley, that arc of belt passes between span and
 (`carried_reference`), so sum(span reference lengths) + sum(R_j wrap_j) = L0 on every layout, and
 the bordered Newton meets the target on the final one. In mode "prestrain" the spans' common stretch
 is iterated (secant) until the mean tension meets the target with every pulley free on its bearing.
+The pulley rotations at equilibrium are belt moved over the pulleys: they are carried into the spans'
+reference lengths (`relay.settled_reference`, the wrap unstretched, the belt's undeformed length kept)
+and the drive solved again with the pulleys unturned, so the span ends sit on their tangent points and
+the dynamics start from rotations 0 (docs/wraps.md). The result carries the wraps' creep state
+(`model.wraps`: slip and adhesion arcs, rim speed ratios, creep losses) from the solved span tensions.
 
 Modules, by job: `newton` (the static equations of one layout and their Newton solve: predictor,
 residual scales, budget, load steps, continuations, the bordered tension step), `tension` (the belt's

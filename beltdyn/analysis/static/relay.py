@@ -11,7 +11,7 @@ import numpy as np
 from beltdyn.analysis.static.arms import predicted_centers
 from beltdyn.analysis.static.newton import Budget, predictor, solve_equilibrium
 from beltdyn.analysis.static.result import StaticResult, check_slack, static_result
-from beltdyn.analysis.static.tension import (carried_lengths, carried_reference, conserved_tension, meet_prestrain,
+from beltdyn.analysis.static.tension import (carried_lengths, carried_reference, meet_prestrain, settled_tension,
                                              radius_steps, torque_split)
 from beltdyn.config import StaticOptions
 from beltdyn.errors import SolverError
@@ -32,6 +32,7 @@ class SolvedDrive:
     system: System
     static: StaticResult
     passes: int  # layouts solved on (the first included)
+    settles: int = 0  # solves after re-referencing the rotations' material (`settled_reference`)
     solves: int  # static solves (prestrain iterations included)
     movement: np.ndarray  # (passes,) largest pulley displacement from its laid centre after each pass, m
     newton_iterations: int = 0  # Newton iterations of all passes and solves (failed attempts included)
@@ -39,13 +40,15 @@ class SolvedDrive:
 
 
 
-def warm_start(system: System, previous: System, q: np.ndarray) -> np.ndarray:
-    """A start for the static solve on a re-laid system: the previous solution's pulley rotations, the
+def warm_start(system: System, previous: System, q: np.ndarray, *, rotations: bool = True) -> np.ndarray:
+    """A start for the static solve on a re-laid system: the previous solution's pulley rotations (0
+    with rotations=False: the material they moved carried into the spans, `settled_reference`), the
     moved supports at their new layout position (0), and each span's previous shape carried over: its
     nodes moved by the linear interpolation of its end nodes' moves (a sagging span keeps its sag, a
     taut one stays straight between its new end nodes), the slopes kept."""
     q0 = np.zeros(system.n_dof)
-    q0[system.rot_dof] = q[previous.rot_dof]
+    if rotations:
+        q0[system.rot_dof] = q[previous.rot_dof]
     old = previous.belt.element_coordinates(previous.expand(q))
     new = system.belt.element_coordinates(system.expand(q0))  # the end nodes where q0 puts them
     model = system.belt
@@ -62,6 +65,50 @@ def warm_start(system: System, previous: System, q: np.ndarray) -> np.ndarray:
         # span DOFs: the first node's slope, the interior nodes (r, r'), the last node's slope
         q0[system.dofs.span_slices[s_]] = np.concatenate([d[0, 2:4], d[1:-1].ravel(), d[-1, 2:4]])
     return q0
+
+
+def span_end_points(system: System, q: np.ndarray, p: np.ndarray | None = None) -> np.ndarray:
+    """(n_span, 2, 2) the start and end point of each span at q (p: q on the joint coordinates, if at
+    hand): an ANCF span's first and last node, a spring span's two ends."""
+    p = system.expand(q) if p is None else p
+    out = np.zeros((system.layout.n, 2, 2))
+    model = system.belt
+    if model.elements.n_elem:
+        E = model.element_coordinates(p)
+        for s_, els in enumerate(model.span_elements):
+            if len(els):
+                out[s_, 0], out[s_, 1] = E[els[0], 0:2], E[els[-1], 4:6]
+    if system.springs is not None:
+        X = system.springs.positions(p)
+        out[system.springs.span, 0], out[system.springs.span, 1] = X[:, 0:2], X[:, 2:4]
+    return out
+
+
+def settled_reference(system: System, q: np.ndarray, p: np.ndarray | None = None) -> np.ndarray:
+    """(n_span,) the spans' reference lengths with the material the pulley rotations moved carried in.
+
+    A pulley's rotation theta_j at equilibrium slides both span ends on it R_j theta_j along their
+    tangent lines (the joint r = c + R n + R theta t): belt that has moved over the pulley. Laid anew
+    with the end nodes on the tangent points (theta = 0), that belt is the spans': the span arriving
+    at pulley j gives m_j = R_j theta_j (t . u) to the wrap and the span leaving it takes m_j from the
+    wrap (`carried_reference`'s rule: the wrap unstretched, so the belt's undeformed length,
+    sum(references) + sum(R wrap), is conserved exactly). m_j is measured as the mean of the two span
+    ends' slides along their span directions u between q and q with the rotations zeroed (equal: the
+    joints are linear in theta, and t . u is the same at both tangent points). The tensions then change by about T m / L (the stretch of the material moved),
+    which the next solve meets with rotations smaller by the strain T / EA: a few solves settle it."""
+    unturned = np.array(q, dtype=float)
+    unturned[system.rot_dof] = 0.0
+    slide = span_end_points(system, q, p) - span_end_points(system, unturned)  # (the joints are linear in theta)
+    u = system.layout.span_direction
+    start = (slide[:, 0] * u).sum(axis=1)  # slide of span s's start (on pulley s)
+    end = (slide[:, 1] * u).sum(axis=1)  # slide of span s's end (on pulley s + 1)
+    moved = 0.5 * (np.roll(end, 1) + start)  # m_j (n_pulley,): arriving span j-1's end, leaving span j's start
+    return system.belt.reference_length - np.roll(moved, -1) + moved
+
+
+def _rotation_slide(system: System, q: np.ndarray) -> float:
+    """max_j R_j |theta_j| (m): how far the joints slide the span ends from the tangent points."""
+    return float(np.abs(system.layout.radius * q[system.rot_dof]).max(initial=0.0))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -124,8 +171,11 @@ def _spring_free(plan: _Plan, centers: np.ndarray) -> np.ndarray:
     return free
 
 
-def _lay_out(plan: _Plan, old: Layout, centers: np.ndarray, ref_old: np.ndarray, step: str):
-    """(layout, spring_free, system or None) at `centers`, the belt carried over from `old`."""
+def _lay_out(plan: _Plan, old: Layout, centers: np.ndarray, ref_old: np.ndarray, step: str, *, carry: bool = False,
+             build: bool = True):
+    """(layout, spring_free, system or None) at `centers`, the belt carried over from `old` (its
+    reference lengths carried, `carried_reference`, where the mode conserves the belt or `carry`: the
+    spans' references already hold the material the rotations moved); build=False: no system (None)."""
     try:
         new = relay(old, centers, adjust_offset=_adjust_offset(plan, old, centers))
     except GeometryError as exc:
@@ -133,7 +183,9 @@ def _lay_out(plan: _Plan, old: Layout, centers: np.ndarray, ref_old: np.ndarray,
         raise SolverError(f"no belt path through the solved pulley positions: {exc}", analysis="static",
                           step=step, item=f"pulley {old.names[j]}") from None
     free = _spring_free(plan, centers)
-    if plan.conserve:
+    if not build:
+        return new, free, None
+    if plan.conserve or (carry and not plan.prestrain):
         return new, free, plan.build(new, new.span_length / carried_reference(old, new, ref_old), free)
     if plan.prestrain:
         return new, free, None  # built by meet_prestrain
@@ -157,7 +209,7 @@ def _span_tension_law(plan: _Plan, split: np.ndarray):
 
         def span_tension(angle: np.ndarray, length: np.ndarray) -> np.ndarray:
             ref = carried_lengths(lay0.span_angle, angle, steps0, ref0, lay0.span_name)
-            return conserved_tension(float(length.sum()), split, ref, EA)
+            return settled_tension(length, split, float(ref.sum()), EA)  # the pulleys unturned (settled)
         return span_tension
     return None
 
@@ -196,11 +248,19 @@ def _predicted_start(plan: _Plan):
     fit = _adjust_fit(plan) if ts.mode == "adjust" else None
     try:
         centers = predicted_centers(system, plan.anchored, fit, plan.tol_x, span_tension)
-        lay, free, built = _lay_out(plan, lay0, centers, system.belt.reference_length, "prediction")
+        settled = not plan.prestrain and (ts.target is None or plan.conserve)
+        lay, free, built = _lay_out(plan, lay0, centers, system.belt.reference_length, "prediction", build=not settled)
         if plan.prestrain:
             return system, lay, free, None, stretch_for_tension(float(ts.target), EA)
         T = span_tension(lay.span_angle, lay.span_length)
-        warm = predictor(built, stretch_for_tension(T, EA), ts.adjust_dof, built.driver_dof)
+        lam = stretch_for_tension(T, EA)
+        if ts.target is None:  # the belt's conserved length settled on the spans: references L_s / lambda(T_s)
+            built = plan.build(lay, lam, free)
+        elif plan.conserve:  # the same, scaled to the belt's carried reference total (exact without torques)
+            ref = lay.span_length / lam
+            ref *= float(carried_reference(lay0, lay, system.belt.reference_length).sum()) / float(ref.sum())
+            built = plan.build(lay, lay.span_length / ref, free)
+        warm = predictor(built, lam, ts.adjust_dof, built.driver_dof)
         return built, lay, free, warm, lam_p
     except (GeometryError, SolverError, ArithmeticError, ValueError, np.linalg.LinAlgError):
         return system, lay0, np.zeros(n_dof), None, lam_p  # no prediction: start from the L0 fit
@@ -223,6 +283,33 @@ def _extrapolated(plan: _Plan, system: System, centers: np.ndarray, step: np.nda
             r = centers[j] - pv
             centers[j] = pv + r * (np.hypot(*(plan.lay0.center[j] - pv)) / np.hypot(*r))
     return centers
+
+
+SETTLE_PASSES = 8  # re-references after the solve (each leaves rotations smaller by about the belt strain)
+
+
+def _resettled(plan: _Plan, system: System, q: np.ndarray, free: np.ndarray) -> System:
+    """The drive on the same layout with the spans' `settled_reference` lengths at q."""
+    built = plan.build(system.layout, system.layout.span_length / settled_reference(system, q), free)
+    return built.full() if hasattr(built, "full") else built
+
+
+def _settle(plan: _Plan, system: System, lay: Layout, free: np.ndarray, q: np.ndarray, options: StaticOptions,
+            budget: Budget):
+    """The equilibrium with the pulley rotations carried into the spans (`settled_reference`): the drive
+    rebuilt on the same layout with those reference lengths, solved from q with the rotations zeroed,
+    until no joint slides more than plan.tol_x (the centres' own tolerance: a pulley within tol_x of its
+    laid centre leaves its rotation that far from 0 to meet its tangent points). Returns (system, q, preload, history, known, solves,
+    Newton iterations)."""
+    solves = iterations = 0
+    for k in range(SETTLE_PASSES):
+        built = _resettled(plan, system, q, free)
+        warm = warm_start(built, system, q, rotations=False)
+        q, preload, hist, known = solve_equilibrium(built, options, q0=warm, known=True, budget=budget)
+        system, solves, iterations = built, solves + 1, iterations + len(hist)
+        if _rotation_slide(system, q) <= plan.tol_x:
+            break
+    return system, q, preload, hist, known, solves, iterations
 
 
 def solve_static_on_solved_geometry(system: System, build, options: StaticOptions, *,
@@ -259,6 +346,8 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     movement: list[float] = []
     solves = iterations = 0
     budget = Budget.of(options)  # over all passes and solves
+    settles = referenced = 0  # solves on re-referenced spans alone; re-references (`settled_reference`) in all
+    carry = False  # once re-referenced, every re-lay carries the spans' references over
     for p in range(1, max_passes + 1):
         if plan.prestrain:
             system, st, lam_p, slope, k = meet_prestrain(build, lay, lam_p, free, options, slope, budget)
@@ -273,22 +362,37 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         step = solved_centers - lay.center
         movement.append(float(np.sqrt((step * step).sum(axis=1)).max(initial=0.0)))  # (the largest |step|)
         if not plan.moving or movement[-1] <= plan.tol_x:
-            if not plan.prestrain:
+            slide = _rotation_slide(system, q_p)
+            if not plan.prestrain and slide > plan.tol_x and referenced < SETTLE_PASSES:
+                # the material the rotations moved into the spans' references, solved again (`settled_reference`)
+                settles, referenced, carry = settles + 1, referenced + 1, True
+                prev_system, system = system, _resettled(plan, system, q_p, free)
+                warm = warm_start(system, prev_system, q_p, rotations=False)
+                continue
+            if plan.prestrain and slide > plan.tol_x:  # (the secant's uniform stretch is done: settled once here)
+                system, q_p, preload, hist, known, k, its = _settle(plan, system, lay, free, q_p, options, budget)
+                solves, iterations = solves + k, iterations + its
+                st = static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
+                                   known={**known, "pulley_center": system.pulley_centers(q_p, p=known.get("joint"))})
+            elif not plan.prestrain:
                 st = static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
                                    known={**known, "pulley_center": solved_centers})
             check_slack(system, st)
-            return SolvedDrive(system=system, static=st, passes=p, solves=solves, movement=np.array(movement),
+            return SolvedDrive(system=system, static=st, passes=p - settles, settles=settles, solves=solves, movement=np.array(movement),
                                newton_iterations=iterations, tangent=None if plan.prestrain else known.get("tangent"))
         centers = _extrapolated(plan, system, solved_centers, step, prev_step)
         prev_step = step
-        ref_old = system.belt.reference_length
+        # the rotations' material carried into the references on the way (the same pass as the re-lay)
+        settle = not plan.prestrain and referenced < SETTLE_PASSES and _rotation_slide(system, q_p) > plan.tol_x
+        ref_old = settled_reference(system, q_p) if settle else system.belt.reference_length
+        referenced, carry = referenced + settle, carry or settle
         prev_system, prev_q = system, q_p
-        lay, free, built = _lay_out(plan, lay, centers, ref_old, f"re-lay pass {p}")
+        lay, free, built = _lay_out(plan, lay, centers, ref_old, f"re-lay pass {p}", carry=carry)
         if plan.prestrain:
             lam_p = float(lay.span_length.sum() / ref_old.sum())
         else:
             system = built
-            warm = warm_start(system, prev_system, prev_q)
+            warm = warm_start(system, prev_system, prev_q, rotations=not settle)
     j = int(np.argmax(np.linalg.norm(step, axis=1)))
     raise SolverError(f"the solved geometry did not settle in {max_passes} re-lay passes: pulley "
                       f"'{lay.names[j]}' still moves {movement[-1]:.3g} m from its laid centre "

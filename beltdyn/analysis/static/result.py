@@ -10,7 +10,8 @@ import numpy as np
 
 from beltdyn.errors import SolverError
 from beltdyn.model.angles import unwrap_near, wrap_angle
-from beltdyn.model.slip import required_friction, slip_margin
+from beltdyn.model.slip import pulley_tensions, required_friction, slip_margin
+from beltdyn.model.wraps import WrapState, wrap_state
 from beltdyn.model.system import System
 
 
@@ -39,6 +40,7 @@ class StaticResult:
     applied_torque: np.ndarray | None = None  # (n,) N m, the accessory torques of the static load case
     required_friction: np.ndarray | None = None  # (n,) ln(T_tight / T_slack) / wrap (inf: a slack span)
     slip_margin: np.ndarray | None = None  # (n,) friction / required_friction (NaN: no friction given)
+    wraps: WrapState | None = None  # the wraps' creep state (`model.wraps`): slip and adhesion arcs, rim speeds, losses
 
 
 
@@ -137,6 +139,10 @@ def static_result(model: System, q, preload, hist_r, hist_l, iterations, driver_
             pivot[j] = -(hub[j] + weight)  # statics of arm + pulley: pivot + belt + weight = 0
     applied = np.zeros(n) if model.loads is None else model.loads[model.rot_dof]
     friction = model.pulley_friction
+    t_in, t_out = pulley_tensions(span_tension)
+    wraps = wrap_state(t_in=t_in, t_out=t_out, radius=lay.radius, wrap=lay.wrap_angle, friction=friction,
+                       EA=float(model.EA), mass_per_length=mass_per_length(model), belt_speed=float(model.belt_speed),
+                       driver=int(model.driver))
     mu_req = required_friction(span_tension, lay.wrap_angle)
     return StaticResult(
         q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
@@ -147,6 +153,14 @@ def static_result(model: System, q, preload, hist_r, hist_l, iterations, driver_
         tension_mode=model.tension.mode, arm_angle=arm_angle, arm_torque=arm_torque, arm_free_angle=arm_free,
         pivot_reaction=pivot, applied_torque=applied, required_friction=mu_req,
         slip_margin=(slip_margin(mu_req, friction) if friction is not None and not np.isnan(friction).all()
-                     else np.full(n, np.nan)))
+                     else np.full(n, np.nan)), wraps=wraps)
+
+
+def mass_per_length(model: System) -> float:
+    """The belt's mass per unit reference length (kg/m): of its elements, or of its spring spans."""
+    el = model.belt.elements
+    if el.n_elem:
+        return float(el.rho.max())
+    return float(model.springs.rho) if model.springs is not None else 0.0
 
 

@@ -140,3 +140,26 @@ def conserved_tension(total_length: float, split: np.ndarray, reference: np.ndar
             if abs(step) <= 1e-12 * EA or (h > 0.1 and 6.0 * float(lam.max()) * step * step <= 1e-12 * EA * EA * h * h):
                 break
     return T_ref + sp
+
+
+def settled_tension(lengths: np.ndarray, split: np.ndarray, total_reference: float, EA: float) -> np.ndarray:
+    """(n,) span tensions T_ref + split of a belt whose spans, of lengths L_s (n,), together hold the
+    reference (stress-free) length `total_reference`, each span stretched by its own tension and the
+    pulleys unturned (the rotations' material in the spans, `relay.settled_reference`): so
+    sum_s L_s / lambda(T_ref + split_s) = total_reference (Newton on T_ref, the bar law of `model.barlaw`;
+    each span's reference length is then L_s / lambda(T_s))."""
+    L = np.asarray(lengths, dtype=float)
+    sp = np.asarray(split, dtype=float)
+    total = float(total_reference)
+    T_ref = EA * (float(L.sum()) / total - 1.0) - float(L @ sp) / float(L.sum())  # the linear start
+    lam = stretch_for_tension(T_ref + sp, EA)
+    for _ in range(60):  # Newton on T_ref, each stretch first stepped to its span's tension (one Newton step)
+        k = axial_stiffness(lam, EA)  # dT/dlambda
+        d = (axial_force(lam, EA) - (T_ref + sp)) / k
+        lam = lam - d
+        f = float((L / lam).sum()) - total
+        step = f / -float((L / (lam * lam * k)).sum())  # f / (d f / d T_ref)
+        T_ref -= step
+        if float(np.abs(d).max()) <= 1e-8 and abs(step) <= 1e-13 * max(abs(T_ref), 1e-6 * EA):
+            break
+    return T_ref + sp

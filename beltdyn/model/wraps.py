@@ -1,0 +1,176 @@
+"""The belt on its pulleys: the creep law of one wrap (Grashof, Firbank, Johnson).
+
+A belt running over a pulley of wrap angle beta (rad) and radius R (m) enters the wrap with the
+tension of the span that arrives in the direction of travel (T_e, the entry) and leaves it with the
+tension of the span that departs (T_x, the exit). With creep wraps the wrap carries
+
+- an adhesion arc at its entry, where the belt sticks to the rim and keeps the entry tension T_e
+  (and with it the entry stretch lambda_e: the rim moves at the belt's speed there), and
+- one slip arc at its exit, over which the tension goes exponentially (capstan) to the exit tension,
+
+      T(phi) - c = (T_e - c) exp(-/+ mu phi),   0 <= phi <= phi_s,
+      phi_s = |ln((T_e - c) / (T_x - c))| / mu,
+
+  mu the belt-pulley friction coefficient (the user's effective value), c = rho v^2 lambda the
+  centrifugal part of the tension (rho the mass per unit reference length, v the reference
+  (mass-flow) speed, lambda the local stretch: the true-force form of rho v_true^2 / lambda; 0 at
+  rest). The slip arc is absent where the two tensions are equal (idlers, backside pulleys without
+  torque: `ROUND_OFF` of `model.slip`), and a pulley without a friction value never slips (phi_s = 0).
+  Where phi_s > beta the wrap cannot hold the tension ratio: gross slip (the slip margin < 1;
+  phi_s / beta = 1 / margin exactly, both from the same capstan law).
+
+Outputs of a wrap:
+- stress-free (reference) length: R alpha_a / lambda(T_e) + R int_0^phi_s dphi / lambda(T(phi)),
+  alpha_a = beta - phi_s the adhesion arc (the slip arc integrated over the varying stretch of the
+  bar law in use, Gauss-Legendre on `QUADRATURE_POINTS` points: the integrand is smooth and the
+  quadrature exact to round-off for the arcs of a belt drive);
+- rim speed ratio: the rim moves with the belt in the adhesion arc, at v lambda(T_e), so the rim
+  speed of pulley j over the driver's is lambda(T_e,j) / lambda(T_e,driver) (to first order
+  (1 + T_e,j / EA) / (1 + T_e,driver / EA)); 1 with rigid wraps;
+- creep power loss (W): in the slip arc the belt moves against the rim at v (lambda(T) - lambda(T_e))
+  while the friction force per unit angle is |dT/dphi|, so the loss is
+      P = v |int_{T_x}^{T_e} (lambda(T_e) - lambda(T)) dT|
+  (v (T_e - T_x)^2 / (2 EA) for the linear law; 0 at rest). The losses of all wraps add up to the
+  power the belt delivers to the pulleys, sum_j (T_e,j - T_x,j) v lambda(T_e,j) (the strain-energy
+  flux terms cancel around the loop), the energy balance of the steady running drive.
+
+Nomenclature: T tension (true axial force, N), c centrifugal tension (N), lambda stretch (1), EA
+axial stiffness (N), mu friction coefficient (1), beta wrap angle (rad), phi angle into the slip arc
+(rad), R pulley radius (m), v reference belt speed (m/s). Arrays are (n,), one entry per pulley.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from beltdyn.model.barlaw import stretch_for_tension
+from beltdyn.model.slip import ROUND_OFF
+
+WRAP_MODELS = ("creep", "rigid")  # "creep": adhesion + slip arc (module docstring); "rigid": inextensible, no slip
+QUADRATURE_POINTS = 24  # Gauss-Legendre points of the slip-arc integrals
+
+_XI, _W = np.polynomial.legendre.leggauss(QUADRATURE_POINTS)  # on [-1, 1]
+_XI = 0.5 * (_XI + 1.0)  # on [0, 1]
+_W = 0.5 * _W
+
+
+@dataclass(frozen=True, kw_only=True)
+class WrapState:
+    """The wraps of a drive at one equilibrium (module docstring). Shapes: (n,) per pulley."""
+
+    entry_tension: np.ndarray  # N, tension of the span entering each wrap (direction of travel)
+    exit_tension: np.ndarray  # N, tension of the span leaving it
+    slip_arc: np.ndarray  # rad, the capstan slip arc phi_s (may exceed the wrap: see gross_slip)
+    adhesion_arc: np.ndarray  # rad, max(wrap - slip_arc, 0)
+    gross_slip: np.ndarray  # bool, slip_arc > wrap: the wrap cannot hold its tension ratio
+    stress_free_length: np.ndarray  # m, the wrap's reference length (the slip arc clipped to the wrap)
+    rim_speed_ratio: np.ndarray  # 1, rim speed over the driver's
+    creep_power_loss: np.ndarray  # W, at the belt speed (0 at rest)
+
+
+def entry_exit(t_in: np.ndarray, t_out: np.ndarray, belt_speed: float) -> tuple[np.ndarray, np.ndarray]:
+    """(T_e, T_x) (n,) of each wrap from the tensions of its arriving span (span j-1's end, t_in) and
+    departing span (span j's start, t_out): the belt travels along the span order for belt_speed >= 0
+    (at rest too), against it otherwise."""
+    return (t_in, t_out) if belt_speed >= 0.0 else (t_out, t_in)
+
+
+def slip_arc(t_entry: np.ndarray, t_exit: np.ndarray, friction: np.ndarray, centrifugal=0.0) -> np.ndarray:
+    """phi_s (n,) = |ln((T_e - c) / (T_x - c))| / mu: 0 where the tensions are equal to round-off or no
+    friction is given (NaN: never slips), inf where a span is slack (T - c <= 0)."""
+    te, tx = np.asarray(t_entry, dtype=float), np.asarray(t_exit, dtype=float)
+    mu = np.asarray(friction, dtype=float)
+    c = np.asarray(centrifugal, dtype=float)
+    equal = np.abs(te - tx) <= ROUND_OFF * np.maximum(np.abs(te), np.abs(tx))
+    a, b = te - c, tx - c
+    taut = (a > 0.0) & (b > 0.0)
+    has_mu = mu == mu
+    ratio = np.where(taut & ~equal, a / np.where(taut, b, 1.0), 1.0)
+    arc = np.abs(np.log(ratio)) / np.where(has_mu & (mu > 0.0), mu, 1.0)
+    arc = np.where(taut, arc, np.inf)
+    arc = np.where(has_mu & (mu > 0.0), arc, np.where(has_mu, np.inf, 0.0))  # mu = 0: slips at any ratio
+    return np.where(equal | ~has_mu, 0.0, arc)
+
+
+def _slip_tensions(t_entry, t_exit, centrifugal, arc) -> np.ndarray:
+    """(n, QUADRATURE_POINTS) tensions at the quadrature points of each slip arc (exponential in phi
+    from T_e to T_x over the arc: T - c = (T_e - c) ((T_x - c)/(T_e - c))^(phi / arc))."""
+    a = (t_entry - centrifugal)[:, None]
+    b = (t_exit - centrifugal)[:, None]
+    ok = (a > 0.0) & (b > 0.0)
+    ratio = np.where(ok, b / np.where(ok, a, 1.0), 1.0)
+    linear = a + (b - a) * _XI[None, :]  # (a slack wrap: no capstan profile; linear in phi)
+    return np.asarray(centrifugal)[..., None] * np.ones_like(a) + np.where(ok, a * ratio ** _XI[None, :], linear)
+
+
+def stress_free_length(radius, wrap, t_entry, t_exit, arc, EA: float, centrifugal=0.0,
+                       stretch: Callable = stretch_for_tension) -> np.ndarray:
+    """The wraps' reference lengths (n,): R (beta - phi) / lambda(T_e) + R int_0^phi dphi / lambda(T),
+    phi = min(arc, beta) (module docstring); `stretch(T, EA)` the bar law's inverse."""
+    R, beta = np.asarray(radius, dtype=float), np.asarray(wrap, dtype=float)
+    te, tx = np.asarray(t_entry, dtype=float), np.asarray(t_exit, dtype=float)
+    c = np.broadcast_to(np.asarray(centrifugal, dtype=float), te.shape)
+    phi = np.minimum(np.asarray(arc, dtype=float), beta)
+    lam_e = stretch(te, EA)
+    lam = stretch(_slip_tensions(te, tx, c, phi), EA)  # (n, points)
+    return R * (beta - phi) / lam_e + R * phi * ((_W[None, :] / lam).sum(axis=1))
+
+
+def rim_speed_ratio(t_entry, driver: int, EA: float, stretch: Callable = stretch_for_tension) -> np.ndarray:
+    """(n,) lambda(T_e,j) / lambda(T_e,driver): each pulley's rim speed over the driver's."""
+    lam = stretch(np.asarray(t_entry, dtype=float), EA)
+    return lam / lam[driver]
+
+
+def creep_power_loss(t_entry, t_exit, belt_speed: float, EA: float,
+                     stretch: Callable = stretch_for_tension) -> np.ndarray:
+    """(n,) P = |v| |int_{T_x}^{T_e} (lambda(T_e) - lambda(T)) dT| (W), v the reference belt speed; 0
+    where the two tensions are equal to round-off (`ROUND_OFF`: no slip arc)."""
+    te, tx = np.asarray(t_entry, dtype=float), np.asarray(t_exit, dtype=float)
+    if not belt_speed:
+        return np.zeros(te.shape)
+    T = tx[:, None] + (te - tx)[:, None] * _XI[None, :]
+    integral = (te - tx) * ((_W[None, :] * (stretch(te, EA)[:, None] - stretch(T, EA))).sum(axis=1))
+    equal = np.abs(te - tx) <= ROUND_OFF * np.maximum(np.abs(te), np.abs(tx))  # no slip arc: no loss
+    return np.where(equal, 0.0, abs(float(belt_speed)) * np.abs(integral))
+
+
+def wrap_state(*, t_in: np.ndarray, t_out: np.ndarray, radius: np.ndarray, wrap: np.ndarray, friction,
+               EA: float, mass_per_length: float, belt_speed: float, driver: int, model: str = "creep",
+               stretch: Callable = stretch_for_tension) -> WrapState:
+    """The wraps of a drive (`WrapState`) from the span tensions at each pulley (`slip.pulley_tensions`),
+    the radii and wrap angles (n,), the friction coefficients (n,; NaN: none given, or None), the
+    belt's EA (N), mass per unit reference length (kg/m) and reference speed (m/s), the driver's index.
+    A pulley without friction has no slip arc and no creep loss (it never slips).
+    model "rigid": no slip arc, the wraps inextensible (reference length R beta), rim speeds equal."""
+    te, tx = entry_exit(np.asarray(t_in, dtype=float), np.asarray(t_out, dtype=float), belt_speed)
+    n = te.shape[0]
+    R, beta = np.asarray(radius, dtype=float), np.asarray(wrap, dtype=float)
+    if model == "rigid":
+        z = np.zeros(n)
+        return WrapState(entry_tension=te, exit_tension=tx, slip_arc=z, adhesion_arc=beta.copy(),
+                         gross_slip=np.zeros(n, dtype=bool), stress_free_length=R * beta, rim_speed_ratio=np.ones(n),
+                         creep_power_loss=z.copy())
+    if model != "creep":
+        raise ValueError(f"unknown wrap model {model!r}: one of {', '.join(WRAP_MODELS)}")
+    mu = np.full(n, np.nan) if friction is None else np.asarray(friction, dtype=float)
+    c = centrifugal_tension(te, mass_per_length, belt_speed, EA, stretch)
+    arc = slip_arc(te, tx, mu, c)
+    return WrapState(entry_tension=te, exit_tension=tx, slip_arc=arc, adhesion_arc=np.maximum(beta - arc, 0.0),
+                     gross_slip=arc > beta,
+                     stress_free_length=stress_free_length(R, beta, te, tx, arc, EA, c, stretch),
+                     rim_speed_ratio=rim_speed_ratio(te, driver, EA, stretch),
+                     creep_power_loss=np.where(mu == mu, creep_power_loss(te, tx, belt_speed, EA, stretch), 0.0))
+
+
+def centrifugal_tension(t_entry, mass_per_length: float, belt_speed: float, EA: float,
+                        stretch: Callable = stretch_for_tension) -> np.ndarray:
+    """c (n,) = rho v^2 lambda(T_e) (N) of each wrap, rho per unit reference length, v the reference
+    speed, the stretch at the wrap's entry; 0 at rest."""
+    te = np.asarray(t_entry, dtype=float)
+    if not belt_speed:
+        return np.zeros(te.shape)
+    return float(mass_per_length) * float(belt_speed) ** 2 * stretch(te, EA)
