@@ -10,7 +10,7 @@ import numpy as np
 
 from beltdyn.errors import SolverError
 from beltdyn.model.angles import unwrap_near, wrap_angle
-from beltdyn.model.slip import required_friction, slip_margin
+from beltdyn.model.slip import drive_centrifugal_tension, required_friction, slip_margin
 from beltdyn.model.system import System
 
 
@@ -137,7 +137,8 @@ def static_result(model: System, q, preload, hist_r, hist_l, iterations, driver_
             pivot[j] = -(hub[j] + weight)  # statics of arm + pulley: pivot + belt + weight = 0
     applied = np.zeros(n) if model.loads is None else model.loads[model.rot_dof]
     friction = model.pulley_friction
-    mu_req = required_friction(span_tension, lay.wrap_angle)
+    mu_req = required_friction(span_tension, lay.wrap_angle,  # (the running belt's capstan law, `slip`)
+                               drive_centrifugal_tension(model, model.belt_speed, T_mean))
     return StaticResult(
         q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
         hub_load=hub, pulley_center=known["pulley_center"] if "pulley_center" in known else model.pulley_centers(q, p=p),
