@@ -81,6 +81,10 @@ class Pulley:
                                                 units="rad")
     friction: float | None = key(POSFLOAT, None, doc="effective belt-pulley friction coefficient (slip margin)",
                                  units="1")
+    rotational_damping: float = key(NONNEGFLOAT, 0.0, omit_default=True,
+                                    doc="viscous torque to ground -d omega on the pulley's rotation (a generator or "
+                                        "pump load growing with speed; static at speed, transient, response)",
+                                    units="N m s/rad")
 
     @property
     def n_translation(self) -> int:
