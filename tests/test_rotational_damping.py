@@ -70,3 +70,44 @@ def test_the_static_at_speed_carries_d_omega_into_the_driver_torque():
     raw0 = copy.deepcopy(raw)
     del raw0["running"]
     assert analyse(config_from_dict(rest)).static.driver_torque == analyse(config_from_dict(raw0)).static.driver_torque
+
+
+def test_a_damped_pulley_spins_up_as_the_exponential_closed_form():
+    """The two-pulley smoke drive, free (no prescribed rotation, belt at rest), C damped with d = 0.94
+    N m s/rad, a step torque T on C at t = 0: the rigid loop (coordinate s, m of belt travel; u the loop's
+    rates, `transient_setup.belt_travel`) obeys m s'' + D s' = T u_C with m = u^T M u, D = u^T C u = d u_C^2,
+    so omega_C(t) = u_C T u_C / D (1 - exp(-D t / m)) (tau = m / D = 0.05 s). The transient's omega_C
+    against it, 4 tau long, to 1 % of the final speed (the belt's elastic modes ring on top: Kelvin-Voigt
+    belt damping, which does no work on the rigid loop, and rho_inf = 0.8 settle them)."""
+    from beltdyn.analysis.transient import run_transient
+    from beltdyn.analysis.transient_setup import belt_travel
+
+    raw = tomllib.loads((ROOT / "configs" / "smoke" / "two_pulley.toml").read_text())
+    raw["pulleys"][1]["rotational_damping"] = 0.94
+    T = 0.01  # N m: 2e-3 rad over the run, the tension changes by 0.1 N (linear range)
+    raw["transient"] = {"duration": 0.2, "step": 2e-4, "output_interval": 1e-3, "rho_inf": 0.8,
+                        "torque": [{"pulley": "C", "constant": T}], "damping": {"belt_axial": 2e-4},
+                        "spectrum": {"enabled": False}}
+    cfg = config_from_dict(raw)
+    run = analyse(cfg)
+    sysm = run.system
+    u = belt_travel(sysm)
+    M = np.asarray(sysm.mass.todense() if hasattr(sysm.mass, "todense") else sysm.mass)
+    m = float(u @ M @ u)
+    c_dof = int(sysm.rot_dof[1])
+    uC = u[c_dof]
+    D = 0.94 * uC * uC
+    got: dict[str, list] = {}
+
+    def sink(t, batch):
+        got.setdefault("time", []).append(t)
+        got.setdefault("speed", []).append(batch["pulley_speed"][:, 1])
+
+    run_transient(sysm, run.static, cfg.transient, sink=sink)
+    t, w = np.concatenate(got["time"]), np.concatenate(got["speed"])
+    w_final = uC * T * uC / D
+    expected = w_final * (1.0 - np.exp(-D * t / m))
+    assert m / D == pytest.approx(0.05, rel=0.1)
+    late = t > 0.01
+    assert np.abs(w[late] - expected[late]).max() < 1e-2 * abs(w_final)
+    assert w[-1] == pytest.approx(w_final * (1 - np.exp(-4.0)), rel=1e-2)
