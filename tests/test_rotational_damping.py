@@ -111,3 +111,34 @@ def test_a_damped_pulley_spins_up_as_the_exponential_closed_form():
     late = t > 0.01
     assert np.abs(w[late] - expected[late]).max() < 1e-2 * abs(w_final)
     assert w[-1] == pytest.approx(w_final * (1 - np.exp(-4.0)), rel=1e-2)
+
+
+def test_a_prescribed_running_drive_with_a_damped_pulley_stays_at_its_running_equilibrium():
+    """The smoke drive running at a constant prescribed speed of its static driver A (100 rad/s, from the
+    static at that speed), C damped (d = 0.02 N m s/rad, d omega_C = 0.74 N m): the damping of the nominal
+    travel replaces the static's constant torque (counted once, not twice), so the drive stays at its
+    running equilibrium: C turns at the nominal speed to 1e-6 relative, the reaction torque on A equals the
+    static driver torque (which carries d omega_C R_A / R_C) to 1e-6 relative."""
+    from beltdyn.analysis.transient import run_transient
+    from beltdyn.pipeline import transient_start
+
+    raw = tomllib.loads((ROOT / "configs" / "smoke" / "two_pulley.toml").read_text())
+    raw["pulleys"][1]["rotational_damping"] = 0.02
+    raw["transient"] = {"duration": 0.05, "step": 1e-4, "output_interval": 1e-3, "rho_inf": 0.9,
+                        "rotation": [{"pulley": "A", "speed": 100.0}], "spectrum": {"enabled": False}}
+    cfg = config_from_dict(raw)
+    sysm, st = transient_start(analyse(cfg))
+    assert sysm.driver == 0 and sysm.belt_speed != 0.0
+    omega_C = 100.0 * sysm.layout.radius[0] / sysm.layout.radius[1]
+    assert abs(st.driver_torque) == pytest.approx(0.02 * omega_C * sysm.layout.radius[0] / sysm.layout.radius[1],
+                                                  rel=1e-2)
+    got: dict[str, list] = {}
+
+    def sink(t, batch):
+        got.setdefault("speed", []).append(batch["pulley_speed"][:, 1])
+        got.setdefault("torque", []).append(batch["driver_torque"])
+
+    run_transient(sysm, st, cfg.transient, sink=sink)
+    w, tq = np.concatenate(got["speed"]), np.concatenate(got["torque"])
+    assert np.abs(np.abs(w) - omega_C).max() < 1e-6 * omega_C
+    assert np.abs(np.abs(tq) - abs(st.driver_torque)).max() < 1e-6 * abs(st.driver_torque)
