@@ -634,6 +634,9 @@ def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
     return np.bincount(at, weights=[tq.value for tq in cfg.static.torque], minlength=dofs.n).astype(float)
 
 
+MAX_FIT_STRETCH = 1.2  # the largest stretch path / L0 a belt is fitted with (20 % strain: beyond, a wrong length)
+
+
 def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
     """The spans' stretch at q = 0 that the tension mode asks for (1: stress-free)."""
     target = cfg.tension.target
@@ -646,6 +649,11 @@ def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
                 f"the belt is {cfg.belt.length - layout.belt_length:.6g} m longer than its path "
                 f"({layout.belt_length:.6g} m): it is slack; set tension.target or make a pulley adjustable",
                 file=cfg.source, key="belt.length")
+        if lam - 1.0 > MAX_FIT_STRETCH - 1.0:
+            raise ConfigError(
+                f"the belt is {layout.belt_length - cfg.belt.length:.6g} m shorter than its path "
+                f"({layout.belt_length:.6g} m): it would need a stretch of {lam:.4g} (above {MAX_FIT_STRETCH:g}) "
+                f"to fit", file=cfg.source, key="belt.length")
         return lam
     return 1.0
 
