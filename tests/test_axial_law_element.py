@@ -67,3 +67,28 @@ def test_a_straight_bar_under_axial_load_has_the_laws_end_forces(law):
 def test_an_unknown_law_is_refused():
     with pytest.raises(ValueError, match="axial_law"):
         ancf.make_elements(np.array([0.1]), EA, EI, RHO, axial_law="cubic")
+
+
+@pytest.mark.parametrize("curvature", ["linear", "exact", "none"])
+@pytest.mark.parametrize("law", ["green-lagrange", "linear"])
+def test_the_compiled_kernel_equals_the_numpy_element_for_both_laws(curvature, law):
+    """`belt_kernel`'s element force, tangent and energy with the law's code against `ancf`'s numpy
+    element (the reference implementation), to 1e-12 relative."""
+    from beltdyn.model import belt_kernel as bk
+
+    el = ancf.make_elements(np.array([0.05, 0.08, 0.03]), EA, EI, RHO, curvature=curvature, axial_law=law)
+    tab = bk.tables_from_elements(el)
+    assert tab.axial_law == bk.AXIAL_LAW_CODE[law]
+    e = np.ascontiguousarray(perturbed_state(el, seed=7))
+    f_ref, K_ref = ancf.internal_forces_and_tangent(el, e)
+    n = el.n_elem
+    f = np.empty((n, 8))
+    bk.element_forces(e, *tab.args, f, tab.axial_law)
+    np.testing.assert_allclose(f, f_ref, rtol=1e-12, atol=1e-12 * np.abs(f_ref).max())
+    f2, K = np.empty((n, 8)), np.empty((n, 8, 8))
+    bk.element_forces_tangent(e, *tab.args, f2, K, bk.scratch(n, el.n_gauss), tab.axial_law)
+    np.testing.assert_allclose(f2, f_ref, rtol=1e-12, atol=1e-12 * np.abs(f_ref).max())
+    np.testing.assert_allclose(K, K_ref, rtol=1e-12, atol=1e-12 * np.abs(K_ref).max())
+    U = np.empty(n)
+    bk.element_strain_energy(e, *tab.args, U, tab.axial_law)
+    np.testing.assert_allclose(U, ancf.strain_energy(el, e), rtol=1e-12)
