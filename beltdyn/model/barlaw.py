@@ -13,14 +13,16 @@ kernels use these very functions through numba (`njit(barlaw.axial_force)`, `spr
 `stretch_for_tension` and `stretch_start` are numpy-only (set-up and statics).
 
 The law is one choice: `LAWS` names the laws this module knows and `bar_law(name)` gives the
-functions of one (`BarLaw`): "green-lagrange" (St. Venant-Kirchhoff, above; the default) and "linear", the law of Exudyn's
-cable element and of catalog EA values,
+functions of one (`BarLaw`): "green-lagrange" (St. Venant-Kirchhoff, above; the default) and "linear",
+the law of Exudyn's cable element and of catalog EA values,
 
     N = EA (lambda - 1),  dN/dlambda = EA,  energy EA (lambda - 1)^2 / 2,  lambda(N) = 1 + N / EA,
 
 with the Kelvin-Voigt force N_d = EA eta lambda' and the force per unit reference section N / lambda
 (the slack test: its sign is N's). Both are the virtual work of N d lambda, lambda = |r'|. The
 module-level functions without a prefix are the "green-lagrange" law's; `linear_...` the linear law's.
+The ANCF element (`ancf.make_elements(axial_law=...)`) and its compiled kernel (`belt_kernel`, the
+`law` argument) take either; the configuration key, the spring spans and the statics use the default.
 For one tension the green elongation lambda - 1 is smaller than the linear law's by 3/2 N/EA of it
 (about 1 % at the paper's 0.7 % strain).
 """
@@ -156,7 +158,7 @@ class BarLaw(NamedTuple):
     stretch_for_tension: Callable
 
 
-LAWS = ("green-lagrange", "linear")  # the axial laws known: St. Venant-Kirchhoff and N = EA (lambda - 1) (module docstring)
+LAWS = ("green-lagrange", "linear")  # St. Venant-Kirchhoff and N = EA (lambda - 1) (module docstring)
 
 
 def bar_law(name: str = "green-lagrange") -> BarLaw:
