@@ -78,7 +78,8 @@ def test_a_damped_pulley_spins_up_as_the_exponential_closed_form():
     rates, `transient_setup.belt_travel`) obeys m s'' + D s' = T u_C with m = u^T M u, D = u^T C u = d u_C^2,
     so omega_C(t) = u_C T u_C / D (1 - exp(-D t / m)) (tau = m / D = 0.05 s). The transient's omega_C
     against it, 4 tau long, to 1 % of the final speed (the belt's elastic modes ring on top: Kelvin-Voigt
-    belt damping, which does no work on the rigid loop, and rho_inf = 0.8 settle them)."""
+    belt damping, which does no work on the rigid loop, and rho_inf = 0.8 settle them); the energy balance
+    holds (the damper's dissipation counted) to 1e-5 of the work done."""
     from beltdyn.analysis.transient import run_transient
     from beltdyn.analysis.transient_setup import belt_travel
 
@@ -102,9 +103,12 @@ def test_a_damped_pulley_spins_up_as_the_exponential_closed_form():
     def sink(t, batch):
         got.setdefault("time", []).append(t)
         got.setdefault("speed", []).append(batch["pulley_speed"][:, 1])
+        got.setdefault("energy", []).append(batch["energy"])
 
     run_transient(sysm, run.static, cfg.transient, sink=sink)
     t, w = np.concatenate(got["time"]), np.concatenate(got["speed"])
+    energy = np.concatenate(got["energy"])  # kinetic, strain, work, dissipated, balance error (J)
+    assert np.abs(energy[:, 4]).max() < 1e-5 * np.abs(energy[:, 2]).max()  # the damper's work is dissipated
     w_final = uC * T * uC / D
     expected = w_final * (1.0 - np.exp(-D * t / m))
     assert m / D == pytest.approx(0.05, rel=0.1)
