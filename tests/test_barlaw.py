@@ -101,8 +101,69 @@ def test_a_compressive_tension_beyond_the_minimum_is_the_same_on_floats_and_arra
 
 
 def test_the_law_is_one_switch():
-    law = barlaw.bar_law("green")
+    law = barlaw.bar_law("green-lagrange")
     assert law.axial_force is barlaw.axial_force and law.stretch_for_tension is barlaw.stretch_for_tension
-    assert barlaw.LAWS == ("green",)
-    with pytest.raises(ValueError, match="unknown axial law 'linear'"):
-        barlaw.bar_law("linear")
+    assert barlaw.LAWS == ("green-lagrange", "linear")
+    assert barlaw.bar_law("linear").axial_force is barlaw.linear_axial_force
+    with pytest.raises(ValueError, match="unknown axial law 'cubic'"):
+        barlaw.bar_law("cubic")
+
+
+# ------------------------------------------------------------------ the two axial laws (issue 25, item 2)
+@pytest.mark.parametrize("name", ["green-lagrange", "linear"])
+def test_a_straight_bar_under_axial_load_has_the_laws_closed_form_stretch(name):
+    """A straight bar under an axial load N: lambda from the law's closed form, green: the real root of
+    lambda^3 - lambda - 2 N / EA = 0 by Cardano's formula; linear: 1 + N / EA. To 1e-13 relative on the
+    strain, for tensions up to 20 % strain and a compression."""
+    law = barlaw.bar_law(name)
+    for N in (-0.01 * EA, 1.0, 350.0, 0.007 * EA, 0.05 * EA, 0.2 * EA):
+        lam = law.stretch_for_tension(N, EA)
+        if name == "linear":
+            expected = 1.0 + N / EA
+        else:  # Cardano: t^3 + p t + q = 0 with p = -1, q = -2 N / EA, one real root (disc. > 0 here)
+            p, q = -1.0, -2.0 * N / EA
+            disc = (q / 2) ** 2 + (p / 3) ** 3
+            if disc >= 0:
+                expected = np.cbrt(-q / 2 + np.sqrt(disc)) + np.cbrt(-q / 2 - np.sqrt(disc))
+            else:  # three real roots: the one near 1 (trigonometric form, k = 0)
+                r = 2 * np.sqrt(-p / 3)
+                expected = r * np.cos(np.arccos(3 * q / (p * r)) / 3)
+        assert lam - 1.0 == pytest.approx(expected - 1.0, rel=1e-13, abs=1e-16)
+        assert law.axial_force(lam, EA) == pytest.approx(N, rel=1e-12, abs=1e-9)
+
+
+def test_the_two_laws_differ_as_stated_at_the_papers_strain():
+    # At N / EA = x = 0.007 the green law's lambda^3 - lambda = 2 x gives lambda - 1 = x - 3/2 x^2 + 4 x^3
+    # - ..., the linear law x: the green elongation is smaller by 3/2 x = 1.05 % of it (the next term,
+    # -4 x^2 relative, is 2.7 % of that figure: the tolerance)
+    x = 0.007
+    green = barlaw.bar_law("green-lagrange").stretch_for_tension(x * EA, EA) - 1.0
+    linear = barlaw.bar_law("linear").stretch_for_tension(x * EA, EA) - 1.0
+    assert linear == pytest.approx(x, rel=1e-14)
+    assert (linear - green) / linear == pytest.approx(1.5 * x, rel=0.03)
+
+
+@pytest.mark.parametrize("fn", ["axial_force", "strain_energy_density", "viscous_force"])
+def test_the_linear_law_derivatives_by_central_differences(stretches, fn):
+    # dN/dlambda = EA against central differences of N; dW/dlambda = N; N_d linear in the rate
+    law = barlaw.bar_law("linear")
+    h = 1e-6
+    if fn == "axial_force":
+        fd = (law.axial_force(stretches + h, EA) - law.axial_force(stretches - h, EA)) / (2 * h)
+        assert np.allclose(fd, law.axial_stiffness(stretches, EA), rtol=1e-8)
+    elif fn == "strain_energy_density":
+        fd = (law.strain_energy_density(stretches + h, EA) - law.strain_energy_density(stretches - h, EA)) / (2 * h)
+        assert np.allclose(fd, law.axial_force(stretches, EA), rtol=1e-6, atol=1e-6 * EA * h)
+    else:
+        assert np.allclose(law.viscous_force(stretches, 2.0, EA, 1e-4), 2.0 * EA * 1e-4, rtol=1e-15)
+    assert np.allclose(law.second_piola_force(stretches, EA) * stretches, law.axial_force(stretches, EA),
+                       rtol=1e-14, atol=1e-9)
+
+
+def test_the_linear_law_compiles_with_numba():
+    # the kernels compile the law's functions (as `spring_kernel` does the green law's): same numbers
+    from numba import njit
+
+    for name in ("axial_force", "axial_stiffness", "second_piola_force", "strain_energy_density"):
+        fn = getattr(barlaw.bar_law("linear"), name)
+        assert njit(fn)(1.013, EA) == pytest.approx(fn(1.013, EA), rel=1e-15)

@@ -83,3 +83,61 @@ def test_idlers_of_a_drive_have_an_infinite_margin(model):
             assert st.required_friction[j] == 0.0 and st.slip_margin[j] == np.inf, name
         else:
             assert 0.0 < st.required_friction[j] < np.inf and 1.0 < st.slip_margin[j] < 1e3, name
+
+
+# ------------------------------------------------------------------ the running belt (issue 25, item 3)
+def test_capstan_law_of_a_running_belt_at_impending_gross_slip():
+    # Closed form: at impending gross slip (T_tight - c) / (T_slack - c) = exp(mu beta), c = rho v^2 lambda.
+    # Tensions built from it give mu_required = mu and margin 1 to 1e-10 (c = 0.12 kg/m (25 m/s)^2 1.004).
+    from beltdyn.model.slip import centrifugal_tension
+
+    c = centrifugal_tension(0.12, 25.0, 1.004)
+    assert c == pytest.approx(0.12 * 625.0 * 1.004, rel=1e-15)
+    mu, wrap, slack = 0.45, np.array([2.7, 3.4]), 160.0
+    tight = c + (slack - c) * np.exp(mu * wrap[0])  # pulley 0 takes the whole ratio: span 1 -> 0
+    T = np.array([[tight, tight], [slack, slack]])  # span 0: pulley 0 -> 1 (tight), span 1: 1 -> 0 (slack)
+    req = required_friction(T, wrap, c)
+    assert req[0] == pytest.approx(mu, rel=1e-10)
+    assert slip_margin(req, np.array([mu, mu]))[0] == pytest.approx(1.0, rel=1e-10)
+    # without the centrifugal part the ratio is smaller, the friction needed lower (the old, optimistic law)
+    assert required_friction(T, wrap)[0] < mu
+    # a wrap whose slack tension is all centrifugal is slack on the pulley: margin 0
+    assert np.isinf(required_friction(np.array([[300.0, 300.0], [c, c]]), wrap, c)).all()
+
+
+def test_a_history_takes_one_centrifugal_tension_per_state():
+    # (B, n_span, 2) tensions with c (B,): each state as on its own (the same formula, state by state)
+    T = np.array([[[300.0, 300.0], [100.0, 100.0]], [[320.0, 320.0], [120.0, 120.0]]])
+    wrap = np.array([2.0, 3.0])
+    c = np.array([10.0, 40.0])
+    mu = required_friction(T, wrap, c)
+    for b in range(2):
+        assert np.array_equal(mu[b], required_friction(T[b], wrap, c[b]))
+    assert mu[1, 0] == pytest.approx(math.log((320.0 - 40.0) / (120.0 - 40.0)) / 2.0, rel=1e-14)
+
+
+def test_the_fead_crank_margin_falls_with_speed():
+    """The FEAD example's crank (the driver, the largest torque) at rest, 20 m/s and 40 m/s: the static at
+    speed carries the centrifugal tension in every span, and with it removed in the capstan law the
+    margin falls with speed (the load torques being the same): it grew (1.69 -> 2.81) with ln(T1/T2).
+    Independent check: mu_required from the static's own span tensions and the closed form
+    c = rho v^2 lambda(T_mean)."""
+    from pathlib import Path
+
+    from beltdyn.config import load_config
+    from beltdyn.model.barlaw import stretch_for_tension
+    from beltdyn.model.slip import belt_density
+    from beltdyn.pipeline import analyse
+
+    fead = Path(__file__).resolve().parents[1] / "configs" / "examples" / "fead_4cyl.toml"
+    margins = []
+    for v in (0.0, 20.0, 40.0):
+        run = analyse(load_config(fead, [f"running.belt_speed={v}"]))
+        st, sysm = run.static, run.system
+        j = sysm.driver
+        margins.append(st.slip_margin[j])
+        c = belt_density(sysm) * v * v * stretch_for_tension(st.mean_tension, sysm.EA)
+        t_in, t_out = st.span_tension[-1, 1], st.span_tension[0, 0]
+        expected = math.log((max(t_in, t_out) - c) / (min(t_in, t_out) - c)) / sysm.layout.wrap_angle[j]
+        assert st.required_friction[j] == pytest.approx(expected, rel=1e-12)
+    assert margins[0] > margins[1] > margins[2]

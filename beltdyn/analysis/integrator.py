@@ -277,14 +277,15 @@ def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gros
 
 @njit(**KERNEL)
 def external_forces(F, cons, t, out, sig_val):
-    """F(t) (n,): constant part + loads + inertia of the nominal belt travel."""
+    """F(t) (n,): constant part + loads + inertia and component damping of the nominal belt travel."""
     n = out.shape[0]
     for i in range(n):
         out[i] = F.constant[i]
     if F.nominal_scale != 0.0:
-        thdd = rotation_state(F.nominal_rotation, t)[2] * F.nominal_scale
+        st = rotation_state(F.nominal_rotation, t)
+        thd, thdd = st[1] * F.nominal_scale, st[2] * F.nominal_scale
         for i in range(n):
-            out[i] -= F.nominal_mass[i] * thdd
+            out[i] -= F.nominal_mass[i] * thdd + F.nominal_damping[i] * thd
     if F.sig_params.shape[0] > 0:
         signal_values(F, t, sig_val)
         for j in range(F.load_dof.shape[0]):

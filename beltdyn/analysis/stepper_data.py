@@ -23,7 +23,8 @@ Split = namedtuple("Split", ["w", "band", "left", "right"])
 Linear = namedtuple("Linear", ["K", "q_ref", "C", "M"])  # constant stiffness, its reference state, damping, mass
 # (K, C, M: Split)
 Forcing = namedtuple("Forcing", ["constant", "load_dof", "load_coef", "load_sig", "sig_params", "tab_ptr", "tab_t",
-                                 "tab_v", "nominal_mass", "nominal_rotation", "nominal_scale"])
+                                 "tab_v", "nominal_mass", "nominal_rotation", "nominal_scale",
+                                 "nominal_damping"])  # nominal_damping (n,): C u_nom, the damping of the nominal travel
 Constraints = namedtuple("Constraints", ["dof", "params"])  # dof (k,), params (k, 9): rotation law (rotation_state)
 Check = namedtuple("Check", ["group", "n_groups", "tol", "max_iter", "noise"])
 # refresh: the cost of a new factor in Newton iterations (0: refactorize only when convergence slows)

@@ -571,7 +571,8 @@ def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.
     forcing = itg.Forcing(constant=np.zeros(n), load_dof=np.zeros(0, dtype=np.int64), load_coef=np.zeros(0),
                           load_sig=np.zeros(0, dtype=np.int64), sig_params=np.zeros((0, 5)),
                           tab_ptr=np.zeros(1, dtype=np.int64), tab_t=np.zeros(0), tab_v=np.zeros(0),
-                          nominal_mass=np.zeros(n), nominal_rotation=np.zeros(9), nominal_scale=0.0)
+                          nominal_mass=np.zeros(n), nominal_rotation=np.zeros(9), nominal_scale=0.0,
+                          nominal_damping=np.zeros(n))
     cons = itg.Constraints(dof=np.zeros(0, dtype=np.int64), params=np.zeros((0, 8)))
     am, af, beta, gamma = itg.alpha_parameters(rho_inf)
 

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from beltdyn.model.slip import drive_centrifugal_tension, required_friction, slip_margin
 from beltdyn.model.system import System
 from beltdyn.analysis.transient_setup import TransientSetup, nominal_rotation, transport_speed
 
@@ -120,10 +121,9 @@ class Observers:
                 out["span_tension"] = sysm.span_end_tensions(q, F, E)
                 self._track_tension(t, out["span_tension"])
                 if "slip_margin" in names:
-                    from beltdyn.model.slip import required_friction, slip_margin
-
-                    m = slip_margin(required_friction(out["span_tension"], sysm.layout.wrap_angle),
-                                    sysm.pulley_friction)
+                    T = out["span_tension"]
+                    c = drive_centrifugal_tension(sysm, transport_speed(setup, t)[0], T.mean(axis=(1, 2)))
+                    m = slip_margin(required_friction(T, sysm.layout.wrap_angle, c), sysm.pulley_friction)
                     out["slip_margin"] = m
                     finite = np.where(np.isnan(m), np.inf, m)
                     b, j = np.unravel_index(int(np.argmin(finite)), finite.shape)

@@ -11,6 +11,7 @@ import numpy as np
 
 from beltdyn.config import TransientOptions
 from beltdyn.analysis.static import StaticResult
+from beltdyn.model.components import belt_rotation_rates
 from beltdyn.model.components import Observation as Series  # one declaration of a recorded series
 from beltdyn.model.assembly import element_pairs
 from beltdyn.model.system import System
@@ -56,12 +57,7 @@ def output_volume(system: System, opts: TransientOptions) -> tuple[int, int]:
 def belt_travel(system: System) -> np.ndarray:
     """u_nom (n_p,): the rigid belt loop advanced by 1 m (pulley rotations +-1/R, nodes along t; the
     pulley centres stay)."""
-    u = np.zeros(system.n_p)
-    lay = system.layout
-    for j in range(lay.n):
-        n_out = lay.start_normal[j]
-        t = lay.span_direction[j]
-        u[system.rot_dof[j]] = float(np.array([-n_out[1], n_out[0]]) @ t) / lay.radius[j]
+    u = belt_rotation_rates(system.layout, system.rot_dof, system.n_p)
     for s, sl in enumerate(system.dofs.span_slices):
         labels = system.dof_labels[sl]
         block = np.zeros(sl.stop - sl.start)
@@ -187,6 +183,13 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
     constant = preload + system.external_force(1.0) - np.asarray(K_lin @ q_ref).ravel()
     if system.linear_offset is not None:  # the components' force is K q - offset
         constant = constant + system.linear_offset
+    # the components' damping of the nominal belt travel (a pulley's rotational_damping): -C u_nom c(t) at the
+    # travel's speed c(t) when a prescribed rotation carries it, in place of the static's -C v_run at the
+    # constant running speed (`System.running_damping_force`, in external_force); otherwise that constant stays
+    nominal_damping = np.zeros(n)
+    if nom_scale and system.linear_damping is not None:
+        constant = constant + system.running_damping_force()
+        nominal_damping = np.asarray(system.linear_damping @ u_nom, dtype=float).ravel()
     tab = system.belt.kernel_tables
     belt = system.belt
     belt_data = itg.BeltData(
@@ -201,7 +204,7 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
         load_sig=np.array(load_sig, dtype=np.int64), sig_params=np.array(params, dtype=float).reshape(-1, 5),
         tab_ptr=np.array(ptr, dtype=np.int64), tab_t=np.array(tabs_t, dtype=float),
         tab_v=np.array(tabs_v, dtype=float), nominal_mass=np.asarray(M @ u_nom).ravel().astype(float),
-        nominal_rotation=nom_rot, nominal_scale=float(nom_scale))
+        nominal_rotation=nom_rot, nominal_scale=float(nom_scale), nominal_damping=nominal_damping)
     constraints = itg.Constraints(dof=np.array(cons_dof, dtype=np.int64),
                                   params=np.array(cons_par, dtype=float).reshape(-1, 9))
     transport = itg.no_transport(n)

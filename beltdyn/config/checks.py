@@ -32,6 +32,18 @@ def _check_spring_tension(chk: _Checker, tension: Tension, pulleys: tuple[Pulley
             raise chk.fail(f"pulleys[{i}].arm_stiffness", "tension mode \"spring\" needs arm_stiffness > 0")
 
 
+def _check_length_tension(chk: _Checker, tension: Tension, pulleys: tuple[Pulley, ...]) -> None:
+    """mode "length": the belt's undeformed length on the centres as given sets the tension (no target, no
+    adjustable pulley)."""
+    if tension.target is not None:
+        raise chk.fail("tension.target", "with mode = \"length\" the belt's length on the given centres sets the "
+                                         "tension (an output): remove tension.target, or use mode = \"prestrain\"")
+    for i, p in enumerate(pulleys):
+        if p.adjustable:
+            raise chk.fail(f"pulleys[{i}].adjustable", "tension mode \"length\" keeps every centre as given: "
+                                                       "no pulley is adjustable")
+
+
 def _check_spans(chk: _Checker, spans: tuple[tuple[str, SpanSetting], ...], pulleys: tuple[Pulley, ...]) -> None:
     """Every [spans] entry names a span of the drive (the closest name suggested)."""
     valid = span_names(pulleys)

@@ -18,7 +18,7 @@ DEFAULT_STEP = 1e-4  # s: transient.step when neither it nor transient.accuracy 
 
 SIDES = ("inside", "backside")
 SUPPORTS = ("fixed", "slide", "bearing", "arm")
-TENSION_MODES = ("adjust", "prestrain", "spring")
+TENSION_MODES = ("adjust", "prestrain", "spring", "length")
 CURVATURES = ("linear", "exact", "none")
 SPAN_MODELS = ("ancf", "string", "spring")  # the fidelity ladder of one span, richest first
 MAX_GAUSS_POINTS = 64  # beltdyn.model.ancf's quadrature table (not imported: it would load numba at start-up)

@@ -9,8 +9,8 @@ from typing import Any
 
 from beltdyn.config.kinds import _Checker, _parse
 from beltdyn.config.schema import DriveConfig
-from beltdyn.config.checks import (_check_pulleys, _check_response, _check_spans, _check_spring_tension,
-                                   _check_static_torques, _check_transient)
+from beltdyn.config.checks import (_check_length_tension, _check_pulleys, _check_response, _check_spans,
+                                   _check_spring_tension, _check_static_torques, _check_transient)
 from beltdyn.config.overrides import apply_override, parse_toml_file
 from beltdyn.config.sections import _resolve_belt, _resolve_radii
 
@@ -42,6 +42,8 @@ def config_from_dict(raw: dict[str, Any], *, file: str = "<config>", tables: dic
                        "(or use mode = \"prestrain\")")
     if tension.mode == "spring":
         _check_spring_tension(chk, tension, pulleys)
+    if tension.mode == "length":
+        _check_length_tension(chk, tension, pulleys)
     _check_static_torques(chk, cfg.static, pulleys)
     _check_spans(chk, cfg.spans, pulleys)
     transient = cfg.transient

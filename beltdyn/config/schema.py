@@ -99,6 +99,10 @@ class Pulley:
                                                 units="rad")
     friction: float | None = key(POSFLOAT, None, doc="effective belt-pulley friction coefficient (slip margin)",
                                  units="1")
+    rotational_damping: float = key(NONNEGFLOAT, 0.0, omit_default=True,
+                                    doc="viscous torque to ground -d omega on the pulley's rotation (a generator or "
+                                        "pump load growing with speed; static at speed, transient, response)",
+                                    units="N m s/rad")
 
     @property
     def n_translation(self) -> int:
@@ -129,14 +133,18 @@ class Tension:
     "prestrain": pulley centres kept, the spans' reference length shortened so that their initial
     tension is the target. mode "spring": spans stress-free in the L0 geometry (the adjustable arm
     turned to fit L0), then the arm's spring (arm_free_angle) turns the arm until equilibrium: the
-    tension is an output (no target).
+    tension is an output (no target). mode "length": every centre as given (no adjustable pulley), the
+    belt of undeformed length belt.length stretched onto the path (a stretch-fit belt on fixed centres):
+    the tension is an output (no target); a belt longer than its path (slack) or one needing a stretch
+    above 1.2 is an error naming belt.length.
     """
 
     target: float | None = key(POSFLOAT, None, doc="static span tension (not set: the geometry alone decides)",
                                units="N")
     mode: str = key(_Choice(*TENSION_MODES), "adjust",
-                    doc="move the adjustable pulley, prestrain the spans, or let the tensioner arm's spring "
-                        "set it (default: adjust if a pulley is adjustable)")
+                    doc="move the adjustable pulley, prestrain the spans, let the tensioner arm's spring set it, "
+                        "or \"length\": the belt of belt.length on the centres as given, the tension an output "
+                        "(default: adjust if a pulley is adjustable)")
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -159,6 +159,8 @@ class ElementSet:
     _DT: np.ndarray = field(repr=False)
     _D2T: np.ndarray = field(repr=False)
     _PQ: np.ndarray = field(repr=False)
+    # the axial law (`barlaw.LAWS`): "green-lagrange" (Eqs. 12-14) or "linear" (N = EA (|r'| - 1))
+    axial_law: str = "green-lagrange"
 
     @property
     def n_elem(self) -> int:
@@ -178,7 +180,7 @@ def _broadcast_property(name: str, value, n: int) -> np.ndarray:
 
 
 def _make_elements_all(
-    length, EA, EI, rho, *, curvature: str = "linear", n_gauss: int = 5
+    length, EA, EI, rho, *, curvature: str = "linear", n_gauss: int = 5, axial_law: str = "green-lagrange"
 ) -> ElementSet:
     """`make_elements` computing every element's tables (the parameters and errors are its)."""
     L = np.asarray(length, dtype=float)
@@ -198,6 +200,8 @@ def _make_elements_all(
         raise ValueError("rho must be >= 0")
     if curvature not in CURVATURE_MODELS:
         raise ValueError(f"curvature must be one of {CURVATURE_MODELS}, got {curvature!r}")
+    if axial_law not in barlaw.LAWS:
+        raise ValueError(f"axial_law must be one of {barlaw.LAWS}, got {axial_law!r}")
     if isinstance(n_gauss, bool) or not isinstance(n_gauss, (int, np.integer)):
         raise ValueError(f"n_gauss must be an integer, got {n_gauss!r}")
     n_gauss = int(n_gauss)
@@ -260,6 +264,7 @@ def _make_elements_all(
         _DT=_readonly(np.swapaxes(D, 1, 2)),
         _D2T=_readonly(np.swapaxes(D2, 1, 2)),
         _PQ=_readonly(PQ),
+        axial_law=axial_law,
     )
 
 
@@ -361,7 +366,9 @@ def _exact_terms(el: ElementSet, rp: np.ndarray, E: np.ndarray) -> tuple[np.ndar
 
 
 def _axial_terms(el: ElementSet, e: np.ndarray):
-    """Checked e, n_elem, E (n, 4, 2), r' (n, q, 2) and its components, A = r'.r', s = w L EA eps."""
+    """Checked e, n_elem, E (n, 4, 2), r' (n, q, 2) and its components, A = r'.r', s the coefficient of
+    G_q in the axial force f_l = sum_q s_q G_q: w L EA eps (green-lagrange), w L EA (1 - 1/|r'|) (linear:
+    the virtual work of N d|r'| with d|r'| = G . de / |r'|)."""
     e = _check_e(el, e)
     n = e.shape[0]
     E = e.reshape(n, 4, 2)
@@ -369,7 +376,15 @@ def _axial_terms(el: ElementSet, e: np.ndarray):
     r0 = rp[..., 0]
     r1 = rp[..., 1]
     A = r0 * r0 + r1 * r1
+    if el.axial_law == "linear":
+        return e, n, E, rp, r0, r1, A, el._wEA * (1.0 - 1.0 / np.sqrt(A))
     return e, n, E, rp, r0, r1, A, el._half_wEA * (A - 1.0)
+
+
+def _axial_rank_weight(el: ElementSet, A: np.ndarray) -> np.ndarray | None:
+    """(n, q) the factor on w L EA of the axial rank term G_q G_q^T of the tangent, 2 ds/dA / (w L EA):
+    None for green-lagrange (1), A^(-3/2) for the linear law."""
+    return A ** -1.5 if el.axial_law == "linear" else None
 
 
 def internal_forces(el: ElementSet, e: np.ndarray) -> np.ndarray:
@@ -405,6 +420,9 @@ def internal_forces_and_tangent(el: ElementSet, e: np.ndarray) -> tuple[np.ndarr
     if el.curvature != "exact":
         # Axial rank term sum_q wEA G_q G_q^T = Gs^T Gs with Gs_q = sqrt(wEA) D_q (x) r'_q.
         Gs = el._D8_sqrt_wEA * np.tile(rp, 4)
+        weight = _axial_rank_weight(el, A)
+        if weight is not None:
+            Gs = Gs * np.sqrt(weight)[:, :, None]
         K = np.ascontiguousarray(np.swapaxes(Gs, 1, 2)) @ Gs
         Ks = (s[:, None, :] @ el._PQ).reshape(n, 8, 8)  # secant matrix: f = Ks e
         if el.curvature == "linear":
@@ -431,7 +449,9 @@ def internal_forces_and_tangent(el: ElementSet, e: np.ndarray) -> tuple[np.ndarr
     JTrp = np.stack((-r1, r0), axis=-1)
     h = el._D8 * np.tile(Jrpp, 4) + el._D2_8 * np.tile(JTrp, 4)  # gc
     h -= (6.0 * c * iA)[..., None] * G
-    coef_G = el._wEA - 12.0 * wEI * c * c * iA3 * iA * iA  # axial wEA + 4 (-3 wEI c^2/A^5)
+    weight = _axial_rank_weight(el, A)
+    wEA = el._wEA if weight is None else el._wEA * weight
+    coef_G = wEA - 12.0 * wEI * c * c * iA3 * iA * iA  # axial wEA + 4 (-3 wEI c^2/A^5)
     Z = np.concatenate((G, h), axis=1)  # (n, 2q, 8)
     W = Z * np.concatenate((coef_G, wEI * iA3), axis=1)[:, :, None]
     K = np.ascontiguousarray(np.swapaxes(Z, 1, 2)) @ W
@@ -451,7 +471,7 @@ def strain_energy(el: ElementSet, e: np.ndarray) -> np.ndarray:
     E = e.reshape(n, 4, 2)
     rp = el.dS @ E
     A = np.einsum("nqi,nqi->nq", rp, rp)
-    eps = 0.5 * (A - 1.0)
+    eps = np.sqrt(A) - 1.0 if el.axial_law == "linear" else 0.5 * (A - 1.0)  # (linear: EA (lambda - 1)^2 / 2)
     U = np.einsum("nq,nq->n", el._half_wEA, eps * eps)
     if el.curvature == "linear":
         U = U + 0.5 * np.einsum("ni,nij,nj->n", e, el.K_bend, e)
@@ -493,7 +513,7 @@ def axial_force(el: ElementSet, e: np.ndarray, xi: np.ndarray) -> np.ndarray:
     by the stretch |r'| = sqrt(1 + 2 eps).
     """
     rp = slopes(el, e, xi)
-    return barlaw.axial_force(np.sqrt(np.einsum("npi,npi->np", rp, rp)), el.EA[:, None])
+    return barlaw.bar_law(el.axial_law).axial_force(np.sqrt(np.einsum("npi,npi->np", rp, rp)), el.EA[:, None])
 
 
 def axial_force_gradient(el: ElementSet, e: np.ndarray, xi: np.ndarray) -> np.ndarray:
@@ -507,11 +527,12 @@ def axial_force_gradient(el: ElementSet, e: np.ndarray, xi: np.ndarray) -> np.nd
     _, D, _ = shape_functions(xi, el.length)
     rp = D @ e.reshape(n, 4, 2)
     lam = np.sqrt(np.einsum("npi,npi->np", rp, rp))
-    coef = barlaw.axial_stiffness(lam, el.EA[:, None]) / lam
+    coef = barlaw.bar_law(el.axial_law).axial_stiffness(lam, el.EA[:, None]) / lam
     return ((coef[..., None] * D)[:, :, :, None] * rp[:, :, None, :]).reshape(n, -1, 8)
 
 
-def make_elements(length, EA, EI, rho, *, curvature: str = "linear", n_gauss: int = 5) -> ElementSet:
+def make_elements(length, EA, EI, rho, *, curvature: str = "linear", n_gauss: int = 5,
+                  axial_law: str = "green-lagrange") -> ElementSet:
     """Build an `ElementSet` and precompute its quadrature tables and constant matrices.
 
     Parameters
@@ -526,6 +547,8 @@ def make_elements(length, EA, EI, rho, *, curvature: str = "linear", n_gauss: in
     n_gauss : int
         Gauss points per element for the axial term (5 integrate it exactly; fewer points give
         reduced integration) and for the exact-curvature term.
+    axial_law : str
+        "green-lagrange" (Eqs. 12-14, default) or "linear" (N = EA (|r'| - 1), `barlaw`).
 
     Elements with identical (L, EA, EI, rho) — all the elements of a uniformly meshed span — share
     their tables: they are computed once per distinct element and gathered.
@@ -538,11 +561,11 @@ def make_elements(length, EA, EI, rho, *, curvature: str = "linear", n_gauss: in
     L = np.asarray(length, dtype=float)
     scalar = all(np.ndim(x) == 0 for x in (EA, EI, rho))
     if L.ndim != 1 or L.shape[0] < 8 or not scalar or not np.all(np.isfinite(L)):
-        return _make_elements_all(length, EA, EI, rho, curvature=curvature, n_gauss=n_gauss)
+        return _make_elements_all(length, EA, EI, rho, curvature=curvature, n_gauss=n_gauss, axial_law=axial_law)
     uniq, inverse = np.unique(L, return_inverse=True)
     if len(uniq) == L.shape[0]:
-        return _make_elements_all(length, EA, EI, rho, curvature=curvature, n_gauss=n_gauss)
-    base = _make_elements_all(uniq, EA, EI, rho, curvature=curvature, n_gauss=n_gauss)
+        return _make_elements_all(length, EA, EI, rho, curvature=curvature, n_gauss=n_gauss, axial_law=axial_law)
+    base = _make_elements_all(uniq, EA, EI, rho, curvature=curvature, n_gauss=n_gauss, axial_law=axial_law)
     return subset(base, inverse.ravel())
 
 

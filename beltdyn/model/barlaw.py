@@ -13,10 +13,18 @@ kernels use these very functions through numba (`njit(barlaw.axial_force)`, `spr
 `stretch_for_tension` and `stretch_start` are numpy-only (set-up and statics).
 
 The law is one choice: `LAWS` names the laws this module knows and `bar_law(name)` gives the
-functions of one (`BarLaw`). There is one law today, "green" (St. Venant-Kirchhoff); a second
-(e.g. "linear", N = EA (lambda - 1)) is one more entry of `bar_law`, and a caller that takes the
-law as a parameter (`bar_law(cfg...)`) needs no copy of its own. The module-level functions are the
-"green" law's.
+functions of one (`BarLaw`): "green-lagrange" (St. Venant-Kirchhoff, above; the default) and "linear",
+the law of Exudyn's cable element and of catalog EA values,
+
+    N = EA (lambda - 1),  dN/dlambda = EA,  energy EA (lambda - 1)^2 / 2,  lambda(N) = 1 + N / EA,
+
+with the Kelvin-Voigt force N_d = EA eta lambda' and the force per unit reference section N / lambda
+(the slack test: its sign is N's). Both are the virtual work of N d lambda, lambda = |r'|. The
+module-level functions without a prefix are the "green-lagrange" law's; `linear_...` the linear law's.
+The ANCF element (`ancf.make_elements(axial_law=...)`) and its compiled kernel (`belt_kernel`, the
+`law` argument) take either; the configuration key, the spring spans and the statics use the default.
+For one tension the green elongation lambda - 1 is smaller than the linear law's by 3/2 N/EA of it
+(about 1 % at the paper's 0.7 % strain).
 """
 
 from __future__ import annotations
@@ -104,6 +112,39 @@ def _newton(x, largest):
     return lam
 
 
+def linear_axial_force(stretch, EA):
+    """Linear law: axial force N = EA (lambda - 1) (N)."""
+    return EA * (stretch - 1.0)
+
+
+def linear_axial_stiffness(stretch, EA):
+    """Linear law: dN/dlambda = EA (N per unit stretch; `stretch` only for the common signature)."""
+    return EA + 0.0 * stretch
+
+
+def linear_second_piola_force(stretch, EA):
+    """Linear law: N / lambda = EA (lambda - 1) / lambda (N per unit reference section)."""
+    return EA * (stretch - 1.0) / stretch
+
+
+def linear_strain_energy_density(stretch, EA):
+    """Linear law: strain energy per unit reference length EA (lambda - 1)^2 / 2 (J/m)."""
+    d = stretch - 1.0
+    return 0.5 * EA * d * d
+
+
+def linear_viscous_force(stretch, stretch_rate, EA, eta):
+    """Linear law: Kelvin-Voigt axial force N_d = EA eta lambda' (N); `stretch` for the common signature."""
+    return EA * eta * stretch_rate + 0.0 * stretch
+
+
+def linear_stretch_for_tension(tension, EA: float):
+    """Linear law: lambda = 1 + N / EA (a float for a number, an array for an array; NaN for EA = 0)."""
+    if isinstance(tension, (int, float)):
+        return 1.0 + float(tension) / float(EA) if EA else math.nan
+    return 1.0 + np.asarray(tension, dtype=float) / EA
+
+
 class BarLaw(NamedTuple):
     """The functions of one axial law, each as the module's function of the same name (floats or arrays;
     all but `stretch_for_tension` compile with numba)."""
@@ -117,13 +158,18 @@ class BarLaw(NamedTuple):
     stretch_for_tension: Callable
 
 
-LAWS = ("green",)  # the axial laws known: "green", the St. Venant-Kirchhoff bar (module docstring)
+LAWS = ("green-lagrange", "linear")  # St. Venant-Kirchhoff and N = EA (lambda - 1) (module docstring)
 
 
-def bar_law(name: str = "green") -> BarLaw:
+def bar_law(name: str = "green-lagrange") -> BarLaw:
     """The functions of the axial law `name` (one of `LAWS`); the one switch between laws."""
-    if name == "green":
+    if name == "green-lagrange":
         return BarLaw(name=name, axial_force=axial_force, axial_stiffness=axial_stiffness,
                       second_piola_force=second_piola_force, strain_energy_density=strain_energy_density,
                       viscous_force=viscous_force, stretch_for_tension=stretch_for_tension)
+    if name == "linear":
+        return BarLaw(name=name, axial_force=linear_axial_force, axial_stiffness=linear_axial_stiffness,
+                      second_piola_force=linear_second_piola_force,
+                      strain_energy_density=linear_strain_energy_density, viscous_force=linear_viscous_force,
+                      stretch_for_tension=linear_stretch_for_tension)
     raise ValueError(f"unknown axial law {name!r}: one of {', '.join(LAWS)}")

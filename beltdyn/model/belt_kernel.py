@@ -35,6 +35,13 @@ flexible multibody method"):
 
 Curvature codes (`CURVATURE_CODE`): 0 "none", 1 "linear", 2 "exact".
 
+Axial laws (`AXIAL_LAW_CODE`, the trailing argument ``law`` of the force, tangent and energy kernels,
+default 0): 0 "green-lagrange" (Eqs. 12-14 above), 1 "linear", N = EA (lambda - 1), lambda = sqrt(A):
+the virtual work of N d lambda (d lambda = G . de / lambda) gives f_l = sum_q s G_q with
+s = wEA (1 - 1/lambda), K_l = sum_q [cG G_q G_q^T + s P_q] with cG = 2 ds/dA = wEA / lambda^3, and
+U_l = sum_q wEA (lambda - 1)^2 / 2 (as `ancf` with axial_law="linear"). The Kelvin-Voigt damping
+and the slack test (`element_min_axial_force`, its sign is N's for both laws) stay as written.
+
 Reduced coordinates: e = e0 + T q_ext[idx] per element, with T (n_elem, 8, m), idx (n_elem, m)
 int64, q_ext (n_dof + 1,) = [q, 0] (index n_dof is the padding: q_ext[n_dof] must be 0).  Interior
 span elements have T = [I8 | 0] and idx[:, 8:] == n_dof; `joint_selection` marks them with
@@ -67,6 +74,7 @@ KERNEL = kernel_options()  # the njit options of this module's kernels (numba lo
 
 __all__ = [
     "CURVATURE_CODE",
+    "AXIAL_LAW_CODE",
     "KernelTables",
     "Scratch",
     "scratch",
@@ -87,6 +95,8 @@ __all__ = [
 ]
 
 CURVATURE_CODE = {"none": 0, "linear": 1, "exact": 2}
+AXIAL_LAW_CODE = {"green-lagrange": 0, "linear": 1}
+_LINEAR_LAW = 1
 _LINEAR = 1
 _EXACT = 2
 
@@ -97,7 +107,8 @@ class KernelTables:
 
     Shapes (n = n_elem, q = n_gauss): ``dS``, ``d2S`` (n, q, 4); ``wEA``, ``wEI`` (n, q) Gauss weight
     * L * EA and * EI; ``EA`` (n,); ``Kb`` (n, 8, 8) linear bending matrix (zeros unless curvature
-    "linear"); ``curvature`` the code of `CURVATURE_CODE`.
+    "linear"); ``curvature`` the code of `CURVATURE_CODE`; ``axial_law`` the code of `AXIAL_LAW_CODE`
+    (the ``law`` argument of the force, tangent and energy kernels).
     """
 
     dS: np.ndarray
@@ -107,6 +118,7 @@ class KernelTables:
     EA: np.ndarray
     Kb: np.ndarray
     curvature: int
+    axial_law: int = 0
 
     @property
     def args(self) -> tuple:
@@ -126,7 +138,7 @@ def tables_from_elements(el: ancf.ElementSet) -> KernelTables:
         raise ValueError("the bending matrix couples x and y components: not kb (x) I2")
     return KernelTables(dS=_plain(el.dS), d2S=_plain(el.d2S), wEA=_plain(el.wL * el.EA[:, None]),
                         wEI=_plain(el.wL * el.EI[:, None]), EA=_plain(el.EA), Kb=_plain(el.K_bend),
-                        curvature=int(CURVATURE_CODE[el.curvature]))
+                        curvature=int(CURVATURE_CODE[el.curvature]), axial_law=int(AXIAL_LAW_CODE[el.axial_law]))
 
 
 # The functions allocate nothing: a cached numba library whose code allocates (np.empty) makes numba
@@ -155,9 +167,21 @@ def _slope(E, r, tab, k, g):
     return x, y
 
 
+@njit(inline="always", **KERNEL)
+def _axial_coefficients(wEA, A, law):
+    """(s, cG) of one Gauss point: the coefficient of G in the axial force and of G G^T in its tangent
+    (module docstring: wEA eps and wEA for "green-lagrange", wEA (1 - 1/lambda) and wEA / lambda^3 for
+    "linear")."""
+    if law == _LINEAR_LAW:
+        il = 1.0 / np.sqrt(A)
+        return wEA * (1.0 - il), wEA * (il * il * il)
+    return 0.5 * wEA * (A - 1.0), wEA
+
+
 @njit(**KERNEL)
-def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f):
-    """f (n, 8) = dU/de at E (n, 8), as `ancf.internal_forces` (Eq. 14 + Eq. 17 or Eq. 16)."""
+def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f, law=0):
+    """f (n, 8) = dU/de at E (n, 8), as `ancf.internal_forces` (Eq. 14 + Eq. 17 or Eq. 16; law: the
+    axial law's code, `AXIAL_LAW_CODE`)."""
     n, nq, _ = dS.shape
     for k in range(n):
         for i in range(8):
@@ -165,7 +189,7 @@ def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f):
         for g in range(nq):
             rx, ry = _slope(E, k, dS, k, g)
             A = rx * rx + ry * ry
-            s = 0.5 * wEA[k, g] * (A - 1.0)  # wEA eps
+            s = _axial_coefficients(wEA[k, g], A, law)[0]  # wEA eps (green-lagrange)
             if curvature == _EXACT:
                 px, py = _slope(E, k, d2S, k, g)
                 c = rx * py - ry * px
@@ -191,7 +215,7 @@ def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f):
 
 
 @njit(**KERNEL)
-def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K, work):
+def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K, work, law=0):
     """f (n, 8) = dU/de and K (n, 8, 8) = df/de (exactly symmetric) at E (n, 8), as
     `ancf.internal_forces_and_tangent` (work: `Scratch`, its cf, ce, h).
 
@@ -208,8 +232,8 @@ def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K, work):
         for g in range(nq):
             rx, ry = _slope(E, k, dS, k, g)
             A = rx * rx + ry * ry
-            s = 0.5 * wEA[k, g] * (A - 1.0)  # coefficient of P_q in the secant matrix
-            cG = wEA[k, g]  # coefficient of G G^T
+            # s: coefficient of P_q in the secant matrix, cG of G G^T (wEA eps, wEA: green-lagrange)
+            s, cG = _axial_coefficients(wEA[k, g], A, law)
             if exact:
                 px, py = _slope(E, k, d2S, k, g)
                 c = rx * py - ry * px
@@ -410,7 +434,7 @@ def element_damping_matrix(E, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C,
 
 
 @njit(**KERNEL)
-def element_strain_energy(E, dS, d2S, wEA, wEI, Kb, curvature, U):
+def element_strain_energy(E, dS, d2S, wEA, wEI, Kb, curvature, U, law=0):
     """U (n,) element strain energy at E (n, 8), as `ancf.strain_energy` (Eq. 13 + Eq. 16/17)."""
     n, nq, _ = dS.shape
     for k in range(n):
@@ -418,7 +442,7 @@ def element_strain_energy(E, dS, d2S, wEA, wEI, Kb, curvature, U):
         for g in range(nq):
             rx, ry = _slope(E, k, dS, k, g)
             A = rx * rx + ry * ry
-            eps = 0.5 * (A - 1.0)
+            eps = np.sqrt(A) - 1.0 if law == _LINEAR_LAW else 0.5 * (A - 1.0)  # (linear: lambda - 1)
             u += 0.5 * wEA[k, g] * (eps * eps)
             if curvature == _EXACT:
                 px, py = _slope(E, k, d2S, k, g)
@@ -534,20 +558,20 @@ def reduce_blocks(Ke, T, tsel, out, W):
 
 
 @njit(**KERNEL)
-def reduced_force(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out, work):
+def reduced_force(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out, work, law=0):
     """f_out (n_dof + 1,) = sum_e T^T f_e(e0 + T q_ext[idx]), the reduced elastic force
     (overwritten; f_out[n_dof] is padding); work: `Scratch`, its E and fe."""
     E = work.E
     fe = work.fe
     gather(q_ext, e0, T, idx, tsel, E)
-    element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe)
+    element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe, law)
     f_out[:] = 0.0
     scatter_vector(fe, T, idx, tsel, f_out)
 
 
 @njit(**KERNEL)
 def reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, f_out,
-                                     blocks_out, work):
+                                     blocks_out, work, law=0):
     """The reduced elastic force f_out (n_dof + 1,) (overwritten, as `reduced_force`) and the
     tangent blocks blocks_out (n, m, m) = T^T K_e T of the Newton solvers, in one call (work:
     `Scratch`)."""
@@ -555,7 +579,7 @@ def reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, dS, d2S, wEA, wEI,
     fe = work.fe
     Ke = work.Ke
     gather(q_ext, e0, T, idx, tsel, E)
-    element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, fe, Ke, work)
+    element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, fe, Ke, work, law)
     f_out[:] = 0.0
     scatter_vector(fe, T, idx, tsel, f_out)
     reduce_blocks(Ke, T, tsel, blocks_out, work.W)

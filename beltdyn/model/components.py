@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    from beltdyn.model.geometry import Layout
     from beltdyn.model.system import System
 
 ENERGY_KINDS = ("rotational", "translational", "longitudinal", "transverse", "tensioner")
@@ -82,6 +83,27 @@ class BearingSprings(LinearComponent):
                 F += (preload[dof] - k_of[dof] * (q[:, dof] - free[dof]))[:, None] * vec
             rows.append(F)
         return {"bearing_force": np.stack(rows, axis=1)}
+
+
+def rotation_component(rot_dof: np.ndarray, inertia, rotational_damping) -> LinearComponent:
+    """The pulleys' rotations: inertia J_j (kg m^2) and the viscous torque to ground -d_j omega_j
+    (`rotational_damping` d_j, N m s/rad: a generator or pump load growing with speed), both diagonal
+    on the rotation DOFs rot_dof (n,); no damping matrix where every d_j is 0."""
+    d = np.asarray(rotational_damping, dtype=float)
+    return LinearComponent(name="pulley inertia", dofs=rot_dof, stiffness=None,
+                           damping=np.diag(d) if d.any() else None, mass=np.diag(np.asarray(inertia, dtype=float)),
+                           weight=None, free=None, energy_kind="rotational")
+
+
+def belt_rotation_rates(layout: "Layout", rot_dof: np.ndarray, n: int) -> np.ndarray:
+    """(n,) the pulleys' rotations per metre of belt travel, +-1/R_j at their rotation DOFs rot_dof (the
+    sign from the direction the belt leaves pulley j, (t x n_out-perp) / R: counter-clockwise positive),
+    0 elsewhere. The running drive at belt speed v turns pulley j at omega_j = v times this."""
+    u = np.zeros(n)
+    for j in range(layout.n):
+        n_out = layout.start_normal[j]
+        u[rot_dof[j]] = float(np.array([-n_out[1], n_out[0]]) @ layout.span_direction[j]) / layout.radius[j]
+    return u
 
 
 def arm_spring(components: tuple[LinearComponent, ...], dof: int) -> LinearComponent | None:

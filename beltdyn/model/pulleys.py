@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from beltdyn.config import DriveConfig
-from beltdyn.model.components import BearingSprings, LinearComponent
+from beltdyn.model.components import BearingSprings, LinearComponent, rotation_component
 from beltdyn.model.dofs import DofMap
 from beltdyn.model.supports import SUPPORT_CLASSES, Support, support_of
 
@@ -52,9 +52,8 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
     masses (components), the bearing springs' DOFs (k,), stiffness (k, k), pulleys and their names (None
     without any), and the supports with own components (support, its first DOF, pulley index)."""
     pulleys = cfg.pulleys
-    fixed: list[LinearComponent] = [LinearComponent(
-        name="pulley inertia", dofs=dofs.rot_dof, stiffness=None, damping=None,
-        mass=np.diag([p.inertia for p in pulleys]), weight=None, free=None, energy_kind="rotational")]
+    fixed: list[LinearComponent] = [rotation_component(dofs.rot_dof, [p.inertia for p in pulleys],
+                                                       [p.rotational_damping for p in pulleys])]
     masses: dict[str, tuple[list, list, list]] = {}  # energy kind -> translational DOFs, masses, weights
     t_dofs, k_spring, supported = [], [], []
     own = []

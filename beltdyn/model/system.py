@@ -37,7 +37,7 @@ import numpy as np
 from beltdyn.model import ancf
 from beltdyn.config import DriveConfig
 from beltdyn.errors import ConfigError
-from beltdyn.model.components import ENERGY_KINDS, LinearComponent, arm_spring
+from beltdyn.model.components import ENERGY_KINDS, LinearComponent, arm_spring, belt_rotation_rates
 from beltdyn.model.pulleys import PulleyParts, pulley_components, pulley_parts
 from beltdyn.model.barlaw import stretch_for_tension
 from beltdyn.model.geometry import Layout, layout_from_config
@@ -338,9 +338,20 @@ class System:
         return self.equilibrium(q, 0.0)
 
     def external_force(self, load_factor: float = 1.0) -> np.ndarray:
-        """(n_p,) the static load case on the joint coordinates: weight and accessory torques."""
+        """(n_p,) the static load case on the joint coordinates: weight and accessory torques, and at speed
+        the components' damping forces -C v_run at the steady running velocity (`running_damping_force`)."""
         F = load_factor * self.gravity_force
-        return F + load_factor * self.loads if self.loads is not None else F
+        F = F + load_factor * self.loads if self.loads is not None else F
+        return F - load_factor * self.running_damping_force() if self.belt_speed else F
+
+    def running_damping_force(self) -> np.ndarray:
+        """(n_p,) C v_run: the components' damping forces at the steady running velocity v_run = belt_speed
+        times `belt_rotation_rates` (the pulleys turning at omega_j = +-v / R_j; a pulley's
+        rotational_damping d gives d omega); 0 at rest or without damping components."""
+        if not self.belt_speed or self.linear_damping is None:
+            return np.zeros(self.n_p)
+        v_run = self.belt_speed * belt_rotation_rates(self.layout, self.rot_dof, self.n_p)
+        return np.asarray(self.linear_damping @ v_run, dtype=float).ravel()
 
     def equilibrium(self, q: np.ndarray, load_factor: float = 1.0, *, tangent: bool = True, joint: bool = False):
         """r(q) = J^T (f(p) - F) (n_dof,) and its tangent dr/dq: the static residual before the spring
@@ -623,6 +634,9 @@ def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
     return np.bincount(at, weights=[tq.value for tq in cfg.static.torque], minlength=dofs.n).astype(float)
 
 
+MAX_FIT_STRETCH = 1.2  # the largest stretch path / L0 a belt is fitted with (20 % strain: beyond, a wrong length)
+
+
 def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
     """The spans' stretch at q = 0 that the tension mode asks for (1: stress-free)."""
     target = cfg.tension.target
@@ -635,6 +649,11 @@ def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
                 f"the belt is {cfg.belt.length - layout.belt_length:.6g} m longer than its path "
                 f"({layout.belt_length:.6g} m): it is slack; set tension.target or make a pulley adjustable",
                 file=cfg.source, key="belt.length")
+        if lam - 1.0 > MAX_FIT_STRETCH - 1.0:
+            raise ConfigError(
+                f"the belt is {layout.belt_length - cfg.belt.length:.6g} m shorter than its path "
+                f"({layout.belt_length:.6g} m): it would need a stretch of {lam:.4g} (above {MAX_FIT_STRETCH:g}) "
+                f"to fit", file=cfg.source, key="belt.length")
         return lam
     return 1.0
 
