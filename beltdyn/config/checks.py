@@ -75,7 +75,7 @@ def _check_pulleys(chk: _Checker, raw: list[dict[str, Any]], pulleys: tuple[Pull
         if p.adjustable and p.support not in ("slide", "arm"):
             raise chk.fail(f"{key}.adjustable", "the adjustable pulley needs support = \"slide\" or \"arm\"")
         arm_keys = [k for k in ("arm_pivot", "arm_inertia", "arm_stiffness", "arm_free_angle", "arm_damping",
-                                "arm_friction", "arm_range") if k in praw]
+                                "arm_friction", "arm_friction_unloading", "arm_range") if k in praw]
         if p.support != "arm" and arm_keys:
             raise chk.fail(f"{key}.{arm_keys[0]}", "only a pulley with support = \"arm\" has arm settings")
         if p.support == "arm":
@@ -84,6 +84,9 @@ def _check_pulleys(chk: _Checker, raw: list[dict[str, Any]], pulleys: tuple[Pull
             if any(p.bearing_stiffness):
                 raise chk.fail(f"{key}.bearing_stiffness", "an arm pulley has no bearing spring: its arm has "
                                                           "arm_stiffness (N m/rad)")
+            if p.arm_friction_unloading is not None and p.arm_free_angle is None:
+                raise chk.fail(f"{key}.arm_friction_unloading", "needs arm_free_angle: loading and unloading are "
+                                                               "the arm turning away from and toward it")
             if p.arm_length <= p.radius:
                 raise chk.fail(f"{key}.arm_pivot", f"the pivot lies inside the pulley (arm length "
                                                   f"{p.arm_length:.6g} m <= radius {p.radius:g} m)")

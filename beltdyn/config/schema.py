@@ -37,7 +37,8 @@ class Pulley:
     bearing_stiffness, N/m), "bearing" (moves in x and y against bearing_stiffness (kx, ky), N/m) or
     "arm" (a tensioner: the centre turns about arm_pivot on an arm of length |center - arm_pivot|,
     angle phi counter-clockwise from +x, against the torsion spring arm_stiffness (zero torque at
-    arm_free_angle), viscous arm_damping and the dry friction torque arm_friction; the pulley's mass
+    arm_free_angle), viscous arm_damping and the dry friction torques arm_friction (loading: turning away from
+    arm_free_angle) and arm_friction_unloading (turning toward it); the pulley's mass
     adds m l^2 to arm_inertia through the kinematics).
     adjustable: the pulley moved along its slide (turned on its arm) to fit L0 and to set the tension.
     friction: effective coefficient of friction belt-pulley (V-ribbed: the wedge-effective value), for
@@ -76,7 +77,12 @@ class Pulley:
     arm_damping: float = key(NONNEGFLOAT, 0.0, omit_default=True, doc="viscous damping of the arm",
                              units="N m s/rad")
     arm_friction: float = key(NONNEGFLOAT, 0.0, omit_default=True,
-                              doc="dry friction torque of the arm's pivot damper (transient only)", units="N m")
+                              doc="dry friction torque of the arm's pivot damper while the arm is loaded (turns "
+                                  "away from arm_free_angle, winding its spring; transient only)", units="N m")
+    arm_friction_unloading: float | None = key(NONNEGFLOAT, None,
+                                               doc="dry friction torque while the arm is unloaded (turns toward "
+                                                   "arm_free_angle, following the belt; needs arm_free_angle; "
+                                                   "not set: arm_friction; transient only)", units="N m")
     arm_range: tuple[float, float] | None = key(RANGE2, None, doc="[min, max] arm angle between the stops",
                                                 units="rad")
     friction: float | None = key(POSFLOAT, None, doc="effective belt-pulley friction coefficient (slip margin)",
