@@ -79,3 +79,42 @@ def test_pure_order_excitation_at_constant_speed_is_one_order():
     big = fit2 > 1e-9 * np.abs(x).max(axis=0)
     assert np.all(np.abs(amp2[:, big] / fit2[big] - 1.0) < 5e-3)
     assert np.all(ot.amplitude[:, [0, 1, 2, 4], :][:, :, big] < 1e-3 * amp2[:, None, big])
+
+
+def test_transient_writes_the_order_amplitudes(tmp_path):
+    # beltdyn transient with [transient.orders]: /transient order_amplitude and order_phase (speed, order,
+    # channel), the same numbers as order_tracking on the file's own histories (1e-12), speed in rad/s
+    import subprocess
+    import sys
+
+    import h5py
+
+    exe = str(Path(sys.executable).parent / "beltdyn")
+    out = tmp_path / "o.h5"
+    r = subprocess.run([exe, "transient", str(FEAD), "-o", str(out), "--set", "transient.duration=0.35",
+                        "--set", "transient.spectrum.enabled=false",
+                        "--set", "transient.orders={orders=[1.0, 2.0, 4.0], reference='CRK'}"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(out) as f:
+        g = f["transient"]
+        amp, phase, speed = g["order_amplitude"][()], g["order_phase"][()], g["speed"][()]
+        channels = [c.decode() for c in g["channel"][()]]
+        t, angle = g["time"][()], g["pulley_angle"][()]
+        names = [n.decode() for n in g["pulley"][()]]
+        tension = g["span_tension"][()]
+    assert amp.shape == phase.shape == (speed.size, 3, len(channels)) and speed.size == 2  # 4.7 turns: 2 windows
+    np.testing.assert_allclose(speed, 83.8, rtol=1e-3)
+    k = channels.index(next(c for c in channels if c.startswith("span_tension[")))
+    ref = order_tracking(t, angle[:, names.index("CRK")], tension.reshape(t.size, -1)[:, 0], [1.0, 2.0, 4.0])
+    np.testing.assert_allclose(amp[:, :, k], ref.amplitude[:, :, 0], rtol=1e-12)
+
+
+def test_orders_the_windows_cannot_resolve_exit_2(tmp_path):
+    import subprocess
+    import sys
+
+    exe = str(Path(sys.executable).parent / "beltdyn")
+    r = subprocess.run([exe, "transient", str(FEAD), "-o", str(tmp_path / "o.h5"),
+                        "--set", "transient.orders={orders=[1.25]}"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "transient.orders.orders" in r.stderr + r.stdout and "Traceback" not in r.stderr

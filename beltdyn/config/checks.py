@@ -170,6 +170,22 @@ def _check_transient(chk: _Checker, t: TransientOptions, pulleys: tuple[Pulley, 
     if t.spectrum.enabled and t.spectrum.start >= t.duration:
         raise chk.fail("transient.spectrum.start", f"must be < transient.duration ({t.duration:g} s), got "
                                                    f"{t.spectrum.start:g}; or set transient.spectrum.enabled = false")
+    if t.orders.orders:
+        o = t.orders
+        if o.reference is not None:
+            _pulley_index(chk, "transient.orders.reference", o.reference, names)
+        elif not t.rotation:
+            raise chk.fail("transient.orders.reference", "missing key: no [[transient.rotation]] to take the "
+                                                         "reference pulley from")
+        if not t.record.pulley_angles:
+            raise chk.fail("transient.record.pulley_angles", "order tracking needs the pulley angles recorded")
+        kr = [k * o.revolutions for k in o.orders]
+        if any(k <= 0 or abs(k - round(k)) > 1e-9 for k in kr):
+            raise chk.fail("transient.orders.orders", f"each order must be a positive multiple of 1/{o.revolutions} "
+                                                      f"(whole cycles per window of transient.orders.revolutions)")
+        if max(o.orders) >= o.samples / 2:
+            raise chk.fail("transient.orders.orders", f"must stay below {o.samples / 2:g} (half of "
+                                                      f"transient.orders.samples)")
     if t.step is not None and t.min_step > t.step:
         raise chk.fail("transient.min_step", f"must be <= transient.step ({t.step:g} s)")
     if (t.accuracy is None) != (t.fmax is None):

@@ -396,6 +396,22 @@ class SpectrumOptions:
 
 
 @dataclass(frozen=True, kw_only=True)
+class OrderOptions:
+    """[transient.orders]: run-up order tracking (`beltdyn.analysis.orders`): the recorded span tensions,
+    hub loads, arm angles and pulley speeds resampled against the reference pulley's angle and analysed
+    per window of whole revolutions: /transient order_amplitude and order_phase (speed, order, channel)."""
+
+    orders: tuple[float, ...] = key(_Numbers(), (), omit_default=True, units="1",
+                                    doc="engine orders tracked (cycles per revolution of the reference; none: "
+                                        "no tracking); each a multiple of 1/revolutions")
+    reference: str | None = key(STR, None, doc="pulley whose angle the orders count (not set: the pulley of "
+                                               "[[transient.rotation]])")
+    revolutions: int = key(POSINT, 2, omit_default=True, doc="revolutions of the reference per analysed window")
+    samples: int = key(POSINT, 64, omit_default=True, doc="samples per revolution of the angle grid (the "
+                                                          "orders stay below half of it)")
+
+
+@dataclass(frozen=True, kw_only=True)
 class TransientOptions:
     """Generalized-alpha time integration (Chung-Hulbert) of the nonlinear drive.
 
@@ -439,6 +455,8 @@ class TransientOptions:
     damping: Damping = key(_Table(Damping), factory=Damping, doc="[transient.damping]: Rayleigh and belt damping")
     spectrum: SpectrumOptions = key(_Table(SpectrumOptions), factory=SpectrumOptions,
                                     doc="[transient.spectrum]: spectra of the recorded series")
+    orders: OrderOptions = key(_Table(OrderOptions), factory=OrderOptions,
+                               doc="[transient.orders]: run-up order tracking against a reference pulley")
     rotation: tuple[Rotation, ...] = key(_Array(Rotation), (), doc="[[transient.rotation]]: at most one "
                                                                    "prescribed pulley rotation")
     loads: tuple[Load, ...] = key(_Loads(), (), doc="[[transient.torque]] and [[transient.hub_force]]: "
