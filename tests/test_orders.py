@@ -108,6 +108,18 @@ def test_transient_writes_the_order_amplitudes(tmp_path):
     k = channels.index(next(c for c in channels if c.startswith("span_tension[")))
     ref = order_tracking(t, angle[:, names.index("CRK")], tension.reshape(t.size, -1)[:, 0], [1.0, 2.0, 4.0])
     np.testing.assert_allclose(amp[:, :, k], ref.amplitude[:, :, 0], rtol=1e-12)
+    # the transient figure draws the waterfall: per order the largest span tension amplitude against the
+    # speed (the file's numbers), every curve distinct, no text over another
+    from beltdyn.plot import alike_curves, figure, overlapping_texts, read_results
+
+    fig = figure("transient", read_results(out))
+    lines = {ln.get_gid(): ln for ax in fig.axes for ln in ax.get_lines() if ln.get_gid()}
+    spans = [i for i, c in enumerate(channels) if c.startswith("span_tension[")]
+    for j, order in enumerate((1, 2, 4)):
+        x, y = lines[f"order span_tension {order}"].get_data()
+        np.testing.assert_allclose(x, speed, rtol=1e-15)
+        np.testing.assert_allclose(y, amp[:, j, spans].max(axis=1), rtol=1e-15)
+    assert overlapping_texts(fig) == [] and alike_curves(fig) == []
 
 
 def test_orders_the_windows_cannot_resolve_exit_2(tmp_path):
