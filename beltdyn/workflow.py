@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from beltdyn.analysis.orders import order_tracking
 from beltdyn.analysis.spectrum import amplitude_spectrum, find_peaks
 from beltdyn.analysis.timestep import describe, frequency_error, step_warnings
 from beltdyn.analysis.transient import TransientSnapshot, prepare, run_transient, snapshot_bytes, snapshot_from_bytes
@@ -38,6 +39,7 @@ from beltdyn.errors import ConfigError, OutputError
 from beltdyn.pipeline import Analysis, transient_start
 from beltdyn.results.io import GroupData, StreamWriter, Variable, WriteFailure, fsync_dir, read_group, recover
 
+ORDER_SERIES = ("span_tension", "hub_load", "arm_angle", "pulley_speed")  # tracked by [transient.orders]
 SPECTRUM_SERIES = ("span_tension", "hub_load", "bearing_force", "midspan_displacement", "pulley_speed", "driver_torque",
                    "arm_angle")
 
@@ -243,6 +245,10 @@ def transient_to_file(plan: TransientPlan, opts, *, output: Path, config_toml: s
                          step_halvings=summary.step_halvings, smallest_step_s=summary.min_step,
                          n_slack_events=int(len(ev)),
                          warnings=list(early) + [w for w in summary.warnings if w not in early])
+        if opts.orders.orders:
+            late = order_tracking_variables(writer, setup, opts, model.layout.names)
+            if late:
+                writer.set_attrs(warnings=list(early) + [w for w in summary.warnings if w not in early] + late)
         if np.isfinite(summary.worst_slip_margin[0]):
             writer.set_attrs(worst_slip_margin=summary.worst_slip_margin[0],
                              worst_slip_time_s=summary.worst_slip_margin[1],
@@ -259,6 +265,38 @@ def transient_to_file(plan: TransientPlan, opts, *, output: Path, config_toml: s
     shutil.rmtree(folder, ignore_errors=True)  # complete: nothing to resume
     return TransientOutcome(summary=summary, spans=spans, peaks=tuple(peaks),
                             excitation_frequency=setup.excitation_frequency)
+
+
+def order_tracking_variables(writer, setup, opts, pulley_names) -> list[str]:
+    """/transient order_amplitude and order_phase (speed, order, channel) of the recorded ORDER_SERIES
+    against the reference pulley's angle (`analysis.orders.order_tracking`, options [transient.orders]),
+    added to `writer`; returns warnings (the run too short for one window: nothing added)."""
+    o = opts.orders
+    ref = o.reference if o.reference is not None else opts.rotation[0].pulley
+    j = list(pulley_names).index(ref)
+    t = writer.read("time")
+    chosen = [s for s in setup.series if s.name in ORDER_SERIES]
+    labels = [lab for s in chosen for lab in channel_labels(s, setup.coords)]
+    values = np.column_stack([writer.read(s.name).reshape(len(t), -1) for s in chosen])
+    try:
+        ot = order_tracking(t, writer.read("pulley_angle")[:, j], values, o.orders, revolutions=o.revolutions,
+                            samples=o.samples)
+    except ValueError as err:
+        return [f"order tracking skipped: {err}"]
+    units = [s.units for s in chosen for _ in channel_labels(s, setup.coords)]
+    dims = ("speed", "order", "channel")
+    writer.add_variables((
+        Variable(name="order_amplitude", data=ot.amplitude, dims=dims, units="mixed (see order_unit)",
+                 description=f"amplitude of each order of each channel per window of {o.revolutions} revolutions "
+                             f"of {ref} (its mean speed)"),
+        Variable(name="order_phase", data=ot.phase, dims=dims, units="rad",
+                 description=f"phase of each order: amplitude cos(order theta + phase), theta the angle of {ref} "
+                             f"from the first sample"),
+        Variable(name="order_unit", data=units, dims=("channel",), units="1"),
+        Variable(name="order_time", data=ot.time, dims=("speed",), units="s", description="middle of each window")),
+        coords={"speed": ot.speed, "order": ot.orders, "channel": labels},
+        coord_units={"speed": "rad/s", "order": "1", "channel": "1"})
+    return []
 
 
 def slack_events_group(ev: np.ndarray, spans: tuple[str, ...]) -> GroupData:

@@ -1,7 +1,7 @@
 """The stepper's compiled arm kinematics (`integrator.complete`, `integrator.project`) held to the
 numpy one (`model.arms.ArmJoints`: expand, expand_motion, expand_acceleration, project, dense_jacobian)
 on random states, 1e-12; the dry-friction bristle (`arm_friction`, `slide_anchors`) against its
-closed form clip(k_b (phi - z), -T_f, T_f)."""
+closed form clip(k_b (phi - z), -T_down, T_up) (symmetric and by sense)."""
 
 from __future__ import annotations
 
@@ -68,7 +68,8 @@ def test_bristle_friction_is_the_clipped_spring():
     # two arms with friction T_f, one without; torque clip(k_b (phi - z), -T_f, T_f), stored energy
     # tau^2 / (2 k_b); the return mapping moves an anchor to within T_f / k_b of the angle
     arms = itg.Arms(dof=np.array([0, 1, 2]), slot=np.array([3, 5, 7]), length=np.ones(3), angle=np.zeros(3),
-                    friction=np.array([2.0, 3.0, 0.0]), bristle=np.array([2000.0, 3000.0, 1.0]),
+                    friction_up=np.array([2.0, 3.0, 0.0]), friction_down=np.array([2.0, 3.0, 0.0]),
+                    bristle=np.array([2000.0, 3000.0, 1.0]),
                     anchor=np.zeros(3), n_q=3)
     q = np.array([5e-4, -4e-3, 0.7, 0, 0, 0, 0, 0, 0])
     f = np.zeros(9)
@@ -78,3 +79,37 @@ def test_bristle_friction_is_the_clipped_spring():
     assert stored == pytest.approx(tau[0] ** 2 / 4000.0 + 9.0 / 6000.0, rel=1e-15)
     itg.slide_anchors(arms, q)
     np.testing.assert_allclose(arms.anchor, [0.0, -4e-3 + 1e-3, 0.0], rtol=1e-15)
+
+
+def test_asymmetric_bristle_slides_at_its_limit_by_sense():
+    # T_up = 2 (counter-clockwise), T_down = 0.5 (clockwise), k_b = 2000: the closed form clip(k_b (phi - z),
+    # -T_down, T_up) on both sides; the return mapping leaves the anchor T_up / k_b behind a counter-clockwise
+    # slide and T_down / k_b ahead of a clockwise one
+    arms = itg.Arms(dof=np.array([0, 1, 2]), slot=np.array([3, 5, 7]), length=np.ones(3), angle=np.zeros(3),
+                    friction_up=np.full(3, 2.0), friction_down=np.full(3, 0.5), bristle=np.full(3, 2000.0),
+                    anchor=np.zeros(3), n_q=3)
+    q = np.array([5e-3, -5e-3, -1e-4, 0, 0, 0, 0, 0, 0])
+    f = np.zeros(9)
+    stored = itg.arm_friction(arms, q, f)
+    tau = np.array([2.0, -0.5, -0.2])
+    np.testing.assert_allclose(f[:3], tau, rtol=1e-15)
+    assert stored == pytest.approx(float(np.sum(tau**2)) / 4000.0, rel=1e-15)
+    itg.slide_anchors(arms, q)
+    np.testing.assert_allclose(arms.anchor, [5e-3 - 1e-3, -5e-3 + 2.5e-4, 0.0], rtol=1e-15)
+
+
+def test_friction_by_sense_maps_loading_and_unloading():
+    # loading = turning away from the free angle: counter-clockwise above it, clockwise below it
+    from beltdyn.model.arms import friction_by_sense
+
+    cfg = load_config(WITH_ARMS[1], ["pulleys[2].arm_friction=0.8", "pulleys[2].arm_friction_unloading=0.2",
+                                     "pulleys[2].arm_free_angle=3.0"])
+    p = cfg.pulleys[2]
+    assert friction_by_sense(p, 3.1) == (0.8, 0.2)
+    assert friction_by_sense(p, 2.9) == (0.2, 0.8)
+    system = build_system(cfg)
+    k = system.arms.pulleys.index(2)
+    expect = (0.8, 0.2) if system.arms.angle[k] >= 3.0 else (0.2, 0.8)
+    assert tuple(system.arms.friction[k]) == expect
+    arms = stepper_arms(system)
+    assert (arms.friction_up[k], arms.friction_down[k]) == expect and arms.bristle[k] == 0.8 / itg.ARM_PRESLIDING

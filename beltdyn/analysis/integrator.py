@@ -59,7 +59,9 @@ weights apply to the projected terms, each at its own time (Chung-Hulbert for no
 An arm's dry friction torque T_f is regularized as an elasto-plastic (bristle, Dahl-type) element: a
 stiff torsion spring k_b = T_f / delta (presliding angle delta = `ARM_PRESLIDING`) from an anchor
 angle z that slides when the torque reaches T_f (a return mapping after each accepted step):
-torque = clip(k_b (phi - z), -T_f, T_f). It sticks exactly (no creep) and slides at exactly T_f;
+torque = clip(k_b (phi - z), -T_down, T_up), with two limits by sense (asymmetric damping: T_up while
+the arm slides counter-clockwise, T_down clockwise; `model.arms.friction_by_sense` maps loading and
+unloading onto them) and k_b from the larger. It sticks exactly (no creep) and slides at exactly its limit;
 its stiffness k_b enters the iteration matrix like a spring, not like a damper over the step, so the
 stick-slip transitions keep the factor (a tanh(phi'/omega) law put T_f / omega / h there and forced
 step halvings). Its work is dissipated, less the bristle's stored energy tau^2 / (2 k_b).
@@ -407,13 +409,14 @@ def project(arms, q, x, out, absolute=False):
 
 @njit(**KERNEL)
 def arm_friction(arms, q, f):
-    """Add the arms' dry friction torques clip(k_b (phi - z), -T_f, T_f) to f (on the angles); returns
-    the bristles' stored energy sum tau^2 / (2 k_b)."""
+    """Add the arms' dry friction torques clip(k_b (phi - z), -T_down, T_up) to f (on the angles); returns
+    the bristles' stored energy sum tau^2 / (2 k_b). T_up, T_down: the limits sliding counter-clockwise
+    and clockwise (arms.friction_up, arms.friction_down: loading or unloading by the arm's sense)."""
     stored = 0.0
     for k in range(arms.dof.shape[0]):
-        if arms.friction[k] != 0.0:
+        if arms.friction_up[k] != 0.0 or arms.friction_down[k] != 0.0:
             d = arms.dof[k]
-            tau = min(max(arms.bristle[k] * (q[d] - arms.anchor[k]), -arms.friction[k]), arms.friction[k])
+            tau = min(max(arms.bristle[k] * (q[d] - arms.anchor[k]), -arms.friction_down[k]), arms.friction_up[k])
             f[d] += tau
             stored += 0.5 * tau * tau / arms.bristle[k]
     return stored
@@ -421,16 +424,17 @@ def arm_friction(arms, q, f):
 
 @njit(**KERNEL)
 def slide_anchors(arms, q):
-    """Return mapping after an accepted step: an anchor whose bristle torque exceeds T_f slides along."""
+    """Return mapping after an accepted step: an anchor whose bristle torque exceeds its limit (T_up
+    counter-clockwise, T_down clockwise) slides along."""
     for k in range(arms.dof.shape[0]):
-        if arms.friction[k] != 0.0:
+        if arms.friction_up[k] != 0.0 or arms.friction_down[k] != 0.0:
             d = arms.dof[k]
             e = q[d] - arms.anchor[k]
-            lim = arms.friction[k] / arms.bristle[k]
-            if e > lim:
-                arms.anchor[k] = q[d] - lim
-            elif e < -lim:
-                arms.anchor[k] = q[d] + lim
+            up, down = arms.friction_up[k] / arms.bristle[k], arms.friction_down[k] / arms.bristle[k]
+            if e > up:
+                arms.anchor[k] = q[d] - up
+            elif e < -down:
+                arms.anchor[k] = q[d] + down
 
 
 @njit(**KERNEL)

@@ -41,13 +41,17 @@ Events = namedtuple("Events", ["data", "n", "slack"])
 Transport = namedtuple("Transport", ["A", "G", "B", "a0", "b0", "speed", "follow", "mag"])
 Fused = namedtuple("Fused", ["indptr", "indices", "data"])  # data (k, nnz): k matrices on one CSR pattern
 # tensioner arms: q index of the angle, p index of the centre offset x (y: + 1), arm length, angle at q = 0,
-# dry friction torque, its bristle stiffness and anchor angle (state); n_q the independent coordinates (p[:n_q] = q)
-Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction", "bristle", "anchor", "n_q"])
+# the dry friction torque limits of the bristle torque tau = k_b (phi - z): friction_up (tau > 0, the arm sliding
+# counter-clockwise) and friction_down (its magnitude for tau < 0, clockwise), the bristle stiffness k_b and the
+# anchor angle z (state); n_q the independent coordinates (p[:n_q] = q)
+Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction_up", "friction_down", "bristle", "anchor",
+                           "n_q"])
 # The stepper's model, its named parts built in one place (`transient.stepper_model`): the belt (BeltData),
 # the linear part (Linear), forcing (Forcing), constraints (prescribed rotations, Constraints), the convergence
 # check (Check), the arms with their dry friction (Arms) and the running belt's transport (Transport).
 StepperModel = namedtuple("StepperModel", ["belt", "linear", "forcing", "constraints", "check", "arms", "transport"])
-ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry friction (bristle stiffness T_f / this);
+ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry friction (bristle stiffness: the larger
+# of the two limits / this);
 # 1e-4 rad gave the same hysteresis (0.1 %) and cost 20 % more Newton work on the FEAD example
 
 # The stepper's scratch, allocated once per run by `workspace` and cleared at every call of `advance`:
@@ -65,7 +69,7 @@ Work = namedtuple("Work", ["ext", "vec", "proj", "elem", "elem1", "group", "wors
 
 def no_arms(n: int) -> Arms:
     return Arms(dof=np.zeros(0, dtype=np.int64), slot=np.zeros(0, dtype=np.int64), length=np.zeros(0),
-                angle=np.zeros(0), friction=np.zeros(0), bristle=np.zeros(0), anchor=np.zeros(0), n_q=n)
+                angle=np.zeros(0), friction_up=np.zeros(0), friction_down=np.zeros(0), bristle=np.zeros(0), anchor=np.zeros(0), n_q=n)
 
 
 def no_transport(n: int) -> Transport:

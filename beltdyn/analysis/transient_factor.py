@@ -94,6 +94,13 @@ def _belt_damping_matrix(system: System, setup: TransientSetup, q: np.ndarray, p
     return system.belt_damping_matrix(q, Ce)
 
 
+def sticking(arms, q: np.ndarray) -> np.ndarray:
+    """(a,) bool: the arms' bristles strictly inside their limits, -T_down < k_b (phi - z) < T_up (stepper
+    `Arms`, q the state's head on the independent coordinates)."""
+    tau = arms.bristle * (q[arms.dof] - arms.anchor)
+    return (tau < arms.friction_up) & (tau > -arms.friction_down)
+
+
 def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: float, rho_inf: float,
                       v: np.ndarray | None = None, arms=None, t: float = 0.0):
     """S = c_m M + c_c (C + C_belt(q) + c G) + (1 - alpha_f) (K_t(q) - c^2 B + c' A) on q (prescribed DOFs
@@ -131,10 +138,9 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
         f_loaded = f + system.linear_force(p) - system.external_force(1.0)
         S = system.arms.project_matrix(q, S, (1.0 - af) * f_loaded, dense=system.dense)
     diagonal = None
-    if arms is not None and np.any(arms.friction):  # a sticking bristle is a spring k_b on the arm angle
-        e = q[arms.dof] - arms.anchor
-        diagonal = np.zeros(system.n_dof)
-        diagonal[arms.dof] = (1.0 - af) * np.where(np.abs(arms.bristle * e) < arms.friction, arms.bristle, 0.0)
+    if arms is not None and (np.any(arms.friction_up) or np.any(arms.friction_down)):  # a sticking bristle is
+        diagonal = np.zeros(system.n_dof)  # a spring k_b on the arm angle
+        diagonal[arms.dof] = (1.0 - af) * np.where(sticking(arms, q), arms.bristle, 0.0)
     return S, diagonal
 
 
@@ -290,10 +296,8 @@ class IterationPlan:
             f_loaded = f + system.linear_force(p) - system.external_force(1.0)
             geo = np.einsum("kd,kd->k", a.second(phi), f_loaded[a.n_q:].reshape(len(a.dof), 2))
             np.add.at(ab, self.diag[a.dof], (1.0 - af) * geo)  # the geometric term of the loaded force
-            if np.any(arms.friction):  # a sticking bristle is a spring k_b on the arm angle
-                e = q[arms.dof] - arms.anchor
-                np.add.at(ab, self.diag[arms.dof],
-                          (1.0 - af) * np.where(np.abs(arms.bristle * e) < arms.friction, arms.bristle, 0.0))
+            if np.any(arms.friction_up) or np.any(arms.friction_down):  # a sticking bristle is a spring k_b
+                np.add.at(ab, self.diag[arms.dof], (1.0 - af) * np.where(sticking(arms, q), arms.bristle, 0.0))
         ab[self.diag[self.held]] = 1.0  # held DOFs: identity
         ab = ab.reshape(self.n, self.height).T  # (height, n), column-major
         perm, none, u = setup.perm, np.zeros(1, dtype=np.int64), self.u

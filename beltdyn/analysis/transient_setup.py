@@ -87,10 +87,11 @@ def stepper_arms(system: System):
     a = system.arms
     if a is None:
         return itg.no_arms(system.n_dof)
-    fric = a.friction if a.friction is not None else np.zeros(len(a.dof))
+    fric = a.friction if a.friction is not None else np.zeros((len(a.dof), 2))
+    top = fric.max(axis=1)
     return itg.Arms(dof=a.dof.astype(np.int64), slot=a.slot.astype(np.int64), length=a.length.astype(float),
-                    angle=a.angle.astype(float), friction=fric,
-                    bristle=np.where(fric > 0, fric / itg.ARM_PRESLIDING, 1.0),
+                    angle=a.angle.astype(float), friction_up=fric[:, 0].copy(), friction_down=fric[:, 1].copy(),
+                    bristle=np.where(top > 0, top / itg.ARM_PRESLIDING, 1.0),
                     anchor=np.zeros(len(a.dof)),  # the bristles relaxed at the start (set from q0 by `drive`)
                     n_q=int(system.n_dof))
 

@@ -87,7 +87,7 @@ def _check_pulleys(chk: _Checker, raw: list[dict[str, Any]], pulleys: tuple[Pull
         if p.adjustable and p.support not in ("slide", "arm"):
             raise chk.fail(f"{key}.adjustable", "the adjustable pulley needs support = \"slide\" or \"arm\"")
         arm_keys = [k for k in ("arm_pivot", "arm_inertia", "arm_stiffness", "arm_free_angle", "arm_damping",
-                                "arm_friction", "arm_range") if k in praw]
+                                "arm_friction", "arm_friction_unloading", "arm_range") if k in praw]
         if p.support != "arm" and arm_keys:
             raise chk.fail(f"{key}.{arm_keys[0]}", "only a pulley with support = \"arm\" has arm settings")
         if p.support == "arm":
@@ -96,6 +96,9 @@ def _check_pulleys(chk: _Checker, raw: list[dict[str, Any]], pulleys: tuple[Pull
             if any(p.bearing_stiffness):
                 raise chk.fail(f"{key}.bearing_stiffness", "an arm pulley has no bearing spring: its arm has "
                                                           "arm_stiffness (N m/rad)")
+            if p.arm_friction_unloading is not None and p.arm_free_angle is None:
+                raise chk.fail(f"{key}.arm_friction_unloading", "needs arm_free_angle: loading and unloading are "
+                                                               "the arm turning away from and toward it")
             if p.arm_length <= p.radius:
                 raise chk.fail(f"{key}.arm_pivot", f"the pivot lies inside the pulley (arm length "
                                                   f"{p.arm_length:.6g} m <= radius {p.radius:g} m)")
@@ -179,6 +182,22 @@ def _check_transient(chk: _Checker, t: TransientOptions, pulleys: tuple[Pulley, 
     if t.spectrum.enabled and t.spectrum.start >= t.duration:
         raise chk.fail("transient.spectrum.start", f"must be < transient.duration ({t.duration:g} s), got "
                                                    f"{t.spectrum.start:g}; or set transient.spectrum.enabled = false")
+    if t.orders.orders:
+        o = t.orders
+        if o.reference is not None:
+            _pulley_index(chk, "transient.orders.reference", o.reference, names)
+        elif not t.rotation:
+            raise chk.fail("transient.orders.reference", "missing key: no [[transient.rotation]] to take the "
+                                                         "reference pulley from")
+        if not t.record.pulley_angles:
+            raise chk.fail("transient.record.pulley_angles", "order tracking needs the pulley angles recorded")
+        kr = [k * o.revolutions for k in o.orders]
+        if any(k <= 0 or abs(k - round(k)) > 1e-9 for k in kr):
+            raise chk.fail("transient.orders.orders", f"each order must be a positive multiple of 1/{o.revolutions} "
+                                                      f"(whole cycles per window of transient.orders.revolutions)")
+        if max(o.orders) >= o.samples / 2:
+            raise chk.fail("transient.orders.orders", f"must stay below {o.samples / 2:g} (half of "
+                                                      f"transient.orders.samples)")
     if t.step is not None and t.min_step > t.step:
         raise chk.fail("transient.min_step", f"must be <= transient.step ({t.step:g} s)")
     if (t.accuracy is None) != (t.fmax is None):

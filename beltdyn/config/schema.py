@@ -50,7 +50,8 @@ class Pulley:
     bearing_stiffness, N/m), "bearing" (moves in x and y against bearing_stiffness (kx, ky), N/m) or
     "arm" (a tensioner: the centre turns about arm_pivot on an arm of length |center - arm_pivot|,
     angle phi counter-clockwise from +x, against the torsion spring arm_stiffness (zero torque at
-    arm_free_angle), viscous arm_damping and the dry friction torque arm_friction; the pulley's mass
+    arm_free_angle), viscous arm_damping and the dry friction torques arm_friction (loading: turning away from
+    arm_free_angle) and arm_friction_unloading (turning toward it); the pulley's mass
     adds m l^2 to arm_inertia through the kinematics).
     adjustable: the pulley moved along its slide (turned on its arm) to fit L0 and to set the tension.
     friction: effective coefficient of friction belt-pulley (V-ribbed: the wedge-effective value), for
@@ -94,7 +95,12 @@ class Pulley:
     arm_damping: float = key(NONNEGFLOAT, 0.0, omit_default=True, doc="viscous damping of the arm",
                              units="N m s/rad")
     arm_friction: float = key(NONNEGFLOAT, 0.0, omit_default=True,
-                              doc="dry friction torque of the arm's pivot damper (transient only)", units="N m")
+                              doc="dry friction torque of the arm's pivot damper while the arm is loaded (turns "
+                                  "away from arm_free_angle, winding its spring; transient only)", units="N m")
+    arm_friction_unloading: float | None = key(NONNEGFLOAT, None,
+                                               doc="dry friction torque while the arm is unloaded (turns toward "
+                                                   "arm_free_angle, following the belt; needs arm_free_angle; "
+                                                   "not set: arm_friction; transient only)", units="N m")
     arm_range: tuple[float, float] | None = key(RANGE2, None, doc="[min, max] arm angle between the stops",
                                                 units="rad")
     friction: float | None = key(POSFLOAT, None, doc="effective belt-pulley friction coefficient (slip margin)",
@@ -416,6 +422,22 @@ class SpectrumOptions:
 
 
 @dataclass(frozen=True, kw_only=True)
+class OrderOptions:
+    """[transient.orders]: run-up order tracking (`beltdyn.analysis.orders`): the recorded span tensions,
+    hub loads, arm angles and pulley speeds resampled against the reference pulley's angle and analysed
+    per window of whole revolutions: /transient order_amplitude and order_phase (speed, order, channel)."""
+
+    orders: tuple[float, ...] = key(_Numbers(), (), omit_default=True, units="1",
+                                    doc="engine orders tracked (cycles per revolution of the reference; none: "
+                                        "no tracking); each a multiple of 1/revolutions")
+    reference: str | None = key(STR, None, doc="pulley whose angle the orders count (not set: the pulley of "
+                                               "[[transient.rotation]])")
+    revolutions: int = key(POSINT, 2, omit_default=True, doc="revolutions of the reference per analysed window")
+    samples: int = key(POSINT, 64, omit_default=True, doc="samples per revolution of the angle grid (the "
+                                                          "orders stay below half of it)")
+
+
+@dataclass(frozen=True, kw_only=True)
 class TransientOptions:
     """Generalized-alpha time integration (Chung-Hulbert) of the nonlinear drive.
 
@@ -459,6 +481,8 @@ class TransientOptions:
     damping: Damping = key(_Table(Damping), factory=Damping, doc="[transient.damping]: Rayleigh and belt damping")
     spectrum: SpectrumOptions = key(_Table(SpectrumOptions), factory=SpectrumOptions,
                                     doc="[transient.spectrum]: spectra of the recorded series")
+    orders: OrderOptions = key(_Table(OrderOptions), factory=OrderOptions,
+                               doc="[transient.orders]: run-up order tracking against a reference pulley")
     rotation: tuple[Rotation, ...] = key(_Array(Rotation), (), doc="[[transient.rotation]]: at most one "
                                                                    "prescribed pulley rotation")
     loads: tuple[Load, ...] = key(_Loads(), (), doc="[[transient.torque]] and [[transient.hub_force]]: "

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from beltdyn.config import DriveConfig
+from beltdyn.model.angles import unwrap_near
 from beltdyn.model.dofs import DofMap
 from beltdyn.model.geometry import Layout
 from beltdyn.model.supports import support_of
@@ -59,7 +60,9 @@ class ArmJoints:
     angle: np.ndarray  # (a,) rad, arm angle at q = 0
     n_q: int
     n_p: int
-    friction: np.ndarray | None = None  # (a,) N m, dry friction torque of each arm's pivot damper (transient)
+    # (a, 2) N m, dry friction torque of each arm's pivot damper (transient) while the arm turns
+    # counter-clockwise (column 0) and clockwise (column 1): `friction_by_sense`
+    friction: np.ndarray | None = None
     stops: np.ndarray | None = None  # (a, 2) rad, arm_range (NaN: none)
     names: tuple[str, ...] = ()  # the arm pulleys' names
     pulleys: tuple[int, ...] = ()  # the arm pulleys' indices
@@ -201,9 +204,23 @@ def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoint
     return ArmJoints(dof=dofs.arm_dof[arms],
                      slot=np.array([dofs.trans_dof[j][0] for j in arms], dtype=np.int64),
                      pivot=np.array(pivots, dtype=float), length=length, angle=angle, n_q=dofs.n_q, n_p=dofs.n,
-                     friction=np.array([p.arm_friction for p in ps], dtype=float),
+                     friction=np.array([friction_by_sense(p, a) for p, a in zip(ps, angle.tolist())], dtype=float),
                      stops=np.array([p.arm_range or (np.nan, np.nan) for p in ps], dtype=float),
                      names=tuple(p.name for p in ps), pulleys=tuple(arms))
+
+
+def friction_by_sense(pulley, angle: float) -> tuple[float, float]:
+    """An arm's dry friction torques (N m) while it turns counter-clockwise and clockwise, at the working
+    angle `angle` (rad). Loading is the arm turning away from its spring's free angle (winding the spring:
+    the belt pushes it back), where arm_friction acts; unloading, toward it (the spring moves the arm
+    toward the belt), arm_friction_unloading (not set: arm_friction). The free angle is taken as the
+    spring's (`supports`): literal on the stops' branch, else the turn nearest the working angle; an arm
+    at its free angle counts counter-clockwise as loading."""
+    loading, unloading = pulley.arm_friction, pulley.arm_friction_unloading
+    if unloading is None or pulley.arm_free_angle is None:
+        return loading, loading
+    free = pulley.arm_free_angle if pulley.arm_range is not None else unwrap_near(pulley.arm_free_angle, angle)
+    return (loading, unloading) if angle >= free else (unloading, loading)
 
 
 def _arm_geometry(cfg: DriveConfig, layout: Layout, arms, pivots: list) -> tuple[np.ndarray, np.ndarray]:

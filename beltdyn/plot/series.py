@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from beltdyn.plot.data import SLIP_CAP, Results, channel_names
+from beltdyn.plot.orders import plot_waterfall, waterfall_panels
 from beltdyn.plot.style import curve_style, pyplot, separate
 
 HISTORIES = (("span_tension", "span tension (N)"), ("hub_load", "hub load magnitude (N)"),
@@ -58,7 +59,8 @@ def plot_transient(res: Results):
     t = np.asarray(g["coords"]["time"], dtype=float)
     shown = [(n, lab) for n, lab in HISTORIES if n in g["variables"]]
     spec = res.groups.get("transient/spectrum")
-    rows = len(shown) + (1 if spec is not None else 0)
+    orders = waterfall_panels(g)  # the run-up waterfall (`plot.orders`), below the spectrum
+    rows = len(shown) + (1 if spec is not None else 0) + len(orders)
     fig, axes = plt.subplots(rows, 1, figsize=(7.5, 2.0 * rows + 0.6), layout="constrained", squeeze=False)
     axes = axes[:, 0]
     for ax, (name, lab) in zip(axes, shown):
@@ -75,7 +77,9 @@ def plot_transient(res: Results):
             ax.legend(fontsize=6, ncol=2, loc="center left", bbox_to_anchor=(1.01, 0.5), title=note,
                       title_fontsize=6)
     if spec is not None:
-        plot_spectrum(axes[-1], res, spec)
+        plot_spectrum(axes[len(shown)], res, spec)
+    if orders:
+        plot_waterfall(axes[rows - len(orders):], g)
     return fig
 
 

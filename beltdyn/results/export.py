@@ -45,7 +45,7 @@ PARAM_UNITS = {
     "pulleys.*.center": "m", "pulleys.*.radius": "m", "pulleys.*.mass": "kg", "pulleys.*.inertia": "kg m^2",
     "pulleys.*.slide_direction": "1", "pulleys.*.bearing_stiffness": "N/m", "pulleys.*.slide_range": "m",
     "pulleys.*.arm_pivot": "m", "pulleys.*.arm_inertia": "kg m^2", "pulleys.*.arm_stiffness": "N m/rad",
-    "pulleys.*.arm_free_angle": "rad", "pulleys.*.arm_damping": "N m s/rad", "pulleys.*.arm_friction": "N m",
+    "pulleys.*.arm_free_angle": "rad", "pulleys.*.arm_damping": "N m s/rad", "pulleys.*.arm_friction": "N m", "pulleys.*.arm_friction_unloading": "N m",
     "pulleys.*.arm_range": "rad", "pulleys.*.friction": "1", "static.torque.*.value": "N m",
     "tension.target": "N", "mesh.elements_per_span": "1", "running.belt_speed": "m/s", "running.driver_speed": "rad/s",
     "model.gravity": "m/s^2", "model.gauss_points": "1",
