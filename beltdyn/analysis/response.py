@@ -115,7 +115,9 @@ def sticking_stiffness(system: System) -> np.ndarray:
     k = np.zeros(system.n_dof)
     arms = system.arms
     if arms is not None and arms.friction is not None:
-        k[np.asarray(arms.dof, dtype=np.int64)] += np.asarray(arms.friction, dtype=float) / ARM_PRESLIDING
+        friction = np.asarray(arms.friction, dtype=float)  # (arms,) or (arms, 2): by sense of rotation
+        stiff = friction.max(axis=1) if friction.ndim == 2 else friction  # the bristle's k_b: the larger limit
+        k[np.asarray(arms.dof, dtype=np.int64)] += stiff / ARM_PRESLIDING
     return k
 
 
