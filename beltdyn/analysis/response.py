@@ -109,15 +109,23 @@ def linearize(system: System, static: StaticResult, damping: Damping) -> LinearD
     return LinearDrive(M=lin.M, C=lin.C + lin.G if system.belt_speed else lin.C, K=K, q0=lin.q0)
 
 
+def arm_friction_limit(arms) -> np.ndarray:
+    """(n_arm,) N m: each arm's dry friction as the linear response holds it, the larger of its two
+    limits by sense of rotation (`ArmJoints.friction` (arms, 2)), whose bristle stiffness the stepper
+    uses too (`transient_setup`); 0 without friction."""
+    if arms.friction is None:
+        return np.zeros(len(arms.dof))
+    friction = np.asarray(arms.friction, dtype=float)
+    return friction.max(axis=1) if friction.ndim == 2 else friction
+
+
 def sticking_stiffness(system: System) -> np.ndarray:
     """(n_dof,) N m/rad: the arms' dry friction while they stick, k_f = T_f / delta on each arm's angle
     (the transient's elasto-plastic law below its presliding angle delta), 0 elsewhere."""
     k = np.zeros(system.n_dof)
     arms = system.arms
     if arms is not None and arms.friction is not None:
-        friction = np.asarray(arms.friction, dtype=float)  # (arms,) or (arms, 2): by sense of rotation
-        stiff = friction.max(axis=1) if friction.ndim == 2 else friction  # the bristle's k_b: the larger limit
-        k[np.asarray(arms.dof, dtype=np.int64)] += stiff / ARM_PRESLIDING
+        k[np.asarray(arms.dof, dtype=np.int64)] += arm_friction_limit(arms) / ARM_PRESLIDING
     return k
 
 
@@ -275,8 +283,7 @@ def solve_response(system: System, static: StaticResult, opts: ResponseOptions,
         notes.append("no damping: the amplitudes at the resonances are bounded only by the speed grid "
                      "(give [response.damping])")
     arms = system.arms
-    friction = (np.zeros(0) if arms is None else
-                np.zeros(len(arms.dof)) if arms.friction is None else np.asarray(arms.friction, dtype=float))
+    friction = np.zeros(0) if arms is None else arm_friction_limit(arms)
     if np.any(friction > 0):
         notes.append(f"the tensioner arms' dry friction is linear only while they stick: the response holds it as "
                      f"the spring T_f / {ARM_PRESLIDING:g} rad of the transient's presliding law (valid for arm "
