@@ -307,13 +307,15 @@ def test_transient_interrupt_keeps_steps(tmp_path):
 
 
 def test_static_start_with_prescribed_rotation_stays_at_rest():
-    # The prescribed pulley (C) is not the static driver (A): its static rotation is kept, so with a
-    # zero fluctuation the drive stays at its equilibrium: kinetic energy < 1e-12 J (round-off and the
-    # Newton tolerance; dropping the static rotation gave a 2.7e-5 J kick), bearing force constant to 1e-6 N.
+    # The prescribed pulley (C) is not the static driver (A): the transient starts from the static state, so
+    # with a zero fluctuation the drive stays at its equilibrium: kinetic energy < 1e-12 J (round-off and the
+    # Newton tolerance; dropping C's static state once gave a 2.7e-5 J kick), bearing force constant to
+    # 1e-6 N. C's static rotation is belt material moved over it, carried into the spans' reference lengths
+    # (issue 25: the span ends back on their tangent points), so the rotation itself is settled to ~0.
     cfg = load_config(ROOT / "configs/examples/bench_transient_small.toml",
                       ["transient.rotation[0].amplitude=0.0", "transient.duration=0.05", "transient.spectrum.enabled=false"])
     _, st, summary, out = collect(cfg)
-    assert abs(st.q[analyse(cfg, static=False).system.rot_dof[1]]) > 1e-6  # C does turn in the static solution
+    assert abs(st.q[analyse(cfg, static=False).system.rot_dof[1]]) < 1e-8  # C's turn carried into the spans
     assert out["energy"][:, 0].max() < 1e-12
     assert np.ptp(out["bearing_force"][:, 0, 0]) < 1e-6
 
