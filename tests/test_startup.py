@@ -141,11 +141,11 @@ def test_entry_kernels_are_the_kernels_transients_call_from_python():
 
     warm_up()
     out = _python(_RUN_ALL.format(cases=TRANSIENTS, root=str(ROOT)) + textwrap.dedent("""
-        from beltdyn.analysis import integrator
+        from beltdyn.analysis import band_solve, integrator
         from beltdyn.model import belt_kernel
         from beltdyn.model import spring_kernel
         from beltdyn.analysis.transient import entry_kernels
-        got = [o for m in (integrator, belt_kernel, spring_kernel) for o in vars(m).values()
+        got = [o for m in (integrator, band_solve, belt_kernel, spring_kernel) for o in vars(m).values()
                if hasattr(o, "py_func") and o.py_func.__module__ == m.__name__ and o.signatures]
         print(sorted(k.__name__ for k in got))
         print(sorted(k.__name__ for k in entry_kernels()))
