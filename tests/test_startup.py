@@ -162,6 +162,7 @@ def _cli_env(cache: Path, **extra) -> dict:
     return env
 
 
+@pytest.mark.slow  # three real compiles of the kernels (minutes of CPU each on numba 0.68): `make test-slow`
 def test_a_cold_cache_announces_and_compiles_a_warm_one_does_not_an_edited_source_is_cold(tmp_path):
     # A copy of the package with an empty numba cache (NUMBA_CACHE_DIR): the first `beltdyn transient`
     # announces the compile and compiles (numba saves the kernels), the second neither announces nor
