@@ -188,14 +188,15 @@ def samples_before(output: Path, snap: TransientSnapshot, names: list[str]) -> t
 def transient_to_file(plan: TransientPlan, opts, *, output: Path, config_toml: str, config_sha256: str,
                       notes: Callable[[list[str]], None] = lambda notes: None,
                       progress: Callable[[float], None] | None = None, resume: bool = False,
-                      source: str = "") -> TransientOutcome:
+                      source: str = "", checkpoint_seconds: float = CHECKPOINT_SECONDS) -> TransientOutcome:
     """Run the planned transient (options `opts`, the configuration's [transient]) streaming its histories
     into /transient of `output` (`results.io.StreamWriter`: running while it runs; complete, failed or
     interrupted at the end, the samples so far kept), then its summaries, slack events, spectra and
     peaks. notes: called with what the results layer did on its own (a recovered group) and with what
     a resume starts from; progress: called with the simulated time. resume: continue the interrupted
     run of `output` from its last checkpoint (`read_checkpoint`; source: the configuration file, for
-    its messages); the outcome is that of the whole run."""
+    its messages); the outcome is that of the whole run. checkpoint_seconds: wall time between the
+    checkpoints of its resume journal."""
     model, res, setup, early = plan.system, plan.static, plan.setup, plan.warnings
     shapes = {name: len(v) for name, v in setup.coords.items()}
     series = {s.name: (tuple(shapes[d] for d in s.dims), s.units, s.dims) for s in setup.series}
@@ -234,7 +235,7 @@ def transient_to_file(plan: TransientPlan, opts, *, output: Path, config_toml: s
 
         try:
             summary = run_transient(model, res, opts, sink=writer.append, progress=progress, setup=setup,
-                                    resume=snap, on_checkpoint=checkpoint, checkpoint_seconds=CHECKPOINT_SECONDS)
+                                    resume=snap, on_checkpoint=checkpoint, checkpoint_seconds=checkpoint_seconds)
         except Exception:  # a failed run is not resumed: it would fail again (the samples stay, marked failed)
             shutil.rmtree(folder, ignore_errors=True)
             raise

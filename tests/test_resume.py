@@ -26,9 +26,10 @@ from beltdyn.results.io import read_group
 
 ROOT = Path(__file__).resolve().parents[1]
 TRANSIENT = ROOT / "configs" / "examples" / "bench_transient_small.toml"
-# long enough for a few checkpoints (workflow.CHECKPOINT_SECONDS apart) on a busy machine, short
+# long enough for a few checkpoints (--checkpoint-every apart) on a fast machine as on a busy one, short
 # enough for the default suite; the spectrum (from 1 s) on the samples of both parts
-ARGS = ["--duration", "1.2", "--step", "2e-5"]  # 60000 steps: ~6 s of stepping
+ARGS = ["--duration", "1.2", "--step", "2e-5"]  # 60000 steps: 1.5-6 s of stepping
+OFTEN = ["--checkpoint-every", "0.1"]  # checkpoints 0.1 s apart, not the default 1 s (none in the configuration's hash)
 RTOL = 1e-9
 
 
@@ -78,7 +79,9 @@ def checkpoints_seen(proc, state: Path, count: int, timeout: float = 300.0) -> b
 def interrupt(out: Path, cwd: Path, sig: int, checkpoints: int) -> None:
     """Start the transient into `out` and send `sig` once `checkpoints` checkpoints were written (0:
     as soon as it streams samples, before its first checkpoint)."""
-    proc = processes.popen([*BELTDYN, "transient", str(TRANSIENT), "-o", str(out), *ARGS], cwd=cwd, env=_env())
+    often = OFTEN if checkpoints else []  # before any: the default 1 s leaves the time to interrupt first
+    proc = processes.popen([*BELTDYN, "transient", str(TRANSIENT), "-o", str(out), *ARGS, *often], cwd=cwd,
+                           env=_env())
     state = Path(str(out) + ".transient") / "state.bin"
     try:
         if checkpoints:
@@ -130,7 +133,8 @@ def test_resume_after_a_later_checkpoint_and_twice(tmp_path, reference, sig):
     # interrupted after its 3rd checkpoint, resumed, the resumed run interrupted again, resumed again
     out = tmp_path / "r.h5"
     interrupt(out, tmp_path, sig, 3)
-    proc = processes.popen([*BELTDYN, "transient", str(TRANSIENT), "-o", str(out), *ARGS, "--resume"], cwd=tmp_path,
+    proc = processes.popen([*BELTDYN, "transient", str(TRANSIENT), "-o", str(out), *ARGS, *OFTEN, "--resume"],
+                           cwd=tmp_path,
                            env=_env())
     state = Path(str(out) + ".transient") / "state.bin"
     before = state.stat().st_mtime_ns

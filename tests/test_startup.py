@@ -141,11 +141,11 @@ def test_entry_kernels_are_the_kernels_transients_call_from_python():
 
     warm_up()
     out = _python(_RUN_ALL.format(cases=TRANSIENTS, root=str(ROOT)) + textwrap.dedent("""
-        from beltdyn.analysis import integrator
+        from beltdyn.analysis import band_solve, integrator
         from beltdyn.model import belt_kernel
         from beltdyn.model import spring_kernel
         from beltdyn.analysis.transient import entry_kernels
-        got = [o for m in (integrator, belt_kernel, spring_kernel) for o in vars(m).values()
+        got = [o for m in (integrator, band_solve, belt_kernel, spring_kernel) for o in vars(m).values()
                if hasattr(o, "py_func") and o.py_func.__module__ == m.__name__ and o.signatures]
         print(sorted(k.__name__ for k in got))
         print(sorted(k.__name__ for k in entry_kernels()))
@@ -162,6 +162,7 @@ def _cli_env(cache: Path, **extra) -> dict:
     return env
 
 
+@pytest.mark.slow  # three real compiles of the kernels (minutes of CPU each on numba 0.68): `make test-slow`
 def test_a_cold_cache_announces_and_compiles_a_warm_one_does_not_an_edited_source_is_cold(tmp_path):
     # A copy of the package with an empty numba cache (NUMBA_CACHE_DIR): the first `beltdyn transient`
     # announces the compile and compiles (numba saves the kernels), the second neither announces nor

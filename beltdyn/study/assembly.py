@@ -67,13 +67,18 @@ def static_columns(result: SweepResult, pulleys: list[str]) -> tuple[Column, ...
                 if "arm_torque" in x:
                     columns.append(Column(title=f"{name} arm torque (N m)",
                                           cells=_cells(x["arm_torque"][:, j], ".4g", failed)))
-    if "slip_margin" in x and np.isfinite(x["slip_margin"]).any():
+    if "slip_margin" in x and (~np.isnan(x["slip_margin"])).any():
+        # nan: friction not given; inf: the pulley transmits nothing (its two tensions agree)
         margin = x["slip_margin"]
-        known = np.isfinite(margin).any(axis=1)
-        least = np.where(known, np.nanmin(np.where(np.isfinite(margin), margin, np.inf), axis=1), np.nan)
-        where = np.where(np.isfinite(margin), margin, np.inf).argmin(axis=1)
-        columns.append(Column(title="least slip margin", cells=_cells(least, ".3f", failed)))
-        columns.append(Column(title="at pulley", cells=tuple(pulleys[where[i]] if known[i] and not failed[i] else ""
+        given = ~np.isnan(margin)
+        known = given.any(axis=1)
+        least = np.where(known, np.where(given, margin, np.inf).min(axis=1), np.nan)
+        where = np.where(given, margin, np.inf).argmin(axis=1)
+        named = known & np.isfinite(least) & ~failed  # no pulley is nearest slip where none transmits
+        columns.append(Column(title="least slip margin",
+                              cells=tuple("" if failed[i] or np.isnan(v) else format(v, ".3f")
+                                          for i, v in enumerate(least))))
+        columns.append(Column(title="at pulley", cells=tuple(pulleys[where[i]] if named[i] else ""
                                                                for i in range(len(failed)))))
     return tuple(columns)
 

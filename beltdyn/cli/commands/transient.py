@@ -26,7 +26,11 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
               resume: bool = typer.Option(False, "--resume",
                                           help="Continue the interrupted transient of the output (Ctrl-C, SIGTERM, "
                                                "kill -9) from its last checkpoint; the same configuration and "
-                                               "options as the interrupted run.")) -> None:
+                                               "options as the interrupted run."),
+              checkpoint_every: Optional[float] = typer.Option(
+                  None, "--checkpoint-every", min=0.0,
+                  help="Wall time between checkpoints of the resume journal, s (0: after every step) "
+                       "[default: workflow.CHECKPOINT_SECONDS, 1 s].")) -> None:
     """Nonlinear time response (generalized-alpha) with streamed histories and their spectra."""
 
     def body() -> None:
@@ -64,7 +68,8 @@ def transient(config: Path = ConfigArg, output: Optional[Path] = OutOpt, set_: O
         check_output_volume(job, force_large)
         spec_opts = cfg.transient.spectrum
         run = static_pipeline(job, modal=spec_opts.enabled)
-        run_transient_command(job, run, (window,) if window else (), resume=resume)
+        run_transient_command(job, run, (window,) if window else (), resume=resume,
+                              checkpoint_seconds=checkpoint_every)
         ladder_not_met(job)
 
     guarded(body)
@@ -112,10 +117,12 @@ def spectrum_window(config: Path, sets: List[str], duration: float) -> tuple[flo
                    "transient.spectrum.start to choose it)")
 
 
-def run_transient_command(job: Job, run, warnings: tuple[str, ...] = (), *, resume: bool = False) -> None:
+def run_transient_command(job: Job, run, warnings: tuple[str, ...] = (), *, resume: bool = False,
+                          checkpoint_seconds: float | None = None) -> None:
     """The transient of an analysed drive into the job's output (`workflow`), said on the console;
     `warnings` (the CLI's own, e.g. a moved spectral window) go with the step's to /transient `warnings`;
-    resume: continue the output's interrupted transient from its last checkpoint."""
+    resume: continue the output's interrupted transient from its last checkpoint; checkpoint_seconds: the
+    wall time between its checkpoints (None: the workflow's default)."""
     from dataclasses import replace
 
     from beltdyn.workflow import plan_transient, transient_to_file
@@ -130,7 +137,8 @@ def run_transient_command(job: Job, run, warnings: tuple[str, ...] = (), *, resu
     progress, update = progress_bar(con, opts.duration)
     with progress:
         done = transient_to_file(plan, opts, output=job.output, config_toml=job.toml, config_sha256=job.sha,
-                                 notes=print_notes, progress=update, resume=resume, source=str(job.cfg.source))
+                                 notes=print_notes, progress=update, resume=resume, source=str(job.cfg.source),
+                                 **({} if checkpoint_seconds is None else {"checkpoint_seconds": checkpoint_seconds}))
     con.print(f"time step ({plan.attrs['step_origin']}): {plan.step_text}")
     print_transient(con, done.summary, done.spans, done.peaks, done.excitation_frequency, shown=plan.warnings)
     con.print(f"wrote [bold]/transient[/] ({done.summary.n_outputs} samples) to {job.output}")
