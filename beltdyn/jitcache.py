@@ -1,13 +1,18 @@
 """Where numba caches the compiled kernels, and whether they are cached already (issues 10 and 24).
 
-numba caches each ``@njit(**KERNEL)`` function (cache=True) next to its source (``beltdyn/*/__pycache__``). In
-a read-only installation (a system site-packages, a container image) numba falls back to its own user
-cache folder, and fails at import when that is not writable either. `configure` decides before
-numba compiles anything: the package folder when writable, else ``$XDG_CACHE_HOME/beltdyn/numba``
-(``~/.cache/beltdyn/numba``), else a folder in the temporary directory, set as NUMBA_CACHE_DIR (numba's
-public setting). A user's NUMBA_CACHE_DIR is left as it is. Call it before ``import numba``
-(`belt_kernel` and `integrator` do); numba reads the variable when it is first imported, so a numba
-imported earlier gets its ``config.CACHE_DIR`` set too.
+numba caches each ``@njit(**KERNEL)`` function (cache=True) and invalidates a cached compile when the
+function's own source file changes, not when a kernel it calls (and inlines) from another file does:
+an edited bar law (`model/barlaw.py`) would leave the stepper's cached compile of the old law in use.
+So beltdyn keys the cache folder by the sources of every module that defines a kernel
+(`KERNEL_SOURCES`, `source_key`): `configure` sets NUMBA_CACHE_DIR (numba's public setting), before
+numba compiles anything, to ``<base>/<source key>``, the base being the package's own
+``beltdyn/__pycache__/numba`` when writable, else ``$XDG_CACHE_HOME/beltdyn/numba``
+(``~/.cache/beltdyn/numba``: a read-only installation, a container image), else a folder in the
+temporary directory. An edited kernel source is a new folder, hence a fresh compile; `mark_warm` removes
+the package's folders of other keys (in the package's own cache only: a user cache may serve other
+installations). A user's NUMBA_CACHE_DIR is left as it is (then keeping it fresh is the user's
+business). Call it before ``import numba`` (`belt_kernel` and `integrator` do); numba reads the
+variable when it is first imported, so a numba imported earlier gets its ``config.CACHE_DIR`` set too.
 
 `is_warm` tells whether the kernels a run calls from Python (its entry points, `transient.entry_kernels`)
 were compiled into the cache for their current sources, so the CLI can say "compiling ..., once" only
@@ -27,6 +32,7 @@ from __future__ import annotations
 import hashlib
 import os
 import platform
+import shutil
 import sys
 import tempfile
 import types
@@ -60,15 +66,31 @@ def user_cache_dir() -> Path:
     return Path(base) / "beltdyn" / "numba"
 
 
+# Every module that defines a kernel (`@njit(**KERNEL)`), relative to the package (a test holds the list
+# to the package's sources): their text keys the cache folder (`source_key`).
+KERNEL_SOURCES = ("model/barlaw.py", "model/belt_kernel.py", "model/spring_kernel.py", "analysis/integrator.py",
+                  "analysis/band_solve.py")
+
+
+def source_key(package: Path = PACKAGE) -> str:
+    """A hash of the sources of every module that defines a kernel (`KERNEL_SOURCES`; hexadecimal, 16 digits)."""
+    h = hashlib.sha256()
+    for name in KERNEL_SOURCES:
+        h.update(name.encode() + b"\0" + (package / name).read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
 def cache_dir(in_tree: Path = PACKAGE / "__pycache__") -> str | None:
-    """The folder to set as NUMBA_CACHE_DIR, or None when numba's own choice is right (a user's
-    NUMBA_CACHE_DIR, or the writable `in_tree` folder next to the sources)."""
-    if os.environ.get("NUMBA_CACHE_DIR") or _writable(in_tree):
+    """The folder to set as NUMBA_CACHE_DIR (``<base>/<source_key>``, the base `in_tree`/numba when
+    writable, else the user cache folder, else the temporary folder's), or None for a user's
+    NUMBA_CACHE_DIR (or nowhere to write)."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
         return None
+    key = source_key()
     uid = os.getuid() if hasattr(os, "getuid") else 0
-    for folder in (user_cache_dir(), Path(tempfile.gettempdir()) / f"beltdyn-numba-{uid}"):
-        if _writable(folder):
-            return str(folder)
+    for base in (in_tree / "numba", user_cache_dir(), Path(tempfile.gettempdir()) / f"beltdyn-numba-{uid}"):
+        if _writable(base / key):
+            return str(base / key)
     return None  # nowhere to write: numba compiles in memory each time (its caching then warns)
 
 
@@ -88,7 +110,7 @@ def configure() -> str | None:
 
 def stamp_folder() -> Path:
     """The folder of numba's cache as configured: NUMBA_CACHE_DIR when set (by the user or `configure`),
-    else the package's own ``__pycache__`` (numba then caches next to each source)."""
+    else the package's own ``__pycache__`` (nowhere writable: numba compiles in memory)."""
     configure()
     chosen = os.environ.get("NUMBA_CACHE_DIR")
     return Path(chosen) if chosen else PACKAGE / "__pycache__"
@@ -144,6 +166,11 @@ def mark_warm(*kernels) -> bool:
         with tempfile.NamedTemporaryFile("w", dir=path.parent, delete=False, suffix=".tmp") as fh:
             fh.write("numba cache of beltdyn's kernels, written by beltdyn.pipeline.warm_up\n")
         os.replace(fh.name, path)
-        return True
     except OSError:
         return False
+    own = PACKAGE / "__pycache__" / "numba"
+    if path.parent.parent == own:  # the package's own cache: the compiles of its earlier sources go
+        for other in own.iterdir():
+            if other.is_dir() and other != path.parent:
+                shutil.rmtree(other, ignore_errors=True)
+    return True

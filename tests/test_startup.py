@@ -27,13 +27,16 @@ def test_cache_goes_to_the_user_cache_when_the_package_folder_is_not_writable(tm
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     blocked = tmp_path / "a-file"
     blocked.write_text("")
+    key = jitcache.source_key()  # each folder keyed by the kernels' sources
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
-    assert jitcache.cache_dir(blocked / "__pycache__") == str(tmp_path / "cache" / "beltdyn" / "numba")
-    assert (tmp_path / "cache" / "beltdyn" / "numba").is_dir()
+    assert jitcache.cache_dir(blocked / "__pycache__") == str(tmp_path / "cache" / "beltdyn" / "numba" / key)
+    assert (tmp_path / "cache" / "beltdyn" / "numba" / key).is_dir()
     monkeypatch.setenv("XDG_CACHE_HOME", str(blocked))
     got = jitcache.cache_dir(blocked / "__pycache__")
-    assert got is not None and Path(got).parent == Path(__import__("tempfile").gettempdir())
-    assert jitcache.cache_dir(tmp_path / "writable" / "__pycache__") is None  # numba's own in-tree cache
+    assert got is not None and Path(got).parent.parent == Path(__import__("tempfile").gettempdir())
+    assert Path(got).name == key
+    writable = tmp_path / "writable" / "__pycache__"
+    assert jitcache.cache_dir(writable) == str(writable / "numba" / key)  # the package's own folder first
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "mine"))
     assert jitcache.cache_dir(blocked / "__pycache__") is None  # the user's choice stands
 
@@ -60,8 +63,39 @@ def test_read_only_installation_caches_in_the_user_folder(tmp_path):
     r = subprocess.run([*prefix, f"mount --bind -o ro {PACKAGE} {PACKAGE} && {sys.executable} -c \"{code}\""],
                        capture_output=True, text=True, env=env, timeout=120)
     assert r.returncode == 0, r.stderr
-    want = str(tmp_path / "cache" / "beltdyn" / "numba")
+    want = str(tmp_path / "cache" / "beltdyn" / "numba" / jitcache.source_key())
     assert r.stdout.split() == [want, want]
+
+
+def test_the_cache_folder_is_keyed_by_every_kernel_source(tmp_path):
+    # numba invalidates a cached compile only when the function's own file changes, not when a kernel it
+    # inlines from another file (the bar law) does: the cache folder is keyed by the sources of every module
+    # that defines a kernel, which `KERNEL_SOURCES` lists (held here to the package's sources), and an edit
+    # of any of them (the bar law's file included) is a new key.
+    import re
+
+    import importlib
+
+    defining = {str(p.relative_to(PACKAGE)) for p in PACKAGE.rglob("*.py")
+                if p.name != "jitcache.py" and re.search(r"^\s*@njit\(", p.read_text(), re.M)}
+    compiled = set()  # the modules whose functions the kernel modules compile (njit(barlaw.axial_force) too)
+    for name in defining:
+        module = importlib.import_module("beltdyn." + name[:-3].replace("/", "."))
+        compiled |= {str(Path(sys.modules[o.py_func.__module__].__file__).relative_to(PACKAGE))
+                     for o in vars(module).values() if hasattr(o, "py_func")}
+    assert sorted(defining | compiled) == sorted(jitcache.KERNEL_SOURCES)
+    copy = tmp_path / "beltdyn"
+    for name in jitcache.KERNEL_SOURCES:
+        (copy / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(PACKAGE / name, copy / name)
+    assert jitcache.source_key(copy) == jitcache.source_key()
+    keys = {jitcache.source_key()}
+    for name in jitcache.KERNEL_SOURCES:
+        original = (copy / name).read_text()
+        (copy / name).write_text(original + "\n# edited\n")
+        keys.add(jitcache.source_key(copy))
+        (copy / name).write_text(original)
+    assert len(keys) == 1 + len(jitcache.KERNEL_SOURCES)
 
 
 def test_a_fresh_cache_is_cold():
