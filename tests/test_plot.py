@@ -32,6 +32,15 @@ EXAMPLES = ROOT / "configs" / "examples"
 EVERY = P.drive.POINTS_PER_ELEMENT  # the nodes are every EVERY-th point of a drawn span
 
 
+@pytest.fixture(autouse=True)
+def _close_figures():
+    """Each test's figures closed after it (pyplot keeps every open figure)."""
+    yield
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
+
+
 def _cli(*args, cwd) -> subprocess.CompletedProcess:
     return subprocess.run([sys.executable, "-m", "beltdyn.cli", *map(str, args)], cwd=cwd, capture_output=True,
                           text=True, timeout=300)
