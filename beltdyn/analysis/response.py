@@ -137,7 +137,8 @@ def excitation_sets(system: System, opts: ResponseOptions) -> tuple[np.ndarray, 
     B = np.zeros((len(opts.orders), len(presc)), dtype=complex)
     tau = np.zeros((len(opts.orders), system.n_dof), dtype=complex)
     for e in opts.excitation:
-        d = int(system.rot_dof[system.pulley_index(e.pulley)])
+        j = system.pulley_index(e.pulley)
+        d = int((system.rot_dof if e.kind == "speed" else system.dofs.torque_dof)[j])  # (a torque: on a rotor)
         for o, k in enumerate(opts.orders):
             if e.order and e.order != k:
                 continue

@@ -57,7 +57,7 @@ def output_volume(system: System, opts: TransientOptions) -> tuple[int, int]:
 def belt_travel(system: System) -> np.ndarray:
     """u_nom (n_p,): the rigid belt loop advanced by 1 m (pulley rotations +-1/R, nodes along t; the
     pulley centres stay)."""
-    u = belt_rotation_rates(system.layout, system.rot_dof, system.n_p)
+    u = belt_rotation_rates(system.layout, system.rot_dof, system.n_p, system.dofs.rotor_dof)
     for s, sl in enumerate(system.dofs.span_slices):
         labels = system.dof_labels[sl]
         block = np.zeros(sl.stop - sl.start)
@@ -159,7 +159,7 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
             tabs_v += list(sig.table_value)
             ptr.append(len(tabs_t))
             if load.kind == "torque":
-                load_dof.append(int(system.rot_dof[j]))
+                load_dof.append(int(system.dofs.torque_dof[j]))  # (a decoupler's rotor)
                 load_coef.append(1.0)
                 load_sig.append(k)
             else:

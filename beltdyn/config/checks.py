@@ -102,6 +102,9 @@ def _check_pulleys(chk: _Checker, raw: list[dict[str, Any]], pulleys: tuple[Pull
             if p.arm_length <= p.radius:
                 raise chk.fail(f"{key}.arm_pivot", f"the pivot lies inside the pulley (arm length "
                                                   f"{p.arm_length:.6g} m <= radius {p.radius:g} m)")
+        if p.decoupler is not None and p.driver:
+            raise chk.fail(f"{key}.decoupler", "the driver's rotation is held (it reacts the torques): a decoupler "
+                                               "belongs on an accessory (an alternator's pulley)")
         if p.slide_range is not None and p.support != "slide":
             raise chk.fail(f"{key}.slide_range", "only a slide pulley has a slide range")
         out.append(p)
@@ -157,6 +160,9 @@ def _check_transient(chk: _Checker, t: TransientOptions, pulleys: tuple[Pulley, 
                 raise chk.fail(f"{key}.order", "an engine-order fluctuation needs a mean speed (speed != 0)")
         elif (r.amplitude or r.speed_amplitude) and not r.frequency > 0:
             raise chk.fail(f"{key}.frequency", "a fluctuation needs frequency > 0 (or an engine order)")
+        if r.start_speed != 0.0 and not r.ramp_time > 0.0:
+            raise chk.fail(f"{key}.start_speed", "a start speed is where a ramp starts: give ramp_time > 0 (without "
+                                                 "a ramp the rotation runs at `speed` from the start)")
     if len(t.rotation) > 1:
         raise chk.fail("transient.rotation[1]", "only one pulley rotation can be prescribed")
     loads = []
