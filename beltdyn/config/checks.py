@@ -102,9 +102,6 @@ def _check_pulleys(chk: _Checker, raw: list[dict[str, Any]], pulleys: tuple[Pull
             if p.arm_length <= p.radius:
                 raise chk.fail(f"{key}.arm_pivot", f"the pivot lies inside the pulley (arm length "
                                                   f"{p.arm_length:.6g} m <= radius {p.radius:g} m)")
-        if p.decoupler is not None and p.driver:
-            raise chk.fail(f"{key}.decoupler", "the driver's rotation is held (it reacts the torques): a decoupler "
-                                               "belongs on an accessory (an alternator's pulley)")
         if p.slide_range is not None and p.support != "slide":
             raise chk.fail(f"{key}.slide_range", "only a slide pulley has a slide range")
         out.append(p)
@@ -119,6 +116,10 @@ def _check_pulleys(chk: _Checker, raw: list[dict[str, Any]], pulleys: tuple[Pull
     drivers = [i for i, p in enumerate(out) if p.driver]
     if len(drivers) > 1:
         raise chk.fail(f"pulleys[{drivers[1]}].driver", "only one pulley may be the driver")
+    driver = drivers[0] if drivers else 0
+    if out[driver].decoupler is not None:
+        raise chk.fail(f"pulleys[{driver}].decoupler", "the driver's rotation is held (it reacts the torques): a "
+                                                       "decoupler belongs on an accessory (an alternator's pulley)")
     return tuple(out)
 
 
