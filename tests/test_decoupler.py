@@ -143,17 +143,18 @@ def _transient(raw: dict, **transient) -> tuple[dict[str, np.ndarray], object]:
 
 
 def test_a_stiff_engaged_decoupler_has_the_rigid_pulleys_transient():
-    """The drive loaded on C (-1.5 N m) with A's speed fluctuating at 30 Hz: with k = 1e12 N m/rad the
-    decoupler's clutch stays engaged (its torque stays near 1.5 N m) and C's speed, the span tensions and
-    the driver torque are the rigid pulley's to 1e-6 of their fluctuation ranges."""
+    """The drive loaded on C (-1.5 N m) with A's speed fluctuating at 30 Hz (0.02 rad/s): with k = 1e11 N m/rad
+    the decoupler's clutch stays engaged (its torque within 1.3-1.7 N m) and C's speed, the span tensions and
+    the driver torque are the rigid pulley's to 1e-6 of their fluctuation ranges. The difference falls as
+    1/k (measured: 1.6e-5 at 1e9, 1.6e-6 at 1e10, 1.6e-7 at 1e11: the belt's high modes seen through the
+    spring); at 1e12 the iteration matrix's conditioning takes over (2.5e-3)."""
     raw = _raw()
     raw["static"] = {"torque": [{"pulley": "C", "value": -1.5}]}
     opts = dict(duration=0.1, step=2e-4, output_interval=1e-3, rho_inf=0.8, tolerance=1e-10,
-                rotation=[{"pulley": "A", "speed": 0.0, "speed_amplitude": 2.0, "frequency": 30.0,
-                           "fluctuation_ramp": 0.02}],
-                torque=[{"pulley": "C", "constant": -1.5}])
+                rotation=[{"pulley": "A", "speed": 0.0, "speed_amplitude": 0.02, "frequency": 30.0,
+                           "fluctuation_ramp": 0.02}])  # (the static's torque stays on in the transient)
     rigid, _ = _transient(raw, **opts)
-    stiff, _ = _transient(_decoupled(raw, stiffness=1e12), **opts)
+    stiff, _ = _transient(_decoupled(raw, stiffness=1e11), **opts)
     assert stiff["decoupler_torque"].min() > 1.0  # engaged all along
     for name in ("pulley_speed", "span_tension", "driver_torque"):
         a, b = rigid[name], stiff[name]
@@ -176,8 +177,7 @@ def test_the_clutch_overruns_in_a_run_down_and_the_energy_balance_holds():
     raw["static"] = {"torque": [{"pulley": "C", "value": -1.5}]}
     got, summary = _transient(_decoupled(raw, stiffness=30.0, damping=0.02), duration=0.2, step=1e-4,
                               output_interval=5e-4, rho_inf=0.9,
-                              rotation=[{"pulley": "A", "speed": 30.0, "start_speed": 150.0, "ramp_time": 0.1}],
-                              torque=[{"pulley": "C", "constant": -1.5}])
+                              rotation=[{"pulley": "A", "speed": 30.0, "start_speed": 150.0, "ramp_time": 0.1}])
     tau = got["decoupler_torque"][:, 0]
     hub, rotor, t = got["pulley_speed"][:, 1], got["rotor_speed"][:, 0], got["time"]
     assert tau.min() >= -CLUTCH_DRAG - 1e-9
@@ -186,11 +186,14 @@ def test_the_clutch_overruns_in_a_run_down_and_the_energy_balance_holds():
     assert free.sum() > 20  # it overran
     assert np.all(rotor[free] >= hub[free] - 1e-9)
     assert (rotor - hub).max() > 1.0  # rad/s: well ahead
-    idx = np.nonzero(free)[0]
-    run = idx[np.diff(idx, prepend=idx[0] - 1) == 1]  # a stretch of consecutive free samples
-    seg = run[: max(3, len(run) // 2)]
-    slope = np.polyfit(t[seg], rotor[seg], 1)[0]
-    assert slope == pytest.approx(-1.5 / (J_C - J_HUB), rel=1e-3)
+    first = int(np.argmax(free))
+    end = first + int(np.argmin(free[first:])) if not free[first:].all() else len(free)
+    seg = np.arange(first + 10, end)  # the first stretch it overruns, after 50 steps: the generalized-alpha
+    # acceleration's start-up from the engaged state decays by alpha_m / (1 - alpha_m) = 0.73 per step
+    assert len(seg) > 10
+    slope = np.median(np.diff(rotor[seg]) / np.diff(t[seg]))  # (the median: the sample at the ramp's end, where
+    # the nominal speed's kink falls inside a step, is off)
+    assert slope == pytest.approx(-1.5 / (J_C - J_HUB), rel=1e-6)
     energy = got["energy"]
     assert np.abs(energy[:, 4]).max() < 1e-4 * summary.energy_moved
     assert summary.energy_moved > 1.0  # J: the run-down moves the drive's kinetic energy
