@@ -237,3 +237,42 @@ def test_the_bsg_example_swaps_the_tight_and_slack_spans(tmp_path):
     assert T[0, pull] - T[0, push] == pytest.approx(5.0 / 0.032, rel=1e-3)
     late = g["time"] >= 0.09
     assert np.all(T[late, push] > T[late, pull])
+
+
+def test_a_resumed_run_continues_the_clutch_where_it_was():
+    """The run-down of the overrun test checkpointed at every call of the stepper: resumed from a snapshot
+    taken while the clutch overruns (its slip angle nonzero), the run gives the uninterrupted run's samples
+    after it (to 1e-9, tests/test_resume.py's bound: the factor's refresh follows the wall clock, so the Newton
+    iterates differ within the tolerance; the clutch's slip and torque are restored)."""
+    from beltdyn.analysis.transient import run_transient, snapshot_bytes, snapshot_from_bytes
+
+    raw = _raw()
+    raw["static"] = {"torque": [{"pulley": "C", "value": -1.5}]}
+    raw = _decoupled(raw, stiffness=30.0, damping=0.02)
+    raw["transient"] = {"duration": 0.08, "step": 1e-4, "output_interval": 5e-4, "rho_inf": 0.9,
+                        "rotation": [{"pulley": "A", "speed": 30.0, "start_speed": 150.0, "ramp_time": 0.1}],
+                        "spectrum": {"enabled": False}}
+    cfg = config_from_dict(raw)
+    sysm, st = transient_start(analyse(cfg, compiled=True))
+    snaps, full = [], {"time": [], "tau": [], "rotor": []}
+
+    def sink(store):
+        def take(t, batch):
+            store["time"].append(t)
+            store["tau"].append(batch["decoupler_torque"][:, 0])
+            store["rotor"].append(batch["rotor_speed"][:, 0])
+        return take
+
+    run_transient(sysm, st, cfg.transient, sink=sink(full), on_checkpoint=snaps.append, checkpoint_seconds=0.0,
+                  batch=8)  # (a full buffer every 8 samples ends a stepper call: a checkpoint every 40 steps)
+    slipping = [s for s in snaps if s.clutch.shape == (2, 1) and s.clutch[0, 0] != 0.0 and 0.03 < s.time < 0.06]
+    assert slipping, "no snapshot while the clutch overruns"
+    snap = snapshot_from_bytes(snapshot_bytes(slipping[0]))  # (through its checksummed record)
+    again = {"time": [], "tau": [], "rotor": []}
+    run_transient(sysm, st, cfg.transient, sink=sink(again), resume=snap, batch=8)
+    t_full, t_again = np.concatenate(full["time"]), np.concatenate(again["time"])
+    after = t_full > snap.time + 1e-9
+    np.testing.assert_allclose(t_again, t_full[after], rtol=0, atol=1e-12)
+    for key in ("tau", "rotor"):
+        a, b = np.concatenate(full[key])[after], np.concatenate(again[key])
+        np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9 * np.abs(a).max())
