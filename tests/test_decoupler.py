@@ -276,3 +276,25 @@ def test_a_resumed_run_continues_the_clutch_where_it_was():
     for key in ("tau", "rotor"):
         a, b = np.concatenate(full[key])[after], np.concatenate(again[key])
         np.testing.assert_allclose(b, a, rtol=1e-9, atol=1e-9 * np.abs(a).max())
+
+
+def test_without_the_clutch_the_spring_pulls_the_rotor_back():
+    """The run-down of the overrun test with one_way = false: the spring and damper stay linear, so the torque
+    goes negative (the hub brakes the rotor), it is k phi + c phi' of the recorded hub and rotor states
+    (1e-9 of its range), and the rotor never runs ahead far (less than the clutch run's)."""
+    raw = _raw()
+    raw["static"] = {"torque": [{"pulley": "C", "value": -1.5}]}
+    opts = dict(duration=0.1, step=1e-4, output_interval=5e-4, rho_inf=0.9, record={"full_state": True},
+                rotation=[{"pulley": "A", "speed": 30.0, "start_speed": 150.0, "ramp_time": 0.1}])
+    got, _ = _transient(_decoupled(raw, stiffness=30.0, damping=0.02, one_way=False), **opts)
+    clutch, _ = _transient(_decoupled(raw, stiffness=30.0, damping=0.02), **opts)
+    tau = got["decoupler_torque"][:, 0]
+    assert tau.min() < -1.0
+    cfg = config_from_dict(_decoupled(raw, stiffness=30.0, damping=0.02, one_way=False))
+    d = analyse(cfg).system.dofs
+    hub, rotor = int(d.rot_dof[1]), int(d.rotor_dof[1])
+    q, v = got["q"], got["v"]
+    expected = 30.0 * (q[:, hub] - q[:, rotor]) + 0.02 * (v[:, hub] - v[:, rotor])
+    assert np.abs(tau - expected).max() < 1e-9 * np.ptp(tau)
+    ahead = got["rotor_speed"][:, 0] - got["pulley_speed"][:, 1]
+    assert ahead.max() < (clutch["rotor_speed"][:, 0] - clutch["pulley_speed"][:, 1]).max()
