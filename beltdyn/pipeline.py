@@ -95,18 +95,20 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
 
 def initial_belt_speed(system: "System", opts) -> float:
     """The belt speed (m/s) a transient starts at: its prescribed rotation's nominal speed at t = 0
-    (0 with a speed ramp; the rotation's speed over the pulley's belt-travel factor u_rot otherwise),
+    over the pulley's belt-travel factor u_rot (with a speed ramp its start_speed: 0 from rest, the idle
+    speed of a run-up from idle),
     or without a prescribed speed the system's constant belt speed ([running]); 0 without the transport
     terms (transient.transport = false)."""
     if not opts.transport:
         return 0.0
     for r in opts.rotation:
         if r.speed != 0.0:
-            if r.ramp_time > 0.0:
+            speed = r.start_speed if r.ramp_time > 0.0 else r.speed
+            if speed == 0.0:
                 return 0.0
             from beltdyn.analysis.transient import belt_travel
 
-            return float(r.speed / belt_travel(system)[system.rot_dof[system.pulley_index(r.pulley)]])
+            return float(speed / belt_travel(system)[system.rot_dof[system.pulley_index(r.pulley)]])
     return float(system.belt_speed)
 
 

@@ -39,7 +39,8 @@ from beltdyn.errors import ConfigError, OutputError
 from beltdyn.pipeline import Analysis, transient_start
 from beltdyn.results.io import GroupData, StreamWriter, Variable, WriteFailure, fsync_dir, read_group, recover
 
-ORDER_SERIES = ("span_tension", "hub_load", "arm_angle", "pulley_speed")  # tracked by [transient.orders]
+ORDER_SERIES = ("span_tension", "hub_load", "arm_angle", "pulley_speed", "rotor_speed",
+                "decoupler_torque")  # tracked by [transient.orders]
 SPECTRUM_SERIES = ("span_tension", "hub_load", "bearing_force", "midspan_displacement", "pulley_speed", "driver_torque",
                    "arm_angle")
 

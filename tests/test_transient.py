@@ -426,8 +426,8 @@ def test_spectrum_window_after_the_end_is_a_config_error():
 
 # ------------------------------------------------------------------------------ engine order
 def _law(**kw):
-    """rotation_state parameters: speed, ramp, A, B, f, phi, fade, offset, order."""
-    keys = ("speed", "ramp", "A", "B", "f", "phi", "fade", "offset", "order")
+    """rotation_state parameters: speed, ramp, A, B, f, phi, fade, offset, order, start speed."""
+    keys = ("speed", "ramp", "A", "B", "f", "phi", "fade", "offset", "order", "start")
     return np.array([float(kw.get(k, 0.0)) for k in keys])
 
 
@@ -436,6 +436,7 @@ def _law(**kw):
     dict(speed=-60.0, ramp=0.2, B=3.0, phi=0.2, order=1.5, fade=0.05),
     dict(speed=80.0, A=0.02, f=45.0, phi=0.1, fade=0.1),
     dict(speed=50.0, ramp=0.1, B=2.0, f=30.0),
+    dict(speed=300.0, ramp=0.4, start=80.0, B=1.0, order=2.0, fade=0.05),  # a run-up from idle
 ])
 def test_rotation_law_derivatives_are_consistent(law):
     # Speed and acceleration of the nominal and fluctuation parts against central differences of the

@@ -66,6 +66,15 @@ its stiffness k_b enters the iteration matrix like a spring, not like a damper o
 stick-slip transitions keep the factor (a tanh(phi'/omega) law put T_f / omega / h there and forced
 step halvings). Its work is dissipated, less the bristle's stored energy tau^2 / (2 k_b).
 
+Decouplers (`Decouplers`, `model.decouplers`): the engaged spring k and damper c between a pulley's hub
+and its rotor are in the linear part (K, C); a one-way clutch in series slips by an angle z when the
+torque would fall below the bound -drag (the rotor overruns): tau = k (phi - z) + c (phi' - z'), phi =
+theta_hub - theta_rotor, held at tau >= -drag, with z from a backward-Euler slip over the step
+(`clutch_torques`: while it slips, k (phi - z1) + c (phi' - (z1 - z0)/h) = -drag) and accepted with the
+step. Its correction to the linear part's torque, tau - k phi - c phi', joins the dissipative forces;
+the spring's stored energy k (phi - z)^2 / 2 replaces the linear part's k phi^2 / 2 (the difference
+joins the bristles' stored energy), so the clutch's slip work counts as dissipated.
+
 Array conventions: belt data as `belt_kernel` (T (n_elem, 8, m), idx (n_elem, m) with padding
 index n, tsel, e0 (n_elem, 8), dS/d2S (n_elem, n_qp, 4), wEA/wEI (n_elem, n_qp), Kb (n_elem, 8, 8)).
 """
@@ -93,7 +102,8 @@ PART = dict(KERNEL, inline="always")  # the stepper's parts: inlined into `run_s
 from beltdyn.analysis.band_solve import (  # noqa: E402,F401
     band_cholesky_solve, band_lu_nopivot, band_lu_nopivot_solve, band_lu_solve, band_upper_solve, factor_solve)
 from beltdyn.analysis.stepper_data import (  # noqa: E402,F401
-    ARM_PRESLIDING, BAND_COST, Arms, BeltData, Check, Constraints, Coo, Csr, Events, Factor, Forcing, Fused, Linear,
+    ARM_PRESLIDING, BAND_COST, Arms, BeltData, Check, Constraints, Coo, Csr, Decouplers, Events, Factor, Forcing,
+    Fused, Linear, no_decouplers,
     Outputs, Split, State, StepOptions, StepperModel, Transport, Work, empty_csr, fused, no_arms, no_factor,
     no_transport, split, split_matrix, to_csr, workspace)
 
@@ -216,18 +226,18 @@ def rotation_state(rot, t):
     """Prescribed rotation: (nominal angle, speed, acceleration), (fluctuation angle, speed, acceleration).
 
     rot = [speed Omega, ramp T_r, angle amplitude A, speed amplitude B, frequency f, phase phi, fade T_f,
-           static angle offset, engine order k] (the offset is added to the prescribed DOF by the caller).
-    Nominal: speed ramps linearly to Omega over T_r. Fluctuation: w(t) * A sin(psi) for an angle
+           static angle offset, engine order k, start speed Omega_0] (the offset is added to the prescribed DOF
+           by the caller). Nominal: speed ramps linearly from Omega_0 to Omega over T_r. Fluctuation: w(t) * A sin(psi) for an angle
     amplitude, or the angle whose speed is w(t) * B sin(psi) (zero at t=0 for the unfaded part), w(t)
     the smoothstep fade-in over T_f. The phase psi = 2 pi f t + phi, or with an engine order k > 0
     psi = k theta_nominal(t) + phi (it follows the ramp). With an order, a speed amplitude is the
     angle (B / (k Omega)) (cos phi - cos psi): speed amplitude B at the mean speed, in proportion below.
     """
-    om, tr, A, B, f, phi, tf, k = rot[0], rot[1], rot[2], rot[3], rot[4], rot[5], rot[6], rot[8]
+    om, tr, A, B, f, phi, tf, k, om0 = rot[0], rot[1], rot[2], rot[3], rot[4], rot[5], rot[6], rot[8], rot[9]
     if tr > 0.0 and t < tr:
-        th, thd, thdd = 0.5 * om * t * t / tr, om * t / tr, om / tr
+        th, thd, thdd = om0 * t + 0.5 * (om - om0) * t * t / tr, om0 + (om - om0) * t / tr, (om - om0) / tr
     else:
-        th, thd, thdd = om * (t - 0.5 * tr), om, 0.0
+        th, thd, thdd = om * (t - 0.5 * tr) + 0.5 * om0 * tr, om, 0.0
     if k > 0.0:
         psi, psid, psidd = k * th + phi, k * thd, k * thdd
     else:
@@ -423,6 +433,53 @@ def arm_friction(arms, q, f):
 
 
 @njit(**KERNEL)
+def clutch_torques(dec, q, v, inv_h, f):
+    """The decouplers' clutches at the state (q, v) of a step of length 1 / inv_h (inv_h = 0: no step, the
+    slip a spring's alone) from the accepted slip z0 = dec.slip[0]: tau = k (phi - z0) + c phi' while it
+    holds, else -drag with z1 = (k phi + c phi' + c z0 / h + drag) / (k + c / h) (module docstring); adds the
+    correction tau - k phi - c phi' to f at the hub (minus at the rotor), writes z1 and tau into dec.slip[1],
+    dec.torque[1]. Returns the stored energy beyond the linear part's: sum k ((phi - z1)^2 - phi^2) / 2."""
+    stored = 0.0
+    for i in range(dec.hub.shape[0]):
+        b, r = dec.hub[i], dec.rotor[i]
+        k, c, drag = dec.stiffness[i], dec.damping[i], dec.drag[i]
+        phi = q[b] - q[r]
+        w = v[b] - v[r]
+        z0 = dec.slip[0, i]
+        z = z0
+        tau = k * (phi - z0) + c * w
+        if tau < -drag:  # overrunning: the clutch slips at its bound
+            tau = -drag
+            z = (k * phi + c * w + c * z0 * inv_h + drag) / (k + c * inv_h)
+        dec.slip[1, i] = z
+        dec.torque[1, i] = tau
+        extra = tau - k * phi - c * w
+        f[b] += extra
+        f[r] -= extra
+        stored += 0.5 * k * ((phi - z) * (phi - z) - phi * phi)
+    return stored
+
+
+@njit(**KERNEL)
+def clutch_stored(dec, q):
+    """The decouplers' stored energy beyond the linear part's at q with the accepted slip (`clutch_torques`)."""
+    stored = 0.0
+    for i in range(dec.hub.shape[0]):
+        phi = q[dec.hub[i]] - q[dec.rotor[i]]
+        e = phi - dec.slip[0, i]
+        stored += 0.5 * dec.stiffness[i] * (e * e - phi * phi)
+    return stored
+
+
+@njit(**KERNEL)
+def accept_clutches(dec):
+    """The slip and torque of the step solved become the accepted ones."""
+    for i in range(dec.hub.shape[0]):
+        dec.slip[0, i] = dec.slip[1, i]
+        dec.torque[0, i] = dec.torque[1, i]
+
+
+@njit(**KERNEL)
 def slide_anchors(arms, q):
     """Return mapping after an accepted step: an anchor whose bristle torque exceeds its limit (T_up
     counter-clockwise, T_down clockwise) slides along."""
@@ -503,6 +560,10 @@ def start_forces(state, model, work):
     for k in range(arms.dof.shape[0]):
         arms.anchor[k] = q[arms.dof[k]]
     arm_friction(arms, q, f_dmp)
+    dec = model.decouplers
+    dec.slip[0, :] = 0.0  # the clutches hold at the start (a spring that would pull back slips at once)
+    clutch0 = clutch_torques(dec, q, v, 0.0, f_dmp)
+    accept_clutches(dec)
     for i in range(n):
         dq[i] = q[i] - lin.q_ref[i]
     split_matvec(lin.K, dq, Kd)
@@ -513,7 +574,7 @@ def start_forces(state, model, work):
         state.f0[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
         state.fd0[i] = f_dmp[i]
     kin = kinetic_energy(lin, v, tmp)
-    pot = potential_energy(belt, lin, q, q_ext, E, work.elem1[0], tmp, tmp2) - 0.5 * c0 * c0 * qbq
+    pot = potential_energy(belt, lin, q, q_ext, E, work.elem1[0], tmp, tmp2) - 0.5 * c0 * c0 * qbq + clutch0
     th[E0] = kin + pot
     th[KIN0] = kin
     th[POT0] = pot
@@ -530,11 +591,12 @@ def predict(h, q, v, a, q1, v1, a1, nq):
 
 
 @njit(**PART)
-def step_forces(model, q1, v1, a1, c1, cd1, with_gross, work):
+def step_forces(model, q1, v1, a1, c1, cd1, with_gross, inv_h, work):
     """The forces at the new state (q1, v1, a1), into the scratch rows (`Work`): f_el, f_dmp (belt and
     arm friction), K (q1 - q_ref), C v1, M a1, the transport terms f_tr at the belt speed c1 and rate
-    cd1, fi = f_el + K d + f_dmp + f_tr and fl the round-off scale (gross only when with_gross).
-    Returns (the bristles' stored energy, q.B q + 2 b0.q, the transport power)."""
+    cd1, fi = f_el + K d + f_dmp + f_tr and fl the round-off scale (gross only when with_gross); the
+    decouplers' clutches over a step of length 1 / inv_h.
+    Returns (the bristles' and clutches' stored energy, q.B q + 2 b0.q, the transport power)."""
     belt, lin, tr = model.belt, model.linear, model.transport
     n = q1.shape[0]
     q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
@@ -546,7 +608,7 @@ def step_forces(model, q1, v1, a1, c1, cd1, with_gross, work):
         v_ext[i] = v1[i]
         dq[i] = q1[i] - lin.q_ref[i]
     belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross)
-    bristle = arm_friction(model.arms, q1, f_dmp)
+    bristle = arm_friction(model.arms, q1, f_dmp) + clutch_torques(model.decouplers, q1, v1, inv_h, f_dmp)
     split_matvec(lin.K, dq, Kd)
     split_matvec(lin.C, v1, Cv)
     qbq = 0.0
@@ -660,7 +722,7 @@ def solve_step(state, model, opts, fac, t1, h, x, work):
     it = 0
     while True:
         # the round-off scale at the step's first evaluation: a floor, not a force
-        bristle1, qbq, p_tr = step_forces(model, q1, v1, a1, c1, cd1, it == 0, work)
+        bristle1, qbq, p_tr = step_forces(model, q1, v1, a1, c1, cd1, it == 0, 1.0 / h, work)
         project_new(model, q1, work, x)
         res, worst, finite = scaled_residual(chk, work.held, opts.am, opts.af, x, R, work)
         if not finite:
@@ -759,6 +821,9 @@ def record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, R1):
         out.energy[k, 4] = kin + pot - th[WORK] + th[DISS] - th[E0]
         for c in range(model.constraints.dof.shape[0]):
             out.reaction[k, c] = (1.0 - s) * state.R0[c] + s * R1[c]
+        dec = model.decouplers
+        for c in range(dec.hub.shape[0]):
+            out.clutch[k, c] = (1.0 - s) * dec.torque[0, c] + s * dec.torque[1, c]
         out.n[0] += 1
         th[T_OUT] += opts.dt_out
 
@@ -813,6 +878,7 @@ def accept(state, model, x, p_tr, work):
         state.R0[k] = work.react[k]
     state.scal[TR_P0] = p_tr
     slide_anchors(model.arms, state.q)
+    accept_clutches(model.decouplers)
 
 
 @njit(**PART)
@@ -875,7 +941,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         th[REF_SUM] = 0.0
         th[REF_N] = 0.0
     wv[12, :] = 0.0
-    bristle0 = arm_friction(arms, q, wv[12])
+    bristle0 = arm_friction(arms, q, wv[12]) + clutch_stored(model.decouplers, q)
     while True:
         t, h = th[T_NOW], th[H]
         if t >= opts.t_stop - 1e-6 * h:
@@ -914,7 +980,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, work.react)
         slack_events(model.belt, t1, ev, work)
         accept(state, model, x, p_tr, work)
-        bristle0 = arm_friction(arms, q, wv[12])  # after the return mapping (scratch row)
+        bristle0 = arm_friction(arms, q, wv[12]) + clutch_stored(model.decouplers, q)  # after the return mapping
         th[T_NOW] = t1
         th[STEPS] += 1.0
         th[ITERS] += it

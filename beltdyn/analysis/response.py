@@ -58,6 +58,7 @@ from beltdyn.analysis.static import StaticResult
 from beltdyn.analysis.stepper_data import ARM_PRESLIDING
 from beltdyn.config import Damping, ResponseOptions
 from beltdyn.errors import SolverError
+from beltdyn.model.decouplers import decouplers_of
 from beltdyn.model.system import System
 
 OUTPUTS = ("span_tension", "hub_load", "pulley_angle", "pulley_speed", "arm_angle", "midspan_displacement",
@@ -137,7 +138,8 @@ def excitation_sets(system: System, opts: ResponseOptions) -> tuple[np.ndarray, 
     B = np.zeros((len(opts.orders), len(presc)), dtype=complex)
     tau = np.zeros((len(opts.orders), system.n_dof), dtype=complex)
     for e in opts.excitation:
-        d = int(system.rot_dof[system.pulley_index(e.pulley)])
+        j = system.pulley_index(e.pulley)
+        d = int((system.rot_dof if e.kind == "speed" else system.dofs.torque_dof)[j])  # (a torque: on a rotor)
         for o, k in enumerate(opts.orders):
             if e.order and e.order != k:
                 continue
@@ -288,6 +290,11 @@ def solve_response(system: System, static: StaticResult, opts: ResponseOptions,
         notes.append(f"the tensioner arms' dry friction is linear only while they stick: the response holds it as "
                      f"the spring T_f / {ARM_PRESLIDING:g} rad of the transient's presliding law (valid for arm "
                      f"amplitudes below {ARM_PRESLIDING:g} rad; beyond, the arm slides)")
+    one_way = [c.pulley_name for c in decouplers_of(system.components) if c.one_way]
+    if one_way:
+        notes.append(f"the decoupler(s) of {', '.join(one_way)}: the response holds the one-way clutch engaged (linear); "
+                     f"where the decoupler's torque amplitude exceeds its static torque the clutch would overrun "
+                     f"(the transient models that)")
     from beltdyn.model.geometry import travel_sense
 
     R_d = float(lay.radius[system.driver]) * travel_sense(lay, system.driver)

@@ -25,14 +25,15 @@ Linear = namedtuple("Linear", ["K", "q_ref", "C", "M"])  # constant stiffness, i
 Forcing = namedtuple("Forcing", ["constant", "load_dof", "load_coef", "load_sig", "sig_params", "tab_ptr", "tab_t",
                                  "tab_v", "nominal_mass", "nominal_rotation", "nominal_scale",
                                  "nominal_damping"])  # nominal_damping (n,): C u_nom, the damping of the nominal travel
-Constraints = namedtuple("Constraints", ["dof", "params"])  # dof (k,), params (k, 9): rotation law (rotation_state)
+Constraints = namedtuple("Constraints", ["dof", "params"])  # dof (k,), params (k, 10): rotation law (rotation_state)
 Check = namedtuple("Check", ["group", "n_groups", "tol", "max_iter", "noise"])
 # refresh: the cost of a new factor in Newton iterations (0: refactorize only when convergence slows)
 StepOptions = namedtuple("StepOptions", ["am", "af", "beta", "gamma", "t_stop", "dt_out", "max_steps", "refresh"])
 Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind 0 band Cholesky, 1 band LU (partial
 # pivoting, LAPACK), 2 band LU without row exchanges (`band_lu_nopivot`)
 State = namedtuple("State", ["q", "v", "a", "f0", "fd0", "F0", "R0", "scal"])
-Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n"])
+Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n", "clutch"])  # clutch (B, n_dec): the
+# decouplers' torques (`Decouplers`)
 Events = namedtuple("Events", ["data", "n", "slack"])
 # the running belt's transport terms (module docstring): A, G = A - A^T, B (Csr, per unit speed) on the joint
 # coordinates, a0, b0 (n,); the belt speed c = speed (follow = 0) or the nominal speed of the prescribed
@@ -46,10 +47,17 @@ Fused = namedtuple("Fused", ["indptr", "indices", "data"])  # data (k, nnz): k m
 # anchor angle z (state); n_q the independent coordinates (p[:n_q] = q)
 Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction_up", "friction_down", "bristle", "anchor",
                            "n_q"])
+# decouplers with a one-way clutch (`model.decouplers`, `integrator.clutch_torques`), k of them: hub (k,) the
+# pulley's rotation DOF, rotor (k,) the rotor's, stiffness k and damping c of the spring (both also in the linear
+# part: the engaged decoupler), drag (k,) the overrunning clutch's torque bound (tau >= -drag), slip (2, k) the
+# clutch's slip angle z (row 0 at the accepted step, row 1 at the step being solved), torque (2, k) likewise tau
+Decouplers = namedtuple("Decouplers", ["hub", "rotor", "stiffness", "damping", "drag", "slip", "torque"])
 # The stepper's model, its named parts built in one place (`transient.stepper_model`): the belt (BeltData),
 # the linear part (Linear), forcing (Forcing), constraints (prescribed rotations, Constraints), the convergence
-# check (Check), the arms with their dry friction (Arms) and the running belt's transport (Transport).
-StepperModel = namedtuple("StepperModel", ["belt", "linear", "forcing", "constraints", "check", "arms", "transport"])
+# check (Check), the arms with their dry friction (Arms), the running belt's transport (Transport) and the
+# decouplers' clutches (Decouplers).
+StepperModel = namedtuple("StepperModel", ["belt", "linear", "forcing", "constraints", "check", "arms", "transport",
+                                           "decouplers"])
 ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry friction (bristle stiffness: the larger
 # of the two limits / this);
 # 1e-4 rad gave the same hysteresis (0.1 %) and cost 20 % more Newton work on the FEAD example
@@ -70,6 +78,12 @@ Work = namedtuple("Work", ["ext", "vec", "proj", "elem", "elem1", "group", "wors
 def no_arms(n: int) -> Arms:
     return Arms(dof=np.zeros(0, dtype=np.int64), slot=np.zeros(0, dtype=np.int64), length=np.zeros(0),
                 angle=np.zeros(0), friction_up=np.zeros(0), friction_down=np.zeros(0), bristle=np.zeros(0), anchor=np.zeros(0), n_q=n)
+
+
+def no_decouplers() -> Decouplers:
+    """No one-way decoupler."""
+    return Decouplers(hub=np.zeros(0, dtype=np.int64), rotor=np.zeros(0, dtype=np.int64), stiffness=np.zeros(0),
+                      damping=np.zeros(0), drag=np.zeros(0), slip=np.zeros((2, 0)), torque=np.zeros((2, 0)))
 
 
 def no_transport(n: int) -> Transport:

@@ -48,7 +48,7 @@ from beltdyn.model.system import System
 
 from beltdyn.analysis.transient_setup import (  # noqa: F401  (set-up, re-exported)
     ENERGY_TERMS, TransientSetup, band_order, belt_travel, nominal_rotation, output_volume, p_to_q, prepare, stepper_arms,
-    transport_speed)
+    stepper_decouplers, transport_speed)
 from beltdyn.analysis.transient_factor import (  # noqa: F401  (the iteration matrix, re-exported)
     IterationPlan, band_factor, factorizer, stepper_system)
 from beltdyn.analysis.transient_outputs import Observers, slip_warning, stop_warning, tension_warnings  # noqa: F401
@@ -84,7 +84,7 @@ ENERGY_LIMIT = 0.01  # energy-balance error, as a share of the energy moved, abo
 SNAPSHOT_MAGIC = b"BDSNAP01"
 _SNAPSHOT_HEAD = struct.Struct("<8sQI")  # magic, payload length, CRC-32 of the payload
 SNAPSHOT_ARRAYS = ("q", "v", "a", "f0", "fd0", "F0", "R0", "scal", "anchor", "slack", "events", "factor_q", "factor_v",
-                   "tension_low", "tension_low_time")
+                   "tension_low", "tension_low_time", "clutch")
 
 
 def _frozen(x) -> np.ndarray:
@@ -105,7 +105,7 @@ class TransientSnapshot:
     (n,) the internal, damping and external forces at it, R0 (m,) the constraint reactions, scal
     (integrator.N_SCAL,) the time, the step size, the next output time, the energy-balance accumulators
     (work, dissipated, reference energies, worst error, energy moved), the step and iteration counts
-    and the factor's age. Arms: anchor (n_arms,) the friction bristles' anchors. Slack: slack (n_span,)
+    and the factor's age. Arms: anchor (n_arms,) the friction bristles' anchors (decouplers: clutch). Slack: slack (n_span,)
     the spans' slack flags, events (k, 4) the slack events so far. Factor: factor_q, factor_v (n,),
     factor_h, factor_t, the state the current iteration matrix was computed at (recomputed on resume:
     the same matrix), fresh (the factor not used yet), calm (calm calls since a halving). Driver
@@ -142,6 +142,8 @@ class TransientSnapshot:
     tension_high: tuple[float, float] = (-np.inf, np.nan)
     worst_slip: tuple[float, float, str] = (np.inf, np.nan, "")
     stop_hit: tuple[float, str, float] | None = None
+    clutch: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((2, 0))))  # (2, n_dec): the decouplers'
+    # accepted clutch slip and torque (`integrator.Decouplers` slip[0], torque[0])
 
     @property
     def time(self) -> float:
@@ -241,6 +243,7 @@ class StepProblem:
     labels: tuple[str, ...]
     arms: tuple | None = None  # integrator.Arms (None: no arms, q = p)
     transport: tuple | None = None  # integrator.Transport (None: the belt at rest)
+    decouplers: tuple | None = None  # integrator.Decouplers (None: no one-way decoupler)
 
 
 def initial_state(problem: StepProblem, step: float, start: Callable):
@@ -311,7 +314,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
           progress: Progress | None = None, batch: int = 256, n_span: int = 0,
           resume: TransientSnapshot | None = None, on_checkpoint: Callable | None = None,
           checkpoint_seconds: float = 0.0):
-    """Integrate the problem: outputs in batches to on_batch(t, q, v, a, energy, reaction); returns
+    """Integrate the problem: outputs in batches to on_batch(t, q, v, a, energy, reaction, clutch); returns
     (status, run bookkeeping, final scal, slack events). Raises SolverError when the step cannot be
     reduced further (the batches before the failure have been delivered); KeyboardInterrupt
     propagates after the last complete batch was delivered.
@@ -328,12 +331,14 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     n = len(problem.q0)
     arms = problem.arms if problem.arms is not None else itg.no_arms(n)
     tr = problem.transport if problem.transport is not None else itg.no_transport(n)
+    dec = problem.decouplers if problem.decouplers is not None else itg.no_decouplers()
     chk = itg.Check(group=problem.groups, n_groups=int(problem.groups.max(initial=0)) + 1, tol=float(tolerance),
                     max_iter=int(max_iterations), noise=residual_noise(problem.belt))
     n_con = max(len(problem.constraints.dof), 1)
     batch = max(batch, int(math.ceil(step / output_interval)) + 2)  # a step's samples always fit
     out = itg.Outputs(t=np.zeros(batch), q=np.zeros((batch, n)), v=np.zeros((batch, n)), a=np.zeros((batch, n)),
-                      energy=np.zeros((batch, 5)), reaction=np.zeros((batch, n_con)), n=np.zeros(1, dtype=np.int64))
+                      energy=np.zeros((batch, 5)), reaction=np.zeros((batch, n_con)), n=np.zeros(1, dtype=np.int64),
+                      clutch=np.zeros((batch, len(dec.hub))))
     ev = itg.Events(data=np.zeros((2000 * max(n_span, 1) + 8, 4)), n=np.zeros(1, dtype=np.int64),
                     slack=np.zeros(max(n_span, 1)))
     all_events: list[np.ndarray] = []
@@ -345,7 +350,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     work = itg.workspace(n, problem.belt, problem.forcing, problem.constraints, chk.n_groups, arms)
 
     model = itg.StepperModel(belt=problem.belt, linear=problem.linear, forcing=problem.forcing,
-                             constraints=problem.constraints, check=chk, arms=arms, transport=tr)
+                             constraints=problem.constraints, check=chk, arms=arms, transport=tr, decouplers=dec)
 
     def advance(task, st, fac, fresh):  # the compiled stepper (`integrator.advance`), opts as they are now
         return itg.advance(task, st, model, opts, fac, fresh, out, ev, info, work)
@@ -356,6 +361,9 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         state = itg.State(q=resume.q.copy(), v=resume.v.copy(), a=resume.a.copy(), f0=resume.f0.copy(),
                           fd0=resume.fd0.copy(), F0=resume.F0.copy(), R0=resume.R0.copy(), scal=resume.scal.copy())
         arms.anchor[:] = resume.anchor
+        if len(dec.hub):
+            dec.slip[0] = resume.clutch[0]
+            dec.torque[0] = resume.clutch[1]
         ev.slack[:] = resume.slack
         if len(resume.events):
             all_events.append(np.array(resume.events))
@@ -396,7 +404,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         if take > 0:
             run.delivered += take
             on_batch(out.t[:take].copy(), out.q[:take].copy(), out.v[:take].copy(), out.a[:take].copy(),
-                     out.energy[:take].copy(), out.reaction[:take].copy())
+                     out.energy[:take].copy(), out.reaction[:take].copy(), out.clutch[:take].copy())
 
     def collect_events() -> None:
         if ev.n[0]:
@@ -408,6 +416,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         return TransientSnapshot(
             q=_frozen(state.q), v=_frozen(state.v), a=_frozen(state.a), f0=_frozen(state.f0), fd0=_frozen(state.fd0),
             F0=_frozen(state.F0), R0=_frozen(state.R0), scal=_frozen(th), anchor=_frozen(arms.anchor),
+            clutch=_frozen(np.stack([dec.slip[0], dec.torque[0]])),
             slack=_frozen(ev.slack),
             events=_frozen(np.concatenate(all_events) if all_events else np.zeros((0, 4))),
             factor_q=_frozen(at_factor["q"]), factor_v=_frozen(at_factor["v"]), factor_h=float(at_factor["h"]),
@@ -516,7 +525,7 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
     problem = StepProblem(
         belt=setup.belt, linear=setup.linear, forcing=setup.forcing, constraints=setup.constraints,
         groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels, factor=factor,
-        arms=arms, transport=tr)
+        arms=arms, transport=tr, decouplers=stepper_decouplers(system))
     observer = Observers(system=system, setup=setup)
     if resume is not None:
         observer.restore(tension_low=resume.tension_low, tension_low_time=resume.tension_low_time,
@@ -571,9 +580,9 @@ def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.
     forcing = itg.Forcing(constant=np.zeros(n), load_dof=np.zeros(0, dtype=np.int64), load_coef=np.zeros(0),
                           load_sig=np.zeros(0, dtype=np.int64), sig_params=np.zeros((0, 5)),
                           tab_ptr=np.zeros(1, dtype=np.int64), tab_t=np.zeros(0), tab_v=np.zeros(0),
-                          nominal_mass=np.zeros(n), nominal_rotation=np.zeros(9), nominal_scale=0.0,
+                          nominal_mass=np.zeros(n), nominal_rotation=np.zeros(10), nominal_scale=0.0,
                           nominal_damping=np.zeros(n))
-    cons = itg.Constraints(dof=np.zeros(0, dtype=np.int64), params=np.zeros((0, 8)))
+    cons = itg.Constraints(dof=np.zeros(0, dtype=np.int64), params=np.zeros((0, 10)))
     am, af, beta, gamma = itg.alpha_parameters(rho_inf)
 
     def factor(q, h, v=None, t=0.0):

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from beltdyn.model.decouplers import decouplers_of
 from beltdyn.model.slip import drive_centrifugal_tension, required_friction, slip_margin
 from beltdyn.model.system import System
 from beltdyn.analysis.transient_setup import TransientSetup, nominal_rotation, transport_speed
@@ -59,6 +60,23 @@ def slip_warning(worst: tuple[float, float, str]) -> tuple[str, ...]:
     return ()
 
 
+def decoupler_series(system: System, setup: TransientSetup, t, q, v, clutch) -> dict[str, np.ndarray]:
+    """rotor_speed and decoupler_torque (B, n_dec) of the decouplers (`model.decouplers`, pulley order): the
+    one-way ones' torques as the stepper's clutch gave them (clutch (B, n_one_way)), the others' k phi + c phi'."""
+    found = decouplers_of(system.components)
+    rotor = np.array([c.dofs[1] for c in found])
+    hub = np.array([c.dofs[0] for c in found])
+    sd_nom = nominal_rotation(setup, t)[1] if setup.nom_scale else np.zeros(len(t))
+    speed = v[:, rotor] + sd_nom[:, None] * setup.u_nom[rotor]
+    k = np.array([c.spring for c in found])
+    c_ = np.array([c.viscous for c in found])
+    torque = k * (q[:, hub] - q[:, rotor]) + c_ * (v[:, hub] - v[:, rotor])
+    one_way = np.array([c.one_way for c in found])
+    if one_way.any():
+        torque[:, one_way] = clutch
+    return {"rotor_speed": speed, "decoupler_torque": torque}
+
+
 # ------------------------------------------------------------------------------------ observers
 @dataclass
 class Observers:
@@ -98,10 +116,14 @@ class Observers:
         if T[b].max() > self.tension_high[0]:
             self.tension_high = (float(T[b].max()), float(t[b]))
 
-    def compute(self, t, q, v, a, energy, reaction) -> dict[str, np.ndarray]:
+    def compute(self, t, q, v, a, energy, reaction, clutch=None) -> dict[str, np.ndarray]:
+        """The series of the output states (B, n_p) at times t (B,); energy (B, 5), reaction (B, n_con) and
+        clutch (B, n_one_way) the one-way decouplers' torques, from the stepper."""
         sysm, setup, names = self.system, self.setup, self.names
         belt = sysm.belt
         out: dict[str, np.ndarray] = {}
+        if "rotor_speed" in names:
+            out.update(decoupler_series(sysm, setup, t, q, v, clutch))
         if "pulley_angle" in names or "pulley_speed" in names:
             s_nom = np.zeros(len(t))
             sd_nom = np.zeros(len(t))

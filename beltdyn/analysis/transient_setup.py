@@ -12,6 +12,7 @@ import numpy as np
 from beltdyn.config import TransientOptions
 from beltdyn.analysis.static import StaticResult
 from beltdyn.model.components import belt_rotation_rates
+from beltdyn.model.decouplers import CLUTCH_DRAG, decouplers_of
 from beltdyn.model.components import Observation as Series  # one declaration of a recorded series
 from beltdyn.model.assembly import element_pairs
 from beltdyn.model.system import System
@@ -57,7 +58,7 @@ def output_volume(system: System, opts: TransientOptions) -> tuple[int, int]:
 def belt_travel(system: System) -> np.ndarray:
     """u_nom (n_p,): the rigid belt loop advanced by 1 m (pulley rotations +-1/R, nodes along t; the
     pulley centres stay)."""
-    u = belt_rotation_rates(system.layout, system.rot_dof, system.n_p)
+    u = belt_rotation_rates(system.layout, system.rot_dof, system.n_p, system.dofs.rotor_dof)
     for s, sl in enumerate(system.dofs.span_slices):
         labels = system.dof_labels[sl]
         block = np.zeros(sl.stop - sl.start)
@@ -94,6 +95,21 @@ def stepper_arms(system: System):
                     bristle=np.where(top > 0, top / itg.ARM_PRESLIDING, 1.0),
                     anchor=np.zeros(len(a.dof)),  # the bristles relaxed at the start (set from q0 by `drive`)
                     n_q=int(system.n_dof))
+
+
+def stepper_decouplers(system: System):
+    """integrator.Decouplers of the system's one-way decouplers (`model.decouplers`; a decoupler without a
+    clutch is all in the linear part), their clutches holding at the start."""
+    from beltdyn.analysis import integrator as itg
+
+    found = [c for c in decouplers_of(system.components) if c.one_way]
+    if not found:
+        return itg.no_decouplers()
+    k = len(found)
+    return itg.Decouplers(hub=np.array([c.dofs[0] for c in found], dtype=np.int64),
+                          rotor=np.array([c.dofs[1] for c in found], dtype=np.int64),
+                          stiffness=np.array([c.spring for c in found]), damping=np.array([c.viscous for c in found]),
+                          drag=np.full(k, CLUTCH_DRAG), slip=np.zeros((2, k)), torque=np.zeros((2, k)))
 
 
 def band_order(system: System) -> tuple[np.ndarray, int]:
@@ -136,11 +152,11 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
     u_nom = belt_travel(system)
     # constraints: prescribed rotations (any number); the first with a speed carries the belt travel
     cons_dof, cons_par = [], []
-    nom_rot, nom_scale, f_exc = np.zeros(9), 0.0, None
+    nom_rot, nom_scale, f_exc = np.zeros(10), 0.0, None
     for r in opts.rotation:
         d = int(system.rot_dof[system.pulley_index(r.pulley)])
         par = np.array([r.speed, r.ramp_time, r.amplitude, r.speed_amplitude, r.frequency, r.phase, r.fluctuation_ramp,
-                        static.q[d] if opts.start == "static" else 0.0, r.order])
+                        static.q[d] if opts.start == "static" else 0.0, r.order, r.start_speed])
         cons_dof.append(d)
         cons_par.append(par)
         if r.speed != 0.0 and nom_scale == 0.0:
@@ -159,7 +175,7 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
             tabs_v += list(sig.table_value)
             ptr.append(len(tabs_t))
             if load.kind == "torque":
-                load_dof.append(int(system.rot_dof[j]))
+                load_dof.append(int(system.dofs.torque_dof[j]))  # (a decoupler's rotor)
                 load_coef.append(1.0)
                 load_sig.append(k)
             else:
@@ -207,7 +223,7 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
         tab_v=np.array(tabs_v, dtype=float), nominal_mass=np.asarray(M @ u_nom).ravel().astype(float),
         nominal_rotation=nom_rot, nominal_scale=float(nom_scale), nominal_damping=nominal_damping)
     constraints = itg.Constraints(dof=np.array(cons_dof, dtype=np.int64),
-                                  params=np.array(cons_par, dtype=float).reshape(-1, 9))
+                                  params=np.array(cons_par, dtype=float).reshape(-1, 10))
     transport = itg.no_transport(n)
     if opts.transport and (nom_scale or system.belt_speed):  # the running belt (module docstring)
         A, B, a0, b0 = system.transport_matrices()
@@ -231,14 +247,15 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
 def nominal_rotation(setup: TransientSetup, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The nominal angle (rad), speed and acceleration of the prescribed rotation at the times t (B,),
     times the belt-travel scale `nom_scale` (m, m/s, m/s^2 of belt): `integrator.rotation_state`'s
-    nominal part vectorized, a linear ramp of the speed to Omega over T_r."""
+    nominal part vectorized, a linear ramp of the speed from Omega_0 to Omega over T_r."""
     om, ramp_time = float(setup.forcing.nominal_rotation[0]), float(setup.forcing.nominal_rotation[1])
+    om0 = float(setup.forcing.nominal_rotation[9])
     t = np.asarray(t, dtype=float)
     ramp = (t < ramp_time) if ramp_time > 0.0 else np.zeros(t.shape, dtype=bool)
     per = 1.0 / ramp_time if ramp_time > 0.0 else 0.0
-    th = np.where(ramp, 0.5 * om * t * t * per, om * (t - 0.5 * ramp_time))
-    thd = np.where(ramp, om * t * per, om)
-    thdd = np.where(ramp, om * per, 0.0)
+    th = np.where(ramp, om0 * t + 0.5 * (om - om0) * t * t * per, om * (t - 0.5 * ramp_time) + 0.5 * om0 * ramp_time)
+    thd = np.where(ramp, om0 + (om - om0) * t * per, om)
+    thdd = np.where(ramp, (om - om0) * per, 0.0)
     return th * setup.nom_scale, thd * setup.nom_scale, thdd * setup.nom_scale
 
 
@@ -274,6 +291,14 @@ def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
                 if obs.name == "bearing_force":
                     coords["bearing"] = list(c.pulley_names)
                 out.append(Series(name=obs.name, dims=obs.dims, units=obs.units, description=obs.description))
+    found = decouplers_of(system.components)
+    if found:  # the decouplers' rotors and torques, on an axis of their pulleys' names
+        coords["decoupler"] = [c.pulley_name for c in found]
+        out.append(Series(name="rotor_speed", dims=("decoupler",), units="rad/s",
+                          description="speed of the decoupler's rotor, counter-clockwise (nominal travel included)"))
+        out.append(Series(name="decoupler_torque", dims=("decoupler",), units="N m",
+                          description="torque the decoupler transmits from the hub to the rotor (spring and damper "
+                                      "through the one-way clutch: never below -drag, 0 N m, while it overruns)"))
     if system.arms is not None:
         coords["arm"] = list(system.arms.names)
         out.append(Series(name="arm_angle", dims=("arm",), units="rad",

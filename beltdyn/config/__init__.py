@@ -32,14 +32,14 @@ from beltdyn.config.kinds import (CURVATURES, DEFAULT_STEP, MAX_GAUSS_POINTS, SI
 from beltdyn.config.load import config_from_dict, load_config
 from beltdyn.config.overrides import apply_override, parse_toml_file
 from beltdyn.config.resolved import config_hash, config_to_dict, resolved_toml, with_overrides
-from beltdyn.config.schema import (Belt, Damping, DriveConfig, KeyDoc, Load, Mesh, ModalOptions, ModelOptions, Pulley,
+from beltdyn.config.schema import (Belt, Damping, Decoupler, DriveConfig, KeyDoc, Load, Mesh, ModalOptions, ModelOptions, Pulley,
                                    Record, ResponseExcitation, ResponseOptions, Rotation, RunningOptions, Signal,
                                    SpanSetting, SpectrumOptions, StaticOptions, StaticTorque, SweepTable, Tension,
                                    TransientOptions, key_docs, span_name_key, span_names, valid_keys)
 from beltdyn.config.tables import table_bytes
 
 __all__ = [
-    "Belt", "Pulley", "Tension", "Mesh", "SpanSetting", "ModelOptions", "StaticTorque", "StaticOptions", "ModalOptions",
+    "Belt", "Pulley", "Decoupler", "Tension", "Mesh", "SpanSetting", "ModelOptions", "StaticTorque", "StaticOptions", "ModalOptions",
     "Signal", "Rotation", "Load", "Record", "Damping", "ResponseExcitation", "ResponseOptions", "SpectrumOptions",
     "TransientOptions", "RunningOptions", "SweepTable", "DriveConfig", "KeyDoc",
     "CURVATURES", "DEFAULT_STEP", "MAX_GAUSS_POINTS", "SIDES", "SPAN_MODELS", "SUPPORTS", "TENSION_MODES",

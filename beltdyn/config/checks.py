@@ -116,6 +116,10 @@ def _check_pulleys(chk: _Checker, raw: list[dict[str, Any]], pulleys: tuple[Pull
     drivers = [i for i, p in enumerate(out) if p.driver]
     if len(drivers) > 1:
         raise chk.fail(f"pulleys[{drivers[1]}].driver", "only one pulley may be the driver")
+    driver = drivers[0] if drivers else 0
+    if out[driver].decoupler is not None:
+        raise chk.fail(f"pulleys[{driver}].decoupler", "the driver's rotation is held (it reacts the torques): a "
+                                                       "decoupler belongs on an accessory (an alternator's pulley)")
     return tuple(out)
 
 
@@ -157,6 +161,9 @@ def _check_transient(chk: _Checker, t: TransientOptions, pulleys: tuple[Pulley, 
                 raise chk.fail(f"{key}.order", "an engine-order fluctuation needs a mean speed (speed != 0)")
         elif (r.amplitude or r.speed_amplitude) and not r.frequency > 0:
             raise chk.fail(f"{key}.frequency", "a fluctuation needs frequency > 0 (or an engine order)")
+        if r.start_speed != 0.0 and not r.ramp_time > 0.0:
+            raise chk.fail(f"{key}.start_speed", "a start speed is where a ramp starts: give ramp_time > 0 (without "
+                                                 "a ramp the rotation runs at `speed` from the start)")
     if len(t.rotation) > 1:
         raise chk.fail("transient.rotation[1]", "only one pulley rotation can be prescribed")
     loads = []

@@ -42,6 +42,22 @@ class Belt:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Decoupler:
+    """pulleys[i].decoupler: a decoupler (overrunning alternator pulley, OAD) between the pulley's hub and the
+    accessory's rotor: the rotor (inertia, kg m^2, its own rotation DOF) behind a torsion spring (stiffness,
+    N m/rad) with viscous damping across it (N m s/rad); with one_way a one-way clutch in series that transmits
+    only driving torque (the belt driving the rotor) and overruns otherwise (transient; static, modal and
+    response hold the clutch engaged). The pulley's own inertia is then the hub's alone; the accessory torques
+    and rotational_damping act on the rotor."""
+
+    inertia: float = key(POSFLOAT, doc="inertia of the rotor behind the decoupler", units="kg m^2")
+    stiffness: float = key(POSFLOAT, doc="torsion spring between the hub and the rotor", units="N m/rad")
+    damping: float = key(NONNEGFLOAT, 0.0, doc="viscous damping across the spring", units="N m s/rad")
+    one_way: bool = key(BOOL, True, doc="a one-way clutch in series: transmits only driving torque, overruns "
+                                        "otherwise (transient)")
+
+
+@dataclass(frozen=True, kw_only=True)
 class Pulley:
     """A rigid pulley. center (m, x right / y up); radius (m); mass (kg); inertia (kg m^2).
 
@@ -109,6 +125,9 @@ class Pulley:
                                     doc="viscous torque to ground -d omega on the pulley's rotation (a generator or "
                                         "pump load growing with speed; static at speed, transient, response)",
                                     units="N m s/rad")
+    decoupler: Decoupler | None = key(_Table(Decoupler), None,
+                                      doc="{ inertia, stiffness, damping, one_way }: a decoupler (OAD) between the "
+                                          "hub and the accessory's rotor")
 
     @property
     def n_translation(self) -> int:
@@ -278,6 +297,9 @@ class Rotation:
     frequency: float = key(NONNEGFLOAT, 0.0, doc="frequency of the fluctuation", units="Hz")
     phase: float = key(FLOAT, 0.0, doc="phase of the fluctuation", units="rad")
     fluctuation_ramp: float = key(NONNEGFLOAT, 0.0, doc="smooth fade-in of the fluctuation", units="s")
+    start_speed: float = key(FLOAT, 0.0, omit_default=True,
+                             doc="nominal speed at t = 0, ramped linearly to `speed` over ramp_time (a run-up from "
+                                 "idle: the run starts from the running equilibrium at this speed)", units="rad/s")
     order: float = key(NONNEGFLOAT, 0.0, omit_default=True,
                        doc="engine order: the fluctuation runs at order x the nominal rotation (phase order x "
                            "nominal angle, so it follows the speed ramp) instead of at `frequency`; a "

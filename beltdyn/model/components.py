@@ -95,14 +95,18 @@ def rotation_component(rot_dof: np.ndarray, inertia, rotational_damping) -> Line
                            weight=None, free=None, energy_kind="rotational")
 
 
-def belt_rotation_rates(layout: "Layout", rot_dof: np.ndarray, n: int) -> np.ndarray:
+def belt_rotation_rates(layout: "Layout", rot_dof: np.ndarray, n: int,
+                        rotor_dof: np.ndarray | None = None) -> np.ndarray:
     """(n,) the pulleys' rotations per metre of belt travel, +-1/R_j at their rotation DOFs rot_dof (the
     sign from the direction the belt leaves pulley j, (t x n_out-perp) / R: counter-clockwise positive),
+    the same at a decoupler's rotor DOF (rotor_dof (n_pulley,), -1: none; the rotor turns with its pulley),
     0 elsewhere. The running drive at belt speed v turns pulley j at omega_j = v times this."""
     u = np.zeros(n)
     for j in range(layout.n):
         n_out = layout.start_normal[j]
         u[rot_dof[j]] = float(np.array([-n_out[1], n_out[0]]) @ layout.span_direction[j]) / layout.radius[j]
+        if rotor_dof is not None and rotor_dof[j] >= 0:
+            u[rotor_dof[j]] = u[rot_dof[j]]
     return u
 
 

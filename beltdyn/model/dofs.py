@@ -3,7 +3,8 @@
 Nomenclature (paper section 2.2): q (n_dof,) the independent coordinates, measured from the reference
 configuration (q = 0 is the stress-free L0 geometry, or the prestrained one). A pulley carries only the
 DOFs its support allows: rotation theta (rad, counter-clockwise), plus the slide offset u (m), the bearing
-displacements (x, y) (m) or an arm angle phi (rad). A span carries every coordinate of its interior nodes
+displacements (x, y) (m) or an arm angle phi (rad); a pulley with a decoupler also its rotor's rotation
+(rad, right after the pulley's, `model.decouplers`). A span carries every coordinate of its interior nodes
 (r1, r2, r1', r2') and the gradients of its end nodes; the end-node positions are dependent (the joints,
 `belt`). The joint coordinates p (n_p,) are q followed by the dependent ones (an arm pulley's centre
 offsets).
@@ -43,6 +44,14 @@ class DofMap:
     span_slices: tuple[slice, ...]
     arm_dof: np.ndarray | None = None
     dependent: int = 0
+    rotor_dof: np.ndarray | None = None  # (n_pulley,) the rotation DOF of a decoupler's rotor (-1: no decoupler)
+
+    @property
+    def torque_dof(self) -> np.ndarray:
+        """(n_pulley,) the DOF an accessory torque on pulley j acts on: its decoupler's rotor, else its rotation."""
+        if self.rotor_dof is None:
+            return self.rot_dof
+        return np.where(self.rotor_dof >= 0, self.rotor_dof, self.rot_dof)
 
     @property
     def n(self) -> int:
@@ -76,6 +85,7 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
 
     comp = (("r1", "m"), ("r2", "m"), ("r1'", "1"), ("r2'", "1"))
     arm_dof = np.full(len(cfg.pulleys), -1, dtype=int)
+    rotor_dof = np.full(len(cfg.pulleys), -1, dtype=int)
     supports = [support_of(p) for p in cfg.pulleys]
     for j, (p, sup) in enumerate(zip(cfg.pulleys, supports)):
         own = [(add(f"pulley {p.name} {suffix}", unit, grp), grp) for suffix, unit, grp in sup.independent()]
@@ -83,6 +93,8 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
         trans_dir.append(sup.directions())
         arm_dof[j] = next((d for d, grp in own if grp == "arm"), -1)
         rot_dof[j] = add(f"pulley {p.name} rotation", "rad", "rotation")
+        if p.decoupler is not None:
+            rotor_dof[j] = add(f"pulley {p.name} rotor", "rad", "rotation")
         start = len(labels)
         s = j + 1
         n_e = counts[j]
@@ -95,8 +107,8 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
         if sup.dependent():
             trans_dof[j] = tuple(add(f"pulley {p.name} {suffix}", unit, grp) for suffix, unit, grp in sup.dependent())
     group = np.array(group, dtype=np.int64)
-    for a in (group, rot_dof, arm_dof, *trans_dir):  # (read-only: a DOF map is immutable)
+    for a in (group, rot_dof, arm_dof, rotor_dof, *trans_dir):  # (read-only: a DOF map is immutable)
         a.setflags(write=False)
     return DofMap(labels=tuple(labels), units=tuple(units), group=group, rot_dof=rot_dof,
                   trans_dof=tuple(trans_dof), trans_dir=tuple(trans_dir), span_slices=tuple(span_slices),
-                  arm_dof=arm_dof, dependent=len(labels) - n_q)
+                  arm_dof=arm_dof, dependent=len(labels) - n_q, rotor_dof=rotor_dof)

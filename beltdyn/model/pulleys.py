@@ -1,6 +1,7 @@
 """The pulleys' components from the configuration: pulley inertia J (rotation DOFs), pulley mass m and
 weight (translation DOFs, paper Eq. 20: M = m |v|^2 per direction v, W = m v), the bearing springs
-(Eq. 21, diagonal k per translation DOF), and each support's own components (a tensioner arm's inertia,
+(Eq. 21, diagonal k per translation DOF), the decouplers (`decouplers`: a rotor behind a spring), and each
+support's own components (a tensioner arm's inertia,
 torsion spring and damper on its angle)."""
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import numpy as np
 
 from beltdyn.config import DriveConfig
 from beltdyn.model.components import BearingSprings, LinearComponent, rotation_component
+from beltdyn.model.decouplers import decoupler_component
 from beltdyn.model.dofs import DofMap
 from beltdyn.model.supports import SUPPORT_CLASSES, Support, support_of
 
@@ -53,7 +55,15 @@ def pulley_parts(cfg: DriveConfig, dofs: DofMap) -> PulleyParts:
     without any), and the supports with own components (support, its first DOF, pulley index)."""
     pulleys = cfg.pulleys
     fixed: list[LinearComponent] = [rotation_component(dofs.rot_dof, [p.inertia for p in pulleys],
-                                                       [p.rotational_damping for p in pulleys])]
+                                                       [0.0 if p.decoupler is not None else p.rotational_damping
+                                                        for p in pulleys])]  # (a decoupler's: on its rotor)
+    for j, p in enumerate(pulleys):  # decouplers: the rotor behind its spring (`model.decouplers`)
+        dc = p.decoupler
+        if dc is not None:
+            fixed.append(decoupler_component(pulley=j, pulley_name=p.name, rot_dof=int(dofs.rot_dof[j]),
+                                             rotor_dof=int(dofs.rotor_dof[j]), inertia=dc.inertia,
+                                             stiffness=dc.stiffness, damping=dc.damping,
+                                             rotor_damping=p.rotational_damping, one_way=dc.one_way))
     masses: dict[str, tuple[list, list, list]] = {}  # energy kind -> translational DOFs, masses, weights
     t_dofs, k_spring, supported = [], [], []
     own = []

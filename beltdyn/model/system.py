@@ -350,7 +350,7 @@ class System:
         rotational_damping d gives d omega); 0 at rest or without damping components."""
         if not self.belt_speed or self.linear_damping is None:
             return np.zeros(self.n_p)
-        v_run = self.belt_speed * belt_rotation_rates(self.layout, self.rot_dof, self.n_p)
+        v_run = self.belt_speed * belt_rotation_rates(self.layout, self.rot_dof, self.n_p, self.dofs.rotor_dof)
         return np.asarray(self.linear_damping @ v_run, dtype=float).ravel()
 
     def equilibrium(self, q: np.ndarray, load_factor: float = 1.0, *, tangent: bool = True, joint: bool = False):
@@ -626,11 +626,12 @@ class System:
 
 
 def static_loads(cfg: DriveConfig, dofs: DofMap) -> np.ndarray | None:
-    """(n_p,) the accessory torques of [[static.torque]] on the pulley rotations (None if none)."""
+    """(n_p,) the accessory torques of [[static.torque]] on the pulley rotations, a decoupler's on its rotor
+    (None if none)."""
     if not cfg.static.torque:
         return None
     names = [p.name for p in cfg.pulleys]
-    at = dofs.rot_dof[[names.index(tq.pulley) for tq in cfg.static.torque]]
+    at = dofs.torque_dof[[names.index(tq.pulley) for tq in cfg.static.torque]]
     return np.bincount(at, weights=[tq.value for tq in cfg.static.torque], minlength=dofs.n).astype(float)
 
 
@@ -681,8 +682,9 @@ def memory_limit() -> int:
 
 def model_dofs(cfg: DriveConfig) -> int:
     """The DOF count of a configuration's model, known before anything is built: per span 4 per
-    element (the interior nodes and the end slopes) and 3 per pulley (rotation and translations, at most)."""
-    return 3 * len(cfg.pulleys) + 4 * sum(cfg.span_elements)
+    element (the interior nodes and the end slopes), 3 per pulley (rotation and translations, at most) and a
+    decoupler's rotor."""
+    return 3 * len(cfg.pulleys) + 4 * sum(cfg.span_elements) + sum(p.decoupler is not None for p in cfg.pulleys)
 
 
 def check_model_size(cfg: DriveConfig) -> None:

@@ -11,7 +11,8 @@ from beltdyn.plot.style import curve_style, pyplot, separate
 
 HISTORIES = (("span_tension", "span tension (N)"), ("hub_load", "hub load magnitude (N)"),
              ("pulley_speed", "pulley speed (rad/s)"), ("arm_angle", "arm angle (rad)"),
-             ("slip_margin", "slip margin (1)"))
+             ("slip_margin", "slip margin (1)"), ("rotor_speed", "decoupler rotor speed (rad/s)"),
+             ("decoupler_torque", "decoupler torque (N m)"))
 READABLE = {"span_tension": "span tension", "hub_load": "hub load", "midspan_displacement": "mid-span displacement",
             "pulley_speed": "pulley speed", "arm_angle": "arm angle", "bearing_force": "bearing force",
             "slip_margin": "slip margin", "pulley_angle": "pulley angle"}

@@ -161,6 +161,9 @@ class ResidualScales:
         self.other = group != _SPAN
         self.lever = lever = np.ones(d.n_q)  # m: converts a force scale into the row's scale
         lever[d.rot_dof] = system.layout.radius
+        if d.rotor_dof is not None:  # a decoupler's rotor: a torque row like its pulley's
+            on = d.rotor_dof >= 0
+            lever[d.rotor_dof[on]] = system.layout.radius[on]
         a = system.arms
         self._arm_lever = None
         if a is not None:  # an arm's row is a torque about its pivot: the arm length

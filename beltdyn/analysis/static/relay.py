@@ -49,6 +49,10 @@ def warm_start(system: System, previous: System, q: np.ndarray, *, rotations: bo
     q0 = np.zeros(system.n_dof)
     if rotations:
         q0[system.rot_dof] = q[previous.rot_dof]
+    rotor, was = system.dofs.rotor_dof, previous.dofs.rotor_dof
+    if rotor is not None and (rotor >= 0).any():  # a decoupler's rotor keeps its spring's wind-up
+        on = rotor >= 0
+        q0[rotor[on]] = q0[system.rot_dof[on]] - (q[previous.rot_dof[on]] - q[was[on]])
     old = previous.belt.element_coordinates(previous.expand(q))
     new = system.belt.element_coordinates(system.expand(q0))  # the end nodes where q0 puts them
     model = system.belt
@@ -242,7 +246,7 @@ def _predicted_start(plan: _Plan):
     system, lay0, ts = plan.system, plan.lay0, plan.system.tension
     n_dof, EA = system.dofs.n, float(system.EA)
     lam_p = float(system.belt.prestrain_stretch)
-    span_tension = _span_tension_law(plan, torque_split(lay0, system.loads, system.dofs.rot_dof, system.driver))
+    span_tension = _span_tension_law(plan, torque_split(lay0, system.loads, system.dofs.torque_dof, system.driver))
     if span_tension is None or not (plan.moving or ts.mode == "adjust"):
         return system, lay0, np.zeros(n_dof), None, lam_p
     fit = _adjust_fit(plan) if ts.mode == "adjust" else None

@@ -137,7 +137,7 @@ def static_result(model: System, q, preload, hist_r, hist_l, iterations, driver_
             else:  # no spring: a constant preload torque (adjust mode), if any
                 arm_torque[j] = float(preload[d])
             pivot[j] = -(hub[j] + weight)  # statics of arm + pulley: pivot + belt + weight = 0
-    applied = np.zeros(n) if model.loads is None else model.loads[model.rot_dof]
+    applied = np.zeros(n) if model.loads is None else model.loads[model.dofs.torque_dof]
     friction = model.pulley_friction
     t_in, t_out = pulley_tensions(span_tension)
     wraps = wrap_state(t_in=t_in, t_out=t_out, radius=lay.radius, wrap=lay.wrap_angle, friction=friction,
