@@ -46,10 +46,10 @@ from typing import Callable
 
 import numpy as np
 
+from beltdyn.config import WRAP_MODELS
 from beltdyn.model.barlaw import stretch_for_tension
 from beltdyn.model.slip import ROUND_OFF
 
-WRAP_MODELS = ("creep", "rigid")  # "creep": adhesion + slip arc (module docstring); "rigid": inextensible, no slip
 QUADRATURE_POINTS = 24  # Gauss-Legendre points of the slip-arc integrals
 
 _XI, _W = np.polynomial.legendre.leggauss(QUADRATURE_POINTS)  # on [-1, 1]
