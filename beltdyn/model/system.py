@@ -39,7 +39,7 @@ from beltdyn.config import DriveConfig
 from beltdyn.errors import ConfigError
 from beltdyn.model.components import ENERGY_KINDS, LinearComponent, arm_spring, belt_rotation_rates
 from beltdyn.model.pulleys import PulleyParts, pulley_components, pulley_parts
-from beltdyn.model.barlaw import stretch_for_tension
+from beltdyn.model.barlaw import bar_law
 from beltdyn.model.geometry import Layout, layout_from_config
 from beltdyn.model.geometry import belt_speed_of
 from beltdyn.model.supports import support_of
@@ -643,7 +643,7 @@ def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
     """The spans' stretch at q = 0 that the tension mode asks for (1: stress-free)."""
     target = cfg.tension.target
     if target is not None and cfg.tension.mode == "prestrain":
-        return stretch_for_tension(target, cfg.belt.EA)
+        return bar_law(cfg.belt.axial_law).stretch_for_tension(target, cfg.belt.EA)
     if target is None and cfg.adjustable_index is None:
         lam = layout.belt_length / cfg.belt.length  # the belt of length L0 stretched onto the path
         if lam < 1.0:
