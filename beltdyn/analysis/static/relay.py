@@ -303,6 +303,7 @@ def _extrapolated(plan: _Plan, system: System, centers: np.ndarray, step: np.nda
 
 
 SETTLE_PASSES = 8  # re-references after the solve (each leaves rotations smaller by about the belt strain)
+BUDGET_PASSES = 8  # creep wraps: re-solves for the belt-length budget (a secant: two or three where one is needed)
 
 
 def _resettled(plan: _Plan, system: System, q: np.ndarray, free: np.ndarray, budget: float = 0.0) -> System:
@@ -368,7 +369,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     solves = iterations = 0
     budget = Budget.of(options)  # over all passes and solves
     settles = referenced = 0  # solves on re-referenced spans alone; re-references (`settled_reference`) in all
-    budget_history: list[tuple[float, float]] = []  # creep wraps: (span reference total, wrap total) on this layout
+    budget_history: list[tuple[float, float]] = []  # creep wraps: `budget_excess`'s (S, W) of the solves so far
     carry = False  # once re-referenced, every re-lay carries the spans' references over
     for p in range(1, max_passes + 1):
         if plan.prestrain:
@@ -391,7 +392,8 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                 if excess is not None:
                     budget_history.append(excess)
                     short = budget_step(budget_history, plan.material)
-            if not plan.prestrain and (slide > plan.tol_x or short) and referenced < SETTLE_PASSES:
+            if not plan.prestrain and ((slide > plan.tol_x and referenced < SETTLE_PASSES)
+                                       or (short and len(budget_history) <= BUDGET_PASSES)):
                 # the material the rotations moved into the spans' references, solved again (`settled_reference`)
                 settles, referenced, carry = settles + 1, referenced + 1, True
                 prev_system, system = system, _resettled(plan, system, q_p, free, short)
@@ -410,7 +412,6 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                                newton_iterations=iterations, tangent=None if plan.prestrain else known.get("tangent"))
         centers = _extrapolated(plan, system, solved_centers, step, prev_step)
         prev_step = step
-        budget_history.clear()  # (a new layout: its own secant)
         # the rotations' material carried into the references on the way (the same pass as the re-lay)
         settle = not plan.prestrain and referenced < SETTLE_PASSES and _rotation_slide(system, q_p) > plan.tol_x
         ref_old = settled_reference(system, q_p) if settle else system.belt.reference_length

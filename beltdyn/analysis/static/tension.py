@@ -269,11 +269,12 @@ def turned_wraps(layout, span_angle: np.ndarray) -> np.ndarray:
 
 def budget_excess(system, q: np.ndarray, material: float, tolerance: float, *, p: np.ndarray | None = None
                   ) -> tuple[float, float] | None:
-    """(S, W) m: the spans' reference total and the creep wraps' stress-free total (`model.wraps`, at the
-    span tensions of q and the drive's centrifugal tension) where they miss the belt's undeformed length
-    `material` by more than the tension's tolerance as a length, |S + W - material| > tolerance |T| material
-    / EA (T the mean span tension); None where they meet it (or the wraps are rigid). p: q on the joint
-    coordinates, if at hand."""
+    """(S, W) m: the spans' reference total plus the wraps' arc lengths (what the re-lay passes keep,
+    `carried_reference`: S moves only by the budget's own steps) and the creep wraps' stress-free total
+    (`model.wraps`, at the span tensions of q and the drive's centrifugal tension) less their arcs, where
+    S + W misses the belt's undeformed length `material` by more than the tension's tolerance as a length,
+    tolerance |T| material / EA (T the mean span tension); None where they meet it (or the wraps are rigid).
+    p: q on the joint coordinates, if at hand."""
     wm = system.wraps
     if wm is None or wm.kind == "rigid":
         return None
@@ -282,16 +283,17 @@ def budget_excess(system, q: np.ndarray, material: float, tolerance: float, *, p
     lay = system.layout
     W = float(wrap_lengths(wm, span_tension=T, radius=lay.radius, wrap=lay.wrap_angle, belt_speed=system.belt_speed,
                            centrifugal=float(c)).sum())
-    S = float(system.belt.reference_length.sum())
+    arc = float(lay.arc_length.sum())
+    S = float(system.belt.reference_length.sum()) + arc  # (S + the arcs: what a re-lay keeps, `carried_reference`)
     allowed = max(tolerance * abs(float(T_mean)) / float(system.EA), 4.0 * np.finfo(float).eps) * material
-    return None if abs(S + W - material) <= allowed else (S, W)
+    return None if abs(S + (W - arc) - material) <= allowed else (S, W - arc)
 
 
 def budget_step(history: list[tuple[float, float]], total: float) -> float:
-    """The change dS of the spans' reference total S that meets the belt-length budget S + W(S) = total
-    (m, the belt's undeformed length), W the wraps' stress-free total at the equilibrium of S: from the
-    solved (S_k, W_k) so far (`history`, oldest first), Newton dS = -(S + W - total) / (1 + W'), W' the
-    secant of the last two (0 with one: a fixed-point step, contracting by W' ~ R beta / L < 1)."""
+    """The change dS of the spans' reference total that meets the belt-length budget S + W(S) = total
+    (m, the belt's undeformed length), S and W as `budget_excess` gives them: from the solved (S_k, W_k)
+    so far (`history`, oldest first), Newton dS = -(S + W - total) / (1 + W'), W' the secant of the last
+    two (0 with one: a fixed-point step, contracting by |W'| ~ R beta / L < 1)."""
     S, W = history[-1]
     slope = 0.0
     if len(history) > 1:
