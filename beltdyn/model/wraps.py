@@ -13,8 +13,9 @@ tension of the span that departs (T_x, the exit). With creep wraps the wrap carr
 
   mu the belt-pulley friction coefficient (the user's effective value), c = rho v^2 lambda the
   centrifugal part of the tension (rho the mass per unit reference length, v the reference
-  (mass-flow) speed, lambda the local stretch: the true-force form of rho v_true^2 / lambda; 0 at
-  rest). The slip arc is absent where the two tensions are equal (idlers, backside pulleys without
+  (mass-flow) speed, lambda the stretch: the true-force form of rho v_true^2 / lambda; 0 at rest;
+  the statics take one c for the drive, the slip margin's, at the mean span tension, so that the
+  slip arc and the margin agree exactly: `wrap_state(centrifugal=...)`). The slip arc is absent where the two tensions are equal (idlers, backside pulleys without
   torque: `ROUND_OFF` of `model.slip`), and a pulley without a friction value never slips (phi_s = 0).
   Where phi_s > beta the wrap cannot hold the tension ratio: gross slip (the slip margin < 1;
   phi_s / beta = 1 / margin exactly, both from the same capstan law).

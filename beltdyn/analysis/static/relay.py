@@ -386,9 +386,11 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         movement.append(float(np.sqrt((step * step).sum(axis=1)).max(initial=0.0)))  # (the largest |step|)
         if not plan.moving or movement[-1] <= plan.tol_x:
             slide = _rotation_slide(system, q_p)
-            short = 0.0  # creep wraps: the change of the spans' reference total the belt-length budget asks for
+            short, st = 0.0, None  # creep wraps: the change of the spans' reference total the budget asks for
             if plan.material is not None and not plan.prestrain:
-                excess = budget_excess(system, q_p, plan.material, options.tolerance, p=known.get("joint"))
+                st = static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
+                                   known={**known, "pulley_center": solved_centers})  # (its wraps: the budget's)
+                excess = budget_excess(system, st, plan.material, options.tolerance)
                 if excess is not None:
                     budget_history.append(excess)
                     short = budget_step(budget_history, plan.material)
@@ -404,7 +406,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                 solves, iterations = solves + k, iterations + its
                 st = static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
                                    known={**known, "pulley_center": system.pulley_centers(q_p, p=known.get("joint"))})
-            elif not plan.prestrain:
+            elif not plan.prestrain and st is None:
                 st = static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
                                    known={**known, "pulley_center": solved_centers})
             check_slack(system, st)

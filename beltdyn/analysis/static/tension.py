@@ -17,7 +17,6 @@ from beltdyn.config import StaticOptions
 from beltdyn.errors import SolverError
 from beltdyn.model.angles import wrap_angle
 from beltdyn.model.barlaw import BarLaw, axial_force, axial_stiffness, bar_law, stretch_for_tension, stretch_start
-from beltdyn.model.slip import drive_centrifugal_tension
 from beltdyn.model.wraps import WrapModel, slip_part, wrap_lengths
 
 GREEN = bar_law("green-lagrange")
@@ -267,25 +266,20 @@ def turned_wraps(layout, span_angle: np.ndarray) -> np.ndarray:
     return layout.wrap_angle + layout.orientation * layout.side_sign * (turn - np.roll(turn, 1))
 
 
-def budget_excess(system, q: np.ndarray, material: float, tolerance: float, *, p: np.ndarray | None = None
-                  ) -> tuple[float, float] | None:
+def budget_excess(system, static, material: float, tolerance: float) -> tuple[float, float] | None:
     """(S, W) m: the spans' reference total plus the wraps' arc lengths (what the re-lay passes keep,
     `carried_reference`: S moves only by the budget's own steps) and the creep wraps' stress-free total
-    (`model.wraps`, at the span tensions of q and the drive's centrifugal tension) less their arcs, where
-    S + W misses the belt's undeformed length `material` by more than the tension's tolerance as a length,
-    tolerance |T| material / EA (T the mean span tension); None where they meet it (or the wraps are rigid).
-    p: q on the joint coordinates, if at hand."""
+    less their arcs (the static result's `wraps`, `model.wraps` at its span tensions and the drive's
+    centrifugal tension), where S + W misses the belt's undeformed length `material` by more than the
+    tension's tolerance as a length, tolerance |T| material / EA (T the mean span tension); None where they
+    meet it (or the wraps are rigid)."""
     wm = system.wraps
     if wm is None or wm.kind == "rigid":
         return None
-    _, T, T_mean = system.static_span_outputs(q, p=p)
-    c = drive_centrifugal_tension(system, system.belt_speed, T_mean)
-    lay = system.layout
-    W = float(wrap_lengths(wm, span_tension=T, radius=lay.radius, wrap=lay.wrap_angle, belt_speed=system.belt_speed,
-                           centrifugal=float(c)).sum())
-    arc = float(lay.arc_length.sum())
+    arc = float(system.layout.arc_length.sum())
+    W = float(static.wraps.stress_free_length.sum())
     S = float(system.belt.reference_length.sum()) + arc  # (S + the arcs: what a re-lay keeps, `carried_reference`)
-    allowed = max(tolerance * abs(float(T_mean)) / float(system.EA), 4.0 * np.finfo(float).eps) * material
+    allowed = max(tolerance * abs(float(static.mean_tension)) / float(system.EA), 4.0 * np.finfo(float).eps) * material
     return None if abs(S + (W - arc) - material) <= allowed else (S, W - arc)
 
 
