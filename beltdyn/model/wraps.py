@@ -235,15 +235,12 @@ def slip_part(wm: WrapModel, *, span_tension: np.ndarray, radius: np.ndarray, wr
     clipped to the wrap: what the slip arcs add to the wraps' stress-free length beyond the adhesion
     stretch R beta / lambda(T_e), at rest, the belt running along the span order, one tension per span
     (n,) (pulley j entered by span j - 1). The same sum as `wrap_lengths` less the adhesion part, computed
-    on the pulleys with a slip arc alone (the statics' budget evaluates it often); where a span is slack,
-    `wrap_lengths` itself."""
+    on the pulleys with a slip arc alone (the statics' predictor evaluates it often); 0 where a span is
+    slack (T <= 0: no capstan law holds; the predictor's trial layouts only)."""
     T = np.asarray(span_tension, dtype=float)
     te = np.roll(T, 1)
-    if wm.kind == "rigid":
-        return 0.0
-    if not (T > 0.0).all():
-        return float((wrap_lengths(wm, span_tension=T, radius=radius, wrap=wrap, belt_speed=0.0)
-                      - radius * wrap / wm.stretch(te, wm.EA)).sum())
+    if wm.kind == "rigid" or not (T > 0.0).all():
+        return 0.0  # (a slack span: no capstan profile; the statics' predictor meets it only on trial layouts)
     phi = np.minimum(slip_arc(te, T, wm.friction), wrap)
     k = phi > 0.0
     if not k.any():

@@ -303,7 +303,7 @@ def _extrapolated(plan: _Plan, system: System, centers: np.ndarray, step: np.nda
 
 
 SETTLE_PASSES = 8  # re-references after the solve (each leaves rotations smaller by about the belt strain)
-BUDGET_PASSES = 8  # creep wraps: re-solves for the belt-length budget (a secant: two or three where one is needed)
+BUDGET_PASSES = 20  # creep wraps: budget steps (a secant: two or three where the prediction was right)
 
 
 def _resettled(plan: _Plan, system: System, q: np.ndarray, free: np.ndarray, budget: float = 0.0) -> System:
@@ -362,6 +362,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     """
     plan = _plan(system, build, options)
     system, lay, free, warm, lam_p = _predicted_start(plan)
+    unpredicted = warm is None and not plan.prestrain  # (no rigid-belt prediction: from the L0 fit)
     if hasattr(system, "full"):  # a deferred build (pipeline.analyse): solved on the L0 fit after all
         system = system.full()
     slope, prev_step = None, None
@@ -386,11 +387,11 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         movement.append(float(np.sqrt((step * step).sum(axis=1)).max(initial=0.0)))  # (the largest |step|)
         if not plan.moving or movement[-1] <= plan.tol_x:
             slide = _rotation_slide(system, q_p)
-            short, st = 0.0, None  # creep wraps: the change of the spans' reference total the budget asks for
+            short, checked = 0.0, None  # creep wraps: the change of the spans' reference total the budget asks for
             if plan.material is not None and not plan.prestrain:
-                st = static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
-                                   known={**known, "pulley_center": solved_centers})  # (its wraps: the budget's)
-                excess = budget_excess(system, st, plan.material, options.tolerance)
+                checked = static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
+                                        known={**known, "pulley_center": solved_centers})  # (its wraps: the budget's)
+                excess = budget_excess(system, checked, plan.material, options.tolerance)
                 if excess is not None:
                     budget_history.append(excess)
                     short = budget_step(budget_history, plan.material)
@@ -401,12 +402,19 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
                 prev_system, system = system, _resettled(plan, system, q_p, free, short)
                 warm = warm_start(system, prev_system, q_p, rotations=False)
                 continue
+            if short:  # the budget steps spent and the budget still open: a named failure, never a silent result
+                raise SolverError(f"the creep wraps' belt-length budget did not close in {BUDGET_PASSES} steps: the "
+                                  f"spans and wraps hold {budget_history[-1][0] + budget_history[-1][1]:.12g} m of belt "
+                                  f"against belt.length {plan.material:.12g} m", analysis="static",
+                                  step=f"budget step {len(budget_history)}", residual=abs(short), item="belt.wraps")
             if plan.prestrain and slide > plan.tol_x:  # (the secant's uniform stretch is done: settled once here)
                 system, q_p, preload, hist, known, k, its = _settle(plan, system, lay, free, q_p, options, budget)
                 solves, iterations = solves + k, iterations + its
                 st = static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
                                    known={**known, "pulley_center": system.pulley_centers(q_p, p=known.get("joint"))})
-            elif not plan.prestrain and st is None:
+            elif checked is not None:
+                st = checked
+            elif not plan.prestrain:
                 st = static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
                                    known={**known, "pulley_center": solved_centers})
             check_slack(system, st)
@@ -418,6 +426,15 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         settle = not plan.prestrain and referenced < SETTLE_PASSES and _rotation_slide(system, q_p) > plan.tol_x
         ref_old = settled_reference(system, q_p) if settle else system.belt.reference_length
         referenced, carry = referenced + settle, carry or settle
+        if unpredicted and plan.material is not None and len(budget_history) < BUDGET_PASSES:
+            # creep wraps without a prediction: the belt-length budget met on the way (a secant across re-lays)
+            excess = budget_excess(system, static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist),
+                                                         system.driver_dof, known={**known, "pulley_center": solved_centers}),
+                                   plan.material, options.tolerance)
+            if excess is not None:
+                budget_history.append(excess)
+                ref_old = ref_old * (1.0 + budget_step(budget_history, plan.material) / float(ref_old.sum()))
+                carry = True
         prev_system, prev_q = system, q_p
         lay, free, built = _lay_out(plan, lay, centers, ref_old, f"re-lay pass {p}", carry=carry)
         if plan.prestrain:
