@@ -241,11 +241,13 @@ def slip_part(wm: WrapModel, *, span_tension: np.ndarray, radius: np.ndarray, wr
     te = np.roll(T, 1)
     if wm.kind == "rigid" or not (T > 0.0).all():
         return 0.0  # (a slack span: no capstan profile; the statics' predictor meets it only on trial layouts)
-    phi = np.minimum(slip_arc(te, T, wm.friction), wrap)
-    k = phi > 0.0
+    # `slip_arc` at rest, all tensions positive, in fewer operations (NaN friction: no arc; 0: the whole wrap)
+    with np.errstate(divide="ignore"):
+        phi = np.abs(np.log(te / T)) / wm.friction
+    k = (phi > 0.0) & (np.abs(te - T) > ROUND_OFF * np.maximum(te, T))
     if not k.any():
         return 0.0
-    a, b, phi = te[k], T[k], phi[k]
+    a, b, phi = te[k], T[k], np.minimum(phi[k], wrap[k])
     profile = a[:, None] * (b / a)[:, None] ** _XI[None, :]  # T(phi) at the quadrature points (c = 0)
     inner = (_W[None, :] / wm.stretch(profile, wm.EA)).sum(axis=1) - 1.0 / wm.stretch(a, wm.EA)
     return float((radius[k] * phi * inner).sum())
