@@ -91,6 +91,10 @@ def test_two_pulley_drive_under_load_against_its_closed_form(wraps):
         t0, t1 = closed_form_tensions(load, wraps)
         np.testing.assert_allclose(st.span_tension, [[t0, t0], [t1, t1]], rtol=1e-9, atol=0.0)
         assert not st.wraps.gross_slip.any()
+        if wraps == "rigid":  # today's wrap: no slip arc, the rims at the driver's speed
+            assert (st.wraps.slip_arc == 0.0).all() and (st.wraps.rim_speed_ratio == 1.0).all()
+        elif load:
+            assert st.wraps.slip_arc.min() > 0.0 and st.wraps.rim_speed_ratio[1] < 1.0  # C entered by the slack side
         means.append(0.5 * (t0 + t1))
     rise = np.diff(means)
     if wraps == "creep":
