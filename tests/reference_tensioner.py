@@ -212,12 +212,18 @@ def arm_free_angle(pulleys, arm, T0: float) -> float:
 ALL_TERMS = ("axial", "transverse", "arm_geometric")
 
 
-def linear_model(pulleys, arm, EA: float, T0: float, terms=ALL_TERMS) -> dict:
+def linear_model(pulleys, arm, EA: float, T0, terms=ALL_TERMS, end_mass=None) -> dict:
     """Mass and stiffness matrices of the rigid-belt model about the static state.
 
     q = (theta_0..theta_{N-1}, psi).  Returns dict(K, M, rigid (exact rigid-body vector),
     geo, arm kinematics, H, k_axial (per span), K_geo (= l H.e_r), lambda0, L0 (per span)).
     `terms` is for diagnostics only (drop a term to see that the checks detect it).
+
+    T0: the true axial force of every span, or one per span (N,) (a drive under accessory torques: the
+    hub force on the arm pulley is then H = T_out t_out - T_in t_in, each span's axial and transverse
+    stiffness at its own force). end_mass (N,), kg: a mass lumped on each end of span s (a spring span's
+    rho L0_s / 2), moving with the material point of its pulley at the tangent point (velocity
+    R_j theta_j' tau + l psi' e_phi on the arm pulley): M then has the blocks m B^T B of each end.
     """
     geo = loop_geometry(pulleys)
     ak = arm_kinematics(pulleys, arm)
@@ -225,9 +231,11 @@ def linear_model(pulleys, arm, EA: float, T0: float, terms=ALL_TERMS) -> dict:
     iT, l, e_r, e_phi = ak["index"], ak["l"], ak["e_r"], ak["e_phi"]
     R = geo["R"]
     nq = N + 1
-    lam0 = static_stretch(EA, T0)
-    kax = np.array([axial_stiffness(EA, T0, Ls) for Ls in geo["L"]])
+    T_s = np.broadcast_to(np.asarray(T0, dtype=float), (N,))
+    lam0 = np.array([static_stretch(EA, T) for T in T_s])
+    kax = np.array([axial_stiffness(EA, T, Ls) for T, Ls in zip(T_s, geo["L"])])
     K = np.zeros((nq, nq))
+    M_ends = np.zeros((nq, nq))
     for s in range(N):
         j, k = s, (s + 1) % N
         B = np.zeros((2, nq))          # d_s = (end displacement) - (start displacement) = B q
@@ -239,9 +247,18 @@ def linear_model(pulleys, arm, EA: float, T0: float, terms=ALL_TERMS) -> dict:
             B[:, N] += l * e_phi
         t, n = geo["t"][s], geo["nL"][s]
         D = (("axial" in terms) * kax[s] * np.outer(t, t)
-             + ("transverse" in terms) * (T0 / geo["L"][s]) * np.outer(n, n))
+             + ("transverse" in terms) * (T_s[s] / geo["L"][s]) * np.outer(n, n))
         K += B.T @ D @ B
-    H = hub_force(pulleys, T0, iT, geo)
+        if end_mass is not None:  # the velocities of the span's two ends (tangent points)
+            Ba, Bb = np.zeros((2, nq)), np.zeros((2, nq))
+            Ba[:, j] = R[j] * geo["tau_a"][s]
+            Bb[:, k] = R[k] * geo["tau_b"][s]
+            if j == iT:
+                Ba[:, N] = l * e_phi
+            if k == iT:
+                Bb[:, N] = l * e_phi
+            M_ends += float(end_mass[s]) * (Ba.T @ Ba + Bb.T @ Bb)
+    H = T_s[iT] * geo["t"][iT] - T_s[(iT - 1) % N] * geo["t"][(iT - 1) % N]  # (`hub_force` for one T0)
     K_geo = l * float(np.dot(H, e_r))   # = -H . d2c/dphi2 = H.(c_T - P)
     K[N, N] += float(arm["stiffness"]) + ("arm_geometric" in terms) * K_geo
     m = np.array([float(p["inertia"]) for p in pulleys]
@@ -249,8 +266,8 @@ def linear_model(pulleys, arm, EA: float, T0: float, terms=ALL_TERMS) -> dict:
     if np.any(m <= 0):
         raise ValueError("all inertias must be > 0")
     rigid = np.append(geo["side"] / R, 0.0)   # R_j theta_j side_j = 1, psi = 0: K @ rigid = 0
-    return dict(K=K, M=np.diag(m), m=m, rigid=rigid, geo=geo, arm=ak, H=H, k_axial=kax,
-                K_geo=K_geo, lambda0=lam0, L0=geo["L"] / lam0)
+    return dict(K=K, M=np.diag(m) + M_ends, m=m, rigid=rigid, geo=geo, arm=ak, H=H, k_axial=kax,
+                K_geo=K_geo, lambda0=lam0 if np.ndim(T0) else float(lam0[0]), L0=geo["L"] / lam0)
 
 
 def _reduced_symmetric(model):
@@ -273,9 +290,18 @@ def _reduced_symmetric(model):
     return 0.5 * (A + A.T), Q, s
 
 
-def linear_modes(pulleys, arm, EA: float, T0: float):
-    """(frequencies in Hz ascending, mode shapes as columns in q, model); rigid mode excluded."""
-    model = linear_model(pulleys, arm, EA, T0)
+def linear_modes(pulleys, arm, EA: float, T0, end_mass=None):
+    """(frequencies in Hz ascending, mode shapes as columns in q, model); rigid mode excluded.
+    T0, end_mass: as `linear_model` (with end masses M is full: the modes on the M-orthogonal complement
+    of the rigid-body vector, by scipy's generalized symmetric eigensolver)."""
+    model = linear_model(pulleys, arm, EA, T0, end_mass=end_mass)
+    if end_mass is not None:
+        from scipy.linalg import eigh, null_space
+
+        K, M, r = model["K"], model["M"], model["rigid"]
+        Q = null_space((M @ r)[None, :])  # the complement of the rigid mode, M-orthogonal to it
+        w2, Y = eigh(Q.T @ K @ Q, Q.T @ M @ Q)
+        return np.sqrt(np.clip(w2, 0.0, None)) / TWO_PI, Q @ Y, model
     A, Q, s = _reduced_symmetric(model)
     w2, Y = np.linalg.eigh(A)
     if np.any(w2 < -1e-9 * np.max(np.abs(w2))):

@@ -73,7 +73,8 @@ def test_resolved_toml_shows_what_was_used_and_round_trips():
     # the section's values as a comment (in the hash), the keys as given
     assert f"[belt]\n# from belt.section 6 x PK (beltdyn/data/belt_sections.toml): EI = {EI!r}, " \
            f"mass_per_length = {mass!r}\n" in text
-    assert tomllib.loads(text)["belt"] == {"length": cfg.belt.length, "EA": 1.5e5, "section": "PK", "ribs": 6}
+    assert tomllib.loads(text)["belt"] == {"length": cfg.belt.length, "EA": 1.5e5, "section": "PK", "ribs": 6,
+                                           "wraps": "creep", "axial_law": "green-lagrange"}
     again = config_from_dict(tomllib.loads(text), file="fead.toml")
     assert resolved_toml(again) == text and again.belt == cfg.belt
 

@@ -115,7 +115,7 @@ def test_cli_writes_positions_and_exits_2_without_an_arm(tmp_path):
                           cwd=tmp_path, capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     text = " ".join(proc.stdout.split())
-    assert "take-up used: 28.6 % of the arm's range [3.3, 4.1] rad" in text
+    assert "take-up used: 27.0 % of the arm's range [3.3, 4.1] rad" in text  # (creep wraps; 28.6 % with rigid ones)
     assert "FREE: at stop" in text
     with h5py.File(out, "r") as f:
         g = f["positions"]

@@ -20,14 +20,15 @@ FEAD = ROOT / "configs" / "examples" / "fead_4cyl.toml"
 ALL = ("CRK-AC", "AC-ALT", "ALT-TEN", "TEN-WP", "WP-PS", "PS-IDL", "IDL-CRK")
 
 
-def _system(spans):
-    cfg = load_config(FEAD, [f'spans.{n}.model="spring"' for n in spans])
+def _system(spans, law="green-lagrange"):
+    cfg = load_config(FEAD, [f'spans.{n}.model="spring"' for n in spans] + [f"belt.axial_law={law}"])
     return build_system(cfg).with_belt(damping_axial=3e-5)
 
 
-@pytest.fixture(scope="module", params=[ALL, ("AC-ALT", "TEN-WP", "IDL-CRK")], ids=["all-spring", "mixed"])
+@pytest.fixture(scope="module", params=[(ALL, "green-lagrange"), (("AC-ALT", "TEN-WP", "IDL-CRK"), "green-lagrange"),
+                                        (ALL, "linear")], ids=["all-spring", "mixed", "all-spring-linear"])
 def system(request):
-    return _system(request.param)
+    return _system(*request.param)
 
 
 def test_kernel_equals_numpy_on_random_states(system):
@@ -53,7 +54,8 @@ def test_kernel_equals_numpy_on_random_states(system):
         lam = sp.axial(X)[2]
         low = np.full(sp.n_span, np.inf)
         sk.spring_min_force(data, np.append(p, 0.0), low)
-        S = sp.EA * 0.5 * (lam * lam - 1.0)  # second Piola-Kirchhoff force, written out here
+        S = (sp.EA * 0.5 * (lam * lam - 1.0) if sp.axial_law == "green-lagrange"  # second Piola-Kirchhoff force,
+             else sp.EA * (lam - 1.0) / lam)  # or the linear law's N / lambda, written out here
         assert np.abs(low[sp.span] - S).max() <= 1e-12 * np.abs(S).max()
         assert np.isinf(np.delete(low, sp.span)).all()
 
@@ -72,7 +74,7 @@ def test_static_ends_equal_a_span_by_span_computation(system):
             dx, dy = xb - xa, yb - ya
             l = math.sqrt(dx * dx + dy * dy)
             ux, uy, lam = dx / l, dy / l, l / L
-            N = sp.EA * 0.5 * (lam * lam - 1.0) * lam
+            N = sp.EA * 0.5 * (lam * lam - 1.0) * lam if sp.axial_law == "green-lagrange" else sp.EA * (lam - 1.0)
             m = 0.5 * sp.rho * L
             f0 = (-N * ux - m * g[0], -N * uy - m * g[1])
             f1 = (N * ux - m * g[0], N * uy - m * g[1])

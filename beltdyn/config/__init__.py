@@ -27,8 +27,8 @@ to reach them (the modules are the package's inside).
 
 from dataclasses import replace
 
-from beltdyn.config.kinds import (CURVATURES, DEFAULT_STEP, MAX_GAUSS_POINTS, SIDES, SPAN_MODELS, SUPPORTS,
-                                  TENSION_MODES, key)
+from beltdyn.config.kinds import (AXIAL_LAWS, CURVATURES, DEFAULT_STEP, MAX_GAUSS_POINTS, SIDES, SPAN_MODELS,
+                                  SUPPORTS, TENSION_MODES, WRAP_MODELS, key)
 from beltdyn.config.load import config_from_dict, load_config
 from beltdyn.config.overrides import apply_override, parse_toml_file
 from beltdyn.config.resolved import config_hash, config_to_dict, resolved_toml, with_overrides
@@ -42,7 +42,7 @@ __all__ = [
     "Belt", "Pulley", "Decoupler", "Tension", "Mesh", "SpanSetting", "ModelOptions", "StaticTorque", "StaticOptions", "ModalOptions",
     "Signal", "Rotation", "Load", "Record", "Damping", "ResponseExcitation", "ResponseOptions", "SpectrumOptions",
     "TransientOptions", "RunningOptions", "SweepTable", "DriveConfig", "KeyDoc",
-    "CURVATURES", "DEFAULT_STEP", "MAX_GAUSS_POINTS", "SIDES", "SPAN_MODELS", "SUPPORTS", "TENSION_MODES",
+    "AXIAL_LAWS", "CURVATURES", "DEFAULT_STEP", "MAX_GAUSS_POINTS", "SIDES", "SPAN_MODELS", "SUPPORTS", "TENSION_MODES", "WRAP_MODELS",
     "load_config", "config_from_dict", "config_to_dict", "resolved_toml", "config_hash", "apply_override",
     "parse_toml_file", "with_overrides", "valid_keys", "key_docs", "key", "replace", "span_name_key", "span_names",
     "table_bytes",

@@ -20,6 +20,8 @@ SIDES = ("inside", "backside")
 SUPPORTS = ("fixed", "slide", "bearing", "arm")
 TENSION_MODES = ("adjust", "prestrain", "spring", "length")
 CURVATURES = ("linear", "exact", "none")
+WRAP_MODELS = ("creep", "rigid")  # belt.wraps: adhesion + slip arc (model.wraps), or inextensible without slip
+AXIAL_LAWS = ("green-lagrange", "linear")  # belt.axial_law: the laws of model.barlaw
 SPAN_MODELS = ("ancf", "string", "spring")  # the fidelity ladder of one span, richest first
 MAX_GAUSS_POINTS = 64  # beltdyn.model.ancf's quadrature table (not imported: it would load numba at start-up)
 

@@ -10,10 +10,11 @@ from collections.abc import Iterator
 from dataclasses import MISSING, Field, dataclass, field
 from typing import Any, NamedTuple
 
-from beltdyn.config.kinds import (_Array, BOOL, _Checker, _Choice, CURVATURES, DEFAULT_STEP, _dump, FLOAT, _Int,
+from beltdyn.config.kinds import (_Array, AXIAL_LAWS, BOOL, _Checker, _Choice, CURVATURES, DEFAULT_STEP, _dump, FLOAT, _Int,
                                   _join, _Key, key, _Kind, MAX_GAUSS_POINTS, NAME, NONNEGFLOAT, _Number, _Numbers,
                                   _Pair, _Params, _parse, POSFLOAT, POSINT, RANGE2, _schema, _show, SIDES,
-                                  SPAN_MODELS, STIFFNESS, STR, SUPPORTS, _Table, TENSION_MODES, TEXT, UNIT, VEC2)
+                                  SPAN_MODELS, STIFFNESS, STR, SUPPORTS, _Table, TENSION_MODES, TEXT, UNIT, VEC2,
+                                  WRAP_MODELS)
 
 
 # ------------------------------------------------------------------------------ the declarations
@@ -27,6 +28,12 @@ class Belt:
     EI and mass_per_length are always set, section is the bare section ("PK") and ribs the count;
     `derived` names the values that came from the section (not a TOML key: the resolved TOML leaves
     them out, so that a changed section or rib count gives them anew, and shows them in a comment).
+
+    wraps: the belt on the pulleys, "creep" (an adhesion arc at each wrap's entry and a capstan slip arc
+    at its exit, the wraps' stress-free length in the belt-length budget: `beltdyn.model.wraps`,
+    docs/wraps.md) or "rigid" (inextensible wraps without slip: the paper's model). axial_law: the bar
+    law of every span, spring and wrap (`beltdyn.model.barlaw`), "green-lagrange" (N = EA eps lambda,
+    eps = (lambda^2 - 1)/2: paper Eqs. 12-14) or "linear" (N = EA (lambda - 1): catalog EA values).
     """
 
     length: float = key(POSFLOAT, doc="undeformed loop length L0", units="m")
@@ -38,6 +45,12 @@ class Belt:
     section: str | None = key(STR, None, doc='V-ribbed section of the shipped table ("PK" or "6PK"; PH, PJ, PK, '
                                              "PL, PM): EA, EI, mass per length and the effective-diameter offset")
     ribs: int | None = key(POSINT, None, doc="number of ribs of belt.section (or in its name, \"6PK\")")
+    wraps: str = key(_Choice(*WRAP_MODELS), "creep",
+                     doc='the belt on the pulleys: "creep" (adhesion and slip arcs, stretched wraps) or "rigid" '
+                         "(inextensible wraps without slip)")
+    axial_law: str = key(_Choice(*AXIAL_LAWS), "green-lagrange",
+                         doc='axial force of a stretch lambda: "green-lagrange" EA (lambda^2 - 1) lambda / 2 or '
+                             '"linear" EA (lambda - 1)')
     derived: tuple[str, ...] = field(default=(), compare=False)  # the values taken from the section
 
 

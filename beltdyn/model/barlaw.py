@@ -34,6 +34,8 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
+from beltdyn.config import AXIAL_LAWS
+
 
 def strain(stretch):
     """Green-Lagrange strain eps = (lambda^2 - 1) / 2 of a stretch lambda."""
@@ -158,7 +160,7 @@ class BarLaw(NamedTuple):
     stretch_for_tension: Callable
 
 
-LAWS = ("green-lagrange", "linear")  # St. Venant-Kirchhoff and N = EA (lambda - 1) (module docstring)
+LAWS = AXIAL_LAWS  # "green-lagrange" (St. Venant-Kirchhoff) and "linear" N = EA (lambda - 1): the key belt.axial_law
 
 
 def bar_law(name: str = "green-lagrange") -> BarLaw:

@@ -427,9 +427,10 @@ def joint_pairs(layout: Layout, dofs: DofMap, s: int, side: int) -> list[tuple[i
     return pairs + list(zip(dofs.trans_dof[j], dofs.trans_dir[j]))
 
 
-def _no_elements(EA: float, rho: float, curvature: str, n_gauss: int) -> ancf.ElementSet:
+def _no_elements(EA: float, rho: float, curvature: str, n_gauss: int, axial_law: str = "green-lagrange"
+                 ) -> ancf.ElementSet:
     """An empty element set (every span a spring), its tables of the right shapes."""
-    one = ancf.make_elements(np.ones(1), EA, 0.0, rho, curvature=curvature, n_gauss=n_gauss)
+    one = ancf.make_elements(np.ones(1), EA, 0.0, rho, curvature=curvature, n_gauss=n_gauss, axial_law=axial_law)
     return ancf.subset(one, np.zeros(0, dtype=np.int64))
 
 
@@ -437,7 +438,7 @@ def empty_element_set(cfg: DriveConfig) -> ancf.ElementSet:
     """The element set of a belt without elements (every span a spring): empty, its tables of the right
     shapes (the bending law "none")."""
     b = cfg.belt
-    return _no_elements(float(b.EA), float(b.mass_per_length), "none", cfg.model.gauss_points)
+    return _no_elements(float(b.EA), float(b.mass_per_length), "none", cfg.model.gauss_points, b.axial_law)
 
 
 def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> ancf.ElementSet:
@@ -458,7 +459,7 @@ def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> an
     if len(uniq) == len(length):  # every element distinct: no gathering
         uniq, inverse = np.asarray(length, dtype=float) + 1j * np.asarray(EI, dtype=float), None
     base = ancf.make_elements(uniq.real.copy(), b.EA, uniq.imag.copy(), b.mass_per_length, curvature=curvature,
-                              n_gauss=cfg.model.gauss_points)
+                              n_gauss=cfg.model.gauss_points, axial_law=b.axial_law)
     return base if inverse is None else ancf.subset(base, inverse.ravel())
 
 

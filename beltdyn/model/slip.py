@@ -74,7 +74,8 @@ def drive_centrifugal_tension(system: "System", speed, mean_tension):
     speed = np.asarray(speed, dtype=float)
     if not speed.any():
         return np.zeros(speed.shape)[()]
-    lam = stretch_for_tension(np.asarray(mean_tension, dtype=float), system.EA)
+    stretch = stretch_for_tension if system.wraps is None else system.wraps.stretch  # (the belt's bar law)
+    lam = stretch(np.asarray(mean_tension, dtype=float), system.EA)
     return centrifugal_tension(belt_density(system), speed, lam)
 
 

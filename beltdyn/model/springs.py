@@ -59,6 +59,12 @@ class SpringSpans:
     damping_axial: float = 0.0  # Kelvin-Voigt retardation time (s), set by the transient options
     EI: float = 0.0  # the belt's bending stiffness (N m^2) and model.curvature: not used by the springs, only
     curvature: str = "linear"  # to name the modes of the span they leave out (`ladder.unrepresented_modes`)
+    axial_law: str = "green-lagrange"  # belt.axial_law: the bar law of the springs (`barlaw.bar_law`), as the elements'
+
+    @property
+    def law(self) -> barlaw.BarLaw:
+        """The functions of the springs' bar law."""
+        return barlaw.bar_law(self.axial_law)
 
     @property
     def end_mass(self) -> np.ndarray:
@@ -91,13 +97,13 @@ class SpringSpans:
         """u (..., k, 2), l, lam, eps, N (..., k) at end positions X (..., k, 4)."""
         u, l = self.chord(X)
         lam = l / self.reference_length
-        return u, l, lam, barlaw.strain(lam), barlaw.axial_force(lam, self.EA)
+        return u, l, lam, barlaw.strain(lam), self.law.axial_force(lam, self.EA)
 
     def damping_force(self, X: np.ndarray, Xd: np.ndarray) -> np.ndarray:
         """N_d (..., k) of end velocities Xd."""
         u, l, lam, _, _ = self.axial(X)
         rate = np.einsum("...d,...d->...", u, Xd[..., 2:4] - Xd[..., 0:2]) / self.reference_length
-        return barlaw.viscous_force(lam, rate, self.EA, self.damping_axial)
+        return self.law.viscous_force(lam, rate, self.EA, self.damping_axial)
 
     def reduce_vector(self, fe: np.ndarray) -> np.ndarray:
         """sum_k T^T fe (k, 4) -> (n_dof,)."""
@@ -128,7 +134,7 @@ class SpringSpans:
         """Reduced elastic force (n_dof,) and the tangent blocks T^T K_e T (k, m, m), through the chord's
         map D: T^T [[K2, -K2], [-K2, K2]] T = D^T K2 D."""
         f, u, l, lam, N = self._force(p)
-        k_a = barlaw.axial_stiffness(lam, self.EA) / self.reference_length
+        k_a = self.law.axial_stiffness(lam, self.EA) / self.reference_length
         uu = u[:, :, None] * u[:, None, :]
         K2 = k_a[:, None, None] * uu + (N / l)[:, None, None] * (_EYE2 - uu)
         return f, np.matmul(np.matmul(self.chord_map_t, K2), self.chord_map)
@@ -146,7 +152,7 @@ class SpringSpans:
     def damping_blocks(self, p: np.ndarray) -> np.ndarray:
         """(k, m, m) the damping matrix dN_d/d(x') through the joints at p (Kelvin-Voigt)."""
         u, _, lam, _, _ = self.axial(self.positions(p))
-        c = barlaw.viscous_force(lam, 1.0 / self.reference_length, self.EA, self.damping_axial)  # dN_d/d(u . d')
+        c = self.law.viscous_force(lam, 1.0 / self.reference_length, self.EA, self.damping_axial)  # dN_d/d(u . d')
         return self.reduce_blocks(self._pair(c[:, None, None] * u[:, :, None] * u[:, None, :]))
 
     def mass_blocks(self) -> np.ndarray:
@@ -191,7 +197,7 @@ class SpringSpans:
 
     def strain_energy(self, p: np.ndarray) -> float:
         lam = self.axial(self.positions(p))[2]
-        return float((barlaw.strain_energy_density(lam, self.EA) * self.reference_length).sum())
+        return float((self.law.strain_energy_density(lam, self.EA) * self.reference_length).sum())
 
     def tension_integral(self, p: np.ndarray, *, gradient: bool = True) -> tuple[float, np.ndarray | None]:
         """sum_k N_k L_k (N m) and its gradient (n_dof,) (None without gradient): the springs' share of the
@@ -199,7 +205,7 @@ class SpringSpans:
         u, _, lam, _, N = self.axial(self.positions(p))
         if not gradient:
             return float((N * self.reference_length).sum()), None
-        g = barlaw.axial_stiffness(lam, self.EA)[:, None] * u  # d(N L)/dl = dN/dlam
+        g = self.law.axial_stiffness(lam, self.EA)[:, None] * u  # d(N L)/dl = dN/dlam
         return float((N * self.reference_length).sum()), self.reduce_vector(np.concatenate([-g, g], axis=1))
 
     @property
@@ -321,7 +327,7 @@ def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
     return SpringSpans(span=sp, T=T, idx=idx, x0=np.concatenate([start, end], axis=1),
                        reference_length=reference_length, reference_direction=direction, EA=float(cfg.belt.EA),
                        rho=float(cfg.belt.mass_per_length), n_dof=dofs.n, n_span=n, damping_axial=0.0,
-                       EI=float(cfg.belt.EI), curvature=cfg.model.curvature)
+                       EI=float(cfg.belt.EI), curvature=cfg.model.curvature, axial_law=cfg.belt.axial_law)
 
 
 def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.ndarray, np.ndarray, tuple]:

@@ -39,7 +39,7 @@ from beltdyn.config import DriveConfig
 from beltdyn.errors import ConfigError
 from beltdyn.model.components import ENERGY_KINDS, LinearComponent, arm_spring, belt_rotation_rates
 from beltdyn.model.pulleys import PulleyParts, pulley_components, pulley_parts
-from beltdyn.model.barlaw import stretch_for_tension
+from beltdyn.model.barlaw import bar_law
 from beltdyn.model.geometry import Layout, layout_from_config
 from beltdyn.model.geometry import belt_speed_of
 from beltdyn.model.supports import support_of
@@ -49,6 +49,7 @@ from beltdyn.model.assembly import (DENSE_LIMIT, NO_INDEX, Pattern, assemble_blo
 from beltdyn.model.belt import BeltSpans, build_belt, empty_element_set, plus
 from beltdyn.model.dofs import DofMap, number_dofs
 from beltdyn.model.springs import SpringSpans, build_springs, spring_joints
+from beltdyn.model.wraps import WrapModel
 
 
 # ------------------------------------------------------------------------------------ the system
@@ -110,6 +111,7 @@ class System:
     pulley_friction: np.ndarray | None = None  # (n_pulley,) belt-pulley friction coefficient, NaN if not given
     belt_speed: float = 0.0  # m/s, the running belt's transport speed c (`running`); 0: the drive at rest
     springs: SpringSpans | None = None  # the spans modelled as axial springs (None: every span flexible)
+    wraps: WrapModel | None = None  # the belt on the pulleys (belt.wraps, belt.axial_law); None: creep, green-lagrange
     spring_scatter: np.ndarray | None = None  # (k m m,) where the springs' blocks go: flat (dense) or CSR slot
     # derived in the constructor (`__post_init__`), never passed: the running belt's terms (at speed only,
     # None at rest), the components' stiffness as a CSR matrix (sparse only), the mode classification's
@@ -642,7 +644,7 @@ def reference_stretch(cfg: DriveConfig, layout: Layout) -> float:
     """The spans' stretch at q = 0 that the tension mode asks for (1: stress-free)."""
     target = cfg.tension.target
     if target is not None and cfg.tension.mode == "prestrain":
-        return stretch_for_tension(target, cfg.belt.EA)
+        return bar_law(cfg.belt.axial_law).stretch_for_tension(target, cfg.belt.EA)
     if target is None and cfg.adjustable_index is None:
         lam = layout.belt_length / cfg.belt.length  # the belt of length L0 stretched onto the path
         if lam < 1.0:
@@ -719,14 +721,16 @@ class DriveFacts:
     arms: ArmJoints | None
     no_elements: ancf.ElementSet | None = None  # `belt.empty_element_set` when every span is a spring, else None
     spring_joints: tuple | None = None  # `springs.spring_joints` (None without spring spans)
+    wraps: WrapModel | None = None  # `wrap_model`: belt.wraps and belt.axial_law with the belt's facts
 
 
 def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
     """The `DriveFacts` of a configuration (`layout`: its L0 fit, where the arms are taken)."""
     dofs = number_dofs(cfg)
     pulleys = cfg.pulleys
+    friction = np.array([np.nan if p.friction is None else p.friction for p in pulleys])
     return DriveFacts(layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs), loads=static_loads(cfg, dofs),
-                      friction=np.array([np.nan if p.friction is None else p.friction for p in pulleys]),
+                      friction=friction, wraps=wrap_model(cfg, friction),
                       pulley_names=tuple([p.name for p in pulleys]), gravity=np.asarray(cfg.model.gravity, dtype=float),
                       pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
                       no_elements=empty_element_set(cfg) if sum(cfg.span_elements) == 0 else None,
@@ -764,8 +768,16 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
                                                                    parts=facts.pulleys) + tuple(extra),
                              pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
                              gravity=facts.gravity, dense=dense, loads=facts.loads, arms=arms, friction=facts.friction,
-                             springs=springs, belt_speed=float(belt_speed))
+                             springs=springs, belt_speed=float(belt_speed), wraps=facts.wraps)
     return system
+
+
+def wrap_model(cfg: DriveConfig, friction: np.ndarray) -> WrapModel:
+    """The belt on the pulleys of a configuration: belt.wraps, belt.axial_law, EA, the mass per length
+    and the pulleys' friction coefficients (n,; NaN: none)."""
+    b = cfg.belt
+    return WrapModel(kind=b.wraps, axial_law=b.axial_law, EA=float(b.EA), mass_per_length=float(b.mass_per_length),
+                     friction=np.array(friction, dtype=float))
 
 
 def tension_setting(cfg: DriveConfig, dofs: DofMap) -> TensionSetting:
@@ -815,6 +827,7 @@ class DeferredSystem:
         self.arms = facts.arms
         self.loads = facts.loads
         self.pulley_friction = facts.friction
+        self.wraps = facts.wraps
         self.pulley_names = facts.pulley_names
         self.driver = cfg.driver_index
         self.EA = float(cfg.belt.EA)
@@ -894,7 +907,7 @@ def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: t
                     pulley_names: tuple[str, ...], driver: int, tension: TensionSetting, gravity: np.ndarray,
                     dense: bool | None, loads: np.ndarray | None = None, arms: ArmJoints | None = None,
                     friction: np.ndarray | None = None, springs: SpringSpans | None = None,
-                    belt_speed: float = 0.0) -> System:
+                    belt_speed: float = 0.0, wraps: WrapModel | None = None) -> System:
     """The system of a belt and components: its pattern, mass, weight and the components' constant
     matrices, one assembly for dense and sparse (`assembly`); belt_speed (m/s): the running belt's speed
     (the system built at that speed at once, its derived fields computed once)."""
@@ -931,4 +944,4 @@ def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: t
                   driver=driver, tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M,
                   gravity_force=fg + sums.weight, linear_stiffness=sums.stiffness, linear_damping=sums.damping,
                   linear_offset=sums.offset, loads=loads, arms=arms, pulley_friction=friction, belt_speed=belt_speed,
-                  springs=springs, spring_scatter=scatter)
+                  springs=springs, spring_scatter=scatter, wraps=wraps)

@@ -13,8 +13,9 @@ tension of the span that departs (T_x, the exit). With creep wraps the wrap carr
 
   mu the belt-pulley friction coefficient (the user's effective value), c = rho v^2 lambda the
   centrifugal part of the tension (rho the mass per unit reference length, v the reference
-  (mass-flow) speed, lambda the local stretch: the true-force form of rho v_true^2 / lambda; 0 at
-  rest). The slip arc is absent where the two tensions are equal (idlers, backside pulleys without
+  (mass-flow) speed, lambda the stretch: the true-force form of rho v_true^2 / lambda; 0 at rest;
+  the statics take one c for the drive, the slip margin's, at the mean span tension, so that the
+  slip arc and the margin agree exactly: `wrap_state(centrifugal=...)`). The slip arc is absent where the two tensions are equal (idlers, backside pulleys without
   torque: `ROUND_OFF` of `model.slip`), and a pulley without a friction value never slips (phi_s = 0).
   Where phi_s > beta the wrap cannot hold the tension ratio: gross slip (the slip margin < 1;
   phi_s / beta = 1 / margin exactly, both from the same capstan law).
@@ -46,10 +47,10 @@ from typing import Callable
 
 import numpy as np
 
-from beltdyn.model.barlaw import stretch_for_tension
-from beltdyn.model.slip import ROUND_OFF
+from beltdyn.config import WRAP_MODELS
+from beltdyn.model.barlaw import bar_law, stretch_for_tension
+from beltdyn.model.slip import ROUND_OFF, pulley_tensions
 
-WRAP_MODELS = ("creep", "rigid")  # "creep": adhesion + slip arc (module docstring); "rigid": inextensible, no slip
 QUADRATURE_POINTS = 24  # Gauss-Legendre points of the slip-arc integrals
 
 _XI, _W = np.polynomial.legendre.leggauss(QUADRATURE_POINTS)  # on [-1, 1]
@@ -140,12 +141,14 @@ def creep_power_loss(t_entry, t_exit, belt_speed: float, EA: float,
 
 def wrap_state(*, t_in: np.ndarray, t_out: np.ndarray, radius: np.ndarray, wrap: np.ndarray, friction,
                EA: float, mass_per_length: float, belt_speed: float, driver: int, model: str = "creep",
-               stretch: Callable = stretch_for_tension) -> WrapState:
+               stretch: Callable = stretch_for_tension, centrifugal=None) -> WrapState:
     """The wraps of a drive (`WrapState`) from the span tensions at each pulley (`slip.pulley_tensions`),
     the radii and wrap angles (n,), the friction coefficients (n,; NaN: none given, or None), the
     belt's EA (N), mass per unit reference length (kg/m) and reference speed (m/s), the driver's index.
     A pulley without friction has no slip arc and no creep loss (it never slips).
-    model "rigid": no slip arc, the wraps inextensible (reference length R beta), rim speeds equal."""
+    model "rigid": no slip arc, the wraps inextensible (reference length R beta), rim speeds equal.
+    centrifugal: c (N) of the slip arcs, one for the drive (the slip margin's, `slip.drive_centrifugal_tension`,
+    so that slip arc / wrap = 1 / slip margin exactly); None: rho v^2 lambda(T_e) of each wrap's entry."""
     te, tx = entry_exit(np.asarray(t_in, dtype=float), np.asarray(t_out, dtype=float), belt_speed)
     n = te.shape[0]
     R, beta = np.asarray(radius, dtype=float), np.asarray(wrap, dtype=float)
@@ -157,7 +160,8 @@ def wrap_state(*, t_in: np.ndarray, t_out: np.ndarray, radius: np.ndarray, wrap:
     if model != "creep":
         raise ValueError(f"unknown wrap model {model!r}: one of {', '.join(WRAP_MODELS)}")
     mu = np.full(n, np.nan) if friction is None else np.asarray(friction, dtype=float)
-    c = centrifugal_tension(te, mass_per_length, belt_speed, EA, stretch)
+    c = (centrifugal_tension(te, mass_per_length, belt_speed, EA, stretch) if centrifugal is None
+         else np.full(n, float(centrifugal)))
     arc = slip_arc(te, tx, mu, c)
     return WrapState(entry_tension=te, exit_tension=tx, slip_arc=arc, adhesion_arc=np.maximum(beta - arc, 0.0),
                      gross_slip=arc > beta,
@@ -174,3 +178,76 @@ def centrifugal_tension(t_entry, mass_per_length: float, belt_speed: float, EA: 
     if not belt_speed:
         return np.zeros(te.shape)
     return float(mass_per_length) * float(belt_speed) ** 2 * stretch(te, EA)
+
+
+@dataclass(frozen=True, kw_only=True)
+class WrapModel:
+    """How the belt sits on the pulleys of one drive: the wrap model (belt.wraps, one of `WRAP_MODELS`),
+    the bar law (belt.axial_law, `barlaw.LAWS`) and the belt facts the wraps need. Shapes: (n,) per pulley."""
+
+    kind: str = "creep"
+    axial_law: str = "green-lagrange"
+    EA: float  # N
+    mass_per_length: float  # kg/m of reference length
+    friction: np.ndarray  # (n,) belt-pulley friction coefficients, NaN where none is given (never slips)
+
+    def __post_init__(self) -> None:
+        if self.kind not in WRAP_MODELS:
+            raise ValueError(f"unknown wrap model {self.kind!r}: one of {', '.join(WRAP_MODELS)}")
+        self.friction.flags.writeable = False  # (the array is the model's: frozen with it)
+
+    @property
+    def stretch(self) -> Callable:
+        """lambda(T, EA) of the bar law in use."""
+        return bar_law(self.axial_law).stretch_for_tension
+
+
+def wrap_model_state(wm: WrapModel, *, span_tension: np.ndarray, radius: np.ndarray, wrap: np.ndarray,
+                     belt_speed: float, driver: int, centrifugal: float) -> WrapState:
+    """`wrap_state` of a drive's `WrapModel` at span tensions (n_span, 2) (start, end of each span), the
+    drive's centrifugal tension c (N)."""
+    t_in, t_out = pulley_tensions(np.asarray(span_tension, dtype=float))
+    return wrap_state(t_in=t_in, t_out=t_out, radius=radius, wrap=wrap, friction=wm.friction, EA=wm.EA,
+                      mass_per_length=wm.mass_per_length, belt_speed=belt_speed, driver=driver, model=wm.kind,
+                      stretch=wm.stretch, centrifugal=centrifugal)
+
+
+def wrap_lengths(wm: WrapModel, *, span_tension: np.ndarray, radius: np.ndarray, wrap: np.ndarray,
+                 belt_speed: float, centrifugal: float = 0.0) -> np.ndarray:
+    """(n,) the wraps' stress-free lengths at span tensions (n_span, 2), or (n_span,) one tension per span,
+    the drive's centrifugal tension c (N): with creep wraps `stress_free_length` (the adhesion arc at the
+    entry stretch, the slip arc integrated; what `wrap_model_state` reports), with rigid wraps the arc
+    lengths R beta (the belt-length budget of `analysis.static.tension`)."""
+    R, beta = np.asarray(radius, dtype=float), np.asarray(wrap, dtype=float)
+    if wm.kind == "rigid":
+        return R * beta
+    T = np.asarray(span_tension, dtype=float)
+    if T.ndim == 1:
+        T = np.stack([T, T], axis=1)
+    te, tx = entry_exit(*pulley_tensions(T), belt_speed)
+    c = np.full(te.shape, float(centrifugal))
+    arc = slip_arc(te, tx, wm.friction, c)
+    return stress_free_length(R, beta, te, tx, arc, wm.EA, c, wm.stretch)
+
+
+def slip_part(wm: WrapModel, *, span_tension: np.ndarray, radius: np.ndarray, wrap: np.ndarray) -> float:
+    """delta (m) = sum_j R_j (int_0^phi_j dphi / lambda(T(phi)) - phi_j / lambda(T_e,j)), phi_j the slip arc
+    clipped to the wrap: what the slip arcs add to the wraps' stress-free length beyond the adhesion
+    stretch R beta / lambda(T_e), at rest, the belt running along the span order, one tension per span
+    (n,) (pulley j entered by span j - 1). The same sum as `wrap_lengths` less the adhesion part, computed
+    on the pulleys with a slip arc alone (the statics' predictor evaluates it often); 0 where a span is
+    slack (T <= 0: no capstan law holds; the predictor's trial layouts only)."""
+    T = np.asarray(span_tension, dtype=float)
+    te = np.roll(T, 1)
+    if wm.kind == "rigid" or not (T > 0.0).all():
+        return 0.0  # (a slack span: no capstan profile; the statics' predictor meets it only on trial layouts)
+    # `slip_arc` at rest, all tensions positive, in fewer operations (NaN friction: no arc; 0: the whole wrap)
+    with np.errstate(divide="ignore"):
+        phi = np.abs(np.log(te / T)) / wm.friction
+    k = (phi > 0.0) & (np.abs(te - T) > ROUND_OFF * np.maximum(te, T))
+    if not k.any():
+        return 0.0
+    a, b, phi = te[k], T[k], np.minimum(phi[k], wrap[k])
+    profile = a[:, None] * (b / a)[:, None] ** _XI[None, :]  # T(phi) at the quadrature points (c = 0)
+    inner = (_W[None, :] / wm.stretch(profile, wm.EA)).sum(axis=1) - 1.0 / wm.stretch(a, wm.EA)
+    return float((radius[k] * phi * inner).sum())

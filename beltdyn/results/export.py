@@ -290,8 +290,9 @@ def _wrap_variables(res: StaticResult) -> tuple[Variable, ...]:
         Variable(name="gross_slip", data=w.gross_slip.astype(np.int8), dims=("pulley",), units="1",
                  description="1 where the slip arc would exceed the wrap (slip margin < 1)"),
         Variable(name="wrap_reference_length", data=w.stress_free_length, dims=("pulley",), units="m",
-                 description="stress-free belt length on the wrap (adhesion arc at the entry stretch, slip arc "
-                             "integrated over the capstan profile)"),
+                 description="stress-free belt length on the wrap (belt.wraps = creep: adhesion arc at the entry "
+                             "stretch, slip arc integrated over the capstan profile, what the belt-length budget "
+                             "counts; rigid: the arc length R wrap)"),
     )
 
 

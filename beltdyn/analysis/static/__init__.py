@@ -32,6 +32,10 @@ reference lengths (`relay.settled_reference`, the wrap unstretched, the belt's u
 and the drive solved again with the pulleys unturned, so the span ends sit on their tangent points and
 the dynamics start from rotations 0 (docs/wraps.md). The result carries the wraps' creep state
 (`model.wraps`: slip and adhesion arcs, rim speed ratios, creep losses) from the solved span tensions.
+With creep wraps (belt.wraps, the default) the wraps' stress-free length takes the place of their arc
+length in the belt's budget (sum of the spans' references + sum of the wraps' = L0): in the rigid-belt
+prediction (`tension.settled_budget`) and checked at the equilibrium (`tension.budget_excess`, a secant
+step on the spans' reference total where it misses; docs/wraps.md).
 
 Modules, by job: `newton` (the static equations of one layout and their Newton solve: predictor,
 residual scales, budget, load steps, continuations, the bordered tension step), `tension` (the belt's

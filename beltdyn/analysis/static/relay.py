@@ -11,12 +11,13 @@ import numpy as np
 from beltdyn.analysis.static.arms import predicted_centers
 from beltdyn.analysis.static.newton import Budget, predictor, solve_equilibrium
 from beltdyn.analysis.static.result import StaticResult, check_slack, static_result
-from beltdyn.analysis.static.tension import (carried_lengths, carried_reference, meet_prestrain, settled_tension,
-                                             radius_steps, torque_split)
+from beltdyn.analysis.static.tension import (budget_excess, budget_step, carried_lengths, carried_reference,
+                                             meet_prestrain, settled_budget, radius_steps, torque_split,
+                                             turned_wraps, wrap_budget, wrap_budget_change)
 from beltdyn.config import StaticOptions
 from beltdyn.errors import SolverError
 from beltdyn.model.angles import pivot_angle, wrap_angle
-from beltdyn.model.barlaw import stretch_for_tension
+from beltdyn.model.barlaw import bar_law
 from beltdyn.model.geometry import GeometryError, Layout, fit_adjustable, relay
 from beltdyn.model.system import System
 
@@ -127,6 +128,13 @@ class _Plan:
     moving: bool  # some pulley can move in the static solve
     prestrain: bool  # mode "prestrain" with a target: `meet_prestrain` on each layout
     tol_x: float  # m, the allowed movement from the laid centre (tolerance x shortest span)
+    material: float | None = None  # m, the belt's undeformed length held by spans and creep wraps; None: rigid wraps
+
+    @property
+    def law(self):
+        """The bar law of the belt (`barlaw.BarLaw`)."""
+        wm = self.system.wraps
+        return bar_law("green-lagrange" if wm is None else wm.axial_law)
 
     @property
     def lay0(self) -> Layout:
@@ -143,7 +151,9 @@ def _plan(system: System, build, options: StaticOptions) -> _Plan:
                  conserve=ts.mode in ("adjust", "spring") or (ts.mode == "geometry" and lay0.adjust_index is not None),
                  moving=bool(trans.size) or system.arms is not None,
                  prestrain=ts.mode == "prestrain" and ts.target is not None,
-                 tol_x=options.tolerance * float(lay0.span_length.min()))
+                 tol_x=options.tolerance * float(lay0.span_length.min()),
+                 material=(None if ts.mode == "prestrain" or system.wraps is None or system.wraps.kind == "rigid"
+                           else float(lay0.belt_length) / float(system.belt.prestrain_stretch)))
 
 
 def _adjust_offset(plan: _Plan, old: Layout, centers: np.ndarray) -> float | None:
@@ -210,10 +220,14 @@ def _span_tension_law(plan: _Plan, split: np.ndarray):
         return span_tension
     if plan.conserve and ts.mode != "adjust":
         EA, ref0, steps0 = float(system.EA), system.belt.reference_length, radius_steps(lay0)
+        slip: list = [None]  # creep wraps: the slip model of the last call (`settled_budget`), the next one's start
 
         def span_tension(angle: np.ndarray, length: np.ndarray) -> np.ndarray:
             ref = carried_lengths(lay0.span_angle, angle, steps0, ref0, lay0.span_name)
-            return settled_tension(length, split, float(ref.sum()), EA)  # the pulleys unturned (settled)
+            wraps = None if plan.material is None else wrap_budget(system.wraps, lay0.radius, turned_wraps(lay0, angle))
+            T, slip[0] = settled_budget(length, split, float(ref.sum()), EA, law=plan.law, wraps=wraps,
+                                        start=slip[0])  # the pulleys unturned (settled; creep wraps at rest)
+            return T
         return span_tension
     return None
 
@@ -223,15 +237,16 @@ def _adjust_fit(plan: _Plan):
     (mode "adjust"), the arm's turn counted from the drawn arm angle as on the L0 fit."""
     system, lay0, d = plan.system, plan.lay0, plan.system.dofs
     EA = float(system.EA)
-    lam_T = stretch_for_tension(float(system.tension.target), EA)
+    lam_T = plan.law.stretch_for_tension(float(system.tension.target), EA)
     material = float(system.belt.reference_length.sum() + lay0.arc_length.sum())  # L0, wraps unstretched
+    arc_weight = lam_T if plan.material is None else 1.0  # creep wraps: stretched as the spans (no torques)
     j = lay0.adjust_index
     pivot = None if lay0.adjust_kind != "arm" else system.arms.pivot[plan.arm_of[d.trans_dof[j][0]]]
 
     def fit(centers: np.ndarray) -> Layout:
         lay_f = fit_adjustable(centers, lay0.radius, lay0.side_sign, lay0.names, index=j,
                                direction=d.trans_dir[j][0], target_length=lam_T * material,
-                               arc_weight=lam_T, orientation=lay0.orientation, pivot=pivot,
+                               arc_weight=arc_weight, orientation=lay0.orientation, pivot=pivot,
                                base=lay0 if np.array_equal(centers, lay0.center) else None)
         if pivot is not None:
             lay_f = replace(lay_f, adjust_offset=float(wrap_angle(lay0.adjust_offset + lay_f.adjust_offset)))
@@ -255,14 +270,16 @@ def _predicted_start(plan: _Plan):
         settled = not plan.prestrain and (ts.target is None or plan.conserve)
         lay, free, built = _lay_out(plan, lay0, centers, system.belt.reference_length, "prediction", build=not settled)
         if plan.prestrain:
-            return system, lay, free, None, stretch_for_tension(float(ts.target), EA)
+            return system, lay, free, None, plan.law.stretch_for_tension(float(ts.target), EA)
         T = span_tension(lay.span_angle, lay.span_length)
-        lam = stretch_for_tension(T, EA)
+        lam = plan.law.stretch_for_tension(T, EA)
         if ts.target is None:  # the belt's conserved length settled on the spans: references L_s / lambda(T_s)
             built = plan.build(lay, lam, free)
         elif plan.conserve:  # the same, scaled to the belt's carried reference total (exact without torques)
             ref = lay.span_length / lam
-            ref *= float(carried_reference(lay0, lay, system.belt.reference_length).sum()) / float(ref.sum())
+            change = wrap_budget_change(system.wraps, lay)  # creep wraps: their stretch to the spans
+            total = float(carried_reference(lay0, lay, system.belt.reference_length).sum())
+            ref *= (total - (0.0 if change is None else change(T))) / float(ref.sum())
             built = plan.build(lay, lay.span_length / ref, free)
         warm = predictor(built, lam, ts.adjust_dof, built.driver_dof)
         return built, lay, free, warm, lam_p
@@ -290,11 +307,16 @@ def _extrapolated(plan: _Plan, system: System, centers: np.ndarray, step: np.nda
 
 
 SETTLE_PASSES = 8  # re-references after the solve (each leaves rotations smaller by about the belt strain)
+BUDGET_PASSES = 20  # creep wraps: budget steps (a secant: two or three where the prediction was right)
 
 
-def _resettled(plan: _Plan, system: System, q: np.ndarray, free: np.ndarray) -> System:
-    """The drive on the same layout with the spans' `settled_reference` lengths at q."""
-    built = plan.build(system.layout, system.layout.span_length / settled_reference(system, q), free)
+def _resettled(plan: _Plan, system: System, q: np.ndarray, free: np.ndarray, budget: float = 0.0) -> System:
+    """The drive on the same layout with the spans' `settled_reference` lengths at q, their total changed
+    by `budget` (m, the creep wraps' `budget_step`; in proportion to the lengths)."""
+    ref = settled_reference(system, q)
+    if budget:
+        ref = ref * (1.0 + budget / float(ref.sum()))
+    built = plan.build(system.layout, system.layout.span_length / ref, free)
     return built.full() if hasattr(built, "full") else built
 
 
@@ -344,6 +366,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     """
     plan = _plan(system, build, options)
     system, lay, free, warm, lam_p = _predicted_start(plan)
+    unpredicted = warm is None and not plan.prestrain  # (no rigid-belt prediction: from the L0 fit)
     if hasattr(system, "full"):  # a deferred build (pipeline.analyse): solved on the L0 fit after all
         system = system.full()
     slope, prev_step = None, None
@@ -351,6 +374,7 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
     solves = iterations = 0
     budget = Budget.of(options)  # over all passes and solves
     settles = referenced = 0  # solves on re-referenced spans alone; re-references (`settled_reference`) in all
+    budget_history: list[tuple[float, float]] = []  # creep wraps: `budget_excess`'s (S, W) of the solves so far
     carry = False  # once re-referenced, every re-lay carries the spans' references over
     for p in range(1, max_passes + 1):
         if plan.prestrain:
@@ -367,17 +391,33 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         movement.append(float(np.sqrt((step * step).sum(axis=1)).max(initial=0.0)))  # (the largest |step|)
         if not plan.moving or movement[-1] <= plan.tol_x:
             slide = _rotation_slide(system, q_p)
-            if not plan.prestrain and slide > plan.tol_x and referenced < SETTLE_PASSES:
+            short, checked = 0.0, None  # creep wraps: the change of the spans' reference total the budget asks for
+            if plan.material is not None and not plan.prestrain:
+                checked = static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
+                                        known={**known, "pulley_center": solved_centers})  # (its wraps: the budget's)
+                excess = budget_excess(system, checked, plan.material, options.tolerance)
+                if excess is not None:
+                    budget_history.append(excess)
+                    short = budget_step(budget_history, plan.material)
+            if not plan.prestrain and ((slide > plan.tol_x and referenced < SETTLE_PASSES)
+                                       or (short and len(budget_history) <= BUDGET_PASSES)):
                 # the material the rotations moved into the spans' references, solved again (`settled_reference`)
                 settles, referenced, carry = settles + 1, referenced + 1, True
-                prev_system, system = system, _resettled(plan, system, q_p, free)
+                prev_system, system = system, _resettled(plan, system, q_p, free, short)
                 warm = warm_start(system, prev_system, q_p, rotations=False)
                 continue
+            if short:  # the budget steps spent and the budget still open: a named failure, never a silent result
+                raise SolverError(f"the creep wraps' belt-length budget did not close in {BUDGET_PASSES} steps: the "
+                                  f"spans and wraps hold {budget_history[-1][0] + budget_history[-1][1]:.12g} m of belt "
+                                  f"against belt.length {plan.material:.12g} m", analysis="static",
+                                  step=f"budget step {len(budget_history)}", residual=abs(short), item="belt.wraps")
             if plan.prestrain and slide > plan.tol_x:  # (the secant's uniform stretch is done: settled once here)
                 system, q_p, preload, hist, known, k, its = _settle(plan, system, lay, free, q_p, options, budget)
                 solves, iterations = solves + k, iterations + its
                 st = static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
                                    known={**known, "pulley_center": system.pulley_centers(q_p, p=known.get("joint"))})
+            elif checked is not None:
+                st = checked
             elif not plan.prestrain:
                 st = static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist), system.driver_dof,
                                    known={**known, "pulley_center": solved_centers})
@@ -390,6 +430,15 @@ def solve_static_on_solved_geometry(system: System, build, options: StaticOption
         settle = not plan.prestrain and referenced < SETTLE_PASSES and _rotation_slide(system, q_p) > plan.tol_x
         ref_old = settled_reference(system, q_p) if settle else system.belt.reference_length
         referenced, carry = referenced + settle, carry or settle
+        if unpredicted and plan.material is not None and len(budget_history) < BUDGET_PASSES:
+            # creep wraps without a prediction: the belt-length budget met on the way (a secant across re-lays)
+            excess = budget_excess(system, static_result(system, q_p, preload, hist[:, 0], hist[:, 1], len(hist),
+                                                         system.driver_dof, known={**known, "pulley_center": solved_centers}),
+                                   plan.material, options.tolerance)
+            if excess is not None:
+                budget_history.append(excess)
+                ref_old = ref_old * (1.0 + budget_step(budget_history, plan.material) / float(ref_old.sum()))
+                carry = True
         prev_system, prev_q = system, q_p
         lay, free, built = _lay_out(plan, lay, centers, ref_old, f"re-lay pass {p}", carry=carry)
         if plan.prestrain:

@@ -11,7 +11,7 @@ import numpy as np
 from beltdyn.errors import SolverError
 from beltdyn.model.angles import unwrap_near, wrap_angle
 from beltdyn.model.slip import drive_centrifugal_tension, pulley_tensions, required_friction, slip_margin
-from beltdyn.model.wraps import WrapState, wrap_state
+from beltdyn.model.wraps import WrapState, wrap_model_state, wrap_state
 from beltdyn.model.system import System
 
 
@@ -140,11 +140,15 @@ def static_result(model: System, q, preload, hist_r, hist_l, iterations, driver_
     applied = np.zeros(n) if model.loads is None else model.loads[model.dofs.torque_dof]
     friction = model.pulley_friction
     t_in, t_out = pulley_tensions(span_tension)
-    wraps = wrap_state(t_in=t_in, t_out=t_out, radius=lay.radius, wrap=lay.wrap_angle, friction=friction,
-                       EA=float(model.EA), mass_per_length=mass_per_length(model), belt_speed=float(model.belt_speed),
-                       driver=int(model.driver))
-    mu_req = required_friction(span_tension, lay.wrap_angle,  # (the running belt's capstan law, `slip`)
-                               drive_centrifugal_tension(model, model.belt_speed, T_mean))
+    c = drive_centrifugal_tension(model, model.belt_speed, T_mean)  # (the slip arcs' and the margins': one c)
+    if model.wraps is not None:
+        wraps = wrap_model_state(model.wraps, span_tension=span_tension, radius=lay.radius, wrap=lay.wrap_angle,
+                                 belt_speed=float(model.belt_speed), driver=int(model.driver), centrifugal=float(c))
+    else:
+        wraps = wrap_state(t_in=t_in, t_out=t_out, radius=lay.radius, wrap=lay.wrap_angle, friction=friction,
+                           EA=float(model.EA), mass_per_length=mass_per_length(model),
+                           belt_speed=float(model.belt_speed), driver=int(model.driver), centrifugal=float(c))
+    mu_req = required_friction(span_tension, lay.wrap_angle, c)  # (the running belt's capstan law, `slip`)
     return StaticResult(
         q=q, spring_preload=preload, span_tension=span_tension, mean_tension=T_mean,
         hub_load=hub, pulley_center=known["pulley_center"] if "pulley_center" in known else model.pulley_centers(q, p=p),

@@ -8,13 +8,18 @@ Nomenclature: L_s span lengths, reference_s their stress-free lengths, lambda st
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from beltdyn.analysis.static.newton import Budget, solve_static
 from beltdyn.config import StaticOptions
 from beltdyn.errors import SolverError
 from beltdyn.model.angles import wrap_angle
-from beltdyn.model.barlaw import axial_force, axial_stiffness, stretch_for_tension, stretch_start
+from beltdyn.model.barlaw import BarLaw, axial_force, axial_stiffness, bar_law, stretch_for_tension, stretch_start
+from beltdyn.model.wraps import WrapModel, slip_part, wrap_lengths
+
+GREEN = bar_law("green-lagrange")
 
 
 def carried_reference(old, new, reference_length: np.ndarray) -> np.ndarray:
@@ -142,24 +147,151 @@ def conserved_tension(total_length: float, split: np.ndarray, reference: np.ndar
     return T_ref + sp
 
 
-def settled_tension(lengths: np.ndarray, split: np.ndarray, total_reference: float, EA: float) -> np.ndarray:
+def settled_tension(lengths: np.ndarray, split: np.ndarray, total_reference: float, EA: float, *,
+                    law: BarLaw = GREEN, wraps: "WrapBudget | None" = None) -> np.ndarray:
     """(n,) span tensions T_ref + split of a belt whose spans, of lengths L_s (n,), together hold the
     reference (stress-free) length `total_reference`, each span stretched by its own tension and the
     pulleys unturned (the rotations' material in the spans, `relay.settled_reference`): so
-    sum_s L_s / lambda(T_ref + split_s) = total_reference (Newton on T_ref, the bar law of `model.barlaw`;
-    each span's reference length is then L_s / lambda(T_s))."""
+    sum_s L_s / lambda(T_ref + split_s) = total_reference (Newton on T_ref, the bar law `law`; each
+    span's reference length is then L_s / lambda(T_s)). wraps: creep wraps in the budget (`settled_budget`)."""
+    return settled_budget(lengths, split, total_reference, EA, law=law, wraps=wraps)[0]
+
+
+SlipModel = tuple[float, float, float]  # (T_ref, delta, d delta / d T_ref): the slip part held linear in T_ref
+
+
+def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: float, EA: float, *,
+                   law: BarLaw = GREEN, wraps: "WrapBudget | None" = None, start: SlipModel | None = None
+                   ) -> tuple[np.ndarray, SlipModel | None]:
+    """(T (n,), slip model) of `settled_tension`. With creep wraps (`WrapBudget`) the wraps' stress-free
+    length takes the place of their arc length in the budget,
+
+        sum_s (L_s + a_s) / lambda(T_s) + delta(T) = total_reference + sum_j R_j beta_j,
+
+    a_s the arc of the wrap span s enters (its adhesion stretch is the span's) and delta the slip arcs'
+    part (`WrapBudget.slip_part`): delta is held linear in T_ref over an inner Newton solve (its slope the
+    secant of its evaluations; `start` a model of a nearby solve, else delta at the first iterate with
+    slope 0) and evaluated again at the result until it meets the model to 1e-14 of the belt's length.
+    The slip model returned starts the next solve of a nearby layout (None without creep wraps)."""
     L = np.asarray(lengths, dtype=float)
     sp = np.asarray(split, dtype=float)
     total = float(total_reference)
+    if wraps is not None:
+        L = L + wraps.entry_arc
+        total += wraps.arc_total
     T_ref = EA * (float(L.sum()) / total - 1.0) - float(L @ sp) / float(L.sum())  # the linear start
-    lam = stretch_for_tension(T_ref + sp, EA)
-    for _ in range(60):  # Newton on T_ref, each stretch first stepped to its span's tension (one Newton step)
-        k = axial_stiffness(lam, EA)  # dT/dlambda
-        d = (axial_force(lam, EA) - (T_ref + sp)) / k
+    if start is not None and wraps is not None:
+        T_ref = start[0]  # (a nearby solve's)
+    lam = law.stretch_for_tension(T_ref + sp, EA)
+    if wraps is None:
+        return _budget_newton(L, sp, total, 0.0, T_ref, lam, EA, law)[0] + sp, None
+    model = start  # (T_ref, delta, d delta / d T_ref) the inner solve holds delta to
+    if model is not None:
+        T_ref, lam = _budget_newton(L, sp, total - model[1] + model[2] * model[0], model[2], T_ref, lam, EA, law)
+    for _ in range(8):  # the slip part evaluated, the budget solved with it linear in T_ref
+        d_now = float(wraps.slip_part(T_ref + sp))
+        if model is not None:
+            t0, d0, d_slope = model
+            if abs(d_now - (d0 + d_slope * (T_ref - t0))) <= 1e-14 * total:  # (~ 1e-14 EA: far below the statics')
+                return T_ref + sp, (T_ref, d_now, d_slope)
+            d_slope = (d_now - d0) / (T_ref - t0) if T_ref != t0 else d_slope
+        else:
+            d_slope = 0.0  # (a fixed-point step first: delta changes slowly with T_ref)
+        model = (T_ref, d_now, d_slope)
+        T_ref, lam = _budget_newton(L, sp, total - d_now + d_slope * T_ref, d_slope, T_ref, lam, EA, law)
+        if d_now == 0.0 and not sp.any():  # equal tensions: no slip arc at any T_ref
+            break
+    return T_ref + sp, model
+
+
+def _budget_newton(L: np.ndarray, sp: np.ndarray, total: float, d_slope: float, T_ref: float, lam: np.ndarray,
+                   EA: float, law: BarLaw) -> tuple[float, np.ndarray]:
+    """(T_ref, lambda (n,)) with sum_s L_s / lambda(T_ref + split_s) + d_slope T_ref = total (Newton, each
+    stretch first stepped to its span's tension: one Newton step on the bar law)."""
+    for _ in range(60):
+        k = law.axial_stiffness(lam, EA)  # dT/dlambda
+        d = (law.axial_force(lam, EA) - (T_ref + sp)) / k
         lam = lam - d
-        f = float((L / lam).sum()) - total
-        step = f / -float((L / (lam * lam * k)).sum())  # f / (d f / d T_ref)
+        f = float((L / lam).sum()) + d_slope * T_ref - total
+        step = f / (d_slope - float((L / (lam * lam * k)).sum()))  # f / (d f / d T_ref)
         T_ref -= step
         if float(np.abs(d).max()) <= 1e-8 and abs(step) <= 1e-13 * max(abs(T_ref), 1e-6 * EA):
             break
-    return T_ref + sp
+    return T_ref, lam
+
+
+@dataclass(frozen=True, kw_only=True)
+class WrapBudget:
+    """Creep wraps in the budget of `settled_tension` on one layout. Shapes: (n,) per span / pulley."""
+
+    wraps: WrapModel
+    radius: np.ndarray  # m, the pulleys' radii
+    wrap: np.ndarray  # rad, their wrap angles
+    entry_arc: np.ndarray  # m, R beta of the wrap each span enters (the next pulley's, the belt running along the spans)
+    arc_total: float  # m, sum R beta
+
+    def slip_part(self, T: np.ndarray) -> float:
+        """delta (m): the wraps' stress-free total less sum_j R_j beta_j / lambda(T_e,j) at the span
+        tensions T (n,) (`model.wraps.slip_part`): what the slip arcs add to the adhesion stretch."""
+        return slip_part(self.wraps, span_tension=T, radius=self.radius, wrap=self.wrap)
+
+
+def wrap_budget(wraps: WrapModel | None, radius: np.ndarray, wrap: np.ndarray) -> WrapBudget | None:
+    """The `WrapBudget` of creep wraps of radii and wrap angles (n,) (None for rigid wraps)."""
+    if wraps is None or wraps.kind == "rigid":
+        return None
+    arc = np.asarray(radius, dtype=float) * np.asarray(wrap, dtype=float)
+    return WrapBudget(wraps=wraps, radius=np.asarray(radius, dtype=float), wrap=np.asarray(wrap, dtype=float),
+                      entry_arc=np.roll(arc, -1), arc_total=float(arc.sum()))
+
+
+def wrap_budget_change(wraps: WrapModel | None, layout, belt_speed: float = 0.0, centrifugal: float = 0.0):
+    """change(T) -> the wraps' stress-free length less their arc length (m) on `layout` at span tensions T
+    ((n,) or (n, 2)): what creep wraps give the spans in the belt-length budget. None for rigid wraps."""
+    if wraps is None or wraps.kind == "rigid":
+        return None
+    R, beta = layout.radius, layout.wrap_angle
+
+    def change(T: np.ndarray) -> float:
+        return float((wrap_lengths(wraps, span_tension=T, radius=R, wrap=beta, belt_speed=belt_speed,
+                                   centrifugal=centrifugal) - R * beta).sum())
+    return change
+
+
+def turned_wraps(layout, span_angle: np.ndarray) -> np.ndarray:
+    """(n,) the wrap angles of `layout`'s pulleys once its span angles a_s are `span_angle` (n,) (the centres
+    moved, `carried_reference`): pulley j's wrap grows by sign_j (dpsi_j - dpsi_(j-1)), dpsi_s the turn of
+    span s, sign = orientation x side (the arc rho_j dpsi the spans hand over at its two tangent points)."""
+    turn = wrap_angle(np.asarray(span_angle, dtype=float) - layout.span_angle)
+    return layout.wrap_angle + layout.orientation * layout.side_sign * (turn - np.roll(turn, 1))
+
+
+def budget_excess(system, static, material: float, tolerance: float) -> tuple[float, float] | None:
+    """(S, W) m: the spans' reference total plus the wraps' arc lengths (what the re-lay passes keep,
+    `carried_reference`: S moves only by the budget's own steps) and the creep wraps' stress-free total
+    less their arcs (the static result's `wraps`, `model.wraps` at its span tensions and the drive's
+    centrifugal tension), where S + W misses the belt's undeformed length `material` by more than the
+    tension's tolerance as a length, tolerance |T| material / EA (T the mean span tension); None where they
+    meet it (or the wraps are rigid)."""
+    wm = system.wraps
+    if wm is None or wm.kind == "rigid":
+        return None
+    arc = float(system.layout.arc_length.sum())
+    W = float(static.wraps.stress_free_length.sum())
+    S = float(system.belt.reference_length.sum()) + arc  # (S + the arcs: what a re-lay keeps, `carried_reference`)
+    allowed = max(tolerance * abs(float(static.mean_tension)) / float(system.EA), 4.0 * np.finfo(float).eps) * material
+    return None if abs(S + (W - arc) - material) <= allowed else (S, W - arc)
+
+
+def budget_step(history: list[tuple[float, float]], total: float) -> float:
+    """The change dS of the spans' reference total that meets the belt-length budget S + W(S) = total
+    (m, the belt's undeformed length), S and W as `budget_excess` gives them: from the solved (S_k, W_k)
+    so far (`history`, oldest first), Newton dS = -(S + W - total) / (1 + W'), W' the secant of the last
+    two (0 with one: a fixed-point step, contracting by |W'| ~ R beta / L < 1)."""
+    S, W = history[-1]
+    slope = 0.0
+    if len(history) > 1:
+        S0, W0 = history[-2]
+        if S != S0:
+            slope = min(max((W - W0) / (S - S0), -0.5), 5.0)  # (a bad secant of round-off kept in bounds)
+    return -(S + W - total) / (1.0 + slope)
