@@ -427,17 +427,10 @@ def joint_pairs(layout: Layout, dofs: DofMap, s: int, side: int) -> list[tuple[i
     return pairs + list(zip(dofs.trans_dof[j], dofs.trans_dir[j]))
 
 
-def _no_elements(EA: float, rho: float, curvature: str, n_gauss: int) -> ancf.ElementSet:
-    """An empty element set (every span a spring), its tables of the right shapes."""
-    one = ancf.make_elements(np.ones(1), EA, 0.0, rho, curvature=curvature, n_gauss=n_gauss)
-    return ancf.subset(one, np.zeros(0, dtype=np.int64))
-
-
 def empty_element_set(cfg: DriveConfig) -> ancf.ElementSet:
     """The element set of a belt without elements (every span a spring): empty, its tables of the right
     shapes (the bending law "none")."""
-    b = cfg.belt
-    return _no_elements(float(b.EA), float(b.mass_per_length), "none", cfg.model.gauss_points)
+    return ancf.empty_elements(curvature="none", n_gauss=cfg.model.gauss_points)
 
 
 def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> ancf.ElementSet:

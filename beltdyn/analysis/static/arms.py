@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from beltdyn.model.angles import pivot_angle, unwrap_near
-from beltdyn.model.geometry import relay
+from beltdyn.model.geometry import belt_path, relay
 from beltdyn.model.system import System
 
 
@@ -25,6 +25,8 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
 
     lay0 = system.layout
     place = fit if fit is not None else (lambda c: relay(lay0, c, check=False))  # checked where laid (lay_out)
+    # an arm's iterates: the spans alone (`belt_path`, the numbers of `relay`'s layout without its tangent points)
+    path = fit if fit is not None else (lambda c: belt_path(c, lay0.radius, lay0.side_sign, lay0.orientation))
     k_diag = np.asarray(system.linear_matrix().diagonal()).ravel() if anchored else None
     arms = []  # (pulley, pivot, length, stiffness, layout angle, free angle) of each sprung arm it turns
     if system.arms is not None:
@@ -51,7 +53,7 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
         def moment(phi: float) -> float:
             c = centers.copy()
             c[j] = pv + length * np.array([np.cos(phi), np.sin(phi)])
-            r, f = c[j] - pv, pull(place(c))[j]
+            r, f = c[j] - pv, pull(path(c))[j]
             return float(r[0] * f[1] - r[1] * f[0]) - k_s * (phi - phi_f)
         return moment
 
