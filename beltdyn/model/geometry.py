@@ -452,34 +452,35 @@ def _fit_newton(fit: _FitProblem, start: Layout | BeltPath, *, check: bool, tol:
     how, where = fit.where()
     target, motion = fit.target_length, fit.motion
     s, lay = 0.0, start
+    f, scale = fit.length(lay) - target, motion.slope_scale()  # (f: the misfit of lay, carried with it)
     for _ in range(max_iter):
-        f = fit.length(lay) - target
         if abs(f) <= tol * target:
             return s, lay
         slope = fit.slope(lay, s)
-        if not abs(slope) >= 1e-9 * motion.slope_scale():
+        if not abs(slope) >= 1e-9 * scale:
             raise GeometryError(
                 f"{how} '{fit.name}' {where} does not change the belt length "
                 + ("(slide_direction perpendicular to the belt pull)" if motion.pivot is None else
                    "(the arm points along the belt pull)"),
                 f"pulleys[{fit.index}].{'slide_direction' if motion.pivot is None else 'arm_pivot'}")
         step = -f / slope
-        trial = None
+        trial = f_trial = None
         for _ in range(60):
             try:
                 trial = fit.layout_at(s + step, True) if check else fit.path_at(s + step)
             except GeometryError:
                 step *= 0.5
                 continue
-            if abs(fit.length(trial) - target) < abs(f) or abs(step) < 1e-15:
+            f_trial = fit.length(trial) - target
+            if abs(f_trial) < abs(f) or abs(step) < 1e-15:
                 break
             step *= 0.5
-        if trial is None or not abs(fit.length(trial) - target) < abs(f):
+        if trial is None or not abs(f_trial) < abs(f):
             word = "short" if f > 0 else "long"
             raise GeometryError(
                 f"L0 = {target:.6g} m is too {word}: {how} '{fit.name}' {where} cannot make the belt fit "
                 f"(closest belt length {fit.length(lay):.6g} m at offset {s:.6g} {motion.unit})", "belt.length")
-        s, lay = motion.normalized(s + step), trial
+        s, lay, f = motion.normalized(s + step), trial, f_trial
     raise GeometryError(f"L0 fit did not converge (belt length {fit.length(lay):.9g} m)", "belt.length")
 
 
