@@ -595,6 +595,7 @@ def subset(el: ElementSet, index: np.ndarray) -> ElementSet:
     for f in dataclasses.fields(el):
         value = getattr(el, f.name)
         if isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == n:
-            value = _readonly(value[index])
+            value = value[index]  # (a new C-contiguous array of the same dtype: frozen, not copied again)
+            value.setflags(write=False)
         fields_[f.name] = value
     return ElementSet(**fields_)

@@ -43,9 +43,11 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
     if not anchored and not arms and fit is not None:  # nothing deflects: the fit alone places the pulleys
         return fit(centers).center
 
-    def pull(lay) -> np.ndarray:
+    def pull(lay, at: int | None = None) -> np.ndarray:
+        """The belt's pull T_j t_j - T_(j-1) t_(j-1) on every pulley j (n, 2), or on pulley `at` alone (2,)."""
         f = span_tension(lay.span_angle, lay.span_length)[:, None] * lay.span_direction
-        return f - np.roll(f, 1, axis=0)  # (span j - 1 arrives at pulley j)
+        j = np.arange(len(f)) if at is None else at
+        return f[j] - f[j - 1]  # (span j - 1 arrives at pulley j; index -1 is the last span)
 
     def arm_moment(j: int, pv: np.ndarray, length: float, k_s: float, phi_f: float):
         """The moment about the pivot on arm pulley j at arm angle phi (spring and belt pull), the other
@@ -53,7 +55,7 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
         def moment(phi: float) -> float:
             c = centers.copy()
             c[j] = pv + length * np.array([np.cos(phi), np.sin(phi)])
-            r, f = c[j] - pv, pull(path(c))[j]
+            r, f = c[j] - pv, pull(path(c), j)
             return float(r[0] * f[1] - r[1] * f[0]) - k_s * (phi - phi_f)
         return moment
 
