@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -195,7 +196,8 @@ def compute_layout(
     return lay
 
 
-def span_lines(zc: np.ndarray, radius: np.ndarray, sigma: np.ndarray, *, coincident=None) -> tuple[np.ndarray, ...]:
+def span_lines(zc: np.ndarray, radius: np.ndarray, sigma: np.ndarray, *,
+               coincident: Callable[[], None] | None = None) -> tuple[np.ndarray, ...]:
     """The tangent lines and wraps of pulleys at zc (n,) (complex x + iy) of radii (n,) turning the belt
     in the senses sigma (n,) (orientation x side): (span angles a (n,) rad, q (n,) = (rho_i - rho_(i+1)) / D
     (the module docstring), wrap angles (n,) rad, sums (3, n): rows span lengths, arc lengths, signed
