@@ -361,7 +361,8 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stre
     else:  # one per span: the mean stretch, sum of chords / sum of reference lengths (their own if all equal)
         lam = float(lam_s[0]) if np.all(lam_s == lam_s[0]) else float(layout.span_length.sum() / L_ref.sum())
     t_dir = layout.span_direction
-    n_elem = sum(cfg.span_elements)
+    span_counts = cfg.span_elements  # (a property of the configuration, computed on each call: once here)
+    n_elem = sum(span_counts)
     if n_elem == 0:  # every span a spring (`build_springs`): no elements, no joints of the belt's own
         # (new empty arrays, writable: numba types a read-only array apart, and the transient's kernels would
         # compile anew)
@@ -370,7 +371,7 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stre
                          span_elements=(none,) * n_p, T=np.zeros((0, 8, 8)), idx=np.zeros((0, 8), dtype=np.int64),
                          tsel=none, e0=np.zeros((0, 8)), n_dof=n_dof, reference_length=L_ref,
                          reference_direction=t_dir, prestrain_stretch=lam, span_stretch=lam_s)
-    counts = np.array(cfg.span_elements, dtype=np.int64)  # (n_span,) elements of each span
+    counts = np.array(span_counts, dtype=np.int64)  # (n_span,) elements of each span
     # Per element, columns 0-3 / 4-7 carry the coordinates of its first / second node, 8-10 / 11-13
     # the joint DOFs of a span end; padding columns are squeezed out afterwards.
     T = np.zeros((n_elem, 8, 14))
