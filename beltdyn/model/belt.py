@@ -359,7 +359,7 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stre
     if isinstance(prestrain_stretch, (float, int)):  # (one number: uniform)
         lam = float(prestrain_stretch)
     else:  # one per span: the mean stretch, sum of chords / sum of reference lengths (their own if all equal)
-        lam = float(lam_s[0]) if np.all(lam_s == lam_s[0]) else float(layout.span_length.sum() / L_ref.sum())
+        lam = float(lam_s[0]) if (lam_s == lam_s[0]).all() else float(layout.span_length.sum() / L_ref.sum())
     t_dir = layout.span_direction
     span_counts = cfg.span_elements  # (a property of the configuration, computed on each call: once here)
     n_elem = sum(span_counts)
