@@ -67,6 +67,7 @@ __all__ = [
     "CURVATURE_MODELS",
     "ElementSet",
     "make_elements",
+    "empty_elements",
     "shape_functions",
     "mass_matrices",
     "transport_matrices",
@@ -569,6 +570,23 @@ def make_elements(length, EA, EI, rho, *, curvature: str = "linear", n_gauss: in
     return subset(base, inverse.ravel())
 
 
+def empty_elements(*, curvature: str = "linear", n_gauss: int = 5, axial_law: str = "green-lagrange") -> ElementSet:
+    """An `ElementSet` of no element (a belt whose spans are all springs): every table of the class
+    docstring's shape with n = 0 (what `subset` of a made set to no index gives, without making one:
+    tests/test_ancf_empty.py holds the two equal)."""
+    q = int(n_gauss)
+
+    def none(*shape: int) -> np.ndarray:
+        return _readonly(np.zeros((0, *shape)))
+
+    exact = curvature == "exact"
+    return ElementSet(length=none(), EA=none(), EI=none(), rho=none(), curvature=curvature, n_gauss=q,
+                      gauss_xi=_gauss01(q)[0], wL=none(q), dS=none(q, 4), d2S=none(q, 4), K_bend=none(8, 8),
+                      mass=none(8, 8), gravity_shape=none(4), _wEA=none(q), _half_wEA=none(q), _wEI=none(q),
+                      _D8=none(q, 8), _D8_sqrt_wEA=none(q, 8), _D2_8=none(q if exact else 0, 8), _DT=none(4, q),
+                      _D2T=none(4, q), _PQ=none(2 * q if exact else q, 64), axial_law=axial_law)
+
+
 def subset(el: ElementSet, index: np.ndarray) -> ElementSet:
     """The elements ``index`` (k,) of ``el`` (repeats allowed), tables gathered, not recomputed."""
     index = np.asarray(index, dtype=np.int64)
@@ -577,6 +595,7 @@ def subset(el: ElementSet, index: np.ndarray) -> ElementSet:
     for f in dataclasses.fields(el):
         value = getattr(el, f.name)
         if isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == n:
-            value = _readonly(value[index])
+            value = value[index]  # (a new C-contiguous array of the same dtype: frozen, not copied again)
+            value.setflags(write=False)
         fields_[f.name] = value
     return ElementSet(**fields_)

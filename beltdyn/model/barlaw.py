@@ -78,6 +78,8 @@ def stretch_start(x):
     small = abs(x) < 0.05
     if isinstance(small, bool):  # a Python number: the choice np.where makes elementwise, without its cost
         return series if small else 1.0 + x
+    if small.all():  # (the series everywhere: np.where's choice without its cost)
+        return series
     return np.where(small, series, 1.0 + x)[()]
 
 
@@ -98,7 +100,7 @@ def stretch_for_tension(tension, EA: float):
 
 def _largest(step) -> float:
     """max |step| of an array (0 for an empty one)."""
-    return float(np.max(np.abs(step), initial=0.0))
+    return float(np.abs(step).max(initial=0.0))  # (the method: np.max's dispatch costs more than the max of a few)
 
 
 def _newton(x, largest):

@@ -359,9 +359,10 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stre
     if isinstance(prestrain_stretch, (float, int)):  # (one number: uniform)
         lam = float(prestrain_stretch)
     else:  # one per span: the mean stretch, sum of chords / sum of reference lengths (their own if all equal)
-        lam = float(lam_s[0]) if np.all(lam_s == lam_s[0]) else float(layout.span_length.sum() / L_ref.sum())
+        lam = float(lam_s[0]) if (lam_s == lam_s[0]).all() else float(layout.span_length.sum() / L_ref.sum())
     t_dir = layout.span_direction
-    n_elem = sum(cfg.span_elements)
+    span_counts = cfg.span_elements  # (a property of the configuration, computed on each call: once here)
+    n_elem = sum(span_counts)
     if n_elem == 0:  # every span a spring (`build_springs`): no elements, no joints of the belt's own
         # (new empty arrays, writable: numba types a read-only array apart, and the transient's kernels would
         # compile anew)
@@ -370,7 +371,7 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stre
                          span_elements=(none,) * n_p, T=np.zeros((0, 8, 8)), idx=np.zeros((0, 8), dtype=np.int64),
                          tsel=none, e0=np.zeros((0, 8)), n_dof=n_dof, reference_length=L_ref,
                          reference_direction=t_dir, prestrain_stretch=lam, span_stretch=lam_s)
-    counts = np.array(cfg.span_elements, dtype=np.int64)  # (n_span,) elements of each span
+    counts = np.array(span_counts, dtype=np.int64)  # (n_span,) elements of each span
     # Per element, columns 0-3 / 4-7 carry the coordinates of its first / second node, 8-10 / 11-13
     # the joint DOFs of a span end; padding columns are squeezed out afterwards.
     T = np.zeros((n_elem, 8, 14))
@@ -427,18 +428,10 @@ def joint_pairs(layout: Layout, dofs: DofMap, s: int, side: int) -> list[tuple[i
     return pairs + list(zip(dofs.trans_dof[j], dofs.trans_dir[j]))
 
 
-def _no_elements(EA: float, rho: float, curvature: str, n_gauss: int, axial_law: str = "green-lagrange"
-                 ) -> ancf.ElementSet:
-    """An empty element set (every span a spring), its tables of the right shapes."""
-    one = ancf.make_elements(np.ones(1), EA, 0.0, rho, curvature=curvature, n_gauss=n_gauss, axial_law=axial_law)
-    return ancf.subset(one, np.zeros(0, dtype=np.int64))
-
-
 def empty_element_set(cfg: DriveConfig) -> ancf.ElementSet:
     """The element set of a belt without elements (every span a spring): empty, its tables of the right
     shapes (the bending law "none")."""
-    b = cfg.belt
-    return _no_elements(float(b.EA), float(b.mass_per_length), "none", cfg.model.gauss_points, b.axial_law)
+    return ancf.empty_elements(curvature="none", n_gauss=cfg.model.gauss_points, axial_law=cfg.belt.axial_law)
 
 
 def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> ancf.ElementSet:

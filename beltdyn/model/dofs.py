@@ -84,6 +84,7 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
         return len(labels) - 1
 
     comp = (("r1", "m"), ("r2", "m"), ("r1'", "1"), ("r2'", "1"))
+    span_group = DOF_GROUPS.index("span")
     arm_dof = np.full(len(cfg.pulleys), -1, dtype=int)
     rotor_dof = np.full(len(cfg.pulleys), -1, dtype=int)
     supports = [support_of(p) for p in cfg.pulleys]
@@ -98,9 +99,13 @@ def number_dofs(cfg: DriveConfig) -> DofMap:
         start = len(labels)
         s = j + 1
         n_e = counts[j]
-        for node in range(1, n_e + 2 if n_e else 1):
-            for c, unit in (comp[2:] if node in (1, n_e + 1) else comp):
-                add(f"span {s} node {node} {c}", unit, "span")
+        if n_e:  # the first node's gradient, the interior nodes (r, r'), the last node's gradient (a list each:
+            # a span of many elements has thousands of coordinates)
+            span = [(node, c, unit) for node in range(1, n_e + 2)
+                    for c, unit in (comp[2:] if node in (1, n_e + 1) else comp)]
+            labels.extend([f"span {s} node {node} {c}" for node, c, _ in span])
+            units.extend([unit for _, _, unit in span])
+            group.extend([span_group] * len(span))
         span_slices.append(slice(start, len(labels)))
     n_q = len(labels)
     for j, (p, sup) in enumerate(zip(cfg.pulleys, supports)):  # dependent DOFs (arm offsets): after q

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -59,10 +60,7 @@ class Layout:
     @property
     def span_direction(self) -> np.ndarray:
         """(n, 2) unit vectors of travel along each span."""
-        out = np.empty((len(self.span_angle), 2))
-        out[:, 0] = np.cos(self.span_angle)
-        out[:, 1] = np.sin(self.span_angle)
-        return out
+        return directions(self.span_angle)
 
     @property
     def signed_wrap(self) -> np.ndarray:
@@ -71,6 +69,35 @@ class Layout:
 
     def span_name(self, i: int) -> str:
         return f"{self.names[i]}-{self.names[(i + 1) % self.n]}"
+
+
+def directions(angle: np.ndarray) -> np.ndarray:
+    """(n, 2) the unit vectors (cos a, sin a) of angles a (n,)."""
+    out = np.empty((len(angle), 2))
+    out[:, 0] = np.cos(angle)
+    out[:, 1] = np.sin(angle)
+    return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class BeltPath:
+    """The belt path of pulleys at given centres without its tangent points: the spans and wraps an
+    iterate of the L0 fit or of a tensioner arm's balance evaluates (`belt_path`, unchecked; the same
+    numbers as the `Layout` that `compute_layout(check=False)` gives). Shapes: n pulleys, n spans."""
+
+    span_angle: np.ndarray  # (n,) direction of travel, rad
+    span_length: np.ndarray  # (n,) m
+    arc_length: np.ndarray  # (n,) m
+    belt_length: float  # m
+
+    @property
+    def n(self) -> int:
+        return len(self.span_angle)
+
+    @property
+    def span_direction(self) -> np.ndarray:
+        """(n, 2) unit vectors of travel along each span."""
+        return directions(self.span_angle)
 
 
 class GeometryError(ValueError):
@@ -139,20 +166,13 @@ def compute_layout(
     side_sign = np.asarray(side_sign, dtype=float)
     n = len(radius)
     o = loop_orientation(center) if orientation is None else orientation
-    ends, prv, _, _, _ = _tables(n)
+    ends, _, _, _, _ = _tables(n)
     sigma = side_sign if o == 1 else o * side_sign  # o sigma: the turning sense of each pulley
-    rho = sigma * radius
     zc = center.view(complex)[:, 0]  # points as x + iy (n,): sums and real multiples are exact per component
-    z_ends, rho_ends = zc[ends], rho[ends]  # (2, n): pulleys i and i + 1 of span i
-    d = z_ends[1] - zc
-    dx, dy = d.real, d.imag
-    dist = np.hypot(dx, dy)
-    if check and not dist.all():  # coincident centres: their overlap before q divides by zero
-        _check_apart(center, radius, names)
-    drho = rho - rho_ends[1]
-    q = drho / dist
-    tangents = check and np.abs(q).max() < 1.0  # checked: |q| < 1 for every span (else clipped and checked)
-    alpha = np.arctan2(dy, dx) + np.arcsin(q if tangents else np.minimum(np.maximum(q, -1.0), 1.0))
+    apart = (lambda: _check_apart(center, radius, names)) if check else None
+    alpha, q, wrap, sums = span_lines(zc, radius, sigma, coincident=apart)
+    tangents = check and np.abs(q).max() < 1.0  # checked: |q| < 1 for every span
+    z_ends, rho_ends = zc[ends], (sigma * radius)[ends]  # (2, n): pulleys i and i + 1 of span i
     m = np.empty(n, dtype=complex)  # the right normals sin a - i cos a
     np.sin(alpha, out=m.real)
     np.cos(alpha, out=m.imag)
@@ -161,13 +181,7 @@ def compute_layout(
     points[0] = zc
     np.add(z_ends, rho_ends * m, out=points[1:])
     point_xy, normal = points.view(float).reshape(3, n, 2), (np.sign(rho_ends) * m).view(float).reshape(2, n, 2)
-    sums = np.empty((3, n))  # span lengths, arc lengths, turning angles, summed together
-    length, arc, turn = sums[0], sums[1], sums[2]
-    h2 = dist * dist - drho * drho  # >= +0 where |q| < 1 (|drho| < dist: rounding keeps the order)
-    np.sqrt(h2 if tangents else np.maximum(h2, 0.0), out=length)
-    wrap = np.mod(sigma * (alpha - alpha[prv]), TWO_PI)
-    np.multiply(radius, wrap, out=arc)
-    np.multiply(sigma, wrap, out=turn)
+    length, arc = sums[0], sums[1]
     total_length, total_arc, total_turn = sums.sum(axis=1).tolist()
     lay = Layout(
         names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
@@ -180,6 +194,48 @@ def compute_layout(
         _check_tangents(q, names)
         _check_path(lay)
     return lay
+
+
+def span_lines(zc: np.ndarray, radius: np.ndarray, sigma: np.ndarray, *,
+               coincident: Callable[[], None] | None = None) -> tuple[np.ndarray, ...]:
+    """The tangent lines and wraps of pulleys at zc (n,) (complex x + iy) of radii (n,) turning the belt
+    in the senses sigma (n,) (orientation x side): (span angles a (n,) rad, q (n,) = (rho_i - rho_(i+1)) / D
+    (the module docstring), wrap angles (n,) rad, sums (3, n): rows span lengths, arc lengths, signed
+    turning angles). q is clipped to [-1, 1] where a span has no tangent (an unchecked iterate; the checks
+    then name it). coincident: called, if given, before the division when two neighbouring centres
+    coincide (the checks raise there). The one place of the tangent-line arithmetic: `compute_layout` and
+    `belt_path`."""
+    n = len(radius)
+    ends, prv, _, _, _ = _tables(n)
+    rho = sigma * radius
+    d = zc[ends[1]] - zc
+    dx, dy = d.real, d.imag
+    dist = np.hypot(dx, dy)
+    if coincident is not None and not dist.all():  # coincident centres: their overlap before q divides by zero
+        coincident()
+    drho = rho - rho[ends[1]]
+    q = drho / dist
+    alpha = np.arctan2(dy, dx) + np.arcsin(np.minimum(np.maximum(q, -1.0), 1.0))  # (q itself where |q| <= 1)
+    sums = np.empty((3, n))  # span lengths, arc lengths, turning angles, summed together
+    h2 = dist * dist - drho * drho  # >= +0 where |q| < 1 (|drho| < dist: rounding keeps the order)
+    np.sqrt(np.maximum(h2, 0.0), out=sums[0])
+    wrap = np.mod(sigma * (alpha - alpha[prv]), TWO_PI)
+    np.multiply(radius, wrap, out=sums[1])
+    np.multiply(sigma, wrap, out=sums[2])
+    return alpha, q, wrap, sums
+
+
+def belt_path(center: np.ndarray, radius: np.ndarray, side_sign: np.ndarray, orientation: int) -> BeltPath:
+    """The `BeltPath` of pulleys at `center` (n, 2) of radii (n,) on sides side_sign (n,) of a loop of
+    `orientation`: the spans and wraps of `compute_layout(check=False)` (`span_lines`), without the tangent
+    points, normals and checks."""
+    center = np.ascontiguousarray(center, dtype=float)
+    radius = np.asarray(radius, dtype=float)
+    side_sign = np.asarray(side_sign, dtype=float)
+    sigma = side_sign if orientation == 1 else orientation * side_sign
+    alpha, _, _, sums = span_lines(center.view(complex)[:, 0], radius, sigma)
+    total_length, total_arc, _ = sums.sum(axis=1).tolist()
+    return BeltPath(span_angle=alpha, span_length=sums[0], arc_length=sums[1], belt_length=total_length + total_arc)
 
 
 @functools.lru_cache(maxsize=16)
@@ -369,10 +425,16 @@ class _FitProblem:
         c[self.index] = self.motion.point(s)[0]
         return compute_layout(c, self.radius, self.side_sign, self.names, orientation=self.orientation, check=check)
 
-    def length(self, lay: Layout) -> float:
+    def path_at(self, s: float) -> BeltPath:
+        """The path at offset s without its tangent points (an unchecked iterate: `belt_path`)."""
+        c = self.center.copy()
+        c[self.index] = self.motion.point(s)[0]
+        return belt_path(c, self.radius, self.side_sign, self.orientation)
+
+    def length(self, lay: Layout | BeltPath) -> float:
         return lay.belt_length + (self.arc_weight - 1.0) * float(lay.arc_length.sum())
 
-    def slope(self, lay: Layout, s: float) -> float:
+    def slope(self, lay: Layout | BeltPath, s: float) -> float:
         """d (fitted length) / ds at offset s on its layout (the weighted arcs' change neglected: the
         iteration then converges linearly for w != 1)."""
         return float(belt_length_gradient(lay, self.index) @ self.motion.point(s)[1])
@@ -383,41 +445,44 @@ class _FitProblem:
         return "turning the arm of pulley", "about its pivot"
 
 
-def _fit_newton(fit: _FitProblem, start: Layout, *, check: bool, tol: float, max_iter: int) -> tuple[float, Layout]:
-    """Newton on the offset s from 0 (layout `start`) until the fitted length meets the target,
+def _fit_newton(fit: _FitProblem, start: Layout | BeltPath, *, check: bool, tol: float,
+                max_iter: int) -> tuple[float, Layout | BeltPath]:
+    """Newton on the offset s from 0 (layout or path `start`) until the fitted length meets the target,
     backtracking when a step leaves the feasible region (check: the iterates' layouts checked) or does
-    not reduce the misfit. Returns (s, layout at s); GeometryError when L0 cannot be reached."""
+    not reduce the misfit. Returns (s, layout at s; unchecked: its `BeltPath`); GeometryError when L0
+    cannot be reached."""
     how, where = fit.where()
     target, motion = fit.target_length, fit.motion
     s, lay = 0.0, start
+    f, scale = fit.length(lay) - target, motion.slope_scale()  # (f: the misfit of lay, carried with it)
     for _ in range(max_iter):
-        f = fit.length(lay) - target
         if abs(f) <= tol * target:
             return s, lay
         slope = fit.slope(lay, s)
-        if not abs(slope) >= 1e-9 * motion.slope_scale():
+        if not abs(slope) >= 1e-9 * scale:
             raise GeometryError(
                 f"{how} '{fit.name}' {where} does not change the belt length "
                 + ("(slide_direction perpendicular to the belt pull)" if motion.pivot is None else
                    "(the arm points along the belt pull)"),
                 f"pulleys[{fit.index}].{'slide_direction' if motion.pivot is None else 'arm_pivot'}")
         step = -f / slope
-        trial = None
+        trial = f_trial = None
         for _ in range(60):
             try:
-                trial = fit.layout_at(s + step, check)
+                trial = fit.layout_at(s + step, True) if check else fit.path_at(s + step)
             except GeometryError:
                 step *= 0.5
                 continue
-            if abs(fit.length(trial) - target) < abs(f) or abs(step) < 1e-15:
+            f_trial = fit.length(trial) - target
+            if abs(f_trial) < abs(f) or abs(step) < 1e-15:
                 break
             step *= 0.5
-        if trial is None or not abs(fit.length(trial) - target) < abs(f):
+        if trial is None or not abs(f_trial) < abs(f):
             word = "short" if f > 0 else "long"
             raise GeometryError(
                 f"L0 = {target:.6g} m is too {word}: {how} '{fit.name}' {where} cannot make the belt fit "
                 f"(closest belt length {fit.length(lay):.6g} m at offset {s:.6g} {motion.unit})", "belt.length")
-        s, lay = motion.normalized(s + step), trial
+        s, lay, f = motion.normalized(s + step), trial, f_trial
     raise GeometryError(f"L0 fit did not converge (belt length {fit.length(lay):.9g} m)", "belt.length")
 
 
@@ -479,7 +544,7 @@ def fit_adjustable(
                       names=tuple(names), orientation=orientation, index=index, motion=motion,
                       target_length=float(target_length), arc_weight=float(arc_weight))
     try:
-        start = base if base is not None else fit.layout_at(0.0, check=False)
+        start = base if base is not None else fit.path_at(0.0)
         s, _ = _fit_newton(fit, start, check=False, tol=tol, max_iter=max_iter)
         lay = fit.layout_at(s, check=True)
     except GeometryError:

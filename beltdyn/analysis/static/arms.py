@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from beltdyn.model.angles import pivot_angle, unwrap_near
-from beltdyn.model.geometry import relay
+from beltdyn.model.geometry import belt_path, relay
 from beltdyn.model.system import System
 
 
@@ -25,6 +25,8 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
 
     lay0 = system.layout
     place = fit if fit is not None else (lambda c: relay(lay0, c, check=False))  # checked where laid (lay_out)
+    # an arm's iterates: the spans alone (`belt_path`, the numbers of `relay`'s layout without its tangent points)
+    path = fit if fit is not None else (lambda c: belt_path(c, lay0.radius, lay0.side_sign, lay0.orientation))
     k_diag = np.asarray(system.linear_matrix().diagonal()).ravel() if anchored else None
     arms = []  # (pulley, pivot, length, stiffness, layout angle, free angle) of each sprung arm it turns
     if system.arms is not None:
@@ -41,9 +43,11 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
     if not anchored and not arms and fit is not None:  # nothing deflects: the fit alone places the pulleys
         return fit(centers).center
 
-    def pull(lay) -> np.ndarray:
+    def pull(lay, at: int | None = None) -> np.ndarray:
+        """The belt's pull T_j t_j - T_(j-1) t_(j-1) on every pulley j (n, 2), or on pulley `at` alone (2,)."""
         f = span_tension(lay.span_angle, lay.span_length)[:, None] * lay.span_direction
-        return f - np.roll(f, 1, axis=0)  # (span j - 1 arrives at pulley j)
+        j = np.arange(len(f)) if at is None else at
+        return f[j] - f[j - 1]  # (span j - 1 arrives at pulley j; index -1 is the last span)
 
     def arm_moment(j: int, pv: np.ndarray, length: float, k_s: float, phi_f: float):
         """The moment about the pivot on arm pulley j at arm angle phi (spring and belt pull), the other
@@ -51,7 +55,7 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
         def moment(phi: float) -> float:
             c = centers.copy()
             c[j] = pv + length * np.array([np.cos(phi), np.sin(phi)])
-            r, f = c[j] - pv, pull(place(c))[j]
+            r, f = c[j] - pv, pull(path(c), j)
             return float(r[0] * f[1] - r[1] * f[0]) - k_s * (phi - phi_f)
         return moment
 

@@ -120,7 +120,7 @@ def _solve(K, rhs: np.ndarray, dense: bool, rank1=None) -> np.ndarray:
         if abs(denom) < 1e-14 * (1.0 + abs(float(u @ z))):
             raise np.linalg.LinAlgError("singular bordered system")
         x = y - z * (float(u @ y) / denom)
-    if not np.all(np.isfinite(x)):
+    if not np.isfinite(x).all():
         raise np.linalg.LinAlgError("singular matrix")
     return x
 

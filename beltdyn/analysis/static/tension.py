@@ -50,7 +50,7 @@ def carried_lengths(old_angle: np.ndarray, new_angle: np.ndarray, radius_step: n
     reference length (or with NaN, an iterate's span between coincident centres) is a SolverError."""
     turn = wrap_angle(np.asarray(new_angle, dtype=float) - np.asarray(old_angle, dtype=float))
     out = np.asarray(reference, dtype=float) - turn * np.asarray(radius_step, dtype=float)
-    if not np.all(out > 0.0):  # (NaN fails too)
+    if not (out > 0.0).all():  # (NaN fails too)
         s = int(np.argmin(np.where(np.isnan(out), -np.inf, out)))
         raise SolverError(f"span {span_name(s)} has no belt left at the solved pulley positions (reference "
                           f"length {out[s]:.3g} m)", analysis="static", step="re-lay", item=f"span {s + 1}")
@@ -215,7 +215,7 @@ def _budget_newton(L: np.ndarray, sp: np.ndarray, total: float, d_slope: float, 
         f = float((L / lam).sum()) + d_slope * T_ref - total
         step = f / (d_slope - float((L / (lam * lam * k)).sum()))  # f / (d f / d T_ref)
         T_ref -= step
-        if float(np.abs(d).max()) <= 1e-8 and abs(step) <= 1e-13 * max(abs(T_ref), 1e-6 * EA):
+        if abs(step) <= 1e-13 * max(abs(T_ref), 1e-6 * EA) and float(np.abs(d).max()) <= 1e-8:  # (the scalar first)
             break
     return T_ref, lam
 
