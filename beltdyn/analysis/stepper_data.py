@@ -32,7 +32,8 @@ StepOptions = namedtuple("StepOptions", ["am", "af", "beta", "gamma", "t_stop", 
 Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind 0 band Cholesky, 1 band LU (partial
 # pivoting, LAPACK), 2 band LU without row exchanges (`band_lu_nopivot`)
 State = namedtuple("State", ["q", "v", "a", "f0", "fd0", "F0", "R0", "scal"])
-Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n"])
+Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n", "wrap"])  # wrap (B, 2, max(k, 1)):
+# the wraps' bristle torque and capstan limit (N m) at the output times
 Events = namedtuple("Events", ["data", "n", "slack"])
 # the running belt's transport terms (module docstring): A, G = A - A^T, B (Csr, per unit speed) on the joint
 # coordinates, a0, b0 (n,); the belt speed c = speed (follow = 0) or the nominal speed of the prescribed
@@ -46,13 +47,29 @@ Fused = namedtuple("Fused", ["indptr", "indices", "data"])  # data (k, nnz): k m
 # anchor angle z (state); n_q the independent coordinates (p[:n_q] = q)
 Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction_up", "friction_down", "bristle", "anchor",
                            "n_q"])
+# The wraps that may slip (`transient_wraps`, docs/wraps.md): pulley j's rotation split in two, the wrap angle
+# psi (the old rotation DOF, which the span ends follow: `wrap`) and the pulley's own rotation theta (a DOF
+# `hub` added after the system's independent coordinates, with the pulley's inertia, damping, loads and
+# prescribed rotation), joined by the elasto-plastic bristle M = clip(k_b (psi - theta - z), -M_cap, M_cap)
+# (`integrator.bristle`, the arms' one). M_cap = R (T_max - c) capstan, capstan = 1 - exp(-mu beta), T_max the
+# larger end tension of the wrap's two spans at the last accepted step, c = rho v^2 lambda(T_max): `limit`
+# (state). The end tensions: the true axial force at the span end, of the element (its end node's gradient:
+# in_elem the arriving span's last element, out_elem the departing span's first; -1: a spring span) or of
+# the spring span (in_spring, out_spring; -1: none). anchor z, limit and torque (the bristle torque at
+# the last accepted step) are the state; preload (k,) the static torque the bristle carries at the start.
+Wraps = namedtuple("Wraps", ["wrap", "hub", "radius", "capstan", "rho", "bristle", "anchor", "limit", "torque",
+                             "preload", "in_elem", "out_elem", "in_spring", "out_spring"])
 # The stepper's model, its named parts built in one place (`transient.stepper_model`): the belt (BeltData),
 # the linear part (Linear), forcing (Forcing), constraints (prescribed rotations, Constraints), the convergence
-# check (Check), the arms with their dry friction (Arms) and the running belt's transport (Transport).
-StepperModel = namedtuple("StepperModel", ["belt", "linear", "forcing", "constraints", "check", "arms", "transport"])
+# check (Check), the arms with their dry friction (Arms), the running belt's transport (Transport) and the
+# wraps that may slip (Wraps).
+StepperModel = namedtuple("StepperModel", ["belt", "linear", "forcing", "constraints", "check", "arms", "transport",
+                                           "wraps"])
 ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry friction (bristle stiffness: the larger
 # of the two limits / this);
 # 1e-4 rad gave the same hysteresis (0.1 %) and cost 20 % more Newton work on the FEAD example
+WRAP_PRESLIDING = 1e-3  # rad: the wrap's presliding angle psi - theta at its capstan torque (bristle stiffness:
+# the static capstan torque / this; R x 1e-3 of belt, about the creep of a loaded wrap)
 
 # The stepper's scratch, allocated once per run by `workspace` and cleared at every call of `advance`:
 # the compiled kernels allocate nothing, so that the cached library names no numba array module (a
@@ -70,6 +87,14 @@ Work = namedtuple("Work", ["ext", "vec", "proj", "elem", "elem1", "group", "wors
 def no_arms(n: int) -> Arms:
     return Arms(dof=np.zeros(0, dtype=np.int64), slot=np.zeros(0, dtype=np.int64), length=np.zeros(0),
                 angle=np.zeros(0), friction_up=np.zeros(0), friction_down=np.zeros(0), bristle=np.zeros(0), anchor=np.zeros(0), n_q=n)
+
+
+def no_wraps() -> Wraps:
+    """No wrap may slip (rigid wraps, or no friction value): the stepper as without the part."""
+    i, z = np.zeros(0, dtype=np.int64), np.zeros(0)
+    return Wraps(wrap=i, hub=i.copy(), radius=z, capstan=z.copy(), rho=0.0, bristle=z.copy(), anchor=z.copy(),
+                 limit=z.copy(), torque=z.copy(), preload=z.copy(), in_elem=i.copy(), out_elem=i.copy(),
+                 in_spring=i.copy(), out_spring=i.copy())
 
 
 def no_transport(n: int) -> Transport:

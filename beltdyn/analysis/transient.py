@@ -52,6 +52,8 @@ from beltdyn.analysis.transient_setup import (  # noqa: F401  (set-up, re-export
 from beltdyn.analysis.transient_factor import (  # noqa: F401  (the iteration matrix, re-exported)
     IterationPlan, band_factor, factorizer, stepper_system)
 from beltdyn.analysis.transient_outputs import Observers, slip_warning, stop_warning, tension_warnings  # noqa: F401
+from beltdyn.analysis.transient_factor import wrap_factorizer
+from beltdyn.analysis.transient_wraps import stepper_arms as wrap_arms, stepper_setup, stepper_wraps, wrap_slip
 
 Sink = Callable[[np.ndarray, dict[str, np.ndarray]], None]
 Progress = Callable[[float], None]
@@ -84,7 +86,7 @@ ENERGY_LIMIT = 0.01  # energy-balance error, as a share of the energy moved, abo
 SNAPSHOT_MAGIC = b"BDSNAP01"
 _SNAPSHOT_HEAD = struct.Struct("<8sQI")  # magic, payload length, CRC-32 of the payload
 SNAPSHOT_ARRAYS = ("q", "v", "a", "f0", "fd0", "F0", "R0", "scal", "anchor", "slack", "events", "factor_q", "factor_v",
-                   "tension_low", "tension_low_time")
+                   "tension_low", "tension_low_time", "wrap_state")
 
 
 def _frozen(x) -> np.ndarray:
@@ -142,6 +144,8 @@ class TransientSnapshot:
     tension_high: tuple[float, float] = (-np.inf, np.nan)
     worst_slip: tuple[float, float, str] = (np.inf, np.nan, "")
     stop_hit: tuple[float, str, float] | None = None
+    wrap_state: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((4, 0))))  # (4, k) the slipping
+    # wraps' anchors, limits, torques and start torques (`integrator.Wraps`; k = 0 without)
 
     @property
     def time(self) -> float:
@@ -178,7 +182,7 @@ def snapshot_from_bytes(data: bytes) -> TransientSnapshot:
     (n_text,) = struct.unpack_from("<I", payload)
     meta = json.loads(payload[4:4 + n_text])
     arrays, pos = {}, 4 + n_text
-    for key, shape in zip(SNAPSHOT_ARRAYS, meta["shapes"]):
+    for key, shape in zip(SNAPSHOT_ARRAYS, meta["shapes"]):  # (a record without the last arrays: their defaults)
         count = int(np.prod(shape, dtype=np.int64))
         arrays[key] = _frozen(np.frombuffer(payload, dtype="<f8", count=count, offset=pos).reshape(shape))
         pos += 8 * count
@@ -241,6 +245,7 @@ class StepProblem:
     labels: tuple[str, ...]
     arms: tuple | None = None  # integrator.Arms (None: no arms, q = p)
     transport: tuple | None = None  # integrator.Transport (None: the belt at rest)
+    wraps: tuple | None = None  # integrator.Wraps (None: no wrap slips)
 
 
 def initial_state(problem: StepProblem, step: float, start: Callable):
@@ -311,7 +316,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
           progress: Progress | None = None, batch: int = 256, n_span: int = 0,
           resume: TransientSnapshot | None = None, on_checkpoint: Callable | None = None,
           checkpoint_seconds: float = 0.0):
-    """Integrate the problem: outputs in batches to on_batch(t, q, v, a, energy, reaction); returns
+    """Integrate the problem: outputs in batches to on_batch(t, q, v, a, energy, reaction, wrap); returns
     (status, run bookkeeping, final scal, slack events). Raises SolverError when the step cannot be
     reduced further (the batches before the failure have been delivered); KeyboardInterrupt
     propagates after the last complete batch was delivered.
@@ -328,12 +333,14 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     n = len(problem.q0)
     arms = problem.arms if problem.arms is not None else itg.no_arms(n)
     tr = problem.transport if problem.transport is not None else itg.no_transport(n)
+    wraps = problem.wraps if problem.wraps is not None else itg.no_wraps()
     chk = itg.Check(group=problem.groups, n_groups=int(problem.groups.max(initial=0)) + 1, tol=float(tolerance),
                     max_iter=int(max_iterations), noise=residual_noise(problem.belt))
     n_con = max(len(problem.constraints.dof), 1)
     batch = max(batch, int(math.ceil(step / output_interval)) + 2)  # a step's samples always fit
     out = itg.Outputs(t=np.zeros(batch), q=np.zeros((batch, n)), v=np.zeros((batch, n)), a=np.zeros((batch, n)),
-                      energy=np.zeros((batch, 5)), reaction=np.zeros((batch, n_con)), n=np.zeros(1, dtype=np.int64))
+                      energy=np.zeros((batch, 5)), reaction=np.zeros((batch, n_con)), n=np.zeros(1, dtype=np.int64),
+                      wrap=np.zeros((batch, 2, max(len(wraps.wrap), 1))))
     ev = itg.Events(data=np.zeros((2000 * max(n_span, 1) + 8, 4)), n=np.zeros(1, dtype=np.int64),
                     slack=np.zeros(max(n_span, 1)))
     all_events: list[np.ndarray] = []
@@ -345,7 +352,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     work = itg.workspace(n, problem.belt, problem.forcing, problem.constraints, chk.n_groups, arms)
 
     model = itg.StepperModel(belt=problem.belt, linear=problem.linear, forcing=problem.forcing,
-                             constraints=problem.constraints, check=chk, arms=arms, transport=tr)
+                             constraints=problem.constraints, check=chk, arms=arms, transport=tr, wraps=wraps)
 
     def advance(task, st, fac, fresh):  # the compiled stepper (`integrator.advance`), opts as they are now
         return itg.advance(task, st, model, opts, fac, fresh, out, ev, info, work)
@@ -356,6 +363,9 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         state = itg.State(q=resume.q.copy(), v=resume.v.copy(), a=resume.a.copy(), f0=resume.f0.copy(),
                           fd0=resume.fd0.copy(), F0=resume.F0.copy(), R0=resume.R0.copy(), scal=resume.scal.copy())
         arms.anchor[:] = resume.anchor
+        if len(wraps.wrap):
+            for row, part in enumerate((wraps.anchor, wraps.limit, wraps.torque, wraps.preload)):
+                part[:] = resume.wrap_state[row]
         ev.slack[:] = resume.slack
         if len(resume.events):
             all_events.append(np.array(resume.events))
@@ -396,7 +406,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         if take > 0:
             run.delivered += take
             on_batch(out.t[:take].copy(), out.q[:take].copy(), out.v[:take].copy(), out.a[:take].copy(),
-                     out.energy[:take].copy(), out.reaction[:take].copy())
+                     out.energy[:take].copy(), out.reaction[:take].copy(), out.wrap[:take].copy())
 
     def collect_events() -> None:
         if ev.n[0]:
@@ -408,6 +418,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         return TransientSnapshot(
             q=_frozen(state.q), v=_frozen(state.v), a=_frozen(state.a), f0=_frozen(state.f0), fd0=_frozen(state.fd0),
             F0=_frozen(state.F0), R0=_frozen(state.R0), scal=_frozen(th), anchor=_frozen(arms.anchor),
+            wrap_state=_frozen(np.array([wraps.anchor, wraps.limit, wraps.torque, wraps.preload]).reshape(4, -1)),
             slack=_frozen(ev.slack),
             events=_frozen(np.concatenate(all_events) if all_events else np.zeros((0, 4))),
             factor_q=_frozen(at_factor["q"]), factor_v=_frozen(at_factor["v"]), factor_h=float(at_factor["h"]),
@@ -512,12 +523,24 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
     system = stepper_system(system, opts)
     tr = setup.transport
     arms = stepper_arms(system)
-    factor = factorizer(system, setup, opts.rho_inf, arms)
-    problem = StepProblem(
-        belt=setup.belt, linear=setup.linear, forcing=setup.forcing, constraints=setup.constraints,
-        groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels, factor=factor,
-        arms=arms, transport=tr)
-    observer = Observers(system=system, setup=setup)
+    slip = wrap_slip(system, static, opts)
+    if slip is None:  # (no wrap slips: the stepper's structures as set up)
+        factor = factorizer(system, setup, opts.rho_inf, arms)
+        problem = StepProblem(
+            belt=setup.belt, linear=setup.linear, forcing=setup.forcing, constraints=setup.constraints,
+            groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels, factor=factor,
+            arms=arms, transport=tr)
+    else:  # the pulleys' own rotations added (`transient_wraps`)
+        parts = stepper_setup(slip, system, setup)
+        wraps = stepper_wraps(slip, system, setup)
+        arms = wrap_arms(slip, arms)
+        factor = wrap_factorizer(system, setup, opts.rho_inf, arms, slip, wraps, perm=parts.pop("perm"),
+                                 bandwidth=parts.pop("bandwidth"), hold=parts["constraints"].dof)
+        labels = list(system.dof_labels)
+        labels[slip.n_dof:slip.n_dof] = [f"pulley {system.layout.names[j]} rotation (behind its wrap)"
+                                         for j in slip.pulleys]
+        problem = StepProblem(**parts, labels=tuple(labels), factor=factor, arms=arms, wraps=wraps)
+    observer = Observers(system=system, setup=setup, slip=slip)
     if resume is not None:
         observer.restore(tension_low=resume.tension_low, tension_low_time=resume.tension_low_time,
                          tension_high=resume.tension_high, worst_slip=resume.worst_slip, stop_hit=resume.stop_hit)

@@ -80,6 +80,15 @@ def p_to_q(system: System) -> np.ndarray:
     return m
 
 
+def slipping_pulleys(system: System) -> np.ndarray:
+    """(k,) the pulleys whose wraps may slip in the transient (`transient_wraps`): creep wraps
+    (`System.wraps`, belt.wraps) and a friction value."""
+    mu = system.pulley_friction
+    if system.wraps != "creep" or mu is None:
+        return np.zeros(0, dtype=np.int64)
+    return np.flatnonzero(np.isfinite(mu) & (mu > 0.0)).astype(np.int64)
+
+
 def stepper_arms(system: System):
     """integrator.Arms of the system (no arms: the identity map)."""
     from beltdyn.analysis import integrator as itg
@@ -283,6 +292,18 @@ def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
         out.append(Series(name="slip_margin", dims=("pulley",), units="1",
                           description="friction / (ln(T_tight / T_slack) / wrap) on the loaded wrap (< 1: slips; "
                                       "NaN: no friction given)"))
+    if len(slipping_pulleys(system)):  # the wraps that may slip (NaN on the others)
+        if rec.span_tension:
+            out.append(Series(name="slip_arc", dims=("pulley",), units="rad",
+                              description="capstan slip arc |ln((T_e - c)/(T_x - c))| / mu of the wrap's end tensions "
+                                          "(> wrap: the wrap slides; docs/wraps.md)"))
+        out.append(Series(name="slip_speed", dims=("pulley",), units="rad/s",
+                          description="speed of the belt on the wrap over the pulley's, psi' - theta' (0 sticking "
+                                      "but for the bristle's elastic part)"))
+        out.append(Series(name="wrap_torque", dims=("pulley",), units="N m",
+                          description="torque the belt transmits to the pulley through its wrap (the bristle's)"))
+        out.append(Series(name="wrap_sliding", dims=("pulley",), units="1",
+                          description="1 while the wrap slides at its capstan torque, 0 while it sticks"))
     if rec.midspan_displacement:
         out.append(Series(name="midspan_displacement", dims=("span",), units="m",
                           description="mid-span displacement from the chord between the span's current end points, "

@@ -38,6 +38,9 @@ class Belt:
     section: str | None = key(STR, None, doc='V-ribbed section of the shipped table ("PK" or "6PK"; PH, PJ, PK, '
                                              "PL, PM): EA, EI, mass per length and the effective-diameter offset")
     ribs: int | None = key(POSINT, None, doc="number of ribs of belt.section (or in its name, \"6PK\")")
+    wraps: str = key(_Choice("creep", "rigid"), "creep", omit_default=True,
+                     doc='the belt on the pulleys: "creep" (adhesion and slip arcs; in the transient a pulley with a '
+                         'friction value may slip, docs/wraps.md) or "rigid" (inextensible wraps that never slip)')
     derived: tuple[str, ...] = field(default=(), compare=False)  # the values taken from the section
 
 

@@ -110,6 +110,7 @@ class System:
     pulley_friction: np.ndarray | None = None  # (n_pulley,) belt-pulley friction coefficient, NaN if not given
     belt_speed: float = 0.0  # m/s, the running belt's transport speed c (`running`); 0: the drive at rest
     springs: SpringSpans | None = None  # the spans modelled as axial springs (None: every span flexible)
+    wraps: str = "creep"  # belt.wraps: "creep" (a wrap with a friction value may slip in time) or "rigid"
     spring_scatter: np.ndarray | None = None  # (k m m,) where the springs' blocks go: flat (dense) or CSR slot
     # derived in the constructor (`__post_init__`), never passed: the running belt's terms (at speed only,
     # None at rest), the components' stiffness as a CSR matrix (sparse only), the mode classification's
@@ -188,7 +189,8 @@ class System:
         out = assemble_system(self.layout, self.dofs, self.belt, self.components + tuple(extra),
                               pulley_names=self.pulley_names, driver=self.driver, tension=self.tension,
                               gravity=self.gravity, dense=self.dense, loads=self.loads, arms=self.arms,
-                              friction=self.pulley_friction, springs=self.springs, belt_speed=self.belt_speed)
+                              friction=self.pulley_friction, springs=self.springs, belt_speed=self.belt_speed,
+                              wraps=self.wraps)
         return out
 
     def with_belt(self, **changes) -> "System":
@@ -762,7 +764,7 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
                                                                    parts=facts.pulleys) + tuple(extra),
                              pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
                              gravity=facts.gravity, dense=dense, loads=facts.loads, arms=arms, friction=facts.friction,
-                             springs=springs, belt_speed=float(belt_speed))
+                             springs=springs, belt_speed=float(belt_speed), wraps=cfg.belt.wraps)
     return system
 
 
@@ -892,7 +894,7 @@ def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: t
                     pulley_names: tuple[str, ...], driver: int, tension: TensionSetting, gravity: np.ndarray,
                     dense: bool | None, loads: np.ndarray | None = None, arms: ArmJoints | None = None,
                     friction: np.ndarray | None = None, springs: SpringSpans | None = None,
-                    belt_speed: float = 0.0) -> System:
+                    belt_speed: float = 0.0, wraps: str = "creep") -> System:
     """The system of a belt and components: its pattern, mass, weight and the components' constant
     matrices, one assembly for dense and sparse (`assembly`); belt_speed (m/s): the running belt's speed
     (the system built at that speed at once, its derived fields computed once)."""
@@ -929,4 +931,4 @@ def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: t
                   driver=driver, tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M,
                   gravity_force=fg + sums.weight, linear_stiffness=sums.stiffness, linear_damping=sums.damping,
                   linear_offset=sums.offset, loads=loads, arms=arms, pulley_friction=friction, belt_speed=belt_speed,
-                  springs=springs, spring_scatter=scatter)
+                  springs=springs, spring_scatter=scatter, wraps=wraps)
