@@ -93,7 +93,7 @@ PART = dict(KERNEL, inline="always")  # the stepper's parts: inlined into `run_s
 from beltdyn.analysis.band_solve import (  # noqa: E402,F401
     band_cholesky_solve, band_lu_nopivot, band_lu_nopivot_solve, band_lu_solve, band_upper_solve, factor_solve)
 from beltdyn.analysis.stepper_data import (  # noqa: E402,F401
-    ARM_PRESLIDING, BAND_COST, WRAP_PRESLIDING, Arms, BeltData, Check, Constraints, Coo, Csr, Events, Factor, Forcing,
+    ARM_PRESLIDING, BAND_COST, Arms, BeltData, Check, Constraints, Coo, Csr, Events, Factor, Forcing,
     Fused, Linear, Outputs, Split, State, StepOptions, StepperModel, Transport, Work, Wraps, empty_csr, fused, no_arms,
     no_factor, no_transport, no_wraps, split, split_matrix, to_csr, workspace)
 
@@ -108,6 +108,8 @@ REFACTOR = 2  # convergence slowed (or the factor's extra iterations outweigh a 
 #              current state and call again
 HALVE = 3  # no convergence with a fresh factor: halve the step, refactorize, call again
 MAX_STEPS = 4  # step budget of this call used up (keeps Ctrl-C responsive)
+REGIME = 5  # a wrap went from sticking to sliding or back at the accepted step: refactorize (not a convergence
+#             trouble: the step is not shortened for it)
 
 EPS = float(np.finfo(np.float64).eps)  # a constant to the compiled code (np.finfo there is numba's array module)
 
@@ -456,13 +458,16 @@ def slide_anchors(arms, q):
 
 
 @njit(**KERNEL)
-def wrap_friction(wraps, q, f):
+def wrap_friction(wraps, q, f, mark):
     """Add the wraps' bristle torques M = clip(k_b (psi - theta - z), -M_cap, M_cap) to f: +M on the wrap
-    angle psi, -M on the pulley's rotation theta (`Wraps`); returns their stored energy sum M^2 / (2 k_b)."""
+    angle psi, -M on the pulley's rotation theta (`Wraps`); returns their stored energy sum M^2 / (2 k_b).
+    mark (a Newton evaluation): mark each wrap sliding (beyond its limit) or not (wraps.sliding)."""
     stored = 0.0
     for k in range(wraps.wrap.shape[0]):
         w, hb = wraps.wrap[k], wraps.hub[k]
         tau, e = bristle(wraps.bristle[k], q[w] - q[hb], wraps.anchor[k], wraps.limit[k], wraps.limit[k])
+        if mark:
+            wraps.sliding[k] = 1.0 if abs(wraps.bristle[k] * (q[w] - q[hb] - wraps.anchor[k])) > wraps.limit[k] else 0.0
         f[w] += tau
         f[hb] -= tau
         stored += e
@@ -476,6 +481,16 @@ def slide_wraps(wraps, q):
         x = q[wraps.wrap[k]] - q[wraps.hub[k]]
         wraps.torque[k] = bristle(wraps.bristle[k], x, wraps.anchor[k], wraps.limit[k], wraps.limit[k])[0]
         wraps.anchor[k] = slid_anchor(wraps.bristle[k], x, wraps.anchor[k], wraps.limit[k], wraps.limit[k])
+
+
+@njit(**KERNEL)
+def regime_changed(wraps):
+    """True where a wrap's last evaluation (of the accepted step) found another regime, sticking or sliding,
+    than the iteration matrix holds (`Wraps.factored`)."""
+    for k in range(wraps.wrap.shape[0]):
+        if wraps.sliding[k] != wraps.factored[k]:
+            return True
+    return False
 
 
 @njit(**KERNEL)
@@ -600,7 +615,7 @@ def start_forces(state, model, work):
             w = wraps.wrap[k]
             wraps.preload[k] = state.F0[w] - (f_el[w] + Kd[w] + f_dmp[w] + f_tr[w])
             wraps.anchor[k] = q[w] - q[wraps.hub[k]] - wraps.preload[k] / wraps.bristle[k]
-        stored = wrap_friction(wraps, q, f_dmp)
+        stored = wrap_friction(wraps, q, f_dmp, True)
         for k in range(wraps.wrap.shape[0]):
             wraps.torque[k] = bristle(wraps.bristle[k], q[wraps.wrap[k]] - q[wraps.hub[k]], wraps.anchor[k],
                                       wraps.limit[k], wraps.limit[k])[0]
@@ -643,7 +658,7 @@ def step_forces(model, q1, v1, a1, c1, cd1, with_gross, work):
     belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross)
     bristle = arm_friction(model.arms, q1, f_dmp)
     if model.wraps.wrap.shape[0] > 0:
-        bristle += wrap_friction(model.wraps, q1, f_dmp)
+        bristle += wrap_friction(model.wraps, q1, f_dmp, True)
     split_matvec(lin.K, dq, Kd)
     split_matvec(lin.C, v1, Cv)
     qbq = 0.0
@@ -953,7 +968,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     (`solve_step`), the step's power (`step_power`), observers (`balance_energy`, `record_outputs`,
     `slack_events`), `accept` and the factor's age (`factor_aged`).
 
-    Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
+    Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS, REGIME). out receives the states at the
     output times (Hermite interpolation within the step), the energy terms of the step that contains
     each output time (exact at that step) and the constraint reactions. info (4,): on HALVE the
     time, the scaled residual, the worst DOF and the iterations.
@@ -981,7 +996,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     wv[12, :] = 0.0
     bristle0 = arm_friction(arms, q, wv[12])
     if model.wraps.wrap.shape[0] > 0:
-        bristle0 += wrap_friction(model.wraps, q, wv[12])
+        bristle0 += wrap_friction(model.wraps, q, wv[12], False)
     while True:
         t, h = th[T_NOW], th[H]
         if t >= opts.t_stop - 1e-6 * h:
@@ -1002,6 +1017,10 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
             info[2] = worst
             info[3] = it
             if fresh:
+                wr = model.wraps
+                if wr.wrap.shape[0] > 0 and wr.retried[0] == 0.0 and regime_changed(wr):
+                    wr.retried[0] = 1.0  # the iterates went into the other regime: once more with its factor
+                    return REGIME
                 return HALVE
             return REFACTOR
         # the step is accepted only if all of its output samples fit in the buffer
@@ -1022,14 +1041,17 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         accept(state, model, x, p_tr, work)
         bristle0 = arm_friction(arms, q, wv[12])  # after the return mapping (scratch row)
         if model.wraps.wrap.shape[0] > 0:  # the wraps' limits from the accepted tensions (work.elem[0]: q1's)
+            model.wraps.retried[0] = 0.0
             c1 = transport_speed(model.transport, model.forcing, t1)[0]
             th[DISS] += wrap_limits(model.wraps, model.belt, work.elem[0], work.ext[0], c1)
-            bristle0 += wrap_friction(model.wraps, q, wv[12])
+            bristle0 += wrap_friction(model.wraps, q, wv[12], False)
         th[T_NOW] = t1
         th[STEPS] += 1.0
         th[ITERS] += it
         steps += 1
         if factor_aged(th, it, opts.refresh):
             return REFACTOR
+        if model.wraps.wrap.shape[0] > 0 and regime_changed(model.wraps):
+            return REGIME  # a wrap went from sticking to sliding or back: the iteration matrix follows
 
 

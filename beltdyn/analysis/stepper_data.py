@@ -56,9 +56,14 @@ Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction_up", "fri
 # (state). The end tensions: the true axial force at the span end, of the element (its end node's gradient:
 # in_elem the arriving span's last element, out_elem the departing span's first; -1: a spring span) or of
 # the spring span (in_spring, out_spring; -1: none). anchor z, limit and torque (the bristle torque at
-# the last accepted step) are the state; preload (k,) the static torque the bristle carries at the start.
+# the last accepted step) are the state; preload (k,) the static torque the bristle carries at the start; sliding
+# (k,) 1 where the last Newton evaluation found the bristle at its limit, factored (k,) the regime the current
+# iteration matrix holds (its sticking stiffness: `transient_factor.wrap_factorizer`); an accepted step whose
+# regime differs from the factor's asks for a new one, and so does, once per step (retried (1,): 1 once done), a
+# step that fails with a fresh factor while its iterates went into the other regime.
 Wraps = namedtuple("Wraps", ["wrap", "hub", "radius", "capstan", "rho", "bristle", "anchor", "limit", "torque",
-                             "preload", "in_elem", "out_elem", "in_spring", "out_spring"])
+                             "preload", "in_elem", "out_elem", "in_spring", "out_spring", "sliding", "factored",
+                             "retried"])
 # The stepper's model, its named parts built in one place (`transient.stepper_model`): the belt (BeltData),
 # the linear part (Linear), forcing (Forcing), constraints (prescribed rotations, Constraints), the convergence
 # check (Check), the arms with their dry friction (Arms), the running belt's transport (Transport) and the
@@ -68,8 +73,6 @@ StepperModel = namedtuple("StepperModel", ["belt", "linear", "forcing", "constra
 ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry friction (bristle stiffness: the larger
 # of the two limits / this);
 # 1e-4 rad gave the same hysteresis (0.1 %) and cost 20 % more Newton work on the FEAD example
-WRAP_PRESLIDING = 1e-3  # rad: the wrap's presliding angle psi - theta at its capstan torque (bristle stiffness:
-# the static capstan torque / this; R x 1e-3 of belt, about the creep of a loaded wrap)
 
 # The stepper's scratch, allocated once per run by `workspace` and cleared at every call of `advance`:
 # the compiled kernels allocate nothing, so that the cached library names no numba array module (a
@@ -94,7 +97,8 @@ def no_wraps() -> Wraps:
     i, z = np.zeros(0, dtype=np.int64), np.zeros(0)
     return Wraps(wrap=i, hub=i.copy(), radius=z, capstan=z.copy(), rho=0.0, bristle=z.copy(), anchor=z.copy(),
                  limit=z.copy(), torque=z.copy(), preload=z.copy(), in_elem=i.copy(), out_elem=i.copy(),
-                 in_spring=i.copy(), out_spring=i.copy())
+                 in_spring=i.copy(), out_spring=i.copy(), sliding=z.copy(), factored=z.copy(),
+                 retried=np.zeros(1))
 
 
 def no_transport(n: int) -> Transport:

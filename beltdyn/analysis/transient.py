@@ -144,8 +144,9 @@ class TransientSnapshot:
     tension_high: tuple[float, float] = (-np.inf, np.nan)
     worst_slip: tuple[float, float, str] = (np.inf, np.nan, "")
     stop_hit: tuple[float, str, float] | None = None
-    wrap_state: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((4, 0))))  # (4, k) the slipping
-    # wraps' anchors, limits, torques and start torques (`integrator.Wraps`; k = 0 without)
+    wrap_state: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((6, 0))))  # (6, k) the slipping
+    # wraps' anchors, limits, torques, start torques, the factor's regime and the last evaluation's
+    # (`integrator.Wraps`; k = 0 without)
 
     @property
     def time(self) -> float:
@@ -364,7 +365,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
                           fd0=resume.fd0.copy(), F0=resume.F0.copy(), R0=resume.R0.copy(), scal=resume.scal.copy())
         arms.anchor[:] = resume.anchor
         if len(wraps.wrap):
-            for row, part in enumerate((wraps.anchor, wraps.limit, wraps.torque, wraps.preload)):
+            for row, part in enumerate((wraps.anchor, wraps.limit, wraps.torque, wraps.preload, wraps.factored)):
                 part[:] = resume.wrap_state[row]
         ev.slack[:] = resume.slack
         if len(resume.events):
@@ -394,7 +395,11 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         min_h = th[itg.H]
         calm = 0
     else:
+        if len(wraps.wrap):  # (the factor's regime into sliding: the factor takes it, then the last evaluation's)
+            wraps.sliding[:] = resume.wrap_state[4]
         fac = new_factor(np.array(resume.factor_q), np.array(resume.factor_v), resume.factor_h, resume.factor_t)
+        if len(wraps.wrap):
+            wraps.sliding[:] = resume.wrap_state[5]
         fresh, calm, min_h = bool(resume.fresh), int(resume.calm), float(resume.min_step)
         run.steps, run.refactors, run.halvings, run.delivered = (int(resume.steps), int(resume.refactorizations),
                                                                   int(resume.halvings), int(resume.delivered))
@@ -418,7 +423,8 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         return TransientSnapshot(
             q=_frozen(state.q), v=_frozen(state.v), a=_frozen(state.a), f0=_frozen(state.f0), fd0=_frozen(state.fd0),
             F0=_frozen(state.F0), R0=_frozen(state.R0), scal=_frozen(th), anchor=_frozen(arms.anchor),
-            wrap_state=_frozen(np.array([wraps.anchor, wraps.limit, wraps.torque, wraps.preload]).reshape(4, -1)),
+            wrap_state=_frozen(np.array([wraps.anchor, wraps.limit, wraps.torque, wraps.preload, wraps.factored,
+                                         wraps.sliding]).reshape(6, -1)),
             slack=_frozen(ev.slack),
             events=_frozen(np.concatenate(all_events) if all_events else np.zeros((0, 4))),
             factor_q=_frozen(at_factor["q"]), factor_v=_frozen(at_factor["v"]), factor_h=float(at_factor["h"]),
@@ -474,6 +480,10 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
                 fac, fresh, calm = new_factor(), True, 0
                 run.refactors += 1
                 continue
+            if code == itg.REGIME:  # (a wrap's stick-slip transition: no trouble, the step keeps growing back)
+                fac, fresh = new_factor(), True
+                run.refactors += 1
+                continue
             # HALVE
             if th[itg.H] / 2.0 < min_step:
                 dof = problem.labels[int(info[2])] if int(info[2]) < n else "?"
@@ -523,7 +533,7 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
     system = stepper_system(system, opts)
     tr = setup.transport
     arms = stepper_arms(system)
-    slip = wrap_slip(system, static, opts)
+    slip = wrap_slip(system, opts)
     if slip is None:  # (no wrap slips: the stepper's structures as set up)
         factor = factorizer(system, setup, opts.rho_inf, arms)
         problem = StepProblem(

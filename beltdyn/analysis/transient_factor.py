@@ -346,7 +346,10 @@ def wrap_factorizer(system: System, setup: TransientSetup, rho_inf: float, arms,
     iteration matrix S (n_dof,) of `_iteration_matrix` on the stepper's q (n_dof + k,), each pulley's
     inertia J and damping d moved from its wrap angle psi onto its own rotation theta (c_m J + c_c d), and
     a sticking wrap's bristle (1 - alpha_f) k_b [[1, -1], [-1, 1]] on (psi, theta) (none while it slides:
-    its torque is the constant capstan limit over the step). wraps: the stepper's `Wraps` (its state)."""
+    its torque is the constant capstan limit over the step). Sticking or sliding as the stepper's last
+    evaluation found it (`Wraps.sliding`): a factor asked for because Newton slowed down at a stick-slip
+    transition (a kink of the bristle's law) takes the regime the iterates went into, not the step
+    start's. wraps: the stepper's `Wraps` (its state)."""
     from scipy.sparse import coo_matrix, csr_matrix
 
     from beltdyn.analysis.integrator import alpha_parameters
@@ -361,8 +364,8 @@ def wrap_factorizer(system: System, setup: TransientSetup, rho_inf: float, arms,
         c_m = (1.0 - am) / (beta * h * h)
         c_c = (1.0 - af) * gamma / (beta * h)
         move = c_m * slip.inertia + c_c * slip.damping
-        tau = wraps.bristle * (q[w] - q[hb] - wraps.anchor)
-        kb = (1.0 - af) * np.where(np.abs(tau) < wraps.limit, wraps.bristle, 0.0)
+        wraps.factored[:] = wraps.sliding  # the regime the last evaluation found (the stepper compares)
+        kb = (1.0 - af) * np.where(wraps.factored > 0.0, 0.0, wraps.bristle)
         C = coo_matrix(S)
         rows = np.r_[C.row, w, hb, w, hb]
         cols = np.r_[C.col, w, hb, hb, w]

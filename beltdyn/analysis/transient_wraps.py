@@ -12,9 +12,9 @@ joined by the elasto-plastic bristle of the arms' friction (`integrator.bristle`
 
 +M on psi and -M on theta, z the anchor (slides in the return mapping after each accepted step), T_max
 the larger end tension of the wrap's two spans at the last accepted step, c = rho v^2 lambda(T_max) its
-centrifugal part, k_b = M_cap(static) / WRAP_PRESLIDING. Below M_cap the wrap sticks (no drift beyond
-M / k_b); beyond it the wrap slides and transmits exactly M_cap (Coulomb): the capstan law of the running
-belt. The wrap angle keeps the inertia the span-end nodes give it through the joints.
+centrifugal part, k_b the secant of the wrap's creep up to gross slip (`presliding_stiffness`). Below
+M_cap the wrap sticks (no drift beyond M / k_b); beyond it the wrap slides and transmits exactly M_cap
+(Coulomb): the capstan law of the running belt. The wrap angle keeps the inertia the span-end nodes give it through the joints.
 
 Nothing here when `belt.wraps = "rigid"` or no pulley has a friction value (`wrap_slip` is None): the
 stepper's structures are then those of `transient_setup.prepare`, unchanged.
@@ -31,11 +31,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from beltdyn.config import TransientOptions
-from beltdyn.analysis.static import StaticResult
 from beltdyn.analysis.transient_setup import TransientSetup, slipping_pulleys  # noqa: F401  (re-exported)
-from beltdyn.model.slip import belt_density, pulley_tensions
+from beltdyn.model.slip import belt_density
 from beltdyn.model.system import System
-from beltdyn.model.wraps import centrifugal_tension
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -75,35 +73,33 @@ def _pulley_rotation(system: System) -> tuple[np.ndarray, np.ndarray]:
     return J, d
 
 
-def capstan_torque(system: System, span_tension: np.ndarray, pulleys: np.ndarray) -> np.ndarray:
-    """(k,) M_cap = R (T_max - c)(1 - exp(-mu beta)) (N m) of the pulleys' wraps at the span tensions (n, 2)
-    (start, end of each span), c = rho v^2 lambda(T_max) at the system's belt speed: the torque a wrap
-    transmits sliding (0 where T_max <= c). The stepper evaluates the same law in `integrator.wrap_limits`."""
-    t_in, t_out = pulley_tensions(np.asarray(span_tension, dtype=float))
-    t_max = np.maximum(t_in, t_out)[pulleys]
-    lay = system.layout
-    c = centrifugal_tension(t_max, belt_density(system), float(system.belt_speed), float(system.EA))
-    mu, beta = system.pulley_friction[pulleys], lay.wrap_angle[pulleys]
-    return np.abs(lay.radius[pulleys]) * np.maximum(t_max - c, 0.0) * (1.0 - np.exp(-mu * beta))
-
-
-def wrap_slip(system: System, static: StaticResult, opts: TransientOptions) -> WrapSlip | None:
+def wrap_slip(system: System, opts: TransientOptions) -> WrapSlip | None:
     """The run's slipping wraps (module docstring), None when no wrap may slip."""
-    from beltdyn.analysis.stepper_data import WRAP_PRESLIDING
-
     pulleys = slipping_pulleys(system)
     if not len(pulleys):
         return None
     k, n_dof, n_p = len(pulleys), system.n_dof, system.n_p
     J, d = _pulley_rotation(system)
-    cap = capstan_torque(system, static.span_tension, pulleys)
-    scale = np.where(cap > 0.0, cap, np.abs(static.span_tension).max() * system.layout.radius[pulleys])
     old = np.arange(n_p + 1)
     mapping = np.where(old < n_dof, old, old + k).astype(np.int64)
     return WrapSlip(pulleys=pulleys, wrap=system.rot_dof[pulleys].astype(np.int64),
                     hub=n_dof + np.arange(k, dtype=np.int64), inertia=J[pulleys],
                     damping=d[pulleys] + float(opts.damping.rayleigh_mass) * J[pulleys],
-                    bristle=np.maximum(scale, 1e-12) / WRAP_PRESLIDING, n_dof=n_dof, mapping=mapping)
+                    bristle=presliding_stiffness(system, pulleys), n_dof=n_dof, mapping=mapping)
+
+
+def presliding_stiffness(system: System, pulleys: np.ndarray) -> np.ndarray:
+    """k_b (k,) N m/rad of the wraps' bristles: the secant of the wrap's creep at rest up to gross slip.
+    Loaded by a torque below the capstan torque, a wrap at rest carries the tension change on its slip
+    arc, where the belt stretches against the rim; at impending gross slip the slip arc is the whole wrap
+    and the belt has crept by delta = int_0^beta (lambda(T(phi)) - lambda(T_e)) dphi ~ (T_t - c)(beta -
+    (1 - exp(-mu beta)) / mu) / EA (the capstan profile, the linear law) against the rim, while it
+    transmits M_cap = R (T_t - c)(1 - exp(-mu beta)): k_b = M_cap / delta = EA R (1 - exp(-mu beta)) /
+    (beta - (1 - exp(-mu beta)) / mu), whatever the tension (about 2 mrad of presliding on the bench)."""
+    lay = system.layout
+    mu, beta = system.pulley_friction[pulleys], lay.wrap_angle[pulleys]
+    cap = 1.0 - np.exp(-mu * beta)
+    return float(system.EA) * np.abs(lay.radius[pulleys]) * cap / np.maximum(beta - cap / mu, 1e-12)
 
 
 def stepper_wraps(slip: WrapSlip, system: System, setup: TransientSetup):
@@ -127,7 +123,9 @@ def stepper_wraps(slip: WrapSlip, system: System, setup: TransientSetup):
     return itg.Wraps(wrap=slip.wrap.copy(), hub=slip.hub.copy(), radius=np.abs(lay.radius[slip.pulleys]).astype(float),
                      capstan=1.0 - np.exp(-system.pulley_friction[slip.pulleys] * lay.wrap_angle[slip.pulleys]),
                      rho=float(belt_density(system)), bristle=slip.bristle.astype(float), anchor=np.zeros(k),
-                     limit=np.zeros(k), torque=np.zeros(k), preload=np.zeros(k), in_elem=in_elem, out_elem=out_elem,
+                     limit=np.zeros(k), torque=np.zeros(k), preload=np.zeros(k), sliding=np.zeros(k), factored=np.zeros(k), retried=np.zeros(1),
+                     in_elem=in_elem,
+                     out_elem=out_elem,
                      in_spring=np.where(in_elem < 0, spring_of[arriving], -1).astype(np.int64),
                      out_spring=np.where(out_elem < 0, spring_of[leaving], -1).astype(np.int64))
 

@@ -815,6 +815,7 @@ class DeferredSystem:
         self.arms = facts.arms
         self.loads = facts.loads
         self.pulley_friction = facts.friction
+        self.wraps = cfg.belt.wraps  # belt.wraps (`System.wraps`)
         self.pulley_names = facts.pulley_names
         self.driver = cfg.driver_index
         self.EA = float(cfg.belt.EA)
