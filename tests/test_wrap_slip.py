@@ -69,12 +69,12 @@ def test_a_load_above_the_capstan_torque_decelerates_the_pulley_at_the_load_less
     cap = _capstan(h["span_tension"], lay.wrap_angle[0], lay.radius[0])
     sel = t >= 0.01
     assert np.all(h["wrap_sliding"][sel, 0] == 1.0)
-    accel = np.polyfit(t[sel], w[sel], 1)[0]  # rad/s^2 (the capstan torque is constant to 0.5 % in the window)
+    accel = np.polyfit(t[sel], w[sel], 1)[0]  # rad/s^2 (the capstan torque varies by 1.5 % in the window)
     expected = np.mean((L + cap[sel]) / J)
-    assert abs(accel / expected - 1.0) < 0.01  # measured: 3e-5
+    assert abs(accel / expected - 1.0) < 0.01  # measured: 9e-5
     # the transmitted torque is the capstan torque of the tensions (the stepper's: the elastic end force of
     # the previous step; the recorded joint reactions carry the spans' vibration, +-0.8 % sample by sample)
-    assert abs(np.mean(h["wrap_torque"][sel, 0]) / np.mean(cap[sel]) - 1.0) < 1e-3
+    assert abs(np.mean(h["wrap_torque"][sel, 0]) / np.mean(cap[sel]) - 1.0) < 1e-3  # measured: 2e-5
     assert np.all(h["slip_speed"][sel, 0] > 0.0)  # the belt on the wrap runs ahead of the falling pulley
     assert np.isnan(h["wrap_torque"][:, 1]).all()  # C has no friction value: never slips
     assert summary.energy_error < 1e-3
@@ -82,7 +82,7 @@ def test_a_load_above_the_capstan_torque_decelerates_the_pulley_at_the_load_less
 
 def test_below_the_capstan_torque_the_wrap_sticks_without_drift():
     L = -3.0
-    summary, h, system, _ = _run([f"pulleys[0].friction={MU}", "transient.duration=0.1",
+    summary, h, system, _ = _run([f"pulleys[0].friction={MU}", "transient.duration=0.3",
                                   "transient.rotation=[{pulley='C', speed=0.0}]",
                                   f"transient.torque=[{{pulley='A', constant={L}, ramp_time=0.03}}]",
                                   "transient.damping.rayleigh_mass=20.0"], record_state=True)
@@ -93,12 +93,12 @@ def test_below_the_capstan_torque_the_wrap_sticks_without_drift():
     theta = h["pulley_angle"][:, 0]  # the pulley's own rotation
     slip = psi - theta
     M = h["wrap_torque"][:, 0]
-    # all of it the elastic part: psi - theta = z + M / k_b with the anchor z fixed (the pulley rings against
-    # the wrap's presliding stiffness k_b after the load step, ~260 Hz): a straight line in M, no creep
+    # all of it the elastic part: psi - theta = z + M / k_b with the anchor z fixed (the drive rings after
+    # the load's ramp, A's rotation against the spans at ~80 Hz): a straight line in M, no creep
     slope, z = np.polyfit(M, slip, 1)
     assert slope > 0.0 and 0.0 < np.abs(slip).max() < 2e-3
     assert np.max(np.abs(slip - (z + slope * M))) < 1e-3 * np.ptp(slip)
-    late = t >= 0.06  # the ringing of the load's ramp decayed (rayleigh_mass): J theta'' = 0, M = -L
+    late = t >= 0.05  # J theta'' = 0 on average over the decaying ringing (20 periods): M = -L
     assert abs(np.mean(M[late]) / -L - 1.0) < 1e-3
 
 
@@ -114,7 +114,7 @@ def test_a_run_up_that_slides_keeps_the_energy_balance_with_the_friction_work():
     e = h["energy"]
     moved = summary.energy_moved
     assert moved > 1.0  # J: the run-up's kinetic energy
-    assert np.max(np.abs(e[:, 4])) / moved < 1e-3  # the balance error (measured: ~1e-5)
+    assert np.max(np.abs(e[:, 4])) / moved < 1e-3  # the balance error (measured: 4e-6)
     assert np.max(e[:, 3]) > 0.05 * moved  # the friction work is a real part of it
 
 
@@ -127,10 +127,10 @@ def test_steady_running_transmits_the_static_torque_at_the_static_slip_arc():
                                        "pulleys[1].driver=true", "static.torque=[{pulley='A', value=-2.0}]"])
     assert summary.status == "complete"
     assert not np.any(h["wrap_sliding"][:, 0])
-    assert np.max(np.abs(h["wrap_torque"][:, 0] / 2.0 - 1.0)) < 1e-3
+    assert np.max(np.abs(h["wrap_torque"][:, 0] / 2.0 - 1.0)) < 1e-6  # measured: 2e-10
     arc = static.wraps.slip_arc[0]
     assert arc > 0.0
-    assert np.max(np.abs(h["slip_arc"][:, 0] / arc - 1.0)) < 2e-3
+    assert np.max(np.abs(h["slip_arc"][:, 0] / arc - 1.0)) < 1e-6  # measured: 8e-10
 
 
 @pytest.mark.parametrize("sets", [["pulleys[0].friction=0.3", "belt.wraps='rigid'"], []])
