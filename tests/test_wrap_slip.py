@@ -143,3 +143,35 @@ def test_rigid_wraps_or_no_friction_run_the_stepper_without_slip(sets):
     assert set(ref) <= set(got) <= set(ref) | {"slip_margin"}
     for k in ref:
         assert np.array_equal(ref[k], got[k], equal_nan=True), k
+
+
+def test_a_run_that_slips_resumed_at_each_checkpoint_continues_the_same_run():
+    # the wraps' state (anchors, limits, torques, the factor's regime) travels in the snapshot: from each
+    # checkpoint the samples after it are the uninterrupted run's (the factor recomputed at the state it was
+    # computed at, in the regime it held)
+    from beltdyn.analysis.transient import run_transient, snapshot_bytes, snapshot_from_bytes
+    from beltdyn.pipeline import analyse, transient_start
+
+    cfg = load_config(BENCH, QUIET + [f"pulleys[0].friction={MU}", "transient.duration=0.15",
+                                      "transient.rotation=[{pulley='C', speed=150.0, ramp_time=0.1}]",
+                                      "transient.torque=[{pulley='A', constant=-1.0, ramp_time=0.005}]"])
+    drive = analyse(cfg, compiled=True)
+
+    def run(**kw):
+        system, static = transient_start(drive)
+        got: list = []
+        summary = run_transient(system, static, cfg.transient, sink=lambda t, b: got.append((t, b)), **kw)
+        return summary, np.concatenate([g[0] for g in got]), {k: np.concatenate([g[1][k] for g in got])
+                                                              for k in got[0][1]}
+
+    snaps: list = []
+    whole, t_ref, ref = run(on_checkpoint=snaps.append, checkpoint_seconds=0.0)
+    assert len(snaps) >= 2 and np.any(ref["wrap_sliding"][:, 0] == 1.0)
+    for snap in snaps[1:]:
+        part, t, got = run(resume=snapshot_from_bytes(snapshot_bytes(snap)))
+        k = snap.delivered
+        np.testing.assert_array_equal(t, t_ref[k:])
+        for name, r in ref.items():  # (as tests/test_resume.py: the round-off of the solves, 1e-12 measured)
+            scale = float(np.nanmax(np.abs(r), initial=0.0))
+            np.testing.assert_allclose(got[name], r[k:], rtol=1e-9, atol=1e-9 * scale, err_msg=name)
+        assert part.steps == whole.steps

@@ -66,6 +66,17 @@ its stiffness k_b enters the iteration matrix like a spring, not like a damper o
 stick-slip transitions keep the factor (a tanh(phi'/omega) law put T_f / omega / h there and forced
 step halvings). Its work is dissipated, less the bristle's stored energy tau^2 / (2 k_b).
 
+Wraps that may slip (`Wraps`, `transient_wraps`, docs/wraps.md): a pulley's rotation split into the wrap
+angle psi (the rotation DOF the span ends follow) and its own rotation theta (a DOF after the system's
+independent coordinates), joined by the same elasto-plastic bristle (`bristle`, `slid_anchor`): torque
+M = clip(k_b (psi - theta - z), -M_cap, M_cap), +M on psi and -M on theta, the limit M_cap = R (T_max - c)
+(1 - exp(-mu beta)) of the end tensions at the last accepted step (`wrap_limits`, explicit over a step;
+the stored energy a falling limit releases is dissipated). The iteration matrix holds a sticking
+bristle's k_b and none of a sliding one, in the regime the last evaluation found (`Wraps.sliding`): an
+accepted step that changed regime returns REGIME (a new factor, the step not shortened), a fresh
+factor's failure into the other regime is retried once with that regime's factor before HALVE. Without
+slipping wraps (k = 0) none of this runs: the stepper is the one without the part.
+
 Array conventions: belt data as `belt_kernel` (T (n_elem, 8, m), idx (n_elem, m) with padding
 index n, tsel, e0 (n_elem, 8), dS/d2S (n_elem, n_qp, 4), wEA/wEI (n_elem, n_qp), Kb (n_elem, 8, 8)).
 """

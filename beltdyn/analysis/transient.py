@@ -11,7 +11,8 @@ over each batch.
 
 By job: `transient_setup` (`prepare`, the set-up), `transient_factor` (the iteration matrix and its band
 factor), this module (the stepping driver `drive`, `run_transient`, `integrate_linear` for the
-analytic tests), `transient_outputs` (observers and their warnings), `integrator` (the compiled stepper,
+analytic tests), `transient_outputs` (observers and their warnings), `transient_wraps` (the wraps that may slip: the
+pulleys' own rotations added behind their wraps, `integrator.Wraps`), `integrator` (the compiled stepper,
 a loop over the named parts of its `StepperModel`), `stepper_data` (its structures) and `band_solve`.
 A run whose energy balance error exceeds ENERGY_LIMIT (1 % of the energy moved) fails (SolverError)
 after every sample has reached the sink.
