@@ -388,8 +388,8 @@ def test_every_key_is_declared_once_with_a_doc():
                 continue
             assert "key" in f.metadata and f.metadata["key"].doc, (cls.__name__, f.name)
     keys = valid_keys()
-    assert keys[:8] == ["title", "belt.length", "belt.EA", "belt.EI", "belt.mass_per_length", "belt.section",
-                        "belt.ribs", "pulleys[i].name"]
+    assert keys[:9] == ["title", "belt.length", "belt.EA", "belt.EI", "belt.mass_per_length", "belt.section",
+                        "belt.ribs", "belt.wraps", "pulleys[i].name"]
     for k in ("modal.solver", "transient.accuracy", "transient.fmax", "transient.max_output_mb",
               "transient.damping.rayleigh_mass", "transient.rotation[i].speed", "transient.torque[i].table",
               "transient.hub_force[i].constant", "sweep.params"):
