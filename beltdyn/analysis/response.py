@@ -60,6 +60,7 @@ import numpy as np
 
 from beltdyn.analysis.static import StaticResult
 from beltdyn.analysis.stepper_data import ARM_PRESLIDING
+from beltdyn.analysis.transient_setup import slipping_pulleys
 from beltdyn.config import Damping, ResponseOptions
 from beltdyn.errors import SolverError
 from beltdyn.model.system import System
@@ -292,8 +293,6 @@ def solve_response(system: System, static: StaticResult, opts: ResponseOptions,
         notes.append(f"the tensioner arms' dry friction is linear only while they stick: the response holds it as "
                      f"the spring T_f / {ARM_PRESLIDING:g} rad of the transient's presliding law (valid for arm "
                      f"amplitudes below {ARM_PRESLIDING:g} rad; beyond, the arm slides)")
-    from beltdyn.analysis.transient_setup import slipping_pulleys
-
     slipping = slipping_pulleys(system)
     if len(slipping):
         notes.append(f"the wraps stick in the linear response: pulley(s) {', '.join(lay.names[j] for j in slipping)} "

@@ -7,9 +7,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from beltdyn.model.slip import drive_centrifugal_tension, required_friction, slip_margin
+from beltdyn.model.slip import belt_density, drive_centrifugal_tension, pulley_tensions, required_friction, slip_margin
 from beltdyn.model.system import System
+from beltdyn.model.wraps import centrifugal_tension, entry_exit, slip_arc
 from beltdyn.analysis.transient_setup import TransientSetup, nominal_rotation, transport_speed
+from beltdyn.analysis.transient_wraps import system_coordinates
 
 
 def tension_warnings(system: System, observer: "Observers", events: np.ndarray,
@@ -105,8 +107,6 @@ class Observers:
         limits wrap (B, 2, k) (the stepper's q then has the pulleys' own rotations after the system's)."""
         if self.slip is None:
             return self._compute(t, q, v, a, energy, reaction)
-        from beltdyn.analysis.transient_wraps import system_coordinates
-
         sl = self.slip
         out = self._compute(t, *(system_coordinates(sl, x) for x in (q, v, a)), energy, reaction)
         return out | self._wrap_series(t, q, v, wrap, out)
@@ -114,9 +114,6 @@ class Observers:
     def _wrap_series(self, t, q, v, wrap, out) -> dict[str, np.ndarray]:
         """The slipping wraps' series (module `transient_wraps`; NaN on the other pulleys) and the pulleys'
         own rotation for pulley_angle and pulley_speed (the wrap angle is the belt's)."""
-        from beltdyn.model.wraps import centrifugal_tension, entry_exit, slip_arc
-        from beltdyn.model.slip import belt_density, pulley_tensions
-
         sysm, setup, names, sl = self.system, self.setup, self.names, self.slip
         B, n = len(t), sysm.layout.n
         j = sl.pulleys
