@@ -35,6 +35,7 @@ from beltdyn.analysis.orders import order_tracking
 from beltdyn.analysis.spectrum import amplitude_spectrum, find_peaks
 from beltdyn.analysis.timestep import describe, frequency_error, step_warnings
 from beltdyn.analysis.transient import TransientSnapshot, prepare, run_transient, snapshot_bytes, snapshot_from_bytes
+from beltdyn.analysis.transient_setup import wrap_slip_notes
 from beltdyn.errors import ConfigError, OutputError
 from beltdyn.pipeline import Analysis, transient_start
 from beltdyn.results.io import GroupData, StreamWriter, Variable, WriteFailure, fsync_dir, read_group, recover
@@ -90,7 +91,8 @@ def plan_transient(run: Analysis, *, step_origin: str = "config") -> TransientPl
              "resolved_fmax_Hz": band, "resolved_accuracy": band_acc}
     if opts.fmax is not None:
         attrs["fmax_frequency_error"] = frequency_error(opts.fmax, opts.step, opts.rho_inf)
-    return TransientPlan(system=model, static=res, modal=mres, setup=setup, warnings=step_warnings_of(opts, setup, mres),
+    return TransientPlan(system=model, static=res, modal=mres, setup=setup,
+                         warnings=step_warnings_of(opts, setup, mres) + wrap_slip_notes(model),
                          step_text=step_text, attrs=MappingProxyType(attrs))
 
 

@@ -276,6 +276,19 @@ def main() -> None:
     add("beltdyn transient start-up: 10 el/span, 10 ms simulated (process wall)", f"{t * 1e3:.0f} ms", "reference",
         None)
 
+    # --- issue 25: creep and slip of the wraps in time: the paper bench (two pulleys, 10 el/span), A's wrap with
+    # friction 0.3, C run up to 150 rad/s, a 4 Hz load on A that takes its wrap beyond the capstan torque
+    # and back (stick-slip twice a cycle), 2.45 s at 1e-4 s (a contact FE model: ~700 s on this machine)
+    slip = ["transient", str(PAPER), "--set", "pulleys[0].friction=0.3", "--set",
+            "transient.rotation=[{pulley='C', speed=150.0, ramp_time=0.1}]", "--set",
+            "transient.torque=[{pulley='A', constant=-2.0, amplitude=5.0, frequency=4.0}]", "--set",
+            "transient.output_interval=1e-3", "--set", "transient.spectrum.start=0.5", "--duration", "2.45",
+            "--step", "1e-4", "-o", "slip.h5", "--force"]
+    cli_time(slip, repeats=1)  # (the numba cache warm)
+    t = cli_time(slip, repeats=3)
+    add("beltdyn transient with creep and slip, two pulleys, 10 el/span, 2.45 s at 1e-4 s (process wall)",
+        f"{t:.2f} s", "<= 5 s (a few seconds)", t <= 5.0)
+
     # --- issue 10: sweep assembly memory, flat in the number of cases (peak RSS of the sweep's processes)
     peaks = {n: sweep_peak_rss(n) for n in (2000, 8000)}
     slope = (peaks[8000] - peaks[2000]) / 6000

@@ -262,7 +262,9 @@ def test_mixed_transient_follows_the_ancf_transient(transport):
 
     def tensions(sets):
         cfg = load_config(FEAD, sets + ["transient.duration=0.3", "transient.spectrum.enabled=false",
-                                        f"transient.transport={str(transport).lower()}"])
+                                        f"transient.transport={str(transport).lower()}",
+                                        "belt.wraps='rigid'"])  # (the crank's wrap slips at idle with creep
+        # wraps: when it slides first differs between the two models, and the runs part by 10 % of the tension)
         run = analyse(cfg)
         got = []
         run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: got.append(b["span_tension"]))

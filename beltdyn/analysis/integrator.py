@@ -75,6 +75,17 @@ step. Its correction to the linear part's torque, tau - k phi - c phi', joins th
 the spring's stored energy k (phi - z)^2 / 2 replaces the linear part's k phi^2 / 2 (the difference
 joins the bristles' stored energy), so the clutch's slip work counts as dissipated.
 
+Wraps that may slip (`Wraps`, `transient_wraps`, docs/wraps.md): a pulley's rotation split into the wrap
+angle psi (the rotation DOF the span ends follow) and its own rotation theta (a DOF after the system's
+independent coordinates), joined by the same elasto-plastic bristle (`bristle`, `slid_anchor`): torque
+M = clip(k_b (psi - theta - z), -M_cap, M_cap), +M on psi and -M on theta, the limit M_cap = R (T_max - c)
+(1 - exp(-mu beta)) of the end tensions at the last accepted step (`wrap_limits`, explicit over a step;
+the stored energy a falling limit releases is dissipated). The iteration matrix holds a sticking
+bristle's k_b and none of a sliding one, in the regime the last evaluation found (`Wraps.sliding`): an
+accepted step that changed regime returns REGIME (a new factor, the step not shortened), a fresh
+factor's failure into the other regime is retried once with that regime's factor before HALVE. Without
+slipping wraps (k = 0) none of this runs: the stepper is the one without the part.
+
 Array conventions: belt data as `belt_kernel` (T (n_elem, 8, m), idx (n_elem, m) with padding
 index n, tsel, e0 (n_elem, 8), dS/d2S (n_elem, n_qp, 4), wEA/wEI (n_elem, n_qp), Kb (n_elem, 8, 8)).
 """
@@ -103,9 +114,8 @@ from beltdyn.analysis.band_solve import (  # noqa: E402,F401
     band_cholesky_solve, band_lu_nopivot, band_lu_nopivot_solve, band_lu_solve, band_upper_solve, factor_solve)
 from beltdyn.analysis.stepper_data import (  # noqa: E402,F401
     ARM_PRESLIDING, BAND_COST, Arms, BeltData, Check, Constraints, Coo, Csr, Decouplers, Events, Factor, Forcing,
-    Fused, Linear, no_decouplers,
-    Outputs, Split, State, StepOptions, StepperModel, Transport, Work, empty_csr, fused, no_arms, no_factor,
-    no_transport, split, split_matrix, to_csr, workspace)
+    Fused, Linear, Outputs, Split, State, StepOptions, StepperModel, Transport, Work, Wraps, empty_csr, fused, no_arms,
+    no_decouplers, no_factor, no_transport, no_wraps, split, split_matrix, to_csr, workspace)
 
 # tasks of `advance`, the stepper's one entry point from Python
 START = 0  # the forces and energies of the initial state (`start_forces`)
@@ -118,6 +128,8 @@ REFACTOR = 2  # convergence slowed (or the factor's extra iterations outweigh a 
 #              current state and call again
 HALVE = 3  # no convergence with a fresh factor: halve the step, refactorize, call again
 MAX_STEPS = 4  # step budget of this call used up (keeps Ctrl-C responsive)
+REGIME = 5  # a wrap went from sticking to sliding or back at the accepted step: refactorize (not a convergence
+#             trouble: the step is not shortened for it)
 
 EPS = float(np.finfo(np.float64).eps)  # a constant to the compiled code (np.finfo there is numba's array module)
 
@@ -418,6 +430,28 @@ def project(arms, q, x, out, absolute=False):
 
 
 @njit(**KERNEL)
+def bristle(k_b, x, z, up, down):
+    """The elasto-plastic (bristle, Dahl-type) dry friction element, the one implementation of the arms'
+    and the wraps' friction: (tau, stored) = (clip(k_b (x - z), -down, up), tau^2 / (2 k_b)) for the
+    coordinate x (rad), its anchor z, the stiffness k_b (N m/rad) and the limits up, down (N m) by sense."""
+    tau = min(max(k_b * (x - z), -down), up)
+    return tau, 0.5 * tau * tau / k_b
+
+
+@njit(**KERNEL)
+def slid_anchor(k_b, x, z, up, down):
+    """The return mapping of a `bristle` after an accepted step: its anchor z, slid along where the
+    bristle's torque k_b (x - z) exceeds a limit (up in the positive sense, down in the negative)."""
+    e = x - z
+    u, d = up / k_b, down / k_b
+    if e > u:
+        return x - u
+    if e < -d:
+        return x + d
+    return z
+
+
+@njit(**KERNEL)
 def arm_friction(arms, q, f):
     """Add the arms' dry friction torques clip(k_b (phi - z), -T_down, T_up) to f (on the angles); returns
     the bristles' stored energy sum tau^2 / (2 k_b). T_up, T_down: the limits sliding counter-clockwise
@@ -426,9 +460,9 @@ def arm_friction(arms, q, f):
     for k in range(arms.dof.shape[0]):
         if arms.friction_up[k] != 0.0 or arms.friction_down[k] != 0.0:
             d = arms.dof[k]
-            tau = min(max(arms.bristle[k] * (q[d] - arms.anchor[k]), -arms.friction_down[k]), arms.friction_up[k])
+            tau, e = bristle(arms.bristle[k], q[d], arms.anchor[k], arms.friction_up[k], arms.friction_down[k])
             f[d] += tau
-            stored += 0.5 * tau * tau / arms.bristle[k]
+            stored += e
     return stored
 
 
@@ -486,12 +520,83 @@ def slide_anchors(arms, q):
     for k in range(arms.dof.shape[0]):
         if arms.friction_up[k] != 0.0 or arms.friction_down[k] != 0.0:
             d = arms.dof[k]
-            e = q[d] - arms.anchor[k]
-            up, down = arms.friction_up[k] / arms.bristle[k], arms.friction_down[k] / arms.bristle[k]
-            if e > up:
-                arms.anchor[k] = q[d] - up
-            elif e < -down:
-                arms.anchor[k] = q[d] + down
+            arms.anchor[k] = slid_anchor(arms.bristle[k], q[d], arms.anchor[k], arms.friction_up[k],
+                                         arms.friction_down[k])
+
+
+@njit(**KERNEL)
+def wrap_friction(wraps, q, f, mark):
+    """Add the wraps' bristle torques M = clip(k_b (psi - theta - z), -M_cap, M_cap) to f: +M on the wrap
+    angle psi, -M on the pulley's rotation theta (`Wraps`); returns their stored energy sum M^2 / (2 k_b).
+    mark (a Newton evaluation): mark each wrap sliding (beyond its limit) or not (wraps.sliding)."""
+    stored = 0.0
+    for k in range(wraps.wrap.shape[0]):
+        w, hb = wraps.wrap[k], wraps.hub[k]
+        tau, e = bristle(wraps.bristle[k], q[w] - q[hb], wraps.anchor[k], wraps.limit[k], wraps.limit[k])
+        if mark:
+            wraps.sliding[k] = 1.0 if abs(wraps.bristle[k] * (q[w] - q[hb] - wraps.anchor[k])) > wraps.limit[k] else 0.0
+        f[w] += tau
+        f[hb] -= tau
+        stored += e
+    return stored
+
+
+@njit(**KERNEL)
+def slide_wraps(wraps, q):
+    """The wraps' return mapping after an accepted step (`slid_anchor`) and their torques there."""
+    for k in range(wraps.wrap.shape[0]):
+        x = q[wraps.wrap[k]] - q[wraps.hub[k]]
+        wraps.torque[k] = bristle(wraps.bristle[k], x, wraps.anchor[k], wraps.limit[k], wraps.limit[k])[0]
+        wraps.anchor[k] = slid_anchor(wraps.bristle[k], x, wraps.anchor[k], wraps.limit[k], wraps.limit[k])
+
+
+@njit(**KERNEL)
+def regime_changed(wraps):
+    """True where a wrap's last evaluation (of the accepted step) found another regime, sticking or sliding,
+    than the iteration matrix holds (`Wraps.factored`)."""
+    for k in range(wraps.wrap.shape[0]):
+        if wraps.sliding[k] != wraps.factored[k]:
+            return True
+    return False
+
+
+@njit(**KERNEL)
+def end_stretch(belt, elem, spring, at_end, E, q_ext):
+    """The stretch lambda at a span's end: of element elem at its end node (at_end) or start node (the
+    node's gradient, |r'|), or of the spring span `spring`'s chord (its length over its reference)."""
+    if elem >= 0:
+        o = 6 if at_end else 2
+        return np.sqrt(E[elem, o] * E[elem, o] + E[elem, o + 1] * E[elem, o + 1])
+    sp = belt.springs
+    dx, dy = sp.d0[spring, 0], sp.d0[spring, 1]
+    for j in range(sp.idx.shape[1]):
+        dx += sp.D[spring, 0, j] * q_ext[sp.idx[spring, j]]
+        dy += sp.D[spring, 1, j] * q_ext[sp.idx[spring, j]]
+    return np.sqrt(dx * dx + dy * dy) / sp.L[spring]
+
+
+@njit(**KERNEL)
+def wrap_limits(wraps, belt, E, q_ext, c):
+    """The wraps' capstan limits M_cap = R (T_max - c_T)(1 - exp(-mu beta)) from the end tensions of their
+    spans (the true axial force N = EA eps lambda of the bar law, `end_stretch`) at the accepted state (E its element coordinates, q_ext its padded coordinates), T_max the
+    larger, c_T = rho c^2 lambda(T_max) the centrifugal part at the belt speed c (0 where T_max <= c_T:
+    a slack wrap holds nothing). Returns the bristles' stored energy the new limits release (a limit
+    that falls below a bristle's torque: the anchor slides at the next return mapping, dissipated)."""
+    released = 0.0
+    for k in range(wraps.wrap.shape[0]):
+        lam_in = end_stretch(belt, wraps.in_elem[k], wraps.in_spring[k], True, E, q_ext)
+        lam_out = end_stretch(belt, wraps.out_elem[k], wraps.out_spring[k], False, E, q_ext)
+        ea_in = belt.EA[wraps.in_elem[k]] if wraps.in_elem[k] >= 0 else belt.springs.EA
+        ea_out = belt.EA[wraps.out_elem[k]] if wraps.out_elem[k] >= 0 else belt.springs.EA
+        t_in, t_out = sk.axial_force_kernel(lam_in, ea_in), sk.axial_force_kernel(lam_out, ea_out)
+        t_max, lam = (t_in, lam_in) if t_in >= t_out else (t_out, lam_out)
+        cap = wraps.radius[k] * max(t_max - wraps.rho * c * c * lam, 0.0) * wraps.capstan[k]
+        tau = wraps.torque[k]
+        if abs(tau) > cap:
+            released += 0.5 * (tau * tau - cap * cap) / wraps.bristle[k]
+            wraps.torque[k] = cap if tau > 0.0 else -cap
+        wraps.limit[k] = cap
+    return released
 
 
 @njit(**KERNEL)
@@ -570,11 +675,26 @@ def start_forces(state, model, work):
     external_forces(F, model.constraints, 0.0, state.F0, work.sig)
     c0, cd0 = transport_speed(tr, F, 0.0)
     qbq, vaq = transport_forces(tr, c0, cd0, q, v, f_tr, tmp, tmp2)
+    wraps = model.wraps
+    stored = 0.0
+    if wraps.wrap.shape[0] > 0:  # each bristle carries what balances its wrap at the start, M0 = F - f there
+        # (the static torque: the pulley's loads, inertia and damping sit on its own rotation, `Wraps`)
+        for k in range(wraps.wrap.shape[0]):
+            wraps.torque[k] = 0.0
+        wrap_limits(wraps, belt, E, q_ext, c0)  # the capstan limits of the initial tensions
+        for k in range(wraps.wrap.shape[0]):
+            w = wraps.wrap[k]
+            wraps.preload[k] = state.F0[w] - (f_el[w] + Kd[w] + f_dmp[w] + f_tr[w])
+            wraps.anchor[k] = q[w] - q[wraps.hub[k]] - wraps.preload[k] / wraps.bristle[k]
+        stored = wrap_friction(wraps, q, f_dmp, True)
+        for k in range(wraps.wrap.shape[0]):
+            wraps.torque[k] = bristle(wraps.bristle[k], q[wraps.wrap[k]] - q[wraps.hub[k]], wraps.anchor[k],
+                                      wraps.limit[k], wraps.limit[k])[0]
     for i in range(n):
         state.f0[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
         state.fd0[i] = f_dmp[i]
     kin = kinetic_energy(lin, v, tmp)
-    pot = potential_energy(belt, lin, q, q_ext, E, work.elem1[0], tmp, tmp2) - 0.5 * c0 * c0 * qbq + clutch0
+    pot = potential_energy(belt, lin, q, q_ext, E, work.elem1[0], tmp, tmp2) - 0.5 * c0 * c0 * qbq + clutch0 + stored
     th[E0] = kin + pot
     th[KIN0] = kin
     th[POT0] = pot
@@ -609,6 +729,8 @@ def step_forces(model, q1, v1, a1, c1, cd1, with_gross, inv_h, work):
         dq[i] = q1[i] - lin.q_ref[i]
     belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross)
     bristle = arm_friction(model.arms, q1, f_dmp) + clutch_torques(model.decouplers, q1, v1, inv_h, f_dmp)
+    if model.wraps.wrap.shape[0] > 0:
+        bristle += wrap_friction(model.wraps, q1, f_dmp, True)
     split_matvec(lin.K, dq, Kd)
     split_matvec(lin.C, v1, Cv)
     qbq = 0.0
@@ -824,6 +946,11 @@ def record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, R1):
         dec = model.decouplers
         for c in range(dec.hub.shape[0]):
             out.clutch[k, c] = (1.0 - s) * dec.torque[0, c] + s * dec.torque[1, c]
+        wr = model.wraps
+        for c in range(wr.wrap.shape[0]):  # the bristle torque at the step's end: the anchor of its start
+            tau1 = bristle(wr.bristle[c], q1[wr.wrap[c]] - q1[wr.hub[c]], wr.anchor[c], wr.limit[c], wr.limit[c])[0]
+            out.wrap[k, 0, c] = (1.0 - s) * wr.torque[c] + s * tau1
+            out.wrap[k, 1, c] = wr.limit[c]
         out.n[0] += 1
         th[T_OUT] += opts.dt_out
 
@@ -879,6 +1006,8 @@ def accept(state, model, x, p_tr, work):
     state.scal[TR_P0] = p_tr
     slide_anchors(model.arms, state.q)
     accept_clutches(model.decouplers)
+    if model.wraps.wrap.shape[0] > 0:
+        slide_wraps(model.wraps, state.q)
 
 
 @njit(**PART)
@@ -915,7 +1044,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     (`solve_step`), the step's power (`step_power`), observers (`balance_energy`, `record_outputs`,
     `slack_events`), `accept` and the factor's age (`factor_aged`).
 
-    Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
+    Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS, REGIME). out receives the states at the
     output times (Hermite interpolation within the step), the energy terms of the step that contains
     each output time (exact at that step) and the constraint reactions. info (4,): on HALVE the
     time, the scaled residual, the worst DOF and the iterations.
@@ -942,6 +1071,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         th[REF_N] = 0.0
     wv[12, :] = 0.0
     bristle0 = arm_friction(arms, q, wv[12]) + clutch_stored(model.decouplers, q)
+    if model.wraps.wrap.shape[0] > 0:
+        bristle0 += wrap_friction(model.wraps, q, wv[12], False)
     while True:
         t, h = th[T_NOW], th[H]
         if t >= opts.t_stop - 1e-6 * h:
@@ -962,6 +1093,10 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
             info[2] = worst
             info[3] = it
             if fresh:
+                wr = model.wraps
+                if wr.wrap.shape[0] > 0 and wr.retried[0] == 0.0 and regime_changed(wr):
+                    wr.retried[0] = 1.0  # the iterates went into the other regime: once more with its factor
+                    return REGIME
                 return HALVE
             return REFACTOR
         # the step is accepted only if all of its output samples fit in the buffer
@@ -981,11 +1116,18 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         slack_events(model.belt, t1, ev, work)
         accept(state, model, x, p_tr, work)
         bristle0 = arm_friction(arms, q, wv[12]) + clutch_stored(model.decouplers, q)  # after the return mapping
+        if model.wraps.wrap.shape[0] > 0:  # the wraps' limits from the accepted tensions (work.elem[0]: q1's)
+            model.wraps.retried[0] = 0.0
+            c1 = transport_speed(model.transport, model.forcing, t1)[0]
+            th[DISS] += wrap_limits(model.wraps, model.belt, work.elem[0], work.ext[0], c1)
+            bristle0 += wrap_friction(model.wraps, q, wv[12], False)
         th[T_NOW] = t1
         th[STEPS] += 1.0
         th[ITERS] += it
         steps += 1
         if factor_aged(th, it, opts.refresh):
             return REFACTOR
+        if model.wraps.wrap.shape[0] > 0 and regime_changed(model.wraps):
+            return REGIME  # a wrap went from sticking to sliding or back: the iteration matrix follows
 
 

@@ -40,6 +40,10 @@ delta the arm sticks and that law is exactly the linear spring k_f, which K hold
 linear response is the arm sticking, the transient's small-amplitude limit. Beyond delta the arm
 slides (a torque of T_f against the motion, not linear): the response is not valid there, and says so.
 
+The wraps (docs/wraps.md): the response holds every wrap sticking, the pulley turning with the belt on
+it (rigid wraps: the transient's wrap bristle without its presliding compliance); with creep wraps and
+friction values it says so in its notes (a wrap that reaches its capstan torque slides: a transient).
+
 Limits (`limit_warnings`, in `ResponseResult.warnings`): a span whose tension amplitude |Y| at an end
 exceeds that end's static tension T0 (at the equilibrium the speed is linearized about) would go slack,
 T0 + |Y| cos(...) < 0; both vary along a span about linearly between its ends and T0 - |Y| is then
@@ -56,6 +60,7 @@ import numpy as np
 
 from beltdyn.analysis.static import StaticResult
 from beltdyn.analysis.stepper_data import ARM_PRESLIDING
+from beltdyn.analysis.transient_setup import slipping_pulleys
 from beltdyn.config import Damping, ResponseOptions
 from beltdyn.errors import SolverError
 from beltdyn.model.decouplers import decouplers_of
@@ -295,6 +300,11 @@ def solve_response(system: System, static: StaticResult, opts: ResponseOptions,
         notes.append(f"the decoupler(s) of {', '.join(one_way)}: the response holds the one-way clutch engaged (linear); "
                      f"where the decoupler's torque amplitude exceeds its static torque the clutch would overrun "
                      f"(the transient models that)")
+    slipping = slipping_pulleys(system)
+    if len(slipping):
+        notes.append(f"the wraps stick in the linear response: pulley(s) {', '.join(lay.names[j] for j in slipping)} "
+                     f"turn with their wraps (rigid wraps, without the transient's presliding compliance and "
+                     f"without slip); a wrap whose torque reaches its capstan torque slips: run a transient")
     from beltdyn.model.geometry import travel_sense
 
     R_d = float(lay.radius[system.driver]) * travel_sense(lay, system.driver)

@@ -32,8 +32,9 @@ StepOptions = namedtuple("StepOptions", ["am", "af", "beta", "gamma", "t_stop", 
 Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind 0 band Cholesky, 1 band LU (partial
 # pivoting, LAPACK), 2 band LU without row exchanges (`band_lu_nopivot`)
 State = namedtuple("State", ["q", "v", "a", "f0", "fd0", "F0", "R0", "scal"])
-Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n", "clutch"])  # clutch (B, n_dec): the
-# decouplers' torques (`Decouplers`)
+Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n", "clutch", "wrap"])  # clutch
+# (B, n_dec): the decouplers' torques (`Decouplers`); wrap (B, 2, max(k, 1)): the wraps' bristle torque and
+# capstan limit (N m) at the output times
 Events = namedtuple("Events", ["data", "n", "slack"])
 # the running belt's transport terms (module docstring): A, G = A - A^T, B (Csr, per unit speed) on the joint
 # coordinates, a0, b0 (n,); the belt speed c = speed (follow = 0) or the nominal speed of the prescribed
@@ -52,12 +53,29 @@ Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction_up", "fri
 # part: the engaged decoupler), drag (k,) the overrunning clutch's torque bound (tau >= -drag), slip (2, k) the
 # clutch's slip angle z (row 0 at the accepted step, row 1 at the step being solved), torque (2, k) likewise tau
 Decouplers = namedtuple("Decouplers", ["hub", "rotor", "stiffness", "damping", "drag", "slip", "torque"])
+# The wraps that may slip (`transient_wraps`, docs/wraps.md): pulley j's rotation split in two, the wrap angle
+# psi (the old rotation DOF, which the span ends follow: `wrap`) and the pulley's own rotation theta (a DOF
+# `hub` added after the system's independent coordinates, with the pulley's inertia, damping, loads and
+# prescribed rotation), joined by the elasto-plastic bristle M = clip(k_b (psi - theta - z), -M_cap, M_cap)
+# (`integrator.bristle`, the arms' one). M_cap = R (T_max - c) capstan, capstan = 1 - exp(-mu beta), T_max the
+# larger end tension of the wrap's two spans at the last accepted step, c = rho v^2 lambda(T_max): `limit`
+# (state). The end tensions: the true axial force at the span end, of the element (its end node's gradient:
+# in_elem the arriving span's last element, out_elem the departing span's first; -1: a spring span) or of
+# the spring span (in_spring, out_spring; -1: none). anchor z, limit and torque (the bristle torque at
+# the last accepted step) are the state; preload (k,) the static torque the bristle carries at the start; sliding
+# (k,) 1 where the last Newton evaluation found the bristle at its limit, factored (k,) the regime the current
+# iteration matrix holds (its sticking stiffness: `transient_factor.wrap_factorizer`); an accepted step whose
+# regime differs from the factor's asks for a new one, and so does, once per step (retried (1,): 1 once done), a
+# step that fails with a fresh factor while its iterates went into the other regime.
+Wraps = namedtuple("Wraps", ["wrap", "hub", "radius", "capstan", "rho", "bristle", "anchor", "limit", "torque",
+                             "preload", "in_elem", "out_elem", "in_spring", "out_spring", "sliding", "factored",
+                             "retried"])
 # The stepper's model, its named parts built in one place (`transient.stepper_model`): the belt (BeltData),
 # the linear part (Linear), forcing (Forcing), constraints (prescribed rotations, Constraints), the convergence
-# check (Check), the arms with their dry friction (Arms), the running belt's transport (Transport) and the
-# decouplers' clutches (Decouplers).
+# check (Check), the arms with their dry friction (Arms), the running belt's transport (Transport), the
+# decouplers' clutches (Decouplers) and the wraps that may slip (Wraps).
 StepperModel = namedtuple("StepperModel", ["belt", "linear", "forcing", "constraints", "check", "arms", "transport",
-                                           "decouplers"])
+                                           "decouplers", "wraps"])
 ARM_PRESLIDING = 1e-3  # rad (0.06 deg): presliding angle of the arm's dry friction (bristle stiffness: the larger
 # of the two limits / this);
 # 1e-4 rad gave the same hysteresis (0.1 %) and cost 20 % more Newton work on the FEAD example
@@ -84,6 +102,15 @@ def no_decouplers() -> Decouplers:
     """No one-way decoupler."""
     return Decouplers(hub=np.zeros(0, dtype=np.int64), rotor=np.zeros(0, dtype=np.int64), stiffness=np.zeros(0),
                       damping=np.zeros(0), drag=np.zeros(0), slip=np.zeros((2, 0)), torque=np.zeros((2, 0)))
+
+
+def no_wraps() -> Wraps:
+    """No wrap may slip (rigid wraps, or no friction value): the stepper as without the part."""
+    i, z = np.zeros(0, dtype=np.int64), np.zeros(0)
+    return Wraps(wrap=i, hub=i.copy(), radius=z, capstan=z.copy(), rho=0.0, bristle=z.copy(), anchor=z.copy(),
+                 limit=z.copy(), torque=z.copy(), preload=z.copy(), in_elem=i.copy(), out_elem=i.copy(),
+                 in_spring=i.copy(), out_spring=i.copy(), sliding=z.copy(), factored=z.copy(),
+                 retried=np.zeros(1))
 
 
 def no_transport(n: int) -> Transport:

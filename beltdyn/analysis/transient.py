@@ -11,7 +11,8 @@ over each batch.
 
 By job: `transient_setup` (`prepare`, the set-up), `transient_factor` (the iteration matrix and its band
 factor), this module (the stepping driver `drive`, `run_transient`, `integrate_linear` for the
-analytic tests), `transient_outputs` (observers and their warnings), `integrator` (the compiled stepper,
+analytic tests), `transient_outputs` (observers and their warnings), `transient_wraps` (the wraps that may slip: the
+pulleys' own rotations added behind their wraps, `integrator.Wraps`), `integrator` (the compiled stepper,
 a loop over the named parts of its `StepperModel`), `stepper_data` (its structures) and `band_solve`.
 A run whose energy balance error exceeds ENERGY_LIMIT (1 % of the energy moved) fails (SolverError)
 after every sample has reached the sink.
@@ -52,6 +53,8 @@ from beltdyn.analysis.transient_setup import (  # noqa: F401  (set-up, re-export
 from beltdyn.analysis.transient_factor import (  # noqa: F401  (the iteration matrix, re-exported)
     IterationPlan, band_factor, factorizer, stepper_system)
 from beltdyn.analysis.transient_outputs import Observers, slip_warning, stop_warning, tension_warnings  # noqa: F401
+from beltdyn.analysis.transient_factor import wrap_factorizer
+from beltdyn.analysis.transient_wraps import stepper_arms as wrap_arms, stepper_setup, stepper_wraps, wrap_slip
 
 Sink = Callable[[np.ndarray, dict[str, np.ndarray]], None]
 Progress = Callable[[float], None]
@@ -84,7 +87,7 @@ ENERGY_LIMIT = 0.01  # energy-balance error, as a share of the energy moved, abo
 SNAPSHOT_MAGIC = b"BDSNAP01"
 _SNAPSHOT_HEAD = struct.Struct("<8sQI")  # magic, payload length, CRC-32 of the payload
 SNAPSHOT_ARRAYS = ("q", "v", "a", "f0", "fd0", "F0", "R0", "scal", "anchor", "slack", "events", "factor_q", "factor_v",
-                   "tension_low", "tension_low_time", "clutch")
+                   "tension_low", "tension_low_time", "clutch", "wrap_state")
 
 
 def _frozen(x) -> np.ndarray:
@@ -144,6 +147,9 @@ class TransientSnapshot:
     stop_hit: tuple[float, str, float] | None = None
     clutch: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((2, 0))))  # (2, n_dec): the decouplers'
     # accepted clutch slip and torque (`integrator.Decouplers` slip[0], torque[0])
+    wrap_state: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((6, 0))))  # (6, k) the slipping
+    # wraps' anchors, limits, torques, start torques, the factor's regime and the last evaluation's
+    # (`integrator.Wraps`; k = 0 without)
 
     @property
     def time(self) -> float:
@@ -180,7 +186,7 @@ def snapshot_from_bytes(data: bytes) -> TransientSnapshot:
     (n_text,) = struct.unpack_from("<I", payload)
     meta = json.loads(payload[4:4 + n_text])
     arrays, pos = {}, 4 + n_text
-    for key, shape in zip(SNAPSHOT_ARRAYS, meta["shapes"]):
+    for key, shape in zip(SNAPSHOT_ARRAYS, meta["shapes"]):  # (a record without the last arrays: their defaults)
         count = int(np.prod(shape, dtype=np.int64))
         arrays[key] = _frozen(np.frombuffer(payload, dtype="<f8", count=count, offset=pos).reshape(shape))
         pos += 8 * count
@@ -244,6 +250,7 @@ class StepProblem:
     arms: tuple | None = None  # integrator.Arms (None: no arms, q = p)
     transport: tuple | None = None  # integrator.Transport (None: the belt at rest)
     decouplers: tuple | None = None  # integrator.Decouplers (None: no one-way decoupler)
+    wraps: tuple | None = None  # integrator.Wraps (None: no wrap slips)
 
 
 def initial_state(problem: StepProblem, step: float, start: Callable):
@@ -314,7 +321,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
           progress: Progress | None = None, batch: int = 256, n_span: int = 0,
           resume: TransientSnapshot | None = None, on_checkpoint: Callable | None = None,
           checkpoint_seconds: float = 0.0):
-    """Integrate the problem: outputs in batches to on_batch(t, q, v, a, energy, reaction, clutch); returns
+    """Integrate the problem: outputs in batches to on_batch(t, q, v, a, energy, reaction, clutch, wrap); returns
     (status, run bookkeeping, final scal, slack events). Raises SolverError when the step cannot be
     reduced further (the batches before the failure have been delivered); KeyboardInterrupt
     propagates after the last complete batch was delivered.
@@ -332,13 +339,15 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     arms = problem.arms if problem.arms is not None else itg.no_arms(n)
     tr = problem.transport if problem.transport is not None else itg.no_transport(n)
     dec = problem.decouplers if problem.decouplers is not None else itg.no_decouplers()
+    wraps = problem.wraps if problem.wraps is not None else itg.no_wraps()
     chk = itg.Check(group=problem.groups, n_groups=int(problem.groups.max(initial=0)) + 1, tol=float(tolerance),
                     max_iter=int(max_iterations), noise=residual_noise(problem.belt))
     n_con = max(len(problem.constraints.dof), 1)
     batch = max(batch, int(math.ceil(step / output_interval)) + 2)  # a step's samples always fit
     out = itg.Outputs(t=np.zeros(batch), q=np.zeros((batch, n)), v=np.zeros((batch, n)), a=np.zeros((batch, n)),
                       energy=np.zeros((batch, 5)), reaction=np.zeros((batch, n_con)), n=np.zeros(1, dtype=np.int64),
-                      clutch=np.zeros((batch, len(dec.hub))))
+                      clutch=np.zeros((batch, len(dec.hub))),
+                      wrap=np.zeros((batch, 2, max(len(wraps.wrap), 1))))
     ev = itg.Events(data=np.zeros((2000 * max(n_span, 1) + 8, 4)), n=np.zeros(1, dtype=np.int64),
                     slack=np.zeros(max(n_span, 1)))
     all_events: list[np.ndarray] = []
@@ -350,7 +359,8 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     work = itg.workspace(n, problem.belt, problem.forcing, problem.constraints, chk.n_groups, arms)
 
     model = itg.StepperModel(belt=problem.belt, linear=problem.linear, forcing=problem.forcing,
-                             constraints=problem.constraints, check=chk, arms=arms, transport=tr, decouplers=dec)
+                             constraints=problem.constraints, check=chk, arms=arms, transport=tr, decouplers=dec,
+                             wraps=wraps)
 
     def advance(task, st, fac, fresh):  # the compiled stepper (`integrator.advance`), opts as they are now
         return itg.advance(task, st, model, opts, fac, fresh, out, ev, info, work)
@@ -364,6 +374,9 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         if len(dec.hub):
             dec.slip[0] = resume.clutch[0]
             dec.torque[0] = resume.clutch[1]
+        if len(wraps.wrap):
+            for row, part in enumerate((wraps.anchor, wraps.limit, wraps.torque, wraps.preload, wraps.factored)):
+                part[:] = resume.wrap_state[row]
         ev.slack[:] = resume.slack
         if len(resume.events):
             all_events.append(np.array(resume.events))
@@ -392,7 +405,11 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         min_h = th[itg.H]
         calm = 0
     else:
+        if len(wraps.wrap):  # (the factor's regime into sliding: the factor takes it, then the last evaluation's)
+            wraps.sliding[:] = resume.wrap_state[4]
         fac = new_factor(np.array(resume.factor_q), np.array(resume.factor_v), resume.factor_h, resume.factor_t)
+        if len(wraps.wrap):
+            wraps.sliding[:] = resume.wrap_state[5]
         fresh, calm, min_h = bool(resume.fresh), int(resume.calm), float(resume.min_step)
         run.steps, run.refactors, run.halvings, run.delivered = (int(resume.steps), int(resume.refactorizations),
                                                                   int(resume.halvings), int(resume.delivered))
@@ -404,7 +421,8 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         if take > 0:
             run.delivered += take
             on_batch(out.t[:take].copy(), out.q[:take].copy(), out.v[:take].copy(), out.a[:take].copy(),
-                     out.energy[:take].copy(), out.reaction[:take].copy(), out.clutch[:take].copy())
+                     out.energy[:take].copy(), out.reaction[:take].copy(), out.clutch[:take].copy(),
+                     out.wrap[:take].copy())
 
     def collect_events() -> None:
         if ev.n[0]:
@@ -417,6 +435,8 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
             q=_frozen(state.q), v=_frozen(state.v), a=_frozen(state.a), f0=_frozen(state.f0), fd0=_frozen(state.fd0),
             F0=_frozen(state.F0), R0=_frozen(state.R0), scal=_frozen(th), anchor=_frozen(arms.anchor),
             clutch=_frozen(np.stack([dec.slip[0], dec.torque[0]])),
+            wrap_state=_frozen(np.array([wraps.anchor, wraps.limit, wraps.torque, wraps.preload, wraps.factored,
+                                         wraps.sliding]).reshape(6, -1)),
             slack=_frozen(ev.slack),
             events=_frozen(np.concatenate(all_events) if all_events else np.zeros((0, 4))),
             factor_q=_frozen(at_factor["q"]), factor_v=_frozen(at_factor["v"]), factor_h=float(at_factor["h"]),
@@ -472,6 +492,10 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
                 fac, fresh, calm = new_factor(), True, 0
                 run.refactors += 1
                 continue
+            if code == itg.REGIME:  # (a wrap's stick-slip transition: no trouble, the step keeps growing back)
+                fac, fresh = new_factor(), True
+                run.refactors += 1
+                continue
             # HALVE
             if th[itg.H] / 2.0 < min_step:
                 dof = problem.labels[int(info[2])] if int(info[2]) < n else "?"
@@ -521,12 +545,25 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
     system = stepper_system(system, opts)
     tr = setup.transport
     arms = stepper_arms(system)
-    factor = factorizer(system, setup, opts.rho_inf, arms)
-    problem = StepProblem(
-        belt=setup.belt, linear=setup.linear, forcing=setup.forcing, constraints=setup.constraints,
-        groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels, factor=factor,
-        arms=arms, transport=tr, decouplers=stepper_decouplers(system))
-    observer = Observers(system=system, setup=setup)
+    slip = wrap_slip(system, opts)
+    if slip is None:  # (no wrap slips: the stepper's structures as set up)
+        factor = factorizer(system, setup, opts.rho_inf, arms)
+        problem = StepProblem(
+            belt=setup.belt, linear=setup.linear, forcing=setup.forcing, constraints=setup.constraints,
+            groups=setup.groups, q0=setup.q0, v0=setup.v0, labels=system.dof_labels, factor=factor,
+            arms=arms, transport=tr, decouplers=stepper_decouplers(system))
+    else:  # the pulleys' own rotations added (`transient_wraps`)
+        parts = stepper_setup(slip, system, setup)
+        wraps = stepper_wraps(slip, system, setup)
+        arms = wrap_arms(slip, arms)
+        factor = wrap_factorizer(system, setup, opts.rho_inf, arms, slip, wraps, perm=parts.pop("perm"),
+                                 bandwidth=parts.pop("bandwidth"), hold=parts["constraints"].dof)
+        labels = list(system.dof_labels)
+        labels[slip.n_dof:slip.n_dof] = [f"pulley {system.layout.names[j]} rotation (behind its wrap)"
+                                         for j in slip.pulleys]
+        problem = StepProblem(**parts, labels=tuple(labels), factor=factor, arms=arms, wraps=wraps,
+                              decouplers=stepper_decouplers(system))
+    observer = Observers(system=system, setup=setup, slip=slip)
     if resume is not None:
         observer.restore(tension_low=resume.tension_low, tension_low_time=resume.tension_low_time,
                          tension_high=resume.tension_high, worst_slip=resume.worst_slip, stop_hit=resume.stop_hit)

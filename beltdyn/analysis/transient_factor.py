@@ -338,3 +338,41 @@ def _weighted_sum(terms):
             rest = w * A if rest is None else rest + w * A
     S = csr_matrix((data, first.indices, first.indptr), shape=first.shape)
     return S if rest is None else S + rest
+
+
+def wrap_factorizer(system: System, setup: TransientSetup, rho_inf: float, arms, slip, wraps, *, perm: np.ndarray,
+                    bandwidth: int, hold: np.ndarray) -> Callable:
+    """factor(q, h, v=None, t=0.0) of the stepper with slipping wraps (`transient_wraps`): the system's
+    iteration matrix S (n_dof,) of `_iteration_matrix` on the stepper's q (n_dof + k,), each pulley's
+    inertia J and damping d moved from its wrap angle psi onto its own rotation theta (c_m J + c_c d), and
+    a sticking wrap's bristle (1 - alpha_f) k_b [[1, -1], [-1, 1]] on (psi, theta) (none while it slides:
+    its torque is the constant capstan limit over the step). Sticking or sliding as the stepper's last
+    evaluation found it (`Wraps.sliding`): a factor asked for because Newton slowed down at a stick-slip
+    transition (a kink of the bristle's law) takes the regime the iterates went into, not the step
+    start's. wraps: the stepper's `Wraps` (its state)."""
+    from scipy.sparse import coo_matrix, csr_matrix
+
+    from beltdyn.analysis.integrator import alpha_parameters
+
+    am, af, beta, gamma = alpha_parameters(rho_inf)
+    symmetric = not (setup.transport is not None and (setup.transport.follow or setup.transport.speed))
+    n, k = system.n_dof, slip.n
+    w, hb = slip.wrap, slip.hub
+
+    def factor(q, h, v=None, t=0.0):
+        S, diagonal = _iteration_matrix(system, setup, q, h, rho_inf, v, arms, t)
+        c_m = (1.0 - am) / (beta * h * h)
+        c_c = (1.0 - af) * gamma / (beta * h)
+        move = c_m * slip.inertia + c_c * slip.damping
+        wraps.factored[:] = wraps.sliding  # the regime the last evaluation found (the stepper compares)
+        kb = (1.0 - af) * np.where(wraps.factored > 0.0, 0.0, wraps.bristle)
+        C = coo_matrix(S)
+        rows = np.r_[C.row, w, hb, w, hb]
+        cols = np.r_[C.col, w, hb, hb, w]
+        vals = np.r_[C.data, kb - move, kb + move, -kb, -kb]
+        S_all = csr_matrix((vals, (rows, cols)), shape=(n + k, n + k))
+        d_all = None if diagonal is None else np.r_[diagonal, np.zeros(k)]
+        return band_factor(S_all, perm, bandwidth, symmetric=symmetric, hold=hold, diagonal=d_all)
+
+    factor.plan = None
+    return factor

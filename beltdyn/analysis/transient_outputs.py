@@ -8,9 +8,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from beltdyn.model.decouplers import decouplers_of
-from beltdyn.model.slip import drive_centrifugal_tension, required_friction, slip_margin
+from beltdyn.model.slip import belt_density, drive_centrifugal_tension, pulley_tensions, required_friction, slip_margin
 from beltdyn.model.system import System
+from beltdyn.model.wraps import centrifugal_tension, entry_exit, slip_arc
 from beltdyn.analysis.transient_setup import TransientSetup, nominal_rotation, transport_speed
+from beltdyn.analysis.transient_wraps import system_coordinates
 
 
 def tension_warnings(system: System, observer: "Observers", events: np.ndarray,
@@ -84,6 +86,7 @@ class Observers:
 
     system: System
     setup: TransientSetup
+    slip: object = None  # transient_wraps.WrapSlip: the wraps that may slip (the stepper's q has their hubs)
 
     def __post_init__(self) -> None:
         self.names = {s.name for s in self.setup.series}
@@ -116,9 +119,52 @@ class Observers:
         if T[b].max() > self.tension_high[0]:
             self.tension_high = (float(T[b].max()), float(t[b]))
 
-    def compute(self, t, q, v, a, energy, reaction, clutch=None) -> dict[str, np.ndarray]:
-        """The series of the output states (B, n_p) at times t (B,); energy (B, 5), reaction (B, n_con) and
-        clutch (B, n_one_way) the one-way decouplers' torques, from the stepper."""
+    def compute(self, t, q, v, a, energy, reaction, clutch=None, wrap=None) -> dict[str, np.ndarray]:
+        """The recorded series of the output states q, v, a (B, n) at the times t (B,), their energy terms
+        (B, 5), constraint reactions (B, n_con), clutch (B, n_one_way) the one-way decouplers' torques and,
+        with slipping wraps, the wraps' bristle torques and limits wrap (B, 2, k) (the stepper's q then has
+        the pulleys' own rotations after the system's), from the stepper."""
+        if self.slip is None:
+            return self._compute(t, q, v, a, energy, reaction, clutch)
+        sl = self.slip
+        out = self._compute(t, *(system_coordinates(sl, x) for x in (q, v, a)), energy, reaction, clutch)
+        return out | self._wrap_series(t, q, v, wrap, out)
+
+    def _wrap_series(self, t, q, v, wrap, out) -> dict[str, np.ndarray]:
+        """The slipping wraps' series (module `transient_wraps`; NaN on the other pulleys) and the pulleys'
+        own rotation for pulley_angle and pulley_speed (the wrap angle is the belt's)."""
+        sysm, setup, names, sl = self.system, self.setup, self.names, self.slip
+        B, n = len(t), sysm.layout.n
+        j = sl.pulleys
+        got: dict[str, np.ndarray] = {}
+        if "pulley_angle" in names or "pulley_speed" in names:
+            s_nom, sd_nom = (nominal_rotation(setup, t)[:2] if setup.nom_scale else (np.zeros(B), np.zeros(B)))
+            ur = setup.u_nom[sl.wrap]
+            if "pulley_angle" in names:
+                got["pulley_angle"] = out["pulley_angle"].copy()
+                got["pulley_angle"][:, j] = q[:, sl.hub] + s_nom[:, None] * ur
+            if "pulley_speed" in names:
+                got["pulley_speed"] = out["pulley_speed"].copy()
+                got["pulley_speed"][:, j] = v[:, sl.hub] + sd_nom[:, None] * ur
+
+        def per_pulley(values):
+            full = np.full((B, n), np.nan)
+            full[:, j] = values
+            return full
+
+        got["slip_speed"] = per_pulley(v[:, sl.wrap] - v[:, sl.hub])
+        torque, limit = wrap[:, 0, : len(j)], wrap[:, 1, : len(j)]
+        got["wrap_torque"] = per_pulley(torque)
+        got["wrap_sliding"] = per_pulley((limit > 0.0) & (np.abs(torque) >= limit * (1.0 - 1e-9)))
+        if "slip_arc" in names:
+            speed = transport_speed(setup, t)[0]
+            t_in, t_out = pulley_tensions(out["span_tension"])
+            te, tx = entry_exit(t_in, t_out, float(np.mean(speed)))
+            c = centrifugal_tension(te, belt_density(sysm), 1.0, float(sysm.EA)) * (speed * speed)[:, None]
+            got["slip_arc"] = per_pulley(slip_arc(te[:, j], tx[:, j], sysm.pulley_friction[j], c[:, j]))
+        return got
+
+    def _compute(self, t, q, v, a, energy, reaction, clutch=None) -> dict[str, np.ndarray]:
         sysm, setup, names = self.system, self.setup, self.names
         belt = sysm.belt
         out: dict[str, np.ndarray] = {}

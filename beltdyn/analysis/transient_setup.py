@@ -81,6 +81,31 @@ def p_to_q(system: System) -> np.ndarray:
     return m
 
 
+def slipping_pulleys(system: System) -> np.ndarray:
+    """(k,) the pulleys whose wraps may slip in the transient (`transient_wraps`): creep wraps
+    (`System.wraps`, belt.wraps) and a friction value, not a decoupler's pulley (its hub carries the
+    decoupler's spring: its wrap is held sticking, `wrap_slip_notes`)."""
+    mu = system.pulley_friction
+    if (system.wraps is not None and system.wraps.kind != "creep") or mu is None:  # (None: creep)
+        return np.zeros(0, dtype=np.int64)
+    hubs = {int(c.dofs[0]) for c in decouplers_of(system.components)}
+    held = np.array([int(d) in hubs for d in system.rot_dof], dtype=bool)
+    return np.flatnonzero(np.isfinite(mu) & (mu > 0.0) & ~held).astype(np.int64)
+
+
+def wrap_slip_notes(system: System) -> tuple[str, ...]:
+    """What the transient says of wraps held sticking although they could slip: a decoupler's pulley with a
+    friction value (the split rotation of `transient_wraps` would leave the decoupler's spring on the wrap
+    angle, bypassing the wrap's friction)."""
+    mu = system.pulley_friction
+    if (system.wraps is not None and system.wraps.kind != "creep") or mu is None:
+        return ()
+    names = [c.pulley_name for c in decouplers_of(system.components)
+             if np.isfinite(mu[system.pulley_index(c.pulley_name)]) and mu[system.pulley_index(c.pulley_name)] > 0.0]
+    return tuple(f"pulley {n}: a decoupler's pulley, its wrap is held sticking in the transient (no wrap slip "
+                 f"modelled behind a decoupler)" for n in names)
+
+
 def stepper_arms(system: System):
     """integrator.Arms of the system (no arms: the identity map)."""
     from beltdyn.analysis import integrator as itg
@@ -308,6 +333,18 @@ def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
         out.append(Series(name="slip_margin", dims=("pulley",), units="1",
                           description="friction / (ln(T_tight / T_slack) / wrap) on the loaded wrap (< 1: slips; "
                                       "NaN: no friction given)"))
+    if len(slipping_pulleys(system)):  # the wraps that may slip (NaN on the others)
+        if rec.span_tension:
+            out.append(Series(name="slip_arc", dims=("pulley",), units="rad",
+                              description="capstan slip arc |ln((T_e - c)/(T_x - c))| / mu of the wrap's end tensions "
+                                          "(> wrap: the wrap slides; docs/wraps.md)"))
+        out.append(Series(name="slip_speed", dims=("pulley",), units="rad/s",
+                          description="speed of the belt on the wrap over the pulley's, psi' - theta' (0 sticking "
+                                      "but for the bristle's elastic part)"))
+        out.append(Series(name="wrap_torque", dims=("pulley",), units="N m",
+                          description="torque the belt transmits to the pulley through its wrap (the bristle's)"))
+        out.append(Series(name="wrap_sliding", dims=("pulley",), units="1",
+                          description="1 while the wrap slides at its capstan torque, 0 while it sticks"))
     if rec.midspan_displacement:
         out.append(Series(name="midspan_displacement", dims=("span",), units="m",
                           description="mid-span displacement from the chord between the span's current end points, "

@@ -46,8 +46,9 @@ class Belt:
                                              "PL, PM): EA, EI, mass per length and the effective-diameter offset")
     ribs: int | None = key(POSINT, None, doc="number of ribs of belt.section (or in its name, \"6PK\")")
     wraps: str = key(_Choice(*WRAP_MODELS), "creep",
-                     doc='the belt on the pulleys: "creep" (adhesion and slip arcs, stretched wraps) or "rigid" '
-                         "(inextensible wraps without slip)")
+                     doc='the belt on the pulleys: "creep" (adhesion and slip arcs, stretched wraps; in the transient '
+                         'a pulley with a friction value may slip, docs/wraps.md) or "rigid" (inextensible wraps '
+                         'that never slip)')
     axial_law: str = key(_Choice(*AXIAL_LAWS), "green-lagrange",
                          doc='axial force of a stretch lambda: "green-lagrange" EA (lambda^2 - 1) lambda / 2 or '
                              '"linear" EA (lambda - 1)')

@@ -190,7 +190,8 @@ class System:
         out = assemble_system(self.layout, self.dofs, self.belt, self.components + tuple(extra),
                               pulley_names=self.pulley_names, driver=self.driver, tension=self.tension,
                               gravity=self.gravity, dense=self.dense, loads=self.loads, arms=self.arms,
-                              friction=self.pulley_friction, springs=self.springs, belt_speed=self.belt_speed)
+                              friction=self.pulley_friction, springs=self.springs, belt_speed=self.belt_speed,
+                              wraps=self.wraps)
         return out
 
     def with_belt(self, **changes) -> "System":
