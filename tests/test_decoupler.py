@@ -227,16 +227,18 @@ def test_the_oad_example_runs_up_from_idle(tmp_path):
 
 
 def test_the_bsg_example_swaps_the_tight_and_slack_spans(tmp_path):
-    """configs/examples/fead_bsg.toml, its first 0.12 s: generating at the start, BSG-TEN (the span the BSG
+    """configs/examples/fead_bsg.toml, its first 0.3 s: generating at the start, BSG-TEN (the span the BSG
     pulls in) is tighter than AC-BSG by the torque over the radius, 5 / 0.032 = 156 N (the capstan balance
-    of the static, 1e-3); motoring at 0.09-0.12 s, AC-BSG is the tighter one."""
-    g = _cli_transient(tmp_path, "fead_bsg", 0.12)
+    of the static, 1e-3); motoring (+5 N m net once the boost is faded in at 0.15 s), AC-BSG is the tighter
+    one by the same 156 N on average over 0.15-0.3 s (four periods of the order-2 firing pulse at idle,
+    26.7 Hz, about which the drive rings: within 3 %; measured 1.7 % with creep wraps, 0.2 % rigid)."""
+    g = _cli_transient(tmp_path, "fead_bsg", 0.3)
     spans = [s.decode() for s in g["span"]]
     T = g["span_tension"].mean(axis=2)
     pull, push = spans.index("BSG-TEN"), spans.index("AC-BSG")
     assert T[0, pull] - T[0, push] == pytest.approx(5.0 / 0.032, rel=1e-3)
-    late = g["time"] >= 0.09
-    assert np.all(T[late, push] > T[late, pull])
+    late = (g["time"] >= 0.15) & (g["time"] <= 0.3)
+    assert np.mean(T[late, push] - T[late, pull]) == pytest.approx(5.0 / 0.032, rel=3e-2)
 
 
 def test_a_resumed_run_continues_the_clutch_where_it_was():
