@@ -8,9 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from beltdyn.model.decouplers import decouplers_of
-from beltdyn.model.slip import belt_density, drive_centrifugal_tension, pulley_tensions, required_friction, slip_margin
+from beltdyn.model.slip import drive_centrifugal_tension, pulley_tensions, required_friction, slip_margin
 from beltdyn.model.system import System
-from beltdyn.model.wraps import centrifugal_tension, entry_exit, slip_arc
+from beltdyn.model.wraps import entry_exit, slip_arc
 from beltdyn.analysis.transient_setup import TransientSetup, nominal_rotation, transport_speed
 from beltdyn.analysis.transient_wraps import system_coordinates
 
@@ -160,8 +160,10 @@ class Observers:
             speed = transport_speed(setup, t)[0]
             t_in, t_out = pulley_tensions(out["span_tension"])
             te, tx = entry_exit(t_in, t_out, float(np.mean(speed)))
-            c = centrifugal_tension(te, belt_density(sysm), 1.0, float(sysm.EA)) * (speed * speed)[:, None]
-            got["slip_arc"] = per_pulley(slip_arc(te[:, j], tx[:, j], sysm.pulley_friction[j], c[:, j]))
+            # the slip margin's centrifugal part (the static's: one c of the drive, at its mean tension)
+            c = drive_centrifugal_tension(sysm, speed, out["span_tension"].mean(axis=(1, 2)))
+            got["slip_arc"] = per_pulley(slip_arc(te[:, j], tx[:, j], sysm.pulley_friction[j],
+                                                  np.asarray(c, dtype=float).reshape(-1, 1)))
         return got
 
     def _compute(self, t, q, v, a, energy, reaction, clutch=None) -> dict[str, np.ndarray]:
