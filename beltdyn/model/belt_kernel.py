@@ -178,6 +178,33 @@ def _axial_coefficients(wEA, A, law):
     return 0.5 * wEA * (A - 1.0), wEA
 
 
+@njit(inline="always", **KERNEL)
+def _kronecker_blocks(dS, k, nq, cf, row, out):
+    """out[k] (8, 8) = sum_g (c_g (x) D_g D_g^T), both triangles: the 2 x 2 block of shape functions
+    (a, b) is sum_g D_ga D_gb [[cxx, cxy], [cxy, cyy]]_g, with cxx, cxy, cyy = cf[row], cf[row + 1],
+    cf[row + 2] (nq,) the Gauss-point coefficients of element k (an axial stiffness or damping matrix:
+    `element_forces_tangent`, `element_damping_matrix`)."""
+    for a in range(4):
+        for b in range(a, 4):
+            kxx = 0.0
+            kxy = 0.0
+            kyy = 0.0
+            for g in range(nq):
+                DD = dS[k, g, a] * dS[k, g, b]
+                kxx += cf[row, g] * DD
+                kxy += cf[row + 1, g] * DD
+                kyy += cf[row + 2, g] * DD
+            out[k, 2 * a, 2 * b] = kxx
+            out[k, 2 * a, 2 * b + 1] = kxy
+            out[k, 2 * a + 1, 2 * b] = kxy
+            out[k, 2 * a + 1, 2 * b + 1] = kyy
+            if b > a:
+                out[k, 2 * b, 2 * a] = kxx
+                out[k, 2 * b + 1, 2 * a] = kxy
+                out[k, 2 * b, 2 * a + 1] = kxy
+                out[k, 2 * b + 1, 2 * a + 1] = kyy
+
+
 @njit(**KERNEL)
 def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f, law=0):
     """f (n, 8) = dU/de at E (n, 8), as `ancf.internal_forces` (Eq. 14 + Eq. 17 or Eq. 16; law: the
@@ -267,24 +294,7 @@ def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K, work, law=
                 fy += dS[k, g, a] * cf[1, g]
             f[k, 2 * a] = fx
             f[k, 2 * a + 1] = fy
-            for b in range(a, 4):
-                kxx = 0.0
-                kxy = 0.0
-                kyy = 0.0
-                for g in range(nq):
-                    DD = dS[k, g, a] * dS[k, g, b]
-                    kxx += cf[2, g] * DD
-                    kxy += cf[3, g] * DD
-                    kyy += cf[4, g] * DD
-                K[k, 2 * a, 2 * b] = kxx
-                K[k, 2 * a, 2 * b + 1] = kxy
-                K[k, 2 * a + 1, 2 * b] = kxy
-                K[k, 2 * a + 1, 2 * b + 1] = kyy
-                if b > a:
-                    K[k, 2 * b, 2 * a] = kxx
-                    K[k, 2 * b + 1, 2 * a] = kxy
-                    K[k, 2 * b, 2 * a + 1] = kxy
-                    K[k, 2 * b + 1, 2 * a + 1] = kyy
+        _kronecker_blocks(dS, k, nq, cf, 2, K)
         if curvature == _LINEAR:
             for i in range(8):
                 fi = 0.0
@@ -396,25 +406,7 @@ def element_damping_matrix(E, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C,
                     D2 = d2S[k, g, a]
                     gc[g, 2 * a] = D * py - D2 * ry
                     gc[g, 2 * a + 1] = D2 * rx - D * px
-        for a in range(4):
-            for b in range(a, 4):
-                kxx = 0.0
-                kxy = 0.0
-                kyy = 0.0
-                for g in range(nq):
-                    DD = dS[k, g, a] * dS[k, g, b]
-                    kxx += cf[0, g] * DD
-                    kxy += cf[1, g] * DD
-                    kyy += cf[2, g] * DD
-                C[k, 2 * a, 2 * b] = kxx
-                C[k, 2 * a, 2 * b + 1] = kxy
-                C[k, 2 * a + 1, 2 * b] = kxy
-                C[k, 2 * a + 1, 2 * b + 1] = kyy
-                if b > a:
-                    C[k, 2 * b, 2 * a] = kxx
-                    C[k, 2 * b + 1, 2 * a] = kxy
-                    C[k, 2 * b, 2 * a + 1] = kxy
-                    C[k, 2 * b + 1, 2 * a + 1] = kyy
+        _kronecker_blocks(dS, k, nq, cf, 0, C)
         if curvature == _LINEAR and eta_b != 0.0:
             for i in range(8):
                 for j in range(i, 8):
