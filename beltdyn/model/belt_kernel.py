@@ -179,6 +179,22 @@ def _axial_coefficients(wEA, A, law):
 
 
 @njit(inline="always", **KERNEL)
+def _add_gauss_force(out, k, g, dS, d2S, s, u, rx, ry, px, py, bend):
+    """out[k] (8,) += the Gauss point g's part of an element force: s G + u gc (bend) or s G, with
+    G = D (x) r' the axial gradient and gc = D (x) (r''_y, -r''_x) + D2 (x) (-r'_y, r'_x) the
+    curvature's (`element_forces`: s = wEA eps, u = wEI c / A^3; `element_damping`: their rates)."""
+    for a in range(4):
+        D = dS[k, g, a]
+        if bend:
+            D2 = d2S[k, g, a]
+            out[k, 2 * a] += s * D * rx + u * (D * py - D2 * ry)
+            out[k, 2 * a + 1] += s * D * ry + u * (D2 * rx - D * px)
+        else:
+            out[k, 2 * a] += s * D * rx
+            out[k, 2 * a + 1] += s * D * ry
+
+
+@njit(inline="always", **KERNEL)
 def _kronecker_blocks(dS, k, nq, cf, row, out):
     """out[k] (8, 8) = sum_g (c_g (x) D_g D_g^T), both triangles: the 2 x 2 block of shape functions
     (a, b) is sum_g D_ga D_gb [[cxx, cxy], [cxy, cyy]]_g, with cxx, cxy, cyy = cf[row], cf[row + 1],
@@ -223,16 +239,9 @@ def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f, law=0):
                 iA = 1.0 / A
                 uc = wEI[k, g] * c * (iA * iA * iA)
                 s -= 3.0 * uc * c * iA  # + 2 u_A (gA = 2 G)
-                for a in range(4):
-                    D = dS[k, g, a]
-                    D2 = d2S[k, g, a]
-                    f[k, 2 * a] += s * D * rx + uc * (D * py - D2 * ry)
-                    f[k, 2 * a + 1] += s * D * ry + uc * (D2 * rx - D * px)
+                _add_gauss_force(f, k, g, dS, d2S, s, uc, rx, ry, px, py, True)
             else:
-                for a in range(4):
-                    D = dS[k, g, a]
-                    f[k, 2 * a] += s * D * rx
-                    f[k, 2 * a + 1] += s * D * ry
+                _add_gauss_force(f, k, g, dS, d2S, s, 0.0, rx, ry, 0.0, 0.0, False)
         if curvature == _LINEAR:
             for i in range(8):
                 acc = 0.0
@@ -359,16 +368,9 @@ def element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd):
                     A = rx * rx + ry * ry
                     cdot = vx * py - vy * px + rx * wy - ry * wx  # gc . Ed
                     sb = eta_b * wEI[k, g] * cdot / (A * A * A)
-                    for a in range(4):
-                        D = dS[k, g, a]
-                        D2 = d2S[k, g, a]
-                        fd[k, 2 * a] += sa * D * rx + sb * (D * py - D2 * ry)
-                        fd[k, 2 * a + 1] += sa * D * ry + sb * (D2 * rx - D * px)
+                    _add_gauss_force(fd, k, g, dS, d2S, sa, sb, rx, ry, px, py, True)
                 else:
-                    for a in range(4):
-                        D = dS[k, g, a]
-                        fd[k, 2 * a] += sa * D * rx
-                        fd[k, 2 * a + 1] += sa * D * ry
+                    _add_gauss_force(fd, k, g, dS, d2S, sa, 0.0, rx, ry, 0.0, 0.0, False)
     if curvature == _LINEAR and eta_b != 0.0:
         for k in range(n):
             for i in range(8):
