@@ -178,6 +178,49 @@ def _axial_coefficients(wEA, A, law):
     return 0.5 * wEA * (A - 1.0), wEA
 
 
+@njit(inline="always", **KERNEL)
+def _add_gauss_force(out, k, g, dS, d2S, s, u, rx, ry, px, py, bend):
+    """out[k] (8,) += the Gauss point g's part of an element force: s G + u gc (bend) or s G, with
+    G = D (x) r' the axial gradient and gc = D (x) (r''_y, -r''_x) + D2 (x) (-r'_y, r'_x) the
+    curvature's (`element_forces`: s = wEA eps, u = wEI c / A^3; `element_damping`: their rates)."""
+    for a in range(4):
+        D = dS[k, g, a]
+        if bend:
+            D2 = d2S[k, g, a]
+            out[k, 2 * a] += s * D * rx + u * (D * py - D2 * ry)
+            out[k, 2 * a + 1] += s * D * ry + u * (D2 * rx - D * px)
+        else:
+            out[k, 2 * a] += s * D * rx
+            out[k, 2 * a + 1] += s * D * ry
+
+
+@njit(inline="always", **KERNEL)
+def _kronecker_blocks(dS, k, nq, cf, row, out):
+    """out[k] (8, 8) = sum_g (c_g (x) D_g D_g^T), both triangles: the 2 x 2 block of shape functions
+    (a, b) is sum_g D_ga D_gb [[cxx, cxy], [cxy, cyy]]_g, with cxx, cxy, cyy = cf[row], cf[row + 1],
+    cf[row + 2] (nq,) the Gauss-point coefficients of element k (an axial stiffness or damping matrix:
+    `element_forces_tangent`, `element_damping_matrix`)."""
+    for a in range(4):
+        for b in range(a, 4):
+            kxx = 0.0
+            kxy = 0.0
+            kyy = 0.0
+            for g in range(nq):
+                DD = dS[k, g, a] * dS[k, g, b]
+                kxx += cf[row, g] * DD
+                kxy += cf[row + 1, g] * DD
+                kyy += cf[row + 2, g] * DD
+            out[k, 2 * a, 2 * b] = kxx
+            out[k, 2 * a, 2 * b + 1] = kxy
+            out[k, 2 * a + 1, 2 * b] = kxy
+            out[k, 2 * a + 1, 2 * b + 1] = kyy
+            if b > a:
+                out[k, 2 * b, 2 * a] = kxx
+                out[k, 2 * b + 1, 2 * a] = kxy
+                out[k, 2 * b, 2 * a + 1] = kxy
+                out[k, 2 * b + 1, 2 * a + 1] = kyy
+
+
 @njit(**KERNEL)
 def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f, law=0):
     """f (n, 8) = dU/de at E (n, 8), as `ancf.internal_forces` (Eq. 14 + Eq. 17 or Eq. 16; law: the
@@ -196,16 +239,9 @@ def element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, f, law=0):
                 iA = 1.0 / A
                 uc = wEI[k, g] * c * (iA * iA * iA)
                 s -= 3.0 * uc * c * iA  # + 2 u_A (gA = 2 G)
-                for a in range(4):
-                    D = dS[k, g, a]
-                    D2 = d2S[k, g, a]
-                    f[k, 2 * a] += s * D * rx + uc * (D * py - D2 * ry)
-                    f[k, 2 * a + 1] += s * D * ry + uc * (D2 * rx - D * px)
+                _add_gauss_force(f, k, g, dS, d2S, s, uc, rx, ry, px, py, True)
             else:
-                for a in range(4):
-                    D = dS[k, g, a]
-                    f[k, 2 * a] += s * D * rx
-                    f[k, 2 * a + 1] += s * D * ry
+                _add_gauss_force(f, k, g, dS, d2S, s, 0.0, rx, ry, 0.0, 0.0, False)
         if curvature == _LINEAR:
             for i in range(8):
                 acc = 0.0
@@ -267,24 +303,7 @@ def element_forces_tangent(E, dS, d2S, wEA, wEI, Kb, curvature, f, K, work, law=
                 fy += dS[k, g, a] * cf[1, g]
             f[k, 2 * a] = fx
             f[k, 2 * a + 1] = fy
-            for b in range(a, 4):
-                kxx = 0.0
-                kxy = 0.0
-                kyy = 0.0
-                for g in range(nq):
-                    DD = dS[k, g, a] * dS[k, g, b]
-                    kxx += cf[2, g] * DD
-                    kxy += cf[3, g] * DD
-                    kyy += cf[4, g] * DD
-                K[k, 2 * a, 2 * b] = kxx
-                K[k, 2 * a, 2 * b + 1] = kxy
-                K[k, 2 * a + 1, 2 * b] = kxy
-                K[k, 2 * a + 1, 2 * b + 1] = kyy
-                if b > a:
-                    K[k, 2 * b, 2 * a] = kxx
-                    K[k, 2 * b + 1, 2 * a] = kxy
-                    K[k, 2 * b, 2 * a + 1] = kxy
-                    K[k, 2 * b + 1, 2 * a + 1] = kyy
+        _kronecker_blocks(dS, k, nq, cf, 2, K)
         if curvature == _LINEAR:
             for i in range(8):
                 fi = 0.0
@@ -349,16 +368,9 @@ def element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd):
                     A = rx * rx + ry * ry
                     cdot = vx * py - vy * px + rx * wy - ry * wx  # gc . Ed
                     sb = eta_b * wEI[k, g] * cdot / (A * A * A)
-                    for a in range(4):
-                        D = dS[k, g, a]
-                        D2 = d2S[k, g, a]
-                        fd[k, 2 * a] += sa * D * rx + sb * (D * py - D2 * ry)
-                        fd[k, 2 * a + 1] += sa * D * ry + sb * (D2 * rx - D * px)
+                    _add_gauss_force(fd, k, g, dS, d2S, sa, sb, rx, ry, px, py, True)
                 else:
-                    for a in range(4):
-                        D = dS[k, g, a]
-                        fd[k, 2 * a] += sa * D * rx
-                        fd[k, 2 * a + 1] += sa * D * ry
+                    _add_gauss_force(fd, k, g, dS, d2S, sa, 0.0, rx, ry, 0.0, 0.0, False)
     if curvature == _LINEAR and eta_b != 0.0:
         for k in range(n):
             for i in range(8):
@@ -396,25 +408,7 @@ def element_damping_matrix(E, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, C,
                     D2 = d2S[k, g, a]
                     gc[g, 2 * a] = D * py - D2 * ry
                     gc[g, 2 * a + 1] = D2 * rx - D * px
-        for a in range(4):
-            for b in range(a, 4):
-                kxx = 0.0
-                kxy = 0.0
-                kyy = 0.0
-                for g in range(nq):
-                    DD = dS[k, g, a] * dS[k, g, b]
-                    kxx += cf[0, g] * DD
-                    kxy += cf[1, g] * DD
-                    kyy += cf[2, g] * DD
-                C[k, 2 * a, 2 * b] = kxx
-                C[k, 2 * a, 2 * b + 1] = kxy
-                C[k, 2 * a + 1, 2 * b] = kxy
-                C[k, 2 * a + 1, 2 * b + 1] = kyy
-                if b > a:
-                    C[k, 2 * b, 2 * a] = kxx
-                    C[k, 2 * b + 1, 2 * a] = kxy
-                    C[k, 2 * b, 2 * a + 1] = kxy
-                    C[k, 2 * b + 1, 2 * a + 1] = kyy
+        _kronecker_blocks(dS, k, nq, cf, 0, C)
         if curvature == _LINEAR and eta_b != 0.0:
             for i in range(8):
                 for j in range(i, 8):
