@@ -9,6 +9,7 @@ import numpy as np
 from beltdyn.model.angles import pivot_angle, unwrap_near
 from beltdyn.model.geometry import belt_path, relay
 from beltdyn.model.system import System
+from beltdyn.model.wraps import centrifugal_tension
 
 
 def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_tension) -> np.ndarray:
@@ -19,7 +20,8 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
     pull T_j t_j - T_(j-1) t_(j-1) of that layout and the weight on its DOFs (`gravity_force`, the
     pulley's and its share of the belt's), every sprung tensioner arm (but the adjusting one) turned
     until its spring balances the moment of that pull about its pivot (secant on the arm angle, on the
-    branch of the layout's angle).
+    branch of the layout's angle). On a running belt (system.belt_speed) each span pulls with its
+    tension less the centrifugal part rho v^2 lambda(T) (`analysis.running`).
     A fixed point over layouts (cheap geometry); the static passes correct what it leaves out (sag,
     bending, the arms' weight)."""
 
@@ -43,9 +45,18 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
     if not anchored and not arms and fit is not None:  # nothing deflects: the fit alone places the pulleys
         return fit(centers).center
 
+    v = float(system.belt_speed)
+    wm = system.wraps
+    rho_v2 = 0.0 if not v or wm is None else wm.mass_per_length * v * v  # rho v^2 (N) of the running belt
+
     def pull(lay, at: int | None = None) -> np.ndarray:
-        """The belt's pull T_j t_j - T_(j-1) t_(j-1) on every pulley j (n, 2), or on pulley `at` alone (2,)."""
-        f = span_tension(lay.span_angle, lay.span_length)[:, None] * lay.span_direction
+        """The belt's pull on every pulley j (n, 2), or on pulley `at` alone (2,): T_j t_j - T_(j-1) t_(j-1)
+        less the centrifugal part rho v^2 lambda(T) of each span's tension on a running belt (the hub
+        loads of `analysis.running`)."""
+        T = span_tension(lay.span_angle, lay.span_length)
+        if rho_v2:
+            T = T - centrifugal_tension(T, wm.mass_per_length, v, wm.EA, wm.stretch)
+        f = T[:, None] * lay.span_direction
         j = np.arange(len(f)) if at is None else at
         return f[j] - f[j - 1]  # (span j - 1 arrives at pulley j; index -1 is the last span)
 

@@ -224,7 +224,8 @@ def _span_tension_law(plan: _Plan, split: np.ndarray):
 
         def span_tension(angle: np.ndarray, length: np.ndarray) -> np.ndarray:
             ref = carried_lengths(lay0.span_angle, angle, steps0, ref0, lay0.span_name)
-            wraps = None if plan.material is None else wrap_budget(system.wraps, lay0.radius, turned_wraps(lay0, angle))
+            wraps = None if plan.material is None else wrap_budget(system.wraps, lay0.radius, turned_wraps(lay0, angle),
+                                                                     system.belt_speed)
             T, slip[0] = settled_budget(length, split, float(ref.sum()), EA, law=plan.law, wraps=wraps,
                                         start=slip[0])  # the pulleys unturned (settled; creep wraps at rest)
             return T

@@ -17,7 +17,7 @@ from beltdyn.config import StaticOptions
 from beltdyn.errors import SolverError
 from beltdyn.model.angles import wrap_angle
 from beltdyn.model.barlaw import BarLaw, axial_force, axial_stiffness, bar_law, stretch_for_tension, stretch_start
-from beltdyn.model.wraps import WrapModel, slip_part, wrap_lengths
+from beltdyn.model.wraps import WrapModel, centrifugal_tension, slip_part, wrap_lengths
 
 GREEN = bar_law("green-lagrange")
 
@@ -176,6 +176,11 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
     L = np.asarray(lengths, dtype=float)
     sp = np.asarray(split, dtype=float)
     total = float(total_reference)
+    weight = L / float(L.sum())  # the spans' share of the mean tension (the drive's centrifugal tension's)
+
+    def mean_tension(T_ref: float) -> float:
+        return T_ref + float(weight @ sp)
+
     if wraps is not None:
         L = L + wraps.entry_arc
         total += wraps.arc_total
@@ -189,7 +194,7 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
     if model is not None:
         T_ref, lam = _budget_newton(L, sp, total - model[1] + model[2] * model[0], model[2], T_ref, lam, EA, law)
     for _ in range(8):  # the slip part evaluated, the budget solved with it linear in T_ref
-        d_now = float(wraps.slip_part(T_ref + sp))
+        d_now = float(wraps.slip_part(T_ref + sp, mean_tension(T_ref)))
         if model is not None:
             t0, d0, d_slope = model
             if abs(d_now - (d0 + d_slope * (T_ref - t0))) <= 1e-14 * total:  # (~ 1e-14 EA: far below the statics')
@@ -229,20 +234,26 @@ class WrapBudget:
     wrap: np.ndarray  # rad, their wrap angles
     entry_arc: np.ndarray  # m, R beta of the wrap each span enters (the next pulley's, the belt running along the spans)
     arc_total: float  # m, sum R beta
+    belt_speed: float = 0.0  # m/s, the running belt's (0 at rest)
 
-    def slip_part(self, T: np.ndarray) -> float:
+    def slip_part(self, T: np.ndarray, mean_tension: float) -> float:
         """delta (m): the wraps' stress-free total less sum_j R_j beta_j / lambda(T_e,j) at the span
-        tensions T (n,) (`model.wraps.slip_part`): what the slip arcs add to the adhesion stretch."""
-        return slip_part(self.wraps, span_tension=T, radius=self.radius, wrap=self.wrap)
+        tensions T (n,) (`model.wraps.slip_part`): what the slip arcs add to the adhesion stretch, with the
+        drive's centrifugal tension rho v^2 lambda(mean_tension) in the slip arcs (as the static result's)."""
+        wm = self.wraps
+        c = centrifugal_tension(mean_tension, wm.mass_per_length, self.belt_speed, wm.EA, wm.stretch)
+        return slip_part(wm, span_tension=T, radius=self.radius, wrap=self.wrap, centrifugal=float(c))
 
 
-def wrap_budget(wraps: WrapModel | None, radius: np.ndarray, wrap: np.ndarray) -> WrapBudget | None:
-    """The `WrapBudget` of creep wraps of radii and wrap angles (n,) (None for rigid wraps)."""
+def wrap_budget(wraps: WrapModel | None, radius: np.ndarray, wrap: np.ndarray,
+                belt_speed: float = 0.0) -> WrapBudget | None:
+    """The `WrapBudget` of creep wraps of radii and wrap angles (n,) at belt_speed (m/s) (None for rigid
+    wraps)."""
     if wraps is None or wraps.kind == "rigid":
         return None
     arc = np.asarray(radius, dtype=float) * np.asarray(wrap, dtype=float)
     return WrapBudget(wraps=wraps, radius=np.asarray(radius, dtype=float), wrap=np.asarray(wrap, dtype=float),
-                      entry_arc=np.roll(arc, -1), arc_total=float(arc.sum()))
+                      entry_arc=np.roll(arc, -1), arc_total=float(arc.sum()), belt_speed=float(belt_speed))
 
 
 def wrap_budget_change(wraps: WrapModel | None, layout, belt_speed: float = 0.0, centrifugal: float = 0.0):
