@@ -240,7 +240,7 @@ def slip_part(wm: WrapModel, *, span_tension: np.ndarray, radius: np.ndarray, wr
     centrifugal tension c (N; 0 at rest) in the slip arcs as in `wrap_state`; 0 where a span is slack
     (T - c <= 0: no capstan law holds; the predictor's trial layouts only)."""
     T = np.asarray(span_tension, dtype=float)
-    te = np.roll(T, 1)
+    te = np.concatenate((T[-1:], T[:-1]))  # (np.roll(T, 1) without its cost)
     c = float(centrifugal)
     if wm.kind == "rigid" or not (T - c > 0.0).all():
         return 0.0  # (a slack span: no capstan profile; the statics' predictor meets it only on trial layouts)
@@ -252,5 +252,6 @@ def slip_part(wm: WrapModel, *, span_tension: np.ndarray, radius: np.ndarray, wr
         return 0.0
     a, b, phi = te[k], T[k], np.minimum(phi[k], wrap[k])
     profile = c + (a - c)[:, None] * ((b - c) / (a - c))[:, None] ** _XI[None, :]  # T(phi) at the quadrature points
-    inner = (_W[None, :] / wm.stretch(profile, wm.EA)).sum(axis=1) - 1.0 / wm.stretch(a, wm.EA)
+    stretch = wm.stretch
+    inner = (_W[None, :] / stretch(profile, wm.EA)).sum(axis=1) - 1.0 / stretch(a, wm.EA)
     return float((radius[k] * phi * inner).sum())

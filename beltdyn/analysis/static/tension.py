@@ -253,7 +253,7 @@ def wrap_budget(wraps: WrapModel | None, radius: np.ndarray, wrap: np.ndarray,
         return None
     arc = np.asarray(radius, dtype=float) * np.asarray(wrap, dtype=float)
     return WrapBudget(wraps=wraps, radius=np.asarray(radius, dtype=float), wrap=np.asarray(wrap, dtype=float),
-                      entry_arc=np.roll(arc, -1), arc_total=float(arc.sum()), belt_speed=float(belt_speed))
+                      entry_arc=np.concatenate((arc[1:], arc[:1])), arc_total=float(arc.sum()), belt_speed=float(belt_speed))
 
 
 def wrap_budget_change(wraps: WrapModel | None, layout, belt_speed: float = 0.0, centrifugal: float = 0.0):
@@ -274,7 +274,7 @@ def turned_wraps(layout, span_angle: np.ndarray) -> np.ndarray:
     moved, `carried_reference`): pulley j's wrap grows by sign_j (dpsi_j - dpsi_(j-1)), dpsi_s the turn of
     span s, sign = orientation x side (the arc rho_j dpsi the spans hand over at its two tangent points)."""
     turn = wrap_angle(np.asarray(span_angle, dtype=float) - layout.span_angle)
-    return layout.wrap_angle + layout.orientation * layout.side_sign * (turn - np.roll(turn, 1))
+    return layout.wrap_angle + layout.orientation * layout.side_sign * (turn - np.concatenate((turn[-1:], turn[:-1])))
 
 
 def budget_excess(system, static, material: float, tolerance: float) -> tuple[float, float] | None:
