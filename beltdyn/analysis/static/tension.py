@@ -157,12 +157,13 @@ def settled_tension(lengths: np.ndarray, split: np.ndarray, total_reference: flo
     return settled_budget(lengths, split, total_reference, EA, law=law, wraps=wraps)[0]
 
 
+SLIP_EVALUATIONS = 8  # `settled_budget`: evaluations of the slip part at most
 SlipModel = tuple[float, float, float]  # (T_ref, delta, d delta / d T_ref): the slip part held linear in T_ref
 
 
 def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: float, EA: float, *,
-                   law: BarLaw = GREEN, wraps: "WrapBudget | None" = None, start: SlipModel | None = None
-                   ) -> tuple[np.ndarray, SlipModel | None]:
+                   law: BarLaw = GREEN, wraps: "WrapBudget | None" = None, start: SlipModel | None = None,
+                   evaluations: int = SLIP_EVALUATIONS) -> tuple[np.ndarray, SlipModel | None]:
     """(T (n,), slip model) of `settled_tension`. With creep wraps (`WrapBudget`) the wraps' stress-free
     length takes the place of their arc length in the budget,
 
@@ -172,7 +173,9 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
     part (`WrapBudget.slip_part`): delta is held linear in T_ref over an inner Newton solve (its slope the
     secant of its evaluations; `start` a model of a nearby solve, else delta at the first iterate with
     slope 0) and evaluated again at the result until it meets the model to 1e-14 of the belt's length.
-    The slip model returned starts the next solve of a nearby layout (None without creep wraps)."""
+    The slip model returned starts the next solve of a nearby layout (None without creep wraps).
+    evaluations: at most so many evaluations of delta (1: a rough value, the budget solved once with delta
+    refreshed at the start's answer; for a trial far from its answer, the statics' predictor's secant)."""
     L = np.asarray(lengths, dtype=float)
     sp = np.asarray(split, dtype=float)
     total = float(total_reference)
@@ -193,7 +196,7 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
     model = start  # (T_ref, delta, d delta / d T_ref) the inner solve holds delta to
     if model is not None:
         T_ref, lam = _budget_newton(L, sp, total - model[1] + model[2] * model[0], model[2], T_ref, lam, EA, law)
-    for _ in range(8):  # the slip part evaluated, the budget solved with it linear in T_ref
+    for _ in range(evaluations):  # the slip part evaluated, the budget solved with it linear in T_ref
         d_now = float(wraps.slip_part(T_ref + sp, mean_tension(T_ref)))
         if model is not None:
             t0, d0, d_slope = model
