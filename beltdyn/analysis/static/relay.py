@@ -223,13 +223,16 @@ def _span_tension_law(plan: _Plan, split: np.ndarray):
     if plan.conserve and ts.mode != "adjust":
         EA, ref0, steps0 = float(system.EA), system.belt.reference_length, radius_steps(lay0)
         slip: list = [None]  # creep wraps: the slip model of the last call (`settled_budget`), the next one's start
+        wm, v = system.wraps, float(system.belt_speed)
+        rho_v2 = 0.0 if wm is None or not v else wm.mass_per_length * v * v  # the running belt's rho v^2 (N)
 
         def span_tension(angle: np.ndarray, length: np.ndarray, rough: bool = False) -> np.ndarray:
             ref = carried_lengths(lay0.span_angle, angle, steps0, ref0, lay0.span_name)
             wraps = None if plan.material is None else wrap_budget(system.wraps, lay0.radius, turned_wraps(lay0, angle),
                                                                      system.belt_speed)
             T, slip[0] = settled_budget(length, split, float(ref.sum()), EA, law=plan.law, wraps=wraps,
-                                        start=slip[0], evaluations=1 if rough else SLIP_EVALUATIONS)  # (pulleys unturned)
+                                        start=slip[0], evaluations=1 if rough else SLIP_EVALUATIONS,
+                                        centrifugal=rho_v2)  # (the pulleys unturned)
             return T
         return span_tension
     return None

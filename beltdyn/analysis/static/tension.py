@@ -163,7 +163,8 @@ SlipModel = tuple[float, float, float]  # (T_ref, delta, d delta / d T_ref): the
 
 def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: float, EA: float, *,
                    law: BarLaw = GREEN, wraps: "WrapBudget | None" = None, start: SlipModel | None = None,
-                   evaluations: int = SLIP_EVALUATIONS) -> tuple[np.ndarray, SlipModel | None]:
+                   evaluations: int = SLIP_EVALUATIONS, centrifugal: float = 0.0
+                   ) -> tuple[np.ndarray, SlipModel | None]:
     """(T (n,), slip model) of `settled_tension`. With creep wraps (`WrapBudget`) the wraps' stress-free
     length takes the place of their arc length in the budget,
 
@@ -175,14 +176,19 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
     slope 0) and evaluated again at the result until it meets the model to 1e-14 of the belt's length.
     The slip model returned starts the next solve of a nearby layout (None without creep wraps).
     evaluations: at most so many evaluations of delta (1: a rough value, the budget solved once with delta
-    refreshed at the start's answer; for a trial far from its answer, the statics' predictor's secant)."""
+    refreshed at the start's answer; for a trial far from its answer, the statics' predictor's secant).
+    centrifugal: rho v^2 (N) of a running belt: the split then holds between the tensions less their
+    centrifugal parts, T_s - rho v^2 lambda_s = T_ref + split_s (the pulleys' torque balance on the hub
+    loads, `analysis.running`); 0 at rest."""
     L = np.asarray(lengths, dtype=float)
     sp = np.asarray(split, dtype=float)
     total = float(total_reference)
     weight = L / float(L.sum())  # the spans' share of the mean tension (the drive's centrifugal tension's)
 
-    def mean_tension(T_ref: float) -> float:
-        return T_ref + float(weight @ sp)
+    rv2 = float(centrifugal)
+
+    def tension(T_ref: float, lam: np.ndarray) -> np.ndarray:
+        return T_ref + sp + rv2 * lam if rv2 else T_ref + sp
 
     if wraps is not None:
         L = L + wraps.entry_arc
@@ -192,33 +198,40 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
         T_ref = start[0]  # (a nearby solve's)
     lam = law.stretch_for_tension(T_ref + sp, EA)
     if wraps is None:
-        return _budget_newton(L, sp, total, 0.0, T_ref, lam, EA, law)[0] + sp, None
+        T_ref, lam = _budget_newton(L, sp, total, 0.0, T_ref, lam, EA, law, rv2)
+        return tension(T_ref, lam), None
     model = start  # (T_ref, delta, d delta / d T_ref) the inner solve holds delta to
     if model is not None:
-        T_ref, lam = _budget_newton(L, sp, total - model[1] + model[2] * model[0], model[2], T_ref, lam, EA, law)
+        T_ref, lam = _budget_newton(L, sp, total - model[1] + model[2] * model[0], model[2], T_ref, lam, EA, law,
+                                    rv2)
     for _ in range(evaluations):  # the slip part evaluated, the budget solved with it linear in T_ref
-        d_now = float(wraps.slip_part(T_ref + sp, mean_tension(T_ref)))
+        T = tension(T_ref, lam)
+        d_now = float(wraps.slip_part(T, float(weight @ T)))
         if model is not None:
             t0, d0, d_slope = model
             if abs(d_now - (d0 + d_slope * (T_ref - t0))) <= 1e-14 * total:  # (~ 1e-14 EA: far below the statics')
-                return T_ref + sp, (T_ref, d_now, d_slope)
+                return T, (T_ref, d_now, d_slope)
             d_slope = (d_now - d0) / (T_ref - t0) if T_ref != t0 else d_slope
         else:
             d_slope = 0.0  # (a fixed-point step first: delta changes slowly with T_ref)
         model = (T_ref, d_now, d_slope)
-        T_ref, lam = _budget_newton(L, sp, total - d_now + d_slope * T_ref, d_slope, T_ref, lam, EA, law)
+        T_ref, lam = _budget_newton(L, sp, total - d_now + d_slope * T_ref, d_slope, T_ref, lam, EA, law, rv2)
         if d_now == 0.0 and not sp.any():  # equal tensions: no slip arc at any T_ref
             break
-    return T_ref + sp, model
+    return tension(T_ref, lam), model
 
 
 def _budget_newton(L: np.ndarray, sp: np.ndarray, total: float, d_slope: float, T_ref: float, lam: np.ndarray,
-                   EA: float, law: BarLaw) -> tuple[float, np.ndarray]:
-    """(T_ref, lambda (n,)) with sum_s L_s / lambda(T_ref + split_s) + d_slope T_ref = total (Newton, each
-    stretch first stepped to its span's tension: one Newton step on the bar law)."""
+                   EA: float, law: BarLaw, centrifugal: float = 0.0) -> tuple[float, np.ndarray]:
+    """(T_ref, lambda (n,)) with sum_s L_s / lambda_s + d_slope T_ref = total, N(lambda_s) - rho v^2 lambda_s =
+    T_ref + split_s (N the bar law, rho v^2 = centrifugal: 0 at rest) (Newton, each stretch first stepped
+    to its span's tension: one Newton step on the bar law)."""
     for _ in range(60):
         k = law.axial_stiffness(lam, EA)  # dT/dlambda
-        d = (law.axial_force(lam, EA) - (T_ref + sp)) / k
+        N = law.axial_force(lam, EA)
+        if centrifugal:
+            k, N = k - centrifugal, N - centrifugal * lam
+        d = (N - (T_ref + sp)) / k
         lam = lam - d
         f = float((L / lam).sum()) + d_slope * T_ref - total
         step = f / (d_slope - float((L / (lam * lam * k)).sum()))  # f / (d f / d T_ref)
