@@ -183,7 +183,7 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
     L = np.asarray(lengths, dtype=float)
     sp = np.asarray(split, dtype=float)
     total = float(total_reference)
-    weight = L / float(L.sum())  # the spans' share of the mean tension (the drive's centrifugal tension's)
+    spans = L  # (the spans' laid lengths: their reference lengths L_s / lambda_s weigh the mean tension)
 
     rv2 = float(centrifugal)
 
@@ -206,7 +206,8 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
                                     rv2)
     for _ in range(evaluations):  # the slip part evaluated, the budget solved with it linear in T_ref
         T = tension(T_ref, lam)
-        d_now = float(wraps.slip_part(T, float(weight @ T)))
+        ref = spans / lam  # the mean tension weighted by the reference lengths, as the static result's
+        d_now = float(wraps.slip_part(T, float(ref @ T) / float(ref.sum())))
         if model is not None:
             t0, d0, d_slope = model
             if abs(d_now - (d0 + d_slope * (T_ref - t0))) <= 1e-14 * total:  # (~ 1e-14 EA: far below the statics')
