@@ -71,7 +71,7 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
     facts = drive_facts(cfg, layout)  # what every build of this analysis takes from the configuration alone
     if not (static or modal):
         return Analysis(config=cfg, layout=layout, system=build(layout), fit_layout=layout)
-    initial = DeferredSystem(cfg, layout, build, facts=facts)  # built only if the static analysis solves on the L0 fit
+    initial = DeferredSystem(cfg, layout, build, facts=facts, belt_speed=belt_speed)  # built only if the static analysis solves on the L0 fit
     solved = None
 
     def reached(modes=None) -> Analysis:  # what the run reached (the partial results of a failure)

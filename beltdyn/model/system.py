@@ -815,9 +815,11 @@ class DeferredSystem:
     components, the belt's reference lengths, stretch and EA: `BeltFacts`) and builds the `System` on its
     layout when asked (`full`, once)."""
 
-    def __init__(self, cfg: DriveConfig, layout: Layout, build, *, facts: DriveFacts | None = None) -> None:
+    def __init__(self, cfg: DriveConfig, layout: Layout, build, *, facts: DriveFacts | None = None,
+                 belt_speed: float | None = None) -> None:
         """build: layout -> System; facts: the configuration's `DriveFacts` on this layout (default: computed
-        here), the builds of the same analysis share them."""
+        here), the builds of the same analysis share them; belt_speed (m/s): the running belt's speed the
+        builds take (default: [running]'s, `belt_speed_of`)."""
         facts = drive_facts(cfg, layout) if facts is None else facts
         dofs = facts.dofs
         lam = reference_stretch(cfg, layout)
@@ -832,6 +834,7 @@ class DeferredSystem:
         self.pulley_names = facts.pulley_names
         self.driver = cfg.driver_index
         self.EA = float(cfg.belt.EA)
+        self.belt_speed = belt_speed_of(cfg, layout) if belt_speed is None else float(belt_speed)
         self.belt = BeltFacts(reference_length=layout.span_length / lam, prestrain_stretch=float(lam), EA=self.EA)
         self.components = pulley_components(cfg, dofs, layout, parts=facts.pulleys)  # the pulleys': no belt
         self._build = build

@@ -230,24 +230,28 @@ def wrap_lengths(wm: WrapModel, *, span_tension: np.ndarray, radius: np.ndarray,
     return stress_free_length(R, beta, te, tx, arc, wm.EA, c, wm.stretch)
 
 
-def slip_part(wm: WrapModel, *, span_tension: np.ndarray, radius: np.ndarray, wrap: np.ndarray) -> float:
+def slip_part(wm: WrapModel, *, span_tension: np.ndarray, radius: np.ndarray, wrap: np.ndarray,
+              centrifugal: float = 0.0) -> float:
     """delta (m) = sum_j R_j (int_0^phi_j dphi / lambda(T(phi)) - phi_j / lambda(T_e,j)), phi_j the slip arc
     clipped to the wrap: what the slip arcs add to the wraps' stress-free length beyond the adhesion
     stretch R beta / lambda(T_e), at rest, the belt running along the span order, one tension per span
     (n,) (pulley j entered by span j - 1). The same sum as `wrap_lengths` less the adhesion part, computed
-    on the pulleys with a slip arc alone (the statics' predictor evaluates it often); 0 where a span is
-    slack (T <= 0: no capstan law holds; the predictor's trial layouts only)."""
+    on the pulleys with a slip arc alone (the statics' predictor evaluates it often); the drive's
+    centrifugal tension c (N; 0 at rest) in the slip arcs as in `wrap_state`; 0 where a span is slack
+    (T - c <= 0: no capstan law holds; the predictor's trial layouts only)."""
     T = np.asarray(span_tension, dtype=float)
-    te = np.roll(T, 1)
-    if wm.kind == "rigid" or not (T > 0.0).all():
+    te = np.concatenate((T[-1:], T[:-1]))  # (np.roll(T, 1) without its cost)
+    c = float(centrifugal)
+    if wm.kind == "rigid" or not (T - c > 0.0).all():
         return 0.0  # (a slack span: no capstan profile; the statics' predictor meets it only on trial layouts)
-    # `slip_arc` at rest, all tensions positive, in fewer operations (NaN friction: no arc; 0: the whole wrap)
+    # `slip_arc`, all tensions above c, in fewer operations (NaN friction: no arc; 0: the whole wrap)
     with np.errstate(divide="ignore"):
-        phi = np.abs(np.log(te / T)) / wm.friction
+        phi = np.abs(np.log((te - c) / (T - c))) / wm.friction
     k = (phi > 0.0) & (np.abs(te - T) > ROUND_OFF * np.maximum(te, T))
     if not k.any():
         return 0.0
     a, b, phi = te[k], T[k], np.minimum(phi[k], wrap[k])
-    profile = a[:, None] * (b / a)[:, None] ** _XI[None, :]  # T(phi) at the quadrature points (c = 0)
-    inner = (_W[None, :] / wm.stretch(profile, wm.EA)).sum(axis=1) - 1.0 / wm.stretch(a, wm.EA)
+    profile = c + (a - c)[:, None] * ((b - c) / (a - c))[:, None] ** _XI[None, :]  # T(phi) at the quadrature points
+    stretch = wm.stretch
+    inner = (_W[None, :] / stretch(profile, wm.EA)).sum(axis=1) - 1.0 / stretch(a, wm.EA)
     return float((radius[k] * phi * inner).sum())

@@ -9,17 +9,23 @@ import numpy as np
 from beltdyn.model.angles import pivot_angle, unwrap_near
 from beltdyn.model.geometry import belt_path, relay
 from beltdyn.model.system import System
+from beltdyn.model.wraps import centrifugal_tension
+
+
+ROUGH_STEPS = 1e4  # the arm secant's trials rough (`span_tension`'s rough) while its step exceeds this x tol_x
 
 
 def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_tension) -> np.ndarray:
     """Pulley centres (n, 2) of the drive on a rigid belt whose span tensions `span_tension(angles,
-    lengths)` (arrays (n,) of a layout's span angles and lengths -> (n,)) gives (the target or the
+    lengths, rough)` (arrays (n,) of a layout's span angles and lengths -> (n,); rough: a cheaper value
+    for a trial far from the answer, the secant's steps above ROUGH_STEPS x tol_x) gives (the target or the
     belt's length, split by the accessory torques): the adjustable pulley where `fit(centers)` places
     it (mode "adjust"), every spring-supported pulley deflected by its bearing springs under the belt's
     pull T_j t_j - T_(j-1) t_(j-1) of that layout and the weight on its DOFs (`gravity_force`, the
     pulley's and its share of the belt's), every sprung tensioner arm (but the adjusting one) turned
     until its spring balances the moment of that pull about its pivot (secant on the arm angle, on the
-    branch of the layout's angle).
+    branch of the layout's angle). On a running belt (system.belt_speed) each span pulls with its
+    tension less the centrifugal part rho v^2 lambda(T) (`analysis.running`).
     A fixed point over layouts (cheap geometry); the static passes correct what it leaves out (sag,
     bending, the arms' weight)."""
 
@@ -43,19 +49,28 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
     if not anchored and not arms and fit is not None:  # nothing deflects: the fit alone places the pulleys
         return fit(centers).center
 
-    def pull(lay, at: int | None = None) -> np.ndarray:
-        """The belt's pull T_j t_j - T_(j-1) t_(j-1) on every pulley j (n, 2), or on pulley `at` alone (2,)."""
-        f = span_tension(lay.span_angle, lay.span_length)[:, None] * lay.span_direction
+    v = float(system.belt_speed)
+    wm = system.wraps
+    rho_v2 = 0.0 if not v or wm is None else wm.mass_per_length * v * v  # rho v^2 (N) of the running belt
+
+    def pull(lay, at: int | None = None, rough: bool = False) -> np.ndarray:
+        """The belt's pull on every pulley j (n, 2), or on pulley `at` alone (2,): T_j t_j - T_(j-1) t_(j-1)
+        less the centrifugal part rho v^2 lambda(T) of each span's tension on a running belt (the hub
+        loads of `analysis.running`)."""
+        T = span_tension(lay.span_angle, lay.span_length, rough)
+        if rho_v2:
+            T = T - centrifugal_tension(T, wm.mass_per_length, v, wm.EA, wm.stretch)
+        f = T[:, None] * lay.span_direction
         j = np.arange(len(f)) if at is None else at
         return f[j] - f[j - 1]  # (span j - 1 arrives at pulley j; index -1 is the last span)
 
     def arm_moment(j: int, pv: np.ndarray, length: float, k_s: float, phi_f: float):
         """The moment about the pivot on arm pulley j at arm angle phi (spring and belt pull), the other
         pulleys where `centers` has them (the fit, if any, moves the adjustable pulley with it)."""
-        def moment(phi: float) -> float:
+        def moment(phi: float, rough: bool = False) -> float:
             c = centers.copy()
             c[j] = pv + length * np.array([np.cos(phi), np.sin(phi)])
-            r, f = c[j] - pv, pull(path(c), j)
+            r, f = c[j] - pv, pull(path(c), j, rough)
             return float(r[0] * f[1] - r[1] * f[0]) - k_s * (phi - phi_f)
         return moment
 
@@ -64,14 +79,17 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
             moment = arm_moment(j, pv, length, k_s, phi_f)
             phi0 = unwrap_near(pivot_angle(centers[j], pv), phi_ref)  # the layout's branch of the angle
             phi1 = phi0 + 1e-4
-            m0, m1 = moment(phi0), moment(phi1)
+            m0, m1 = moment(phi0, True), moment(phi1, True)
+            rough = True  # m1 a rough value (`span_tension`'s rough: far from the answer)
             for _ in range(30):
                 if m1 == m0:
                     break
                 phi0, phi1, m0 = phi1, phi1 - m1 * (phi1 - phi0) / (m1 - m0), m1
-                if abs(phi1 - phi0) * length <= tol_x:
+                step = abs(phi1 - phi0) * length
+                if step <= tol_x and not rough:
                     break
-                m1 = moment(phi1)
+                rough = step > ROUGH_STEPS * tol_x
+                m1 = moment(phi1, rough)
             centers[j] = pv + length * np.array([np.cos(phi1), np.sin(phi1)])
         if not anchored and len(arms) == 1 and fit is None:  # the one arm balanced, nothing else moves: done
             break

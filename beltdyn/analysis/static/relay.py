@@ -11,9 +11,9 @@ import numpy as np
 from beltdyn.analysis.static.arms import predicted_centers
 from beltdyn.analysis.static.newton import Budget, predictor, solve_equilibrium
 from beltdyn.analysis.static.result import StaticResult, check_slack, static_result
-from beltdyn.analysis.static.tension import (budget_excess, budget_step, carried_lengths, carried_reference,
-                                             meet_prestrain, settled_budget, radius_steps, torque_split,
-                                             turned_wraps, wrap_budget, wrap_budget_change)
+from beltdyn.analysis.static.tension import (SLIP_EVALUATIONS, budget_excess, budget_step, carried_lengths,
+                                             carried_reference, meet_prestrain, settled_budget, radius_steps,
+                                             torque_split, turned_wraps, wrap_budget, wrap_budget_change)
 from beltdyn.config import StaticOptions
 from beltdyn.errors import SolverError
 from beltdyn.model.angles import pivot_angle, wrap_angle
@@ -207,26 +207,32 @@ def _lay_out(plan: _Plan, old: Layout, centers: np.ndarray, ref_old: np.ndarray,
 
 
 def _span_tension_law(plan: _Plan, split: np.ndarray):
-    """span_tension(angles, lengths) -> (n,) span tensions on a rigid belt of a layout with those span
-    angles and lengths (arrays (n,)): the target as the length-weighted mean, or what the belt's
-    conserved length gives on that path, split by the accessory torques; None if neither applies."""
+    """span_tension(angles, lengths, rough=False) -> (n,) span tensions on a rigid belt of a layout with
+    those span angles and lengths (arrays (n,)): the target as the length-weighted mean, or what the belt's
+    conserved length gives on that path, split by the accessory torques; None if neither applies. rough:
+    the creep wraps' slip part evaluated once (`settled_budget(evaluations=1)`), for a trial far from the
+    answer."""
     system, lay0 = plan.system, plan.lay0
     ts = system.tension
     if ts.target is not None:
         target = float(ts.target)
 
-        def span_tension(angle: np.ndarray, length: np.ndarray) -> np.ndarray:
+        def span_tension(angle: np.ndarray, length: np.ndarray, rough: bool = False) -> np.ndarray:
             return target - float(length @ split) / float(length.sum()) + split
         return span_tension
     if plan.conserve and ts.mode != "adjust":
         EA, ref0, steps0 = float(system.EA), system.belt.reference_length, radius_steps(lay0)
         slip: list = [None]  # creep wraps: the slip model of the last call (`settled_budget`), the next one's start
+        wm, v = system.wraps, float(system.belt_speed)
+        rho_v2 = 0.0 if wm is None or not v else wm.mass_per_length * v * v  # the running belt's rho v^2 (N)
 
-        def span_tension(angle: np.ndarray, length: np.ndarray) -> np.ndarray:
+        def span_tension(angle: np.ndarray, length: np.ndarray, rough: bool = False) -> np.ndarray:
             ref = carried_lengths(lay0.span_angle, angle, steps0, ref0, lay0.span_name)
-            wraps = None if plan.material is None else wrap_budget(system.wraps, lay0.radius, turned_wraps(lay0, angle))
+            wraps = None if plan.material is None else wrap_budget(system.wraps, lay0.radius, turned_wraps(lay0, angle),
+                                                                     system.belt_speed)
             T, slip[0] = settled_budget(length, split, float(ref.sum()), EA, law=plan.law, wraps=wraps,
-                                        start=slip[0])  # the pulleys unturned (settled; creep wraps at rest)
+                                        start=slip[0], evaluations=1 if rough else SLIP_EVALUATIONS,
+                                        centrifugal=rho_v2)  # (the pulleys unturned)
             return T
         return span_tension
     return None

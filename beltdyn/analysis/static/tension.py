@@ -17,7 +17,7 @@ from beltdyn.config import StaticOptions
 from beltdyn.errors import SolverError
 from beltdyn.model.angles import wrap_angle
 from beltdyn.model.barlaw import BarLaw, axial_force, axial_stiffness, bar_law, stretch_for_tension, stretch_start
-from beltdyn.model.wraps import WrapModel, slip_part, wrap_lengths
+from beltdyn.model.wraps import WrapModel, centrifugal_tension, slip_part, wrap_lengths
 
 GREEN = bar_law("green-lagrange")
 
@@ -157,11 +157,13 @@ def settled_tension(lengths: np.ndarray, split: np.ndarray, total_reference: flo
     return settled_budget(lengths, split, total_reference, EA, law=law, wraps=wraps)[0]
 
 
+SLIP_EVALUATIONS = 8  # `settled_budget`: evaluations of the slip part at most
 SlipModel = tuple[float, float, float]  # (T_ref, delta, d delta / d T_ref): the slip part held linear in T_ref
 
 
 def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: float, EA: float, *,
-                   law: BarLaw = GREEN, wraps: "WrapBudget | None" = None, start: SlipModel | None = None
+                   law: BarLaw = GREEN, wraps: "WrapBudget | None" = None, start: SlipModel | None = None,
+                   evaluations: int = SLIP_EVALUATIONS, centrifugal: float = 0.0
                    ) -> tuple[np.ndarray, SlipModel | None]:
     """(T (n,), slip model) of `settled_tension`. With creep wraps (`WrapBudget`) the wraps' stress-free
     length takes the place of their arc length in the budget,
@@ -172,10 +174,22 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
     part (`WrapBudget.slip_part`): delta is held linear in T_ref over an inner Newton solve (its slope the
     secant of its evaluations; `start` a model of a nearby solve, else delta at the first iterate with
     slope 0) and evaluated again at the result until it meets the model to 1e-14 of the belt's length.
-    The slip model returned starts the next solve of a nearby layout (None without creep wraps)."""
+    The slip model returned starts the next solve of a nearby layout (None without creep wraps).
+    evaluations: at most so many evaluations of delta (1: a rough value, the budget solved once with delta
+    refreshed at the start's answer; for a trial far from its answer, the statics' predictor's secant).
+    centrifugal: rho v^2 (N) of a running belt: the split then holds between the tensions less their
+    centrifugal parts, T_s - rho v^2 lambda_s = T_ref + split_s (the pulleys' torque balance on the hub
+    loads, `analysis.running`); 0 at rest."""
     L = np.asarray(lengths, dtype=float)
     sp = np.asarray(split, dtype=float)
     total = float(total_reference)
+    spans = L  # (the spans' laid lengths: their reference lengths L_s / lambda_s weigh the mean tension)
+
+    rv2 = float(centrifugal)
+
+    def tension(T_ref: float, lam: np.ndarray) -> np.ndarray:
+        return T_ref + sp + rv2 * lam if rv2 else T_ref + sp
+
     if wraps is not None:
         L = L + wraps.entry_arc
         total += wraps.arc_total
@@ -184,33 +198,41 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
         T_ref = start[0]  # (a nearby solve's)
     lam = law.stretch_for_tension(T_ref + sp, EA)
     if wraps is None:
-        return _budget_newton(L, sp, total, 0.0, T_ref, lam, EA, law)[0] + sp, None
+        T_ref, lam = _budget_newton(L, sp, total, 0.0, T_ref, lam, EA, law, rv2)
+        return tension(T_ref, lam), None
     model = start  # (T_ref, delta, d delta / d T_ref) the inner solve holds delta to
     if model is not None:
-        T_ref, lam = _budget_newton(L, sp, total - model[1] + model[2] * model[0], model[2], T_ref, lam, EA, law)
-    for _ in range(8):  # the slip part evaluated, the budget solved with it linear in T_ref
-        d_now = float(wraps.slip_part(T_ref + sp))
+        T_ref, lam = _budget_newton(L, sp, total - model[1] + model[2] * model[0], model[2], T_ref, lam, EA, law,
+                                    rv2)
+    for _ in range(evaluations):  # the slip part evaluated, the budget solved with it linear in T_ref
+        T = tension(T_ref, lam)
+        ref = spans / lam  # the mean tension weighted by the reference lengths, as the static result's
+        d_now = float(wraps.slip_part(T, float(ref @ T) / float(ref.sum())))
         if model is not None:
             t0, d0, d_slope = model
             if abs(d_now - (d0 + d_slope * (T_ref - t0))) <= 1e-14 * total:  # (~ 1e-14 EA: far below the statics')
-                return T_ref + sp, (T_ref, d_now, d_slope)
+                return T, (T_ref, d_now, d_slope)
             d_slope = (d_now - d0) / (T_ref - t0) if T_ref != t0 else d_slope
         else:
             d_slope = 0.0  # (a fixed-point step first: delta changes slowly with T_ref)
         model = (T_ref, d_now, d_slope)
-        T_ref, lam = _budget_newton(L, sp, total - d_now + d_slope * T_ref, d_slope, T_ref, lam, EA, law)
+        T_ref, lam = _budget_newton(L, sp, total - d_now + d_slope * T_ref, d_slope, T_ref, lam, EA, law, rv2)
         if d_now == 0.0 and not sp.any():  # equal tensions: no slip arc at any T_ref
             break
-    return T_ref + sp, model
+    return tension(T_ref, lam), model
 
 
 def _budget_newton(L: np.ndarray, sp: np.ndarray, total: float, d_slope: float, T_ref: float, lam: np.ndarray,
-                   EA: float, law: BarLaw) -> tuple[float, np.ndarray]:
-    """(T_ref, lambda (n,)) with sum_s L_s / lambda(T_ref + split_s) + d_slope T_ref = total (Newton, each
-    stretch first stepped to its span's tension: one Newton step on the bar law)."""
+                   EA: float, law: BarLaw, centrifugal: float = 0.0) -> tuple[float, np.ndarray]:
+    """(T_ref, lambda (n,)) with sum_s L_s / lambda_s + d_slope T_ref = total, N(lambda_s) - rho v^2 lambda_s =
+    T_ref + split_s (N the bar law, rho v^2 = centrifugal: 0 at rest) (Newton, each stretch first stepped
+    to its span's tension: one Newton step on the bar law)."""
     for _ in range(60):
         k = law.axial_stiffness(lam, EA)  # dT/dlambda
-        d = (law.axial_force(lam, EA) - (T_ref + sp)) / k
+        N = law.axial_force(lam, EA)
+        if centrifugal:
+            k, N = k - centrifugal, N - centrifugal * lam
+        d = (N - (T_ref + sp)) / k
         lam = lam - d
         f = float((L / lam).sum()) + d_slope * T_ref - total
         step = f / (d_slope - float((L / (lam * lam * k)).sum()))  # f / (d f / d T_ref)
@@ -229,20 +251,26 @@ class WrapBudget:
     wrap: np.ndarray  # rad, their wrap angles
     entry_arc: np.ndarray  # m, R beta of the wrap each span enters (the next pulley's, the belt running along the spans)
     arc_total: float  # m, sum R beta
+    belt_speed: float = 0.0  # m/s, the running belt's (0 at rest)
 
-    def slip_part(self, T: np.ndarray) -> float:
+    def slip_part(self, T: np.ndarray, mean_tension: float) -> float:
         """delta (m): the wraps' stress-free total less sum_j R_j beta_j / lambda(T_e,j) at the span
-        tensions T (n,) (`model.wraps.slip_part`): what the slip arcs add to the adhesion stretch."""
-        return slip_part(self.wraps, span_tension=T, radius=self.radius, wrap=self.wrap)
+        tensions T (n,) (`model.wraps.slip_part`): what the slip arcs add to the adhesion stretch, with the
+        drive's centrifugal tension rho v^2 lambda(mean_tension) in the slip arcs (as the static result's)."""
+        wm = self.wraps
+        c = centrifugal_tension(mean_tension, wm.mass_per_length, self.belt_speed, wm.EA, wm.stretch)
+        return slip_part(wm, span_tension=T, radius=self.radius, wrap=self.wrap, centrifugal=float(c))
 
 
-def wrap_budget(wraps: WrapModel | None, radius: np.ndarray, wrap: np.ndarray) -> WrapBudget | None:
-    """The `WrapBudget` of creep wraps of radii and wrap angles (n,) (None for rigid wraps)."""
+def wrap_budget(wraps: WrapModel | None, radius: np.ndarray, wrap: np.ndarray,
+                belt_speed: float = 0.0) -> WrapBudget | None:
+    """The `WrapBudget` of creep wraps of radii and wrap angles (n,) at belt_speed (m/s) (None for rigid
+    wraps)."""
     if wraps is None or wraps.kind == "rigid":
         return None
     arc = np.asarray(radius, dtype=float) * np.asarray(wrap, dtype=float)
     return WrapBudget(wraps=wraps, radius=np.asarray(radius, dtype=float), wrap=np.asarray(wrap, dtype=float),
-                      entry_arc=np.roll(arc, -1), arc_total=float(arc.sum()))
+                      entry_arc=np.concatenate((arc[1:], arc[:1])), arc_total=float(arc.sum()), belt_speed=float(belt_speed))
 
 
 def wrap_budget_change(wraps: WrapModel | None, layout, belt_speed: float = 0.0, centrifugal: float = 0.0):
@@ -263,7 +291,7 @@ def turned_wraps(layout, span_angle: np.ndarray) -> np.ndarray:
     moved, `carried_reference`): pulley j's wrap grows by sign_j (dpsi_j - dpsi_(j-1)), dpsi_s the turn of
     span s, sign = orientation x side (the arc rho_j dpsi the spans hand over at its two tangent points)."""
     turn = wrap_angle(np.asarray(span_angle, dtype=float) - layout.span_angle)
-    return layout.wrap_angle + layout.orientation * layout.side_sign * (turn - np.roll(turn, 1))
+    return layout.wrap_angle + layout.orientation * layout.side_sign * (turn - np.concatenate((turn[-1:], turn[:-1])))
 
 
 def budget_excess(system, static, material: float, tolerance: float) -> tuple[float, float] | None:
