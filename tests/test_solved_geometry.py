@@ -97,22 +97,27 @@ def test_solved_layout_is_consistent():
 FEAD = ROOT / "configs" / "examples" / "fead_4cyl.toml"
 
 
-@pytest.mark.parametrize("springs", [False, True], ids=["ancf", "all-spring"])
-def test_rigid_belt_prediction_is_the_taut_equilibrium(springs):
+@pytest.mark.parametrize("springs, running", [(False, []), (True, []), (False, ["running.belt_speed=20.0"]),
+                                              (False, ["running.belt_speed=20.0", 'belt.wraps="rigid"'])],
+                         ids=["ancf", "all-spring", "ancf-20m/s", "ancf-20m/s-rigid-wraps"])
+def test_rigid_belt_prediction_is_the_taut_equilibrium(springs, running):
     # Without gravity a taut belt's spans are straight and meet their pulleys on the tangent, so the
     # rigid-belt prediction (span tensions by the torque split and the belt's conserved length, with the
     # spans' reference lengths carried between span and wrap; the tensioner arm turned to its balance)
     # is the equilibrium itself: one layout, no Newton iteration, and the solved centres within
     # static.tolerance x the shortest span of the laid ones. Before the carried reference lengths it
-    # was off by 0.1 N (7.4e-7 m of arm travel) and took 3 layouts.
-    cfg = load_config(FEAD)
+    # was off by 0.1 N (7.4e-7 m of arm travel) and took 3 layouts. A running belt likewise (the
+    # prediction's torque split and pulls on the hub tensions T - rho v^2 lambda(T), `analysis.running`):
+    # before the prediction knew the belt speed the FEAD at 20 m/s took 16 layouts.
+    cfg = load_config(FEAD, running)
     if springs:
-        cfg = load_config(FEAD, [f'spans.{n}.model="spring"' for n in cfg.span_names])
+        cfg = load_config(FEAD, running + [f'spans.{n}.model="spring"' for n in cfg.span_names])
     run = analyse(cfg)
     assert run.static_passes == 1 and run.static.iterations == 0
     tol_x = cfg.static.tolerance * run.layout.span_length.min()
     assert np.abs(run.static.pulley_center - run.layout.center).max() <= tol_x
-    wraps = run.static.wraps.stress_free_length  # (creep wraps, the default: the prediction carries them too)
+    wraps = run.static.wraps.stress_free_length  # (creep wraps, the default: the prediction carries them too;
+    # rigid ones: their arcs unstretched)
     assert cfg.belt.length == pytest.approx(run.system.belt.reference_length.sum() + wraps.sum(), rel=1e-13)
 
 
