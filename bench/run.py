@@ -279,7 +279,7 @@ def main() -> None:
     # --- issue 25: creep and slip of the wraps in time: the paper bench (two pulleys, 10 el/span), A's wrap with
     # friction 0.3, C run up to 150 rad/s, a 4 Hz load on A that takes its wrap beyond the capstan torque
     # and back (stick-slip twice a cycle), 2.45 s at 1e-4 s (a contact FE model: ~700 s on this machine)
-    slip = ["transient", str(PAPER), "--set", "pulleys[0].friction=0.3", "--set",
+    slip = ["transient", str(PAPER), "--set", "pulleys[0].friction=0.3", "--set", 'belt.wraps="creep"', "--set",
             "transient.rotation=[{pulley='C', speed=150.0, ramp_time=0.1}]", "--set",
             "transient.torque=[{pulley='A', constant=-2.0, amplitude=5.0, frequency=4.0}]", "--set",
             "transient.output_interval=1e-3", "--set", "transient.spectrum.start=0.5", "--duration", "2.45",
