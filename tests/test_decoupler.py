@@ -20,6 +20,7 @@ import pytest
 from beltdyn.config import config_from_dict
 from beltdyn.errors import ConfigError
 from beltdyn.pipeline import analyse, transient_start
+from histories import run_histories  # tests/histories.py
 from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -125,21 +126,11 @@ def test_the_free_two_inertia_frequency_matches_the_closed_form():
 
 # ------------------------------------------------------------------------------------ transient
 def _transient(raw: dict, **transient) -> tuple[dict[str, np.ndarray], object]:
-    from beltdyn.analysis.transient import run_transient
-
     raw = copy.deepcopy(raw)
     raw["transient"] = {"spectrum": {"enabled": False}, **transient}
     cfg = config_from_dict(raw)
     sysm, st = transient_start(analyse(cfg, compiled=True))
-    got: dict[str, list] = {}
-
-    def sink(t, batch):
-        got.setdefault("time", []).append(t)
-        for name, value in batch.items():
-            got.setdefault(name, []).append(value)
-
-    summary = run_transient(sysm, st, cfg.transient, sink=sink)
-    return {name: np.concatenate(v) for name, v in got.items()}, summary
+    return run_histories(sysm, st, cfg.transient)
 
 
 def test_a_stiff_engaged_decoupler_has_the_rigid_pulleys_transient():

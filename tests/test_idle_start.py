@@ -17,29 +17,20 @@ import pytest
 from beltdyn.config import config_from_dict
 from beltdyn.errors import ConfigError
 from beltdyn.pipeline import analyse, transient_start
+from histories import run_histories  # tests/histories.py
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "configs" / "smoke" / "two_pulley.toml"
 
 
 def _run(rotation: dict, duration: float = 0.03):
-    from beltdyn.analysis.transient import run_transient
-
     raw = tomllib.loads(SMOKE.read_text())
     raw["static"] = {"torque": [{"pulley": "C", "value": -1.0}]}
     raw["transient"] = {"duration": duration, "step": 1e-4, "output_interval": 1e-3, "rho_inf": 0.9,
                         "tolerance": 1e-10, "rotation": [rotation], "spectrum": {"enabled": False}}
     cfg = config_from_dict(raw)
     sysm, st = transient_start(analyse(cfg, compiled=True))
-    got: dict[str, list] = {}
-
-    def sink(t, batch):
-        got.setdefault("time", []).append(t)
-        for k, v in batch.items():
-            got.setdefault(k, []).append(v)
-
-    run_transient(sysm, st, cfg.transient, sink=sink)
-    return {k: np.concatenate(v) for k, v in got.items()}, sysm, st, raw
+    return run_histories(sysm, st, cfg.transient)[0], sysm, st, raw
 
 
 def test_a_start_speed_needs_a_ramp():

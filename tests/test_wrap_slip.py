@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 from beltdyn.config import load_config
+from histories import run_histories  # tests/histories.py
 
 ROOT = Path(__file__).resolve().parents[1]
 BENCH = ROOT / "configs" / "paper" / "bench_T200.toml"
@@ -33,22 +34,14 @@ QUIET = ["transient.spectrum.enabled=false", "transient.damping.rayleigh_mass=0.
 
 def _run(sets, record_state=False):
     """(summary, histories, analysis) of a bench transient with the settings `sets`."""
-    from beltdyn.analysis.transient import run_transient
     from beltdyn.pipeline import analyse, transient_start
 
     extra = ["transient.record.full_state=true"] if record_state else []
     cfg = load_config(BENCH, QUIET + sets + extra)
     run = analyse(cfg, compiled=True)
     system, static = transient_start(run)
-    got: dict[str, list] = {}
-
-    def sink(t, batch):
-        got.setdefault("t", []).append(t)
-        for k, v in batch.items():
-            got.setdefault(k, []).append(v)
-
-    summary = run_transient(system, static, cfg.transient, sink=sink)
-    return summary, {k: np.concatenate(v) for k, v in got.items()}, system, static
+    histories, summary = run_histories(system, static, cfg.transient, time_key="t")
+    return summary, histories, system, static
 
 
 def _capstan(span_tension, wrap, radius, c=0.0):
