@@ -332,6 +332,16 @@ def merge_responses(parts: list[ResponseResult]) -> ResponseResult:
     return replace(merged, warnings=merged.notes + limit_warnings(merged))
 
 
+def _first_and_worst(r: np.ndarray) -> tuple[tuple, tuple] | None:
+    """The indices into r (S, ...) (S speeds first) of its first entry above 1 (the lowest speed, the
+    largest there) and of its largest; None if no entry is above 1."""
+    over = np.argwhere(r > 1.0)
+    if not len(over):
+        return None
+    first = tuple(over[np.lexsort((-r[tuple(over.T)], over[:, 0]))[0]])
+    return first, np.unravel_index(int(np.argmax(r)), r.shape)
+
+
 def limit_warnings(res: ResponseResult) -> tuple[str, ...]:
     """Where the linear response leaves its range (module docstring): one warning per span that would go
     slack and per arm that would slide, naming the first (lowest) speed and the worst, with the order."""
@@ -341,11 +351,10 @@ def limit_warnings(res: ResponseResult) -> tuple[str, ...]:
     ratio = np.where(T0 > 0, Y / np.where(T0 > 0, T0, 1.0), np.inf)
     for i, name in enumerate(res.span_names):
         r = ratio[:, :, i, :]  # (S, O, 2)
-        over = np.argwhere(r > 1.0)
-        if not len(over):
+        found = _first_and_worst(r)
+        if found is None:
             continue
-        first = tuple(over[np.lexsort((-r[tuple(over.T)], over[:, 0]))[0]])
-        worst = np.unravel_index(int(np.argmax(r)), r.shape)
+        first, worst = found
         out.append(f"span {name} would go slack (its tension amplitude exceeds its static tension: the linear "
                    f"response is not valid there): from {_slack_at(res, i, first)}; worst {_slack_at(res, i, worst)}")
     if "arm_angle" in res.outputs and np.any(res.arm_friction > 0):
@@ -353,12 +362,10 @@ def limit_warnings(res: ResponseResult) -> tuple[str, ...]:
         for a, name in enumerate(res.arm_names):
             if not res.arm_friction[a] > 0:
                 continue
-            r = A[:, :, a] / ARM_PRESLIDING
-            over = np.argwhere(r > 1.0)
-            if not len(over):
+            found = _first_and_worst(A[:, :, a] / ARM_PRESLIDING)
+            if found is None:
                 continue
-            first = tuple(over[np.lexsort((-r[tuple(over.T)], over[:, 0]))[0]])
-            worst = np.unravel_index(int(np.argmax(r)), r.shape)
+            first, worst = found
             out.append(f"arm {name} would slide (its angle amplitude exceeds the presliding angle "
                        f"{ARM_PRESLIDING:g} rad of its dry friction {res.arm_friction[a]:g} N m; the linear response "
                        f"holds it stuck): from {_slide_at(res, A[:, :, a], first)}; worst "
