@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from beltdyn.config import load_config
+from histories import arm_under_hub_force  # tests/histories.py
 
 ROOT = Path(__file__).resolve().parents[1]
 ARM = ROOT / "configs" / "examples" / "three_pulley_tensioner.toml"
@@ -22,27 +23,13 @@ FREE = 3.3  # rad: the spring's free angle, counter-clockwise of the working ang
 def _loop(friction: float, unloading: float | None, damping: float = 0.0):
     """(t, phi, M) of the second second of a 2 s run: the arm angle and the applied moment about the pivot
     of a 1 Hz hub force (30 N amplitude, vertical) on the tensioner pulley, viscous arm damping `damping`."""
-    from beltdyn.analysis.transient import run_transient
-    from beltdyn.pipeline import analyse
-
     sets = [f"pulleys[2].arm_friction={friction}", f"pulleys[2].arm_damping={damping}", f"pulleys[2].arm_free_angle={FREE}",
             "transient.rotation=[]", "transient.duration=2.0", "transient.step=2e-4",
             "transient.output_interval=1e-3", "transient.spectrum.enabled=false",
             "transient.hub_force=[{pulley='T', amplitude=[0.0, 30.0], frequency=1.0, ramp_time=0.25}]"]
     if unloading is not None:
         sets.append(f"pulleys[2].arm_friction_unloading={unloading}")
-    cfg = load_config(ARM, sets)
-    run = analyse(cfg)
-    got = []
-    summary = run_transient(run.system, run.static, cfg.transient,
-                            sink=lambda t, b: got.append((t, b["arm_angle"][:, 0])))
-    assert summary.status == "complete" and summary.energy_error < 1e-3
-    t = np.concatenate([g[0] for g in got])
-    phi = np.concatenate([g[1] for g in got])
-    l = cfg.pulleys[2].arm_length
-    M = l * np.cos(phi) * np.minimum(t / 0.25, 1.0) * 30.0 * np.sin(2 * np.pi * t)  # (c - pivot) x (0, F_y)
-    sel = t >= 1.0
-    return t[sel], phi[sel], M[sel]
+    return arm_under_hub_force(load_config(ARM, sets))
 
 
 def test_hysteresis_half_widths_are_the_loading_and_unloading_friction_torques():

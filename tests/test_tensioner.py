@@ -13,6 +13,7 @@ import pytest
 from beltdyn.config import load_config
 from beltdyn.errors import ConfigError
 from beltdyn.model.system import build_system
+from histories import arm_under_hub_force  # tests/histories.py
 
 ROOT = Path(__file__).resolve().parents[1]
 ARM = ROOT / "configs" / "examples" / "three_pulley_tensioner.toml"
@@ -255,27 +256,14 @@ def test_dry_friction_gives_a_hysteresis_loop_of_width_twice_the_friction_torque
     # loading and unloading branches are 2 T_f apart. A least-squares fit of M over the second cycle
     # (a cubic in phi plus a sign(phi') term, sliding samples) gives the half-width T_f within 2 %
     # (measured 0.12 %); the energy balance holds (the friction work is dissipated, less the bristle's stored energy).
-    from beltdyn.pipeline import analyse
-    from beltdyn.analysis.transient import run_transient
-
     Tf = 0.3
     cfg = load_config(ARM, [
         f"pulleys[2].arm_friction={Tf}", "pulleys[2].arm_damping=0.0", "transient.rotation=[]",
         "transient.duration=2.0", "transient.step=2e-4", "transient.output_interval=1e-3",
         "transient.spectrum.enabled=false",
         "transient.hub_force=[{pulley='T', amplitude=[0.0, 30.0], frequency=1.0, ramp_time=0.25}]"])
-    run = analyse(cfg)
-    got = []
-    summary = run_transient(run.system, run.static, cfg.transient,
-                            sink=lambda t, b: got.append((t, b["arm_angle"][:, 0])))
-    assert summary.status == "complete" and summary.energy_error < 1e-3
-    t = np.concatenate([g[0] for g in got])
-    phi = np.concatenate([g[1] for g in got])
-    l = cfg.pulleys[2].arm_length
-    M = l * np.cos(phi) * np.minimum(t / 0.25, 1.0) * 30.0 * np.sin(2 * np.pi * t)  # (c - pivot) x (0, F_y)
-    sel = t >= 1.0
-    ph, MM = phi[sel], M[sel]
-    w = np.gradient(ph, t[sel])
+    t, ph, MM = arm_under_hub_force(cfg)
+    w = np.gradient(ph, t)
     slide = np.abs(w) > 0.2 * np.abs(w).max()
     x = ph[slide] - ph.mean()
     A = np.column_stack([np.ones(x.size), x, x**2, x**3, np.sign(w[slide])])
