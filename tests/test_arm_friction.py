@@ -10,7 +10,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from beltdyn.config import load_config
 from histories import arm_under_hub_force  # tests/histories.py

@@ -27,6 +27,7 @@ from beltdyn.config import config_from_dict, config_hash, load_config, resolved_
 from beltdyn.errors import ConfigError
 from beltdyn.model.geometry import layout_from_config
 from beltdyn.results.io import read_root_attrs
+import processes  # tests/processes.py
 from processes import BELTDYN  # tests/processes.py
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -88,10 +89,7 @@ BAD_SETS = [
 
 
 # ------------------------------------------------------------------------------------- helpers
-def _env() -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "TTY_COMPATIBLE", "CLICOLOR_FORCE")}
-    env["NO_COLOR"] = "1"
-    return env
+_env = processes.plain_env
 
 
 def run_cli(*calls: tuple[list[str], Path]) -> list[subprocess.CompletedProcess]:

@@ -31,16 +31,11 @@ TRANSIENT = ROOT / "configs" / "examples" / "bench_transient_small.toml"
 
 
 def _env(**extra) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "TTY_COMPATIBLE", "CLICOLOR_FORCE",
-                                                            "COLUMNS")}
-    env["NO_COLOR"] = "1"
-    env.update(extra)
-    return env
+    return processes.plain_env(drop=("COLUMNS",), **extra)
 
 
 def run(*args, cwd, timeout=120, env=None, **kw) -> subprocess.CompletedProcess:
-    return subprocess.run([*BELTDYN, *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=timeout,
-                          env=env or _env(), **kw)
+    return processes.run(*args, cwd=cwd, timeout=timeout, env=env or _env(), **kw)
 
 
 def run_patched(patch: str, *args, cwd, debug=False) -> subprocess.CompletedProcess:

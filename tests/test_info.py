@@ -11,10 +11,9 @@ killed command's own configuration and overrides).
 
 from __future__ import annotations
 
+import functools
 import json
-import os
 import signal
-import subprocess
 import tomllib
 from pathlib import Path
 
@@ -23,32 +22,20 @@ import numpy as np
 
 import processes  # tests/processes.py
 from processes import BELTDYN
-from beltdyn.errors import OutputError
-from beltdyn.results.io import group_states, read_group
+from beltdyn.results.io import read_group
 
 ROOT = Path(__file__).resolve().parents[1]
 SMALL = ROOT / "configs" / "examples" / "bench_transient_small.toml"  # duration 2 s, spectrum.start 1 s
 LONG = ("--duration", "200", "--step", "2e-5")  # a transient that never ends within a test
 
 
-def _env() -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "TTY_COMPATIBLE", "CLICOLOR_FORCE")}
-    env["NO_COLOR"] = "1"
-    return env
+_env = processes.plain_env
 
 
-def run(*args, cwd, timeout=300) -> subprocess.CompletedProcess:
-    return subprocess.run([*BELTDYN, *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=timeout,
-                          env=_env())
+run = functools.partial(processes.run, timeout=300)
 
 
-def samples(path: Path) -> int:
-    """Rows a reader sees in the running transient's journal (0 before it exists)."""
-    try:
-        state = group_states(path).get("transient")
-    except OutputError:
-        return 0
-    return state.samples if state is not None and state.status == "running" else 0
+samples = processes.journal_samples
 
 
 def killed_transient(out: Path, cwd: Path) -> tuple[int, dict]:

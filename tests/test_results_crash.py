@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import functools
 import importlib.util
-import os
 import signal
 import subprocess
 import sys
@@ -49,15 +48,10 @@ TOML = 'title = "crash test"\n'
 LONG = ["--set", "transient.duration=200.0", "--set", "transient.step=2e-05"]
 
 
-def _env() -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "TTY_COMPATIBLE", "CLICOLOR_FORCE")}
-    env["NO_COLOR"] = "1"
-    return env
+_env = processes.plain_env
 
 
-def run(*args, cwd, timeout=180) -> subprocess.CompletedProcess:
-    return subprocess.run([*BELTDYN, *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=timeout,
-                          env=_env())
+run = functools.partial(processes.run, timeout=180)
 
 
 def popen(*args, cwd) -> subprocess.Popen:
@@ -67,13 +61,7 @@ def popen(*args, cwd) -> subprocess.Popen:
 wait_for = functools.partial(processes.wait_for, timeout=90.0)  # (a long transient's start under load)
 
 
-def samples(path: Path) -> int:
-    """Rows a reader sees in the running transient's journal (0 before it exists)."""
-    try:
-        state = group_states(path).get("transient")
-    except OutputError:
-        return 0
-    return state.samples if state is not None and state.status == "running" else 0
+samples = processes.journal_samples
 
 
 def referenced_parts(path: Path) -> set[str]:

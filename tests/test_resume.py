@@ -9,9 +9,8 @@ resume journal gone. A resume of another configuration, or with nothing to resum
 
 from __future__ import annotations
 
-import os
+import functools
 import signal
-import subprocess
 import time
 from pathlib import Path
 
@@ -33,15 +32,10 @@ OFTEN = ["--checkpoint-every", "0.1"]  # checkpoints 0.1 s apart, not the defaul
 RTOL = 1e-9
 
 
-def _env() -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if k not in ("FORCE_COLOR", "TTY_COMPATIBLE", "CLICOLOR_FORCE")}
-    env["NO_COLOR"] = "1"
-    return env
+_env = processes.plain_env
 
 
-def run(*args, cwd, timeout=900) -> subprocess.CompletedProcess:
-    return subprocess.run([*BELTDYN, *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=timeout,
-                          env=_env())
+run = functools.partial(processes.run, timeout=900)
 
 
 def histories(path: Path) -> tuple[dict, np.ndarray, dict[str, np.ndarray]]:

@@ -14,7 +14,6 @@ import pytest
 
 from beltdyn.config import load_config, with_overrides
 from beltdyn.errors import ConfigError
-from beltdyn.analysis.modal import solve_modes
 from beltdyn.pipeline import analyse
 from beltdyn.study.refine import mode_keys
 from beltdyn.study.sweep import Journal, assemble, make_spec, parse_values, refine_mesh, richardson, run_sweep

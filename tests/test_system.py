@@ -228,7 +228,6 @@ def test_a_new_support_is_one_class(monkeypatch):
     # system, statics and modes, and reproduces the built-in slide with that direction: frequencies
     # within 1e-12.
     from beltdyn.model import supports
-    from beltdyn.analysis.modal import solve_modes
     from beltdyn.pipeline import analyse
 
     d = np.array([math.cos(0.3), math.sin(0.3)])

@@ -4,7 +4,6 @@ modal model, nonlinearity, extremes, and the streamed HDF5 file of `beltdyn tran
 from __future__ import annotations
 
 import dataclasses
-import os
 import signal
 import subprocess
 import time
