@@ -87,8 +87,45 @@ EnergyComponents = tuple  # (DOFs (r,), block-diagonal mass (r, r), kind of each
 ArmStatics = tuple  # per arm: (pulley index, its spring (LinearComponent or None), carried weight (2,) N)
 
 
+class DofNames:
+    """The DOF map's names a `System` and a `DeferredSystem` share (both hold `dofs` and `driver`)."""
+
+    dofs: DofMap
+    driver: int
+
+    @property
+    def n_dof(self) -> int:
+        """The independent coordinates q."""
+        return self.dofs.n_q
+
+    @property
+    def n_p(self) -> int:
+        """The joint coordinates p (q and the arm pulleys' centre offsets)."""
+        return self.dofs.n
+
+    @property
+    def dof_labels(self) -> tuple[str, ...]:
+        return self.dofs.labels[: self.dofs.n_q]
+
+    @property
+    def rot_dof(self) -> np.ndarray:
+        return self.dofs.rot_dof
+
+    @property
+    def trans_dof(self) -> tuple[tuple[int, ...], ...]:
+        return self.dofs.trans_dof
+
+    @property
+    def trans_dir(self) -> tuple[np.ndarray, ...]:
+        return self.dofs.trans_dir
+
+    @property
+    def driver_dof(self) -> int:
+        return int(self.dofs.rot_dof[self.driver])
+
+
 @dataclass(frozen=True, kw_only=True)
-class System:
+class System(DofNames):
     """The drive: DOF map, belt, components, assembled constant matrices. n = n_dof."""
 
     layout: Layout
@@ -134,18 +171,6 @@ class System:
 
     # -------------------------------------------------------------------- names kept from the model
     @property
-    def n_dof(self) -> int:
-        return self.dofs.n_q
-
-    @property
-    def n_p(self) -> int:
-        return self.dofs.n
-
-    @property
-    def dof_labels(self) -> tuple[str, ...]:
-        return self.dofs.labels[: self.dofs.n_q]
-
-    @property
     def dof_units(self) -> tuple[str, ...]:
         return self.dofs.units[: self.dofs.n_q]
 
@@ -165,22 +190,6 @@ class System:
     def arm_slopes(self, q: np.ndarray) -> np.ndarray | None:
         """dc/dphi (a, 2) of the arm pulleys' centres at q (`ArmJoints.first`); None without arms."""
         return None if self.arms is None else self.arms.first(self.arms.phi(q))
-
-    @property
-    def rot_dof(self) -> np.ndarray:
-        return self.dofs.rot_dof
-
-    @property
-    def trans_dof(self) -> tuple[tuple[int, ...], ...]:
-        return self.dofs.trans_dof
-
-    @property
-    def trans_dir(self) -> tuple[np.ndarray, ...]:
-        return self.dofs.trans_dir
-
-    @property
-    def driver_dof(self) -> int:
-        return int(self.dofs.rot_dof[self.driver])
 
     def pulley_index(self, name: str) -> int:
         return self.pulley_names.index(name)
@@ -808,7 +817,7 @@ class BeltFacts:
     EA: float
 
 
-class DeferredSystem:
+class DeferredSystem(DofNames):
     """The drive on a layout before its full build: `pipeline.analyse` hands this to the static analysis,
     which lays the belt out anew at the predicted solved positions and usually never solves on the L0 fit.
     It holds the facts a build starts from (DOF map, layout, tension setting, arms, loads, the pulleys'
@@ -840,33 +849,6 @@ class DeferredSystem:
         self._build = build
         self._system: System | None = None
 
-    @property
-    def rot_dof(self) -> np.ndarray:
-        return self.dofs.rot_dof
-
-    @property
-    def trans_dof(self) -> tuple[tuple[int, ...], ...]:
-        return self.dofs.trans_dof
-
-    @property
-    def trans_dir(self) -> tuple[np.ndarray, ...]:
-        return self.dofs.trans_dir
-
-    @property
-    def driver_dof(self) -> int:
-        return int(self.dofs.rot_dof[self.driver])
-
-    @property
-    def n_p(self) -> int:
-        return self.dofs.n
-
-    @property
-    def n_dof(self) -> int:
-        return self.dofs.n_q
-
-    @property
-    def dof_labels(self) -> tuple[str, ...]:
-        return self.dofs.labels[: self.dofs.n_q]
 
     @property
     def gravity_force(self) -> np.ndarray:
