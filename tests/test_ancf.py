@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from numerics import element_differences, element_error  # tests/numerics.py
 from scipy.integrate import quad, solve_ivp
 from scipy.optimize import brentq
 
@@ -49,29 +50,6 @@ def _arc_state(lengths, *, stretch, radius, phi, noise, seed) -> np.ndarray:
     grad = stretch * np.stack((np.cos(t), np.sin(t)), axis=-1) @ _rot(phi).T
     e = np.concatenate((pos[:-1], grad[:-1], pos[1:], grad[1:]), axis=1)
     return e + noise * rng.standard_normal(e.shape)
-
-
-def _fd_jacobian(fun, e: np.ndarray, h: float) -> np.ndarray:
-    """Central differences of an element-wise function fun(e) -> (n, ...) w.r.t. e (n, 8).
-
-    Returns (n, ..., 8).
-    """
-    cols = []
-    for j in range(8):
-        ep = e.copy()
-        em = e.copy()
-        ep[:, j] += h
-        em[:, j] -= h
-        cols.append((fun(ep) - fun(em)) / (2.0 * h))
-    return np.stack(cols, axis=-1)
-
-
-def _rel_err(a: np.ndarray, b: np.ndarray) -> float:
-    """max over elements of ||a - b|| / ||b|| (Frobenius over the trailing axes)."""
-    n = a.shape[0]
-    num = np.linalg.norm((a - b).reshape(n, -1), axis=1)
-    den = np.linalg.norm(b.reshape(n, -1), axis=1)
-    return float(np.max(num / den))
 
 
 def _chain_indices(n_elem: int) -> np.ndarray:
@@ -274,8 +252,8 @@ def test_tangent_against_finite_differences(curvature, state):
     # relative error (Frobenius, per element) <= 1e-6.
     el, e = _fd_case(curvature, state)
     f, K = internal_forces_and_tangent(el, e)
-    K_fd = _fd_jacobian(lambda x: internal_forces(el, x), e, 1e-6)
-    assert _rel_err(K, K_fd) <= 1e-6
+    K_fd = element_differences(lambda x: internal_forces(el, x), e, 1e-6)
+    assert element_error(K, K_fd) <= 1e-6
     # the force returned with the tangent is the same as internal_forces (rtol 1e-12)
     np.testing.assert_allclose(f, internal_forces(el, e), rtol=1e-12, atol=1e-12 * np.abs(f).max())
 
@@ -285,7 +263,7 @@ def test_tangent_reduced_integration_against_finite_differences(curvature):
     # Same comparison with n_gauss = 3 (reduced integration), relative error <= 1e-6.
     el, e = _fd_case(curvature, _STATES[0], seed=4, n_gauss=3)
     _, K = internal_forces_and_tangent(el, e)
-    assert _rel_err(K, _fd_jacobian(lambda x: internal_forces(el, x), e, 1e-6)) <= 1e-6
+    assert element_error(K, element_differences(lambda x: internal_forces(el, x), e, 1e-6)) <= 1e-6
 
 
 @pytest.mark.parametrize("state", _STATES)
@@ -303,8 +281,8 @@ def test_forces_against_energy_finite_differences(curvature, state):
     # f = dU/de against central differences of strain_energy (step 1e-6), relative error <= 1e-6.
     el, e = _fd_case(curvature, state, seed=2)
     f = internal_forces(el, e)
-    f_fd = _fd_jacobian(lambda x: strain_energy(el, x), e, 1e-6)
-    assert _rel_err(f, f_fd) <= 1e-6
+    f_fd = element_differences(lambda x: strain_energy(el, x), e, 1e-6)
+    assert element_error(f, f_fd) <= 1e-6
 
 
 @pytest.mark.parametrize("state", _STATES)
@@ -313,9 +291,9 @@ def test_axial_force_gradient_against_finite_differences(state):
     el, e = _fd_case("linear", state, seed=3)
     xi = np.array([0.0, 0.21, 0.5, 0.93, 1.0])
     g = axial_force_gradient(el, e, xi)
-    g_fd = _fd_jacobian(lambda x: axial_force(el, x, xi), e, 1e-6)
+    g_fd = element_differences(lambda x: axial_force(el, x, xi), e, 1e-6)
     assert g.shape == (3, 5, 8)
-    assert _rel_err(g, g_fd) <= 1e-6
+    assert element_error(g, g_fd) <= 1e-6
 
 
 def test_energy_of_polynomial_state():

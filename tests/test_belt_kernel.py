@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from numerics import element_differences, element_error  # tests/numerics.py
 
 from beltdyn.model import ancf
 from beltdyn.model import belt_kernel as bk
@@ -73,29 +74,9 @@ STATES = ("straight-1e-3", "straight-1e-2", "straight-1e-1", "bent")
 MESHES = ("uniform", "uneven", "EI0")
 
 
-def _rel_err(a: np.ndarray, b: np.ndarray) -> float:
-    """max over elements of ||a - b|| / ||b|| (Frobenius over the trailing axes)."""
-    n = a.shape[0]
-    num = np.linalg.norm((a - b).reshape(n, -1), axis=1)
-    den = np.linalg.norm(b.reshape(n, -1), axis=1)
-    return float(np.max(num / den))
-
-
 def _setup(mesh: str, curvature: str, n_gauss: int, state: str, seed: int = 0):
     el = _elements(mesh, curvature, n_gauss)
     return el, bk.tables_from_elements(el), _state(el.length, state, seed)
-
-
-def _fd_columns(fun, e: np.ndarray, h: float) -> np.ndarray:
-    """Central differences of an element-wise fun(e) -> (n, ...) in e (n, 8): (n, ..., 8)."""
-    cols = []
-    for j in range(8):
-        ep = e.copy()
-        em = e.copy()
-        ep[:, j] += h
-        em[:, j] -= h
-        cols.append((fun(ep) - fun(em)) / (2.0 * h))
-    return np.stack(cols, axis=-1)
 
 
 CASES = pytest.mark.parametrize("curvature", CURVATURES)
@@ -138,7 +119,7 @@ def test_forces_match_ancf(curvature, n_gauss, state, mesh):
     el, tab, E = _setup(mesh, curvature, n_gauss, state)
     f = np.empty_like(E)
     bk.element_forces(E, *tab.args, f)
-    assert _rel_err(f, ancf.internal_forces(el, E)) <= 1e-12
+    assert element_error(f, ancf.internal_forces(el, E)) <= 1e-12
 
 
 @CASES
@@ -151,8 +132,8 @@ def test_forces_and_tangent_match_ancf(curvature, n_gauss, state, mesh):
     K = np.empty((E.shape[0], 8, 8))
     bk.element_forces_tangent(E, *tab.args, f, K, bk.scratch(E.shape[0], tab.dS.shape[1]))
     f_ref, K_ref = ancf.internal_forces_and_tangent(el, E)
-    assert _rel_err(f, f_ref) <= 1e-12
-    assert _rel_err(K, K_ref) <= 1e-12
+    assert element_error(f, f_ref) <= 1e-12
+    assert element_error(K, K_ref) <= 1e-12
     np.testing.assert_array_equal(K, np.swapaxes(K, 1, 2))  # symmetric by construction
 
 
@@ -209,7 +190,7 @@ def test_forces_are_the_strain_energy_gradient(curvature, state, mesh):
         bk.element_strain_energy(np.ascontiguousarray(e), *tab.args, U)
         return U
 
-    assert _rel_err(_fd_columns(energy, E, 1e-6), f) <= 1e-6
+    assert element_error(element_differences(energy, E, 1e-6), f) <= 1e-6
 
 
 @CASES
@@ -226,7 +207,7 @@ def test_tangent_is_the_force_jacobian(curvature, state):
         bk.element_forces(np.ascontiguousarray(e), *tab.args, out)
         return out
 
-    assert _rel_err(_fd_columns(forces, E, 1e-6), K) <= 1e-6
+    assert element_error(element_differences(forces, E, 1e-6), K) <= 1e-6
 
 
 # ----------------------------------------------------------------------------------------------
@@ -264,9 +245,9 @@ def test_damping_matrix_is_the_damping_jacobian(curvature, state, eta_a, eta_b):
     if curvature == "none" and eta_a == 0.0:
         assert not fd.any() and not C.any()
         return
-    fd_cols = _fd_columns(lambda v: _damping(E, np.ascontiguousarray(v), tab, eta_a, eta_b), Ed, 1.0)
-    assert _rel_err(fd_cols, C) <= 1e-12
-    assert _rel_err(fd, (C @ Ed[:, :, None])[:, :, 0]) <= 1e-12
+    fd_cols = element_differences(lambda v: _damping(E, np.ascontiguousarray(v), tab, eta_a, eta_b), Ed, 1.0)
+    assert element_error(fd_cols, C) <= 1e-12
+    assert element_error(fd, (C @ Ed[:, :, None])[:, :, 0]) <= 1e-12
 
 
 @CASES
@@ -306,14 +287,14 @@ def test_damping_matrix_content(curvature, state):
         rp, rpp = slopes(e)
         return rp[..., 0] * rpp[..., 1] - rp[..., 1] * rpp[..., 0]
 
-    G = 0.5 * _fd_columns(A_of, E, 0.1)  # (n, q, 8)
+    G = 0.5 * element_differences(A_of, E, 0.1)  # (n, q, 8)
     C_ref = eta_a * np.einsum("nq,nqi,nqj->nij", el.wL * el.EA[:, None], G, G)
     if curvature == "linear":
         C_ref += eta_b * el.K_bend
     elif curvature == "exact":
-        gc = _fd_columns(c_of, E, 0.1)
+        gc = element_differences(c_of, E, 0.1)
         C_ref += eta_b * np.einsum("nq,nqi,nqj->nij", el.wL * el.EI[:, None] / A_of(E) ** 3, gc, gc)
-    assert _rel_err(_damping_matrix(E, tab, eta_a, eta_b), C_ref) <= 1e-10
+    assert element_error(_damping_matrix(E, tab, eta_a, eta_b), C_ref) <= 1e-10
 
 
 @CASES
@@ -455,7 +436,7 @@ def test_reduced_force_and_blocks_match_ancf_through_the_layout(curvature, state
     work = bk.scratch(n, tab.dS.shape[1], T.shape[2])
     bk.reduced_force_and_tangent_blocks(q_ext, e0, T, idx, tsel, *tab.args, f_out, blocks, work)
     assert _rel(f_out[:n_dof], fr_ref[:n_dof]) <= 1e-12
-    assert _rel_err(blocks, blocks_ref) <= 1e-12
+    assert element_error(blocks, blocks_ref) <= 1e-12
     f_only = np.full(n_dof + 1, np.nan)
     bk.reduced_force(q_ext, e0, T, idx, tsel, *tab.args, f_only, work)
     assert _rel(f_only[:n_dof], fr_ref[:n_dof]) <= 1e-12

@@ -98,35 +98,6 @@ def test_spring_force_and_tangent_against_finite_differences():
     assert np.allclose(K, K.T, rtol=0, atol=1e-9 * np.abs(K).max())
 
 
-def test_spring_kernel_equals_numpy():
-    """The compiled spring forces, damping and energy (`spring_kernel`) equal the numpy SpringSpans
-    (1e-12 relative), and the energy's derivative is the force (central differences, 1e-7)."""
-    from beltdyn.model import spring_kernel as sk
-
-    cfg = load_config(FEAD, springs(*FEAD_SPANS))
-    system = build_system(cfg).with_belt(damping_axial=3e-5)
-    sp = system.springs
-    data = sk.spring_data(sp, 3e-5)
-    rng = np.random.default_rng(2)
-    p = 1e-3 * rng.standard_normal(system.n_p)
-    v = rng.standard_normal(system.n_p)
-    f_el, f_d, gross = np.zeros(system.n_p + 1), np.zeros(system.n_p + 1), np.zeros(system.n_p + 1)
-    sk.spring_forces(data, np.append(p, 0.0), np.append(v, 0.0), f_el, f_d, gross, True)
-    ref = sp.force(p)
-    assert np.abs(f_el[:-1] - ref).max() <= 1e-12 * np.abs(ref).max()
-    X, Xd = sp.positions(p), sp.positions_batch(v[None], offset=False)[0]
-    u = sp.axial(X)[0]
-    Nd = sp.damping_force(X, Xd)
-    ref_d = sp.reduce_vector(np.concatenate([-Nd[:, None] * u, Nd[:, None] * u], axis=1))
-    assert np.abs(f_d[:-1] - ref_d).max() <= 1e-12 * np.abs(ref_d).max()
-    assert sk.spring_energy(data, np.append(p, 0.0)) == pytest.approx(sp.strain_energy(p), rel=1e-12)
-    i, h = int(system.rot_dof[1]), 1e-7
-    dp = np.zeros(system.n_p)
-    dp[i] = h
-    dU = (sp.strain_energy(p + dp) - sp.strain_energy(p - dp)) / (2 * h)
-    assert dU == pytest.approx(ref[i], rel=1e-7)
-
-
 @pytest.mark.parametrize("extra", [[], FIXED], ids=["bench (slide)", "fixed centres"])
 def test_all_spring_bench_rotational_frequency_equals_two_inertia_closed_form(extra):
     """All-spring two-pulley bench: the rotational mode against the two-inertia closed form

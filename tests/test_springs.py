@@ -33,7 +33,8 @@ def system(request):
 
 def test_kernel_equals_numpy_on_random_states(system):
     """Per state: the kernel's elastic and damping forces, energy and per-span smallest S = EA eps equal the
-    numpy spans' (1e-12 relative to the largest entry)."""
+    numpy spans' (1e-12 relative to the largest entry); the energy's derivative in a rotation is the force
+    (central differences, 1e-7 relative)."""
     sp = system.springs
     data = sk.spring_data(sp, 3e-5)
     rng = np.random.default_rng(26)
@@ -58,6 +59,11 @@ def test_kernel_equals_numpy_on_random_states(system):
              else sp.EA * (lam - 1.0) / lam)  # or the linear law's N / lambda, written out here
         assert np.abs(low[sp.span] - S).max() <= 1e-12 * np.abs(S).max()
         assert np.isinf(np.delete(low, sp.span)).all()
+    i, h = int(system.rot_dof[1]), 1e-7  # the energy's derivative is the force (central differences)
+    dp = np.zeros(n)
+    dp[i] = h
+    dU = (sp.strain_energy(p + dp) - sp.strain_energy(p - dp)) / (2 * h)
+    assert dU == pytest.approx(sp.force(p)[i], rel=1e-7)
 
 
 def test_static_ends_equal_a_span_by_span_computation(system):
