@@ -48,7 +48,7 @@ Fused = namedtuple("Fused", ["indptr", "indices", "data"])  # data (k, nnz): k m
 # anchor angle z (state); n_q the independent coordinates (p[:n_q] = q)
 Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction_up", "friction_down", "bristle", "anchor",
                            "n_q"])
-# decouplers with a one-way clutch (`model.decouplers`, `integrator.clutch_torques`), k of them: hub (k,) the
+# decouplers with a one-way clutch (`model.decouplers`, `friction_kernel.clutch_torques`), k of them: hub (k,) the
 # pulley's rotation DOF, rotor (k,) the rotor's, stiffness k and damping c of the spring (both also in the linear
 # part: the engaged decoupler), drag (k,) the overrunning clutch's torque bound (tau >= -drag), slip (2, k) the
 # clutch's slip angle z (row 0 at the accepted step, row 1 at the step being solved), torque (2, k) likewise tau
@@ -57,7 +57,7 @@ Decouplers = namedtuple("Decouplers", ["hub", "rotor", "stiffness", "damping", "
 # psi (the old rotation DOF, which the span ends follow: `wrap`) and the pulley's own rotation theta (a DOF
 # `hub` added after the system's independent coordinates, with the pulley's inertia, damping, loads and
 # prescribed rotation), joined by the elasto-plastic bristle M = clip(k_b (psi - theta - z), -M_cap, M_cap)
-# (`integrator.bristle`, the arms' one). M_cap = R (T_max - c) capstan, capstan = 1 - exp(-mu beta), T_max the
+# (`friction_kernel.bristle`, the arms' one). M_cap = R (T_max - c) capstan, capstan = 1 - exp(-mu beta), T_max the
 # larger end tension of the wrap's two spans at the last accepted step, c = rho v^2 lambda(T_max): `limit`
 # (state). The end tensions: the true axial force at the span end, of the element (its end node's gradient:
 # in_elem the arriving span's last element, out_elem the departing span's first; -1: a spring span) or of

@@ -6,7 +6,7 @@ angle psi, the system's rotation DOF of the pulley, which the span ends follow t
 (r = c + R n + R psi t), and the pulley's own rotation theta, a DOF the stepper adds after the system's
 independent coordinates (`hub`), which carries the pulley's inertia J, its rotational damping (and the
 Rayleigh mass part alpha J), its loads and constant torques and a prescribed rotation of it. The two are
-joined by the elasto-plastic bristle of the arms' friction (`integrator.bristle`):
+joined by the elasto-plastic bristle of the arms' friction (`friction_kernel.bristle`):
 
     M = clip(k_b (psi - theta - z), -M_cap, M_cap),   M_cap = R (T_max - c)(1 - exp(-mu beta)),
 
