@@ -147,29 +147,36 @@ def slide_anchors(arms, q):
 
 
 @njit(**KERNEL)
-def wrap_friction(wraps, q, f, mark):
+def wrap_friction(wraps, q, f, mark, dt):
     """Add the wraps' bristle torques M = clip(k_b (psi - theta - z), -M_cap, M_cap) to f: +M on the wrap
     angle psi, -M on the pulley's rotation theta (`Wraps`); returns their stored energy sum M^2 / (2 k_b).
-    mark (a Newton evaluation): mark each wrap sliding (beyond its limit) or not (wraps.sliding)."""
+    z = anchor + z' dt: the anchor crept at the rate z' (`wraps.creep`) over the time dt since the accepted
+    step (0: the accepted state). mark (a Newton evaluation of a step of length dt): mark each wrap sliding
+    (beyond its limit) or not (wraps.sliding) and keep dt (wraps.step) for the return mapping."""
     stored = 0.0
     for k in range(wraps.wrap.shape[0]):
         w, hb = wraps.wrap[k], wraps.hub[k]
-        tau, e = bristle(wraps.bristle[k], q[w] - q[hb], wraps.anchor[k], wraps.limit[k], wraps.limit[k])
+        z = wraps.anchor[k] + wraps.creep[k] * dt
+        tau, e = bristle(wraps.bristle[k], q[w] - q[hb], z, wraps.limit[k], wraps.limit[k])
         if mark:
-            wraps.sliding[k] = 1.0 if abs(wraps.bristle[k] * (q[w] - q[hb] - wraps.anchor[k])) > wraps.limit[k] else 0.0
+            wraps.sliding[k] = 1.0 if abs(wraps.bristle[k] * (q[w] - q[hb] - z)) > wraps.limit[k] else 0.0
         f[w] += tau
         f[hb] -= tau
         stored += e
+    if mark:
+        wraps.step[0] = dt
     return stored
 
 
 @njit(**KERNEL)
 def slide_wraps(wraps, q):
-    """The wraps' return mapping after an accepted step (`slid_anchor`) and their torques there."""
+    """The wraps' return mapping after an accepted step (`slid_anchor`, from the anchor crept over the step,
+    anchor + z' dt) and their torques there."""
     for k in range(wraps.wrap.shape[0]):
         x = q[wraps.wrap[k]] - q[wraps.hub[k]]
-        wraps.torque[k] = bristle(wraps.bristle[k], x, wraps.anchor[k], wraps.limit[k], wraps.limit[k])[0]
-        wraps.anchor[k] = slid_anchor(wraps.bristle[k], x, wraps.anchor[k], wraps.limit[k], wraps.limit[k])
+        z = wraps.anchor[k] + wraps.creep[k] * wraps.step[0]
+        wraps.torque[k] = bristle(wraps.bristle[k], x, z, wraps.limit[k], wraps.limit[k])[0]
+        wraps.anchor[k] = slid_anchor(wraps.bristle[k], x, z, wraps.limit[k], wraps.limit[k])
 
 
 @njit(**KERNEL)
@@ -198,16 +205,20 @@ def end_stretch(belt, elem, spring, at_end, E, q_ext):
 
 
 @njit(**KERNEL)
-def wrap_limits(wraps, belt, E, q_ext, c):
+def wrap_limits(wraps, belt, E, q_ext, c, speed):
     """The wraps' capstan limits M_cap = R (T_max - c_T)(1 - exp(-mu beta)) from the end tensions of their
-    spans (the true axial force N = EA eps lambda of the bar law, `end_stretch`) at the accepted state (E its element coordinates, q_ext its padded coordinates), T_max the
-    larger, c_T = rho c^2 lambda(T_max) the centrifugal part at the belt speed c (0 where T_max <= c_T:
-    a slack wrap holds nothing). Returns the bristles' stored energy the new limits release (a limit
-    that falls below a bristle's torque: the anchor slides at the next return mapping, dissipated)."""
+    spans (the true axial force N = EA eps lambda of the bar law, `end_stretch`) at the accepted state (E its
+    element coordinates, q_ext its padded coordinates), T_max the larger, c_T = rho c^2 lambda(T_max) the
+    centrifugal part at the belt speed c (0 where T_max <= c_T: a slack wrap holds nothing), and their
+    creep (`wrap_creep`) at the belt travel speed `speed`. Returns the bristles' stored energy the new
+    limits release (a limit that falls below a bristle's torque: the anchor slides at the next return
+    mapping, dissipated)."""
     released = 0.0
+    lam_ref = reference_stretch(wraps, belt, E, q_ext, speed)
     for k in range(wraps.wrap.shape[0]):
         lam_in = end_stretch(belt, wraps.in_elem[k], wraps.in_spring[k], True, E, q_ext)
         lam_out = end_stretch(belt, wraps.out_elem[k], wraps.out_spring[k], False, E, q_ext)
+        wrap_creep(wraps, k, lam_in if speed >= 0.0 else lam_out, lam_ref, speed)
         ea_in = belt.EA[wraps.in_elem[k]] if wraps.in_elem[k] >= 0 else belt.springs.EA
         ea_out = belt.EA[wraps.out_elem[k]] if wraps.out_elem[k] >= 0 else belt.springs.EA
         t_in, t_out = sk.axial_force_kernel(lam_in, ea_in), sk.axial_force_kernel(lam_out, ea_out)
@@ -219,3 +230,30 @@ def wrap_limits(wraps, belt, E, q_ext, c):
             wraps.torque[k] = cap if tau > 0.0 else -cap
         wraps.limit[k] = cap
     return released
+
+
+@njit(**KERNEL)
+def reference_stretch(wraps, belt, E, q_ext, speed):
+    """lambda_e,drv: the stretch at the driver's entry (its arriving span's end for speed >= 0, its leaving
+    span's start otherwise; `Wraps.ref_elem`, `ref_spring`), 0 without a driver (no creep)."""
+    entry = 0 if speed >= 0.0 else 1
+    elem, spring = wraps.ref_elem[entry], wraps.ref_spring[entry]
+    if elem < 0 and spring < 0:
+        return 0.0
+    return end_stretch(belt, elem, spring, entry == 0, E, q_ext)
+
+
+@njit(**KERNEL)
+def wrap_creep(wraps, k, lam_e, lam_ref, speed):
+    """The creep of wrap k in stick (docs/wraps.md "Creep in time"): its rim follows the belt's speed at its
+    entry (the adhesion arc), so it turns at ratio = lambda_e,k / lambda_e,drv of the driver's rim speed c
+    (the belt travel speed, the driver's nominal rim speed): its anchor drifts at z' = c u_k (1 - ratio)
+    (u_k the nominal rotation per metre of belt, `Wraps.travel`), the pulley's rotation theta' = psi' - z'
+    behind its wrap's. Writes wraps.ratio[k] and wraps.creep[k] (1 and 0 without a driver, lam_ref = 0)."""
+    if lam_ref > 0.0:
+        ratio = lam_e / lam_ref
+        wraps.ratio[k] = ratio
+        wraps.creep[k] = speed * wraps.travel[k] * (1.0 - ratio)
+    else:
+        wraps.ratio[k] = 1.0
+        wraps.creep[k] = 0.0

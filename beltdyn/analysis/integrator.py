@@ -306,6 +306,15 @@ def transport_speed(tr, F, t):
 
 
 @njit(**KERNEL)
+def travel_speed(F, t):
+    """The belt's nominal travel speed (m/s) at time t: the prescribed rotation's nominal speed times
+    nominal_scale (the driver's rim speed), 0 without a nominal rotation (the wraps' creep, `wrap_limits`)."""
+    if F.nominal_scale == 0.0:
+        return 0.0
+    return rotation_state(F.nominal_rotation, t)[1] * F.nominal_scale
+
+
+@njit(**KERNEL)
 def transport_forces(tr, c, cd, q, v, out, Bq, Aq):
     """out (n,) = c G v - c^2 (B q + b0) + c' (A q + a0); Bq, Aq (n,) receive B q + b0 and A q + a0.
     Returns (q.B q + 2 b0.q, v.(A q + a0)) for the energy and the transport power."""
@@ -491,12 +500,17 @@ def start_forces(state, model, work):
         # (the static torque: the pulley's loads, inertia and damping sit on its own rotation, `Wraps`)
         for k in range(wraps.wrap.shape[0]):
             wraps.torque[k] = 0.0
-        wrap_limits(wraps, belt, E, q_ext, c0)  # the capstan limits of the initial tensions
+        wrap_limits(wraps, belt, E, q_ext, c0, travel_speed(F, 0.0))  # the capstan limits of the initial tensions
         for k in range(wraps.wrap.shape[0]):
             w = wraps.wrap[k]
             wraps.preload[k] = state.F0[w] - (f_el[w] + Kd[w] + f_dmp[w] + f_tr[w])
             wraps.anchor[k] = q[w] - q[wraps.hub[k]] - wraps.preload[k] / wraps.bristle[k]
-        stored = wrap_friction(wraps, q, f_dmp, True)
+            held = False
+            for j in range(model.constraints.dof.shape[0]):
+                held = held or model.constraints.dof[j] == wraps.hub[k]
+            if not held:  # a run that starts at speed starts creeping: theta' = psi' - z' (the steady creep)
+                v[wraps.hub[k]] -= wraps.creep[k]
+        stored = wrap_friction(wraps, q, f_dmp, True, 0.0)
         for k in range(wraps.wrap.shape[0]):
             wraps.torque[k] = bristle(wraps.bristle[k], q[wraps.wrap[k]] - q[wraps.hub[k]], wraps.anchor[k],
                                       wraps.limit[k], wraps.limit[k])[0]
@@ -540,7 +554,7 @@ def step_forces(model, q1, v1, a1, c1, cd1, with_gross, inv_h, work):
     belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross)
     bristle = arm_friction(model.arms, q1, f_dmp) + clutch_torques(model.decouplers, q1, v1, inv_h, f_dmp)
     if model.wraps.wrap.shape[0] > 0:
-        bristle += wrap_friction(model.wraps, q1, f_dmp, True)
+        bristle += wrap_friction(model.wraps, q1, f_dmp, True, 1.0 / inv_h)
     split_matvec(lin.K, dq, Kd)
     split_matvec(lin.C, v1, Cv)
     qbq = 0.0
@@ -757,10 +771,13 @@ def record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, R1):
         for c in range(dec.hub.shape[0]):
             out.clutch[k, c] = (1.0 - s) * dec.torque[0, c] + s * dec.torque[1, c]
         wr = model.wraps
-        for c in range(wr.wrap.shape[0]):  # the bristle torque at the step's end: the anchor of its start
-            tau1 = bristle(wr.bristle[c], q1[wr.wrap[c]] - q1[wr.hub[c]], wr.anchor[c], wr.limit[c], wr.limit[c])[0]
+        for c in range(wr.wrap.shape[0]):  # the bristle torque at the step's end: the anchor of its start, crept
+            z1 = wr.anchor[c] + wr.creep[c] * wr.step[0]
+            tau1 = bristle(wr.bristle[c], q1[wr.wrap[c]] - q1[wr.hub[c]], z1, wr.limit[c], wr.limit[c])[0]
             out.wrap[k, 0, c] = (1.0 - s) * wr.torque[c] + s * tau1
             out.wrap[k, 1, c] = wr.limit[c]
+            out.wrap[k, 2, c] = wr.creep[c]
+            out.wrap[k, 3, c] = wr.ratio[c]
         out.n[0] += 1
         th[T_OUT] += opts.dt_out
 
@@ -882,7 +899,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     wv[12, :] = 0.0
     bristle0 = arm_friction(arms, q, wv[12]) + clutch_stored(model.decouplers, q)
     if model.wraps.wrap.shape[0] > 0:
-        bristle0 += wrap_friction(model.wraps, q, wv[12], False)
+        bristle0 += wrap_friction(model.wraps, q, wv[12], False, 0.0)
     while True:
         t, h = th[T_NOW], th[H]
         if t >= opts.t_stop - 1e-6 * h:
@@ -929,8 +946,9 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         if model.wraps.wrap.shape[0] > 0:  # the wraps' limits from the accepted tensions (work.elem[0]: q1's)
             model.wraps.retried[0] = 0.0
             c1 = transport_speed(model.transport, model.forcing, t1)[0]
-            th[DISS] += wrap_limits(model.wraps, model.belt, work.elem[0], work.ext[0], c1)
-            bristle0 += wrap_friction(model.wraps, q, wv[12], False)
+            th[DISS] += wrap_limits(model.wraps, model.belt, work.elem[0], work.ext[0], c1,
+                                    travel_speed(model.forcing, t1))
+            bristle0 += wrap_friction(model.wraps, q, wv[12], False, 0.0)
         th[T_NOW] = t1
         th[STEPS] += 1.0
         th[ITERS] += it

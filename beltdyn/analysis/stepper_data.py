@@ -33,8 +33,8 @@ Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind
 # pivoting, LAPACK), 2 band LU without row exchanges (`band_lu_nopivot`)
 State = namedtuple("State", ["q", "v", "a", "f0", "fd0", "F0", "R0", "scal"])
 Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n", "clutch", "wrap"])  # clutch
-# (B, n_dec): the decouplers' torques (`Decouplers`); wrap (B, 2, max(k, 1)): the wraps' bristle torque and
-# capstan limit (N m) at the output times
+# (B, n_dec): the decouplers' torques (`Decouplers`); wrap (B, 4, max(k, 1)): the wraps' bristle torque and
+# capstan limit (N m), creep rate z' (rad/s) and rim speed ratio (1) at the output times
 Events = namedtuple("Events", ["data", "n", "slack"])
 # the running belt's transport terms (module docstring): A, G = A - A^T, B (Csr, per unit speed) on the joint
 # coordinates, a0, b0 (n,); the belt speed c = speed (follow = 0) or the nominal speed of the prescribed
@@ -67,9 +67,15 @@ Decouplers = namedtuple("Decouplers", ["hub", "rotor", "stiffness", "damping", "
 # iteration matrix holds (its sticking stiffness: `transient_factor.wrap_factorizer`); an accepted step whose
 # regime differs from the factor's asks for a new one, and so does, once per step (retried (1,): 1 once done), a
 # step that fails with a fresh factor while its iterates went into the other regime.
+# Creep (docs/wraps.md "Creep in time"): travel (k,) rad/m, the pulley's nominal rotation per metre of belt travel
+# (u_nom, signed +-1/R); ref_elem, ref_spring (2,): the driver's (the pulley carrying the nominal rotation) arriving
+# span's last element and leaving span's first (or their spring spans; all -1: no driver, no creep), whose
+# stretch at the driver's entry is the reference lambda_e,drv; ratio (k,) lambda_e,k / lambda_e,drv and creep (k,)
+# z' = c u_k (1 - ratio) (rad/s, c the belt travel speed) at the last accepted step (state): the anchor drifts
+# at z' over the next step, z = anchor + creep dt; step (1,) dt of the step the last Newton evaluation solved.
 Wraps = namedtuple("Wraps", ["wrap", "hub", "radius", "capstan", "rho", "bristle", "anchor", "limit", "torque",
                              "preload", "in_elem", "out_elem", "in_spring", "out_spring", "sliding", "factored",
-                             "retried"])
+                             "retried", "travel", "ref_elem", "ref_spring", "ratio", "creep", "step"])
 # The stepper's model, its named parts built in one place (`transient.stepper_model`): the belt (BeltData),
 # the linear part (Linear), forcing (Forcing), constraints (prescribed rotations, Constraints), the convergence
 # check (Check), the arms with their dry friction (Arms), the running belt's transport (Transport), the
@@ -110,7 +116,8 @@ def no_wraps() -> Wraps:
     return Wraps(wrap=i, hub=i.copy(), radius=z, capstan=z.copy(), rho=0.0, bristle=z.copy(), anchor=z.copy(),
                  limit=z.copy(), torque=z.copy(), preload=z.copy(), in_elem=i.copy(), out_elem=i.copy(),
                  in_spring=i.copy(), out_spring=i.copy(), sliding=z.copy(), factored=z.copy(),
-                 retried=np.zeros(1))
+                 retried=np.zeros(1), travel=z.copy(), ref_elem=np.full(2, -1, dtype=np.int64),
+                 ref_spring=np.full(2, -1, dtype=np.int64), ratio=z.copy(), creep=z.copy(), step=np.zeros(1))
 
 
 def no_transport(n: int) -> Transport:
