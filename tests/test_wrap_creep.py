@@ -86,3 +86,25 @@ def test_a_sticking_driven_pulley_turns_at_the_static_rim_speed_ratio_and_creep_
     assert summary.energy_error < 1e-6  # measured: 3e-12
     dissipated = h["energy"][-1, 3]
     assert abs(dissipated / (np.mean(p_creep) * t[-1]) - 1.0) < 1e-3  # the creep work is what is dissipated
+
+
+def test_after_a_load_step_the_pulley_settles_at_the_stretch_ratio_of_the_new_tensions():
+    # From the steady creep state at 2 N m, 1.5 N m more on A ramped in over 0.1 s (still below the capstan
+    # torque): the wrap keeps sticking, the tension difference grows from 53 to 93 N, and A settles at the rim
+    # speed ratio of the new entry tensions (the recorded span tensions' means, the exact stretch ratio of the
+    # bar law solved here), 1 - ratio from 4.4e-4 to 7.7e-4. The window means carry the drive's ringing
+    # after the ramp (A against the spans, lightly damped): measured 2e-4 of the creep from t = 0.3 s on.
+    summary, h, system, _, cfg = _run(["transient.duration=0.6", "transient.record.span_tension=true",
+                                       "transient.torque=[{pulley='A', constant=-1.5, ramp_time=0.1}]"])
+    assert summary.status == "complete" and summary.energy_error < 1e-6  # measured: 5e-9
+    assert not np.any(h["wrap_sliding"])
+    EA = float(cfg.belt.EA)
+    R = np.abs(system.layout.radius)
+    t, T = h["t"], h["span_tension"]
+    late = t >= 0.3
+    # A is entered by span 1 (C -> A) at its end, C by span 0 at its end (the belt runs along the span order)
+    exact = (_green_lagrange_stretch(np.mean(T[late, 1, 1]), EA) / _green_lagrange_stretch(np.mean(T[late, 0, 1]), EA))
+    ratio = (np.mean(np.abs(h["pulley_speed"][late, 0])) * R[0]) / (np.mean(np.abs(h["pulley_speed"][late, 1])) * R[1])
+    assert 1.0 - exact > 1.5 * 4.4e-4  # the creep grew with the load
+    assert abs((1.0 - ratio) / (1.0 - exact) - 1.0) < 1e-2
+    assert abs(np.mean(h["wrap_torque"][late, 0]) / 3.5 - 1.0) < 1e-3  # J theta'' = 0 on average: the load
