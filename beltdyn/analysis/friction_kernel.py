@@ -31,6 +31,14 @@ accepted step that changed regime returns REGIME (a new factor, the step not sho
 factor's failure into the other regime is retried once with that regime's factor before HALVE. Without
 slipping wraps (k = 0) none of this runs: the stepper is the one without the part.
 
+Creep of a sticking wrap (`wrap_creep`, docs/wraps.md "Creep in time"): the rim of pulley k moves with the
+belt at its wrap's entry (the adhesion arc), at lambda_e,k / lambda_e,drv of the driver's rim speed c (the
+belt travel speed of the prescribed rotation), so its anchor drifts at z' = c u_k (1 - lambda_e,k /
+lambda_e,drv) (u_k the nominal rotation per metre of belt): z = anchor + z' dt over a step (`wrap_friction`,
+`slide_wraps`), z' from the accepted state's end stretches (`wrap_limits`, explicit over a step as the limit
+is). Its work, the integral of M dz, is what the dissipated term (the bristle's power less the change of its
+stored energy) holds.
+
 Nomenclature: tau, M torque (N m), k_b bristle stiffness (N m/rad), z anchor angle (rad), phi arm angle or
 hub-rotor angle (rad), psi wrap angle, theta the pulley's own rotation (rad), T tension (N), lambda stretch
 (1), c belt speed (m/s), mu friction coefficient, beta wrap angle (rad), R radius (m), h step (s). Arrays
