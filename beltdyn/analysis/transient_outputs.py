@@ -122,8 +122,8 @@ class Observers:
     def compute(self, t, q, v, a, energy, reaction, clutch=None, wrap=None) -> dict[str, np.ndarray]:
         """The recorded series of the output states q, v, a (B, n) at the times t (B,), their energy terms
         (B, 5), constraint reactions (B, n_con), clutch (B, n_one_way) the one-way decouplers' torques and,
-        with slipping wraps, the wraps' bristle torques, limits, creep rates and rim speed ratios wrap (B, 4, k) (the stepper's q then has
-        the pulleys' own rotations after the system's), from the stepper."""
+        with slipping wraps, the wraps' bristle torques, limits, creep rates and rim speed ratios wrap (B, 4, k)
+        (the stepper's q then has the pulleys' own rotations after the system's), from the stepper."""
         if self.slip is None:
             return self._compute(t, q, v, a, energy, reaction, clutch)
         sl = self.slip

@@ -13,9 +13,9 @@ joined by the elasto-plastic bristle of the arms' friction (`friction_kernel.bri
 +M on psi and -M on theta, z the anchor (slides in the return mapping after each accepted step), T_max
 the larger end tension of the wrap's two spans at the last accepted step, c = rho v^2 lambda(T_max) its
 centrifugal part, k_b the secant of the wrap's creep up to gross slip (`presliding_stiffness`). Below
-M_cap the wrap sticks (no drift beyond M / k_b but the creep: z drifts at z' = c u (1 - lambda_e / lambda_e,drv),
-the pulley at the static rim speed ratio, `friction_kernel.wrap_creep`); beyond it the wrap slides and transmits exactly M_cap
-(Coulomb): the capstan law of the running belt. The wrap angle keeps the inertia the span-end nodes give it through the joints.
+M_cap the wrap sticks (no drift beyond M / k_b but the creep: z drifts at z' = c u (1 - lambda_e /
+lambda_e,drv), the pulley at the static rim speed ratio, `friction_kernel.wrap_creep`); beyond it the wrap
+slides and transmits exactly M_cap (Coulomb): the capstan law of the running belt. The wrap angle keeps the inertia the span-end nodes give it through the joints.
 
 Nothing here when `belt.wraps = "rigid"` or no pulley has a friction value (`wrap_slip` is None): the
 stepper's structures are then those of `transient_setup.prepare`, unchanged.
@@ -127,6 +127,7 @@ def stepper_wraps(slip: WrapSlip, system: System, setup: TransientSetup):
     spring_of = np.full(n, -1, dtype=np.int64)  # the spring of each spring span
     spans = np.asarray(setup.belt.springs.span, dtype=np.int64)
     spring_of[spans] = np.arange(len(spans))
+
     def ends(pulleys):  # (in_elem, out_elem, in_spring, out_spring) of the pulleys' arriving and leaving spans
         arriving = (pulleys - 1) % n  # span j - 1 arrives at pulley j (its end), span j leaves it (its start)
         leaving = pulleys
