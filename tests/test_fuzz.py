@@ -28,7 +28,7 @@ from hypothesis import strategies as st
 from processes import BELTDYN  # tests/processes.py
 
 NAN_ALLOWED = {"arm_angle", "arm_torque", "arm_free_angle", "pivot_reaction", "required_friction", "slip_margin",
-               "slip_arc", "slip_speed", "wrap_torque", "wrap_sliding"}
+               "slip_arc", "slip_speed", "wrap_torque", "wrap_sliding", "rim_speed_ratio", "creep_power"}
 # (NaN there means "no arm" / "no friction given" / "the pulley's wrap cannot slip" (the transient's wrap
 # histories), documented in the variables' descriptions; a slack span's slip arc is inf)
 

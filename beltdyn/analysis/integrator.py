@@ -56,35 +56,10 @@ system.ArmJoints): the independent coordinates first (n_q), then each arm pulley
 c(phi) - c(phi_ref), kept kinematically exact (`complete`: u, u' = c' phi', u'' = c' phi'' + c'' phi'^2).
 Forces are evaluated on p and the residual projected on q by J(q)^T (`project`); the generalized-alpha
 weights apply to the projected terms, each at its own time (Chung-Hulbert for nonlinear systems).
-An arm's dry friction torque T_f is regularized as an elasto-plastic (bristle, Dahl-type) element: a
-stiff torsion spring k_b = T_f / delta (presliding angle delta = `ARM_PRESLIDING`) from an anchor
-angle z that slides when the torque reaches T_f (a return mapping after each accepted step):
-torque = clip(k_b (phi - z), -T_down, T_up), with two limits by sense (asymmetric damping: T_up while
-the arm slides counter-clockwise, T_down clockwise; `model.arms.friction_by_sense` maps loading and
-unloading onto them) and k_b from the larger. It sticks exactly (no creep) and slides at exactly its limit;
-its stiffness k_b enters the iteration matrix like a spring, not like a damper over the step, so the
-stick-slip transitions keep the factor (a tanh(phi'/omega) law put T_f / omega / h there and forced
-step halvings). Its work is dissipated, less the bristle's stored energy tau^2 / (2 k_b).
 
-Decouplers (`Decouplers`, `model.decouplers`): the engaged spring k and damper c between a pulley's hub
-and its rotor are in the linear part (K, C); a one-way clutch in series slips by an angle z when the
-torque would fall below the bound -drag (the rotor overruns): tau = k (phi - z) + c (phi' - z'), phi =
-theta_hub - theta_rotor, held at tau >= -drag, with z from a backward-Euler slip over the step
-(`clutch_torques`: while it slips, k (phi - z1) + c (phi' - (z1 - z0)/h) = -drag) and accepted with the
-step. Its correction to the linear part's torque, tau - k phi - c phi', joins the dissipative forces;
-the spring's stored energy k (phi - z)^2 / 2 replaces the linear part's k phi^2 / 2 (the difference
-joins the bristles' stored energy), so the clutch's slip work counts as dissipated.
-
-Wraps that may slip (`Wraps`, `transient_wraps`, docs/wraps.md): a pulley's rotation split into the wrap
-angle psi (the rotation DOF the span ends follow) and its own rotation theta (a DOF after the system's
-independent coordinates), joined by the same elasto-plastic bristle (`bristle`, `slid_anchor`): torque
-M = clip(k_b (psi - theta - z), -M_cap, M_cap), +M on psi and -M on theta, the limit M_cap = R (T_max - c)
-(1 - exp(-mu beta)) of the end tensions at the last accepted step (`wrap_limits`, explicit over a step;
-the stored energy a falling limit releases is dissipated). The iteration matrix holds a sticking
-bristle's k_b and none of a sliding one, in the regime the last evaluation found (`Wraps.sliding`): an
-accepted step that changed regime returns REGIME (a new factor, the step not shortened), a fresh
-factor's failure into the other regime is retried once with that regime's factor before HALVE. Without
-slipping wraps (k = 0) none of this runs: the stepper is the one without the part.
+Dry friction (`friction_kernel`: its docstring explains the models): the tensioner arms' elasto-plastic
+bristle, the decouplers' one-way clutches and the wraps that may slip (the REGIME code below), with their
+return mappings after each accepted step (`accept`) and the wraps' capstan limits (`wrap_limits`).
 
 Array conventions: belt data as `belt_kernel` (T (n_elem, 8, m), idx (n_elem, m) with padding
 index n, tsel, e0 (n_elem, 8), dS/d2S (n_elem, n_qp, 4), wEA/wEI (n_elem, n_qp), Kb (n_elem, 8, 8)).
@@ -104,6 +79,11 @@ from numba import njit  # noqa: E402
 
 from beltdyn.model import belt_kernel as bk
 from beltdyn.model import spring_kernel as sk
+
+# the dry-friction kernels (re-exported: `integrator.X` is where the tests and the transient read them)
+from beltdyn.analysis.friction_kernel import (  # noqa: E402,F401
+    accept_clutches, arm_friction, bristle, clutch_stored, clutch_torques, end_stretch, regime_changed, slid_anchor,
+    slide_anchors, slide_wraps, wrap_friction, wrap_limits)
 
 KERNEL = kernel_options()  # the njit options of this module's kernels (numba loaded)
 PART = dict(KERNEL, inline="always")  # the stepper's parts: inlined into `run_steps` at numba's IR level (public
@@ -326,6 +306,15 @@ def transport_speed(tr, F, t):
 
 
 @njit(**KERNEL)
+def travel_speed(F, t):
+    """The belt's nominal travel speed (m/s) at time t: the prescribed rotation's nominal speed times
+    nominal_scale (the driver's rim speed), 0 without a nominal rotation (the wraps' creep, `wrap_limits`)."""
+    if F.nominal_scale == 0.0:
+        return 0.0
+    return rotation_state(F.nominal_rotation, t)[1] * F.nominal_scale
+
+
+@njit(**KERNEL)
 def transport_forces(tr, c, cd, q, v, out, Bq, Aq):
     """out (n,) = c G v - c^2 (B q + b0) + c' (A q + a0); Bq, Aq (n,) receive B q + b0 and A q + a0.
     Returns (q.B q + 2 b0.q, v.(A q + a0)) for the energy and the transport power."""
@@ -430,176 +419,6 @@ def project(arms, q, x, out, absolute=False):
 
 
 @njit(**KERNEL)
-def bristle(k_b, x, z, up, down):
-    """The elasto-plastic (bristle, Dahl-type) dry friction element, the one implementation of the arms'
-    and the wraps' friction: (tau, stored) = (clip(k_b (x - z), -down, up), tau^2 / (2 k_b)) for the
-    coordinate x (rad), its anchor z, the stiffness k_b (N m/rad) and the limits up, down (N m) by sense."""
-    tau = min(max(k_b * (x - z), -down), up)
-    return tau, 0.5 * tau * tau / k_b
-
-
-@njit(**KERNEL)
-def slid_anchor(k_b, x, z, up, down):
-    """The return mapping of a `bristle` after an accepted step: its anchor z, slid along where the
-    bristle's torque k_b (x - z) exceeds a limit (up in the positive sense, down in the negative)."""
-    e = x - z
-    u, d = up / k_b, down / k_b
-    if e > u:
-        return x - u
-    if e < -d:
-        return x + d
-    return z
-
-
-@njit(**KERNEL)
-def arm_friction(arms, q, f):
-    """Add the arms' dry friction torques clip(k_b (phi - z), -T_down, T_up) to f (on the angles); returns
-    the bristles' stored energy sum tau^2 / (2 k_b). T_up, T_down: the limits sliding counter-clockwise
-    and clockwise (arms.friction_up, arms.friction_down: loading or unloading by the arm's sense)."""
-    stored = 0.0
-    for k in range(arms.dof.shape[0]):
-        if arms.friction_up[k] != 0.0 or arms.friction_down[k] != 0.0:
-            d = arms.dof[k]
-            tau, e = bristle(arms.bristle[k], q[d], arms.anchor[k], arms.friction_up[k], arms.friction_down[k])
-            f[d] += tau
-            stored += e
-    return stored
-
-
-@njit(**KERNEL)
-def clutch_torques(dec, q, v, inv_h, f):
-    """The decouplers' clutches at the state (q, v) of a step of length 1 / inv_h (inv_h = 0: no step, the
-    slip a spring's alone) from the accepted slip z0 = dec.slip[0]: tau = k (phi - z0) + c phi' while it
-    holds, else -drag with z1 = (k phi + c phi' + c z0 / h + drag) / (k + c / h) (module docstring); adds the
-    correction tau - k phi - c phi' to f at the hub (minus at the rotor), writes z1 and tau into dec.slip[1],
-    dec.torque[1]. Returns the stored energy beyond the linear part's: sum k ((phi - z1)^2 - phi^2) / 2."""
-    stored = 0.0
-    for i in range(dec.hub.shape[0]):
-        b, r = dec.hub[i], dec.rotor[i]
-        k, c, drag = dec.stiffness[i], dec.damping[i], dec.drag[i]
-        phi = q[b] - q[r]
-        w = v[b] - v[r]
-        z0 = dec.slip[0, i]
-        z = z0
-        tau = k * (phi - z0) + c * w
-        if tau < -drag:  # overrunning: the clutch slips at its bound
-            tau = -drag
-            z = (k * phi + c * w + c * z0 * inv_h + drag) / (k + c * inv_h)
-        dec.slip[1, i] = z
-        dec.torque[1, i] = tau
-        extra = tau - k * phi - c * w
-        f[b] += extra
-        f[r] -= extra
-        stored += 0.5 * k * ((phi - z) * (phi - z) - phi * phi)
-    return stored
-
-
-@njit(**KERNEL)
-def clutch_stored(dec, q):
-    """The decouplers' stored energy beyond the linear part's at q with the accepted slip (`clutch_torques`)."""
-    stored = 0.0
-    for i in range(dec.hub.shape[0]):
-        phi = q[dec.hub[i]] - q[dec.rotor[i]]
-        e = phi - dec.slip[0, i]
-        stored += 0.5 * dec.stiffness[i] * (e * e - phi * phi)
-    return stored
-
-
-@njit(**KERNEL)
-def accept_clutches(dec):
-    """The slip and torque of the step solved become the accepted ones."""
-    for i in range(dec.hub.shape[0]):
-        dec.slip[0, i] = dec.slip[1, i]
-        dec.torque[0, i] = dec.torque[1, i]
-
-
-@njit(**KERNEL)
-def slide_anchors(arms, q):
-    """Return mapping after an accepted step: an anchor whose bristle torque exceeds its limit (T_up
-    counter-clockwise, T_down clockwise) slides along."""
-    for k in range(arms.dof.shape[0]):
-        if arms.friction_up[k] != 0.0 or arms.friction_down[k] != 0.0:
-            d = arms.dof[k]
-            arms.anchor[k] = slid_anchor(arms.bristle[k], q[d], arms.anchor[k], arms.friction_up[k],
-                                         arms.friction_down[k])
-
-
-@njit(**KERNEL)
-def wrap_friction(wraps, q, f, mark):
-    """Add the wraps' bristle torques M = clip(k_b (psi - theta - z), -M_cap, M_cap) to f: +M on the wrap
-    angle psi, -M on the pulley's rotation theta (`Wraps`); returns their stored energy sum M^2 / (2 k_b).
-    mark (a Newton evaluation): mark each wrap sliding (beyond its limit) or not (wraps.sliding)."""
-    stored = 0.0
-    for k in range(wraps.wrap.shape[0]):
-        w, hb = wraps.wrap[k], wraps.hub[k]
-        tau, e = bristle(wraps.bristle[k], q[w] - q[hb], wraps.anchor[k], wraps.limit[k], wraps.limit[k])
-        if mark:
-            wraps.sliding[k] = 1.0 if abs(wraps.bristle[k] * (q[w] - q[hb] - wraps.anchor[k])) > wraps.limit[k] else 0.0
-        f[w] += tau
-        f[hb] -= tau
-        stored += e
-    return stored
-
-
-@njit(**KERNEL)
-def slide_wraps(wraps, q):
-    """The wraps' return mapping after an accepted step (`slid_anchor`) and their torques there."""
-    for k in range(wraps.wrap.shape[0]):
-        x = q[wraps.wrap[k]] - q[wraps.hub[k]]
-        wraps.torque[k] = bristle(wraps.bristle[k], x, wraps.anchor[k], wraps.limit[k], wraps.limit[k])[0]
-        wraps.anchor[k] = slid_anchor(wraps.bristle[k], x, wraps.anchor[k], wraps.limit[k], wraps.limit[k])
-
-
-@njit(**KERNEL)
-def regime_changed(wraps):
-    """True where a wrap's last evaluation (of the accepted step) found another regime, sticking or sliding,
-    than the iteration matrix holds (`Wraps.factored`)."""
-    for k in range(wraps.wrap.shape[0]):
-        if wraps.sliding[k] != wraps.factored[k]:
-            return True
-    return False
-
-
-@njit(**KERNEL)
-def end_stretch(belt, elem, spring, at_end, E, q_ext):
-    """The stretch lambda at a span's end: of element elem at its end node (at_end) or start node (the
-    node's gradient, |r'|), or of the spring span `spring`'s chord (its length over its reference)."""
-    if elem >= 0:
-        o = 6 if at_end else 2
-        return np.sqrt(E[elem, o] * E[elem, o] + E[elem, o + 1] * E[elem, o + 1])
-    sp = belt.springs
-    dx, dy = sp.d0[spring, 0], sp.d0[spring, 1]
-    for j in range(sp.idx.shape[1]):
-        dx += sp.D[spring, 0, j] * q_ext[sp.idx[spring, j]]
-        dy += sp.D[spring, 1, j] * q_ext[sp.idx[spring, j]]
-    return np.sqrt(dx * dx + dy * dy) / sp.L[spring]
-
-
-@njit(**KERNEL)
-def wrap_limits(wraps, belt, E, q_ext, c):
-    """The wraps' capstan limits M_cap = R (T_max - c_T)(1 - exp(-mu beta)) from the end tensions of their
-    spans (the true axial force N = EA eps lambda of the bar law, `end_stretch`) at the accepted state (E its element coordinates, q_ext its padded coordinates), T_max the
-    larger, c_T = rho c^2 lambda(T_max) the centrifugal part at the belt speed c (0 where T_max <= c_T:
-    a slack wrap holds nothing). Returns the bristles' stored energy the new limits release (a limit
-    that falls below a bristle's torque: the anchor slides at the next return mapping, dissipated)."""
-    released = 0.0
-    for k in range(wraps.wrap.shape[0]):
-        lam_in = end_stretch(belt, wraps.in_elem[k], wraps.in_spring[k], True, E, q_ext)
-        lam_out = end_stretch(belt, wraps.out_elem[k], wraps.out_spring[k], False, E, q_ext)
-        ea_in = belt.EA[wraps.in_elem[k]] if wraps.in_elem[k] >= 0 else belt.springs.EA
-        ea_out = belt.EA[wraps.out_elem[k]] if wraps.out_elem[k] >= 0 else belt.springs.EA
-        t_in, t_out = sk.axial_force_kernel(lam_in, ea_in), sk.axial_force_kernel(lam_out, ea_out)
-        t_max, lam = (t_in, lam_in) if t_in >= t_out else (t_out, lam_out)
-        cap = wraps.radius[k] * max(t_max - wraps.rho * c * c * lam, 0.0) * wraps.capstan[k]
-        tau = wraps.torque[k]
-        if abs(tau) > cap:
-            released += 0.5 * (tau * tau - cap * cap) / wraps.bristle[k]
-            wraps.torque[k] = cap if tau > 0.0 else -cap
-        wraps.limit[k] = cap
-    return released
-
-
-@njit(**KERNEL)
 def advance(task, state, model, opts, fac, fresh, out, ev, info, work):
     """The stepper's one entry point from Python: task START runs `start_forces` (returns DONE), STEP
     `run_steps` (returns its code). One compiled function holds every kernel a transient calls from
@@ -681,12 +500,17 @@ def start_forces(state, model, work):
         # (the static torque: the pulley's loads, inertia and damping sit on its own rotation, `Wraps`)
         for k in range(wraps.wrap.shape[0]):
             wraps.torque[k] = 0.0
-        wrap_limits(wraps, belt, E, q_ext, c0)  # the capstan limits of the initial tensions
+        wrap_limits(wraps, belt, E, q_ext, c0, travel_speed(F, 0.0))  # the capstan limits of the initial tensions
         for k in range(wraps.wrap.shape[0]):
             w = wraps.wrap[k]
             wraps.preload[k] = state.F0[w] - (f_el[w] + Kd[w] + f_dmp[w] + f_tr[w])
             wraps.anchor[k] = q[w] - q[wraps.hub[k]] - wraps.preload[k] / wraps.bristle[k]
-        stored = wrap_friction(wraps, q, f_dmp, True)
+            held = False
+            for j in range(model.constraints.dof.shape[0]):
+                held = held or model.constraints.dof[j] == wraps.hub[k]
+            if not held:  # a run that starts at speed starts creeping: theta' = psi' - z' (the steady creep)
+                v[wraps.hub[k]] -= wraps.creep[k]
+        stored = wrap_friction(wraps, q, f_dmp, True, 0.0)
         for k in range(wraps.wrap.shape[0]):
             wraps.torque[k] = bristle(wraps.bristle[k], q[wraps.wrap[k]] - q[wraps.hub[k]], wraps.anchor[k],
                                       wraps.limit[k], wraps.limit[k])[0]
@@ -730,7 +554,7 @@ def step_forces(model, q1, v1, a1, c1, cd1, with_gross, inv_h, work):
     belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross)
     bristle = arm_friction(model.arms, q1, f_dmp) + clutch_torques(model.decouplers, q1, v1, inv_h, f_dmp)
     if model.wraps.wrap.shape[0] > 0:
-        bristle += wrap_friction(model.wraps, q1, f_dmp, True)
+        bristle += wrap_friction(model.wraps, q1, f_dmp, True, 1.0 / inv_h)
     split_matvec(lin.K, dq, Kd)
     split_matvec(lin.C, v1, Cv)
     qbq = 0.0
@@ -947,10 +771,13 @@ def record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, R1):
         for c in range(dec.hub.shape[0]):
             out.clutch[k, c] = (1.0 - s) * dec.torque[0, c] + s * dec.torque[1, c]
         wr = model.wraps
-        for c in range(wr.wrap.shape[0]):  # the bristle torque at the step's end: the anchor of its start
-            tau1 = bristle(wr.bristle[c], q1[wr.wrap[c]] - q1[wr.hub[c]], wr.anchor[c], wr.limit[c], wr.limit[c])[0]
+        for c in range(wr.wrap.shape[0]):  # the bristle torque at the step's end: the anchor of its start, crept
+            z1 = wr.anchor[c] + wr.creep[c] * wr.step[0]
+            tau1 = bristle(wr.bristle[c], q1[wr.wrap[c]] - q1[wr.hub[c]], z1, wr.limit[c], wr.limit[c])[0]
             out.wrap[k, 0, c] = (1.0 - s) * wr.torque[c] + s * tau1
             out.wrap[k, 1, c] = wr.limit[c]
+            out.wrap[k, 2, c] = wr.creep[c]
+            out.wrap[k, 3, c] = wr.ratio[c]
         out.n[0] += 1
         th[T_OUT] += opts.dt_out
 
@@ -1072,7 +899,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     wv[12, :] = 0.0
     bristle0 = arm_friction(arms, q, wv[12]) + clutch_stored(model.decouplers, q)
     if model.wraps.wrap.shape[0] > 0:
-        bristle0 += wrap_friction(model.wraps, q, wv[12], False)
+        bristle0 += wrap_friction(model.wraps, q, wv[12], False, 0.0)
     while True:
         t, h = th[T_NOW], th[H]
         if t >= opts.t_stop - 1e-6 * h:
@@ -1119,8 +946,9 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         if model.wraps.wrap.shape[0] > 0:  # the wraps' limits from the accepted tensions (work.elem[0]: q1's)
             model.wraps.retried[0] = 0.0
             c1 = transport_speed(model.transport, model.forcing, t1)[0]
-            th[DISS] += wrap_limits(model.wraps, model.belt, work.elem[0], work.ext[0], c1)
-            bristle0 += wrap_friction(model.wraps, q, wv[12], False)
+            th[DISS] += wrap_limits(model.wraps, model.belt, work.elem[0], work.ext[0], c1,
+                                    travel_speed(model.forcing, t1))
+            bristle0 += wrap_friction(model.wraps, q, wv[12], False, 0.0)
         th[T_NOW] = t1
         th[STEPS] += 1.0
         th[ITERS] += it

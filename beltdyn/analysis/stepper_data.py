@@ -33,8 +33,8 @@ Factor = namedtuple("Factor", ["kind", "ab", "piv", "perm", "kl", "ku"])  # kind
 # pivoting, LAPACK), 2 band LU without row exchanges (`band_lu_nopivot`)
 State = namedtuple("State", ["q", "v", "a", "f0", "fd0", "F0", "R0", "scal"])
 Outputs = namedtuple("Outputs", ["t", "q", "v", "a", "energy", "reaction", "n", "clutch", "wrap"])  # clutch
-# (B, n_dec): the decouplers' torques (`Decouplers`); wrap (B, 2, max(k, 1)): the wraps' bristle torque and
-# capstan limit (N m) at the output times
+# (B, n_dec): the decouplers' torques (`Decouplers`); wrap (B, 4, max(k, 1)): the wraps' bristle torque and
+# capstan limit (N m), creep rate z' (rad/s) and rim speed ratio (1) at the output times
 Events = namedtuple("Events", ["data", "n", "slack"])
 # the running belt's transport terms (module docstring): A, G = A - A^T, B (Csr, per unit speed) on the joint
 # coordinates, a0, b0 (n,); the belt speed c = speed (follow = 0) or the nominal speed of the prescribed
@@ -48,7 +48,7 @@ Fused = namedtuple("Fused", ["indptr", "indices", "data"])  # data (k, nnz): k m
 # anchor angle z (state); n_q the independent coordinates (p[:n_q] = q)
 Arms = namedtuple("Arms", ["dof", "slot", "length", "angle", "friction_up", "friction_down", "bristle", "anchor",
                            "n_q"])
-# decouplers with a one-way clutch (`model.decouplers`, `integrator.clutch_torques`), k of them: hub (k,) the
+# decouplers with a one-way clutch (`model.decouplers`, `friction_kernel.clutch_torques`), k of them: hub (k,) the
 # pulley's rotation DOF, rotor (k,) the rotor's, stiffness k and damping c of the spring (both also in the linear
 # part: the engaged decoupler), drag (k,) the overrunning clutch's torque bound (tau >= -drag), slip (2, k) the
 # clutch's slip angle z (row 0 at the accepted step, row 1 at the step being solved), torque (2, k) likewise tau
@@ -57,7 +57,7 @@ Decouplers = namedtuple("Decouplers", ["hub", "rotor", "stiffness", "damping", "
 # psi (the old rotation DOF, which the span ends follow: `wrap`) and the pulley's own rotation theta (a DOF
 # `hub` added after the system's independent coordinates, with the pulley's inertia, damping, loads and
 # prescribed rotation), joined by the elasto-plastic bristle M = clip(k_b (psi - theta - z), -M_cap, M_cap)
-# (`integrator.bristle`, the arms' one). M_cap = R (T_max - c) capstan, capstan = 1 - exp(-mu beta), T_max the
+# (`friction_kernel.bristle`, the arms' one). M_cap = R (T_max - c) capstan, capstan = 1 - exp(-mu beta), T_max the
 # larger end tension of the wrap's two spans at the last accepted step, c = rho v^2 lambda(T_max): `limit`
 # (state). The end tensions: the true axial force at the span end, of the element (its end node's gradient:
 # in_elem the arriving span's last element, out_elem the departing span's first; -1: a spring span) or of
@@ -67,9 +67,15 @@ Decouplers = namedtuple("Decouplers", ["hub", "rotor", "stiffness", "damping", "
 # iteration matrix holds (its sticking stiffness: `transient_factor.wrap_factorizer`); an accepted step whose
 # regime differs from the factor's asks for a new one, and so does, once per step (retried (1,): 1 once done), a
 # step that fails with a fresh factor while its iterates went into the other regime.
+# Creep (docs/wraps.md "Creep in time"): travel (k,) rad/m, the pulley's nominal rotation per metre of belt travel
+# (u_nom, signed +-1/R); ref_elem, ref_spring (2,): the driver's (the pulley carrying the nominal rotation) arriving
+# span's last element and leaving span's first (or their spring spans; all -1: no driver, no creep), whose
+# stretch at the driver's entry is the reference lambda_e,drv; ratio (k,) lambda_e,k / lambda_e,drv and creep (k,)
+# z' = c u_k (1 - ratio) (rad/s, c the belt travel speed) at the last accepted step (state): the anchor drifts
+# at z' over the next step, z = anchor + creep dt; step (1,) dt of the step the last Newton evaluation solved.
 Wraps = namedtuple("Wraps", ["wrap", "hub", "radius", "capstan", "rho", "bristle", "anchor", "limit", "torque",
                              "preload", "in_elem", "out_elem", "in_spring", "out_spring", "sliding", "factored",
-                             "retried"])
+                             "retried", "travel", "ref_elem", "ref_spring", "ratio", "creep", "step"])
 # The stepper's model, its named parts built in one place (`transient.stepper_model`): the belt (BeltData),
 # the linear part (Linear), forcing (Forcing), constraints (prescribed rotations, Constraints), the convergence
 # check (Check), the arms with their dry friction (Arms), the running belt's transport (Transport), the
@@ -110,7 +116,8 @@ def no_wraps() -> Wraps:
     return Wraps(wrap=i, hub=i.copy(), radius=z, capstan=z.copy(), rho=0.0, bristle=z.copy(), anchor=z.copy(),
                  limit=z.copy(), torque=z.copy(), preload=z.copy(), in_elem=i.copy(), out_elem=i.copy(),
                  in_spring=i.copy(), out_spring=i.copy(), sliding=z.copy(), factored=z.copy(),
-                 retried=np.zeros(1))
+                 retried=np.zeros(1), travel=z.copy(), ref_elem=np.full(2, -1, dtype=np.int64),
+                 ref_spring=np.full(2, -1, dtype=np.int64), ratio=z.copy(), creep=z.copy(), step=np.zeros(1))
 
 
 def no_transport(n: int) -> Transport:

@@ -147,9 +147,9 @@ class TransientSnapshot:
     stop_hit: tuple[float, str, float] | None = None
     clutch: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((2, 0))))  # (2, n_dec): the decouplers'
     # accepted clutch slip and torque (`integrator.Decouplers` slip[0], torque[0])
-    wrap_state: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((6, 0))))  # (6, k) the slipping
-    # wraps' anchors, limits, torques, start torques, the factor's regime and the last evaluation's
-    # (`integrator.Wraps`; k = 0 without)
+    wrap_state: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((8, 0))))  # (8, k) the slipping
+    # wraps' anchors, limits, torques, start torques, the factor's regime and the last evaluation's, their
+    # creep rates and rim speed ratios (`integrator.Wraps`; k = 0 without)
 
     @property
     def time(self) -> float:
@@ -347,7 +347,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     out = itg.Outputs(t=np.zeros(batch), q=np.zeros((batch, n)), v=np.zeros((batch, n)), a=np.zeros((batch, n)),
                       energy=np.zeros((batch, 5)), reaction=np.zeros((batch, n_con)), n=np.zeros(1, dtype=np.int64),
                       clutch=np.zeros((batch, len(dec.hub))),
-                      wrap=np.zeros((batch, 2, max(len(wraps.wrap), 1))))
+                      wrap=np.zeros((batch, 4, max(len(wraps.wrap), 1))))
     ev = itg.Events(data=np.zeros((2000 * max(n_span, 1) + 8, 4)), n=np.zeros(1, dtype=np.int64),
                     slack=np.zeros(max(n_span, 1)))
     all_events: list[np.ndarray] = []
@@ -377,6 +377,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
         if len(wraps.wrap):
             for row, part in enumerate((wraps.anchor, wraps.limit, wraps.torque, wraps.preload, wraps.factored)):
                 part[:] = resume.wrap_state[row]
+            wraps.creep[:], wraps.ratio[:] = resume.wrap_state[6], resume.wrap_state[7]
         ev.slack[:] = resume.slack
         if len(resume.events):
             all_events.append(np.array(resume.events))
@@ -436,7 +437,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
             F0=_frozen(state.F0), R0=_frozen(state.R0), scal=_frozen(th), anchor=_frozen(arms.anchor),
             clutch=_frozen(np.stack([dec.slip[0], dec.torque[0]])),
             wrap_state=_frozen(np.array([wraps.anchor, wraps.limit, wraps.torque, wraps.preload, wraps.factored,
-                                         wraps.sliding]).reshape(6, -1)),
+                                         wraps.sliding, wraps.creep, wraps.ratio]).reshape(8, -1)),
             slack=_frozen(ev.slack),
             events=_frozen(np.concatenate(all_events) if all_events else np.zeros((0, 4))),
             factor_q=_frozen(at_factor["q"]), factor_v=_frozen(at_factor["v"]), factor_h=float(at_factor["h"]),

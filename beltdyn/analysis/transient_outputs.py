@@ -122,8 +122,8 @@ class Observers:
     def compute(self, t, q, v, a, energy, reaction, clutch=None, wrap=None) -> dict[str, np.ndarray]:
         """The recorded series of the output states q, v, a (B, n) at the times t (B,), their energy terms
         (B, 5), constraint reactions (B, n_con), clutch (B, n_one_way) the one-way decouplers' torques and,
-        with slipping wraps, the wraps' bristle torques and limits wrap (B, 2, k) (the stepper's q then has
-        the pulleys' own rotations after the system's), from the stepper."""
+        with slipping wraps, the wraps' bristle torques, limits, creep rates and rim speed ratios wrap (B, 4, k)
+        (the stepper's q then has the pulleys' own rotations after the system's), from the stepper."""
         if self.slip is None:
             return self._compute(t, q, v, a, energy, reaction, clutch)
         sl = self.slip
@@ -156,6 +156,9 @@ class Observers:
         torque, limit = wrap[:, 0, : len(j)], wrap[:, 1, : len(j)]
         got["wrap_torque"] = per_pulley(torque)
         got["wrap_sliding"] = per_pulley((limit > 0.0) & (np.abs(torque) >= limit * (1.0 - 1e-9)))
+        creep, ratio = wrap[:, 2, : len(j)], wrap[:, 3, : len(j)]  # (the stepper's creep law, docs/wraps.md)
+        got["rim_speed_ratio"] = per_pulley(ratio)
+        got["creep_power"] = per_pulley(torque * creep)
         if "slip_arc" in names:
             speed = transport_speed(setup, t)[0]
             t_in, t_out = pulley_tensions(out["span_tension"])

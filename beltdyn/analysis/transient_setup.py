@@ -345,6 +345,12 @@ def _series(system: System, opts: TransientOptions, cons_dof: list[int]):
                           description="torque the belt transmits to the pulley through its wrap (the bristle's)"))
         out.append(Series(name="wrap_sliding", dims=("pulley",), units="1",
                           description="1 while the wrap slides at its capstan torque, 0 while it sticks"))
+        out.append(Series(name="rim_speed_ratio", dims=("pulley",), units="1",
+                          description="the creep law's rim speed over the driver's, lambda(T_e) / lambda(T_e,driver) "
+                                      "of the entry stretches (1 on the driver and without a prescribed speed)"))
+        out.append(Series(name="creep_power", dims=("pulley",), units="W",
+                          description="power the wrap's creep dissipates, wrap_torque x creep rate (the pulley "
+                                      "turning behind its wrap at the rim speed ratio while it sticks)"))
     if rec.midspan_displacement:
         out.append(Series(name="midspan_displacement", dims=("span",), units="m",
                           description="mid-span displacement from the chord between the span's current end points, "

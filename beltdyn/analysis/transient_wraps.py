@@ -6,15 +6,16 @@ angle psi, the system's rotation DOF of the pulley, which the span ends follow t
 (r = c + R n + R psi t), and the pulley's own rotation theta, a DOF the stepper adds after the system's
 independent coordinates (`hub`), which carries the pulley's inertia J, its rotational damping (and the
 Rayleigh mass part alpha J), its loads and constant torques and a prescribed rotation of it. The two are
-joined by the elasto-plastic bristle of the arms' friction (`integrator.bristle`):
+joined by the elasto-plastic bristle of the arms' friction (`friction_kernel.bristle`):
 
     M = clip(k_b (psi - theta - z), -M_cap, M_cap),   M_cap = R (T_max - c)(1 - exp(-mu beta)),
 
 +M on psi and -M on theta, z the anchor (slides in the return mapping after each accepted step), T_max
 the larger end tension of the wrap's two spans at the last accepted step, c = rho v^2 lambda(T_max) its
 centrifugal part, k_b the secant of the wrap's creep up to gross slip (`presliding_stiffness`). Below
-M_cap the wrap sticks (no drift beyond M / k_b); beyond it the wrap slides and transmits exactly M_cap
-(Coulomb): the capstan law of the running belt. The wrap angle keeps the inertia the span-end nodes give it through the joints.
+M_cap the wrap sticks (no drift beyond M / k_b but the creep: z drifts at z' = c u (1 - lambda_e /
+lambda_e,drv), the pulley at the static rim speed ratio, `friction_kernel.wrap_creep`); beyond it the wrap
+slides and transmits exactly M_cap (Coulomb): the capstan law of the running belt. The wrap angle keeps the inertia the span-end nodes give it through the joints.
 
 Nothing here when `belt.wraps = "rigid"` or no pulley has a friction value (`wrap_slip` is None): the
 stepper's structures are then those of `transient_setup.prepare`, unchanged.
@@ -48,6 +49,7 @@ class WrapSlip:
     bristle: np.ndarray  # N m/rad, k_b
     n_dof: int  # the system's independent coordinates
     mapping: np.ndarray  # (n_p + 1,) the stepper's index of each joint coordinate (and of the padding n_p)
+    driver: int = -1  # the pulley whose prescribed rotation carries the belt's nominal travel (-1: none, no creep)
 
     @property
     def n(self) -> int:
@@ -85,7 +87,17 @@ def wrap_slip(system: System, opts: TransientOptions) -> WrapSlip | None:
     return WrapSlip(pulleys=pulleys, wrap=system.rot_dof[pulleys].astype(np.int64),
                     hub=n_dof + np.arange(k, dtype=np.int64), inertia=J[pulleys],
                     damping=d[pulleys] + float(opts.damping.rayleigh_mass) * J[pulleys],
-                    bristle=presliding_stiffness(system, pulleys), n_dof=n_dof, mapping=mapping)
+                    bristle=presliding_stiffness(system, pulleys), n_dof=n_dof, mapping=mapping,
+                    driver=travel_driver(system, opts))
+
+
+def travel_driver(system: System, opts: TransientOptions) -> int:
+    """The pulley whose prescribed rotation carries the belt's nominal travel (the first with a speed, as
+    `transient_setup.prepare` takes it), -1 without one: the reference of the wraps' creep."""
+    for r in opts.rotation:
+        if r.speed != 0.0:
+            return int(system.pulley_index(r.pulley))
+    return -1
 
 
 def presliding_stiffness(system: System, pulleys: np.ndarray) -> np.ndarray:
@@ -115,19 +127,30 @@ def stepper_wraps(slip: WrapSlip, system: System, setup: TransientSetup):
     spring_of = np.full(n, -1, dtype=np.int64)  # the spring of each spring span
     spans = np.asarray(setup.belt.springs.span, dtype=np.int64)
     spring_of[spans] = np.arange(len(spans))
-    arriving = (slip.pulleys - 1) % n  # span j - 1 arrives at pulley j (its end), span j leaves it (its start)
-    leaving = slip.pulleys
-    in_elem = np.where(counts[arriving] > 0, first[arriving] + counts[arriving] - 1, -1).astype(np.int64)
-    out_elem = np.where(counts[leaving] > 0, first[leaving], -1).astype(np.int64)
+
+    def ends(pulleys):  # (in_elem, out_elem, in_spring, out_spring) of the pulleys' arriving and leaving spans
+        arriving = (pulleys - 1) % n  # span j - 1 arrives at pulley j (its end), span j leaves it (its start)
+        leaving = pulleys
+        in_elem = np.where(counts[arriving] > 0, first[arriving] + counts[arriving] - 1, -1).astype(np.int64)
+        out_elem = np.where(counts[leaving] > 0, first[leaving], -1).astype(np.int64)
+        return (in_elem, out_elem, np.where(in_elem < 0, spring_of[arriving], -1).astype(np.int64),
+                np.where(out_elem < 0, spring_of[leaving], -1).astype(np.int64))
+
+    in_elem, out_elem, in_spring, out_spring = ends(slip.pulleys)
     k = slip.n
+    ref_elem, ref_spring = np.full(2, -1, dtype=np.int64), np.full(2, -1, dtype=np.int64)
+    travel = np.zeros(k)
+    if slip.driver >= 0:  # the creep's reference: the stretch at the driver's entry (`friction_kernel.wrap_creep`)
+        d_in, d_out, s_in, s_out = ends(np.array([slip.driver]))
+        ref_elem, ref_spring = np.r_[d_in, d_out].astype(np.int64), np.r_[s_in, s_out].astype(np.int64)
+        travel = np.asarray(setup.u_nom[slip.wrap], dtype=float)
     return itg.Wraps(wrap=slip.wrap.copy(), hub=slip.hub.copy(), radius=np.abs(lay.radius[slip.pulleys]).astype(float),
                      capstan=1.0 - np.exp(-system.pulley_friction[slip.pulleys] * lay.wrap_angle[slip.pulleys]),
                      rho=float(belt_density(system)), bristle=slip.bristle.astype(float), anchor=np.zeros(k),
-                     limit=np.zeros(k), torque=np.zeros(k), preload=np.zeros(k), sliding=np.zeros(k), factored=np.zeros(k), retried=np.zeros(1),
-                     in_elem=in_elem,
-                     out_elem=out_elem,
-                     in_spring=np.where(in_elem < 0, spring_of[arriving], -1).astype(np.int64),
-                     out_spring=np.where(out_elem < 0, spring_of[leaving], -1).astype(np.int64))
+                     limit=np.zeros(k), torque=np.zeros(k), preload=np.zeros(k), sliding=np.zeros(k),
+                     factored=np.zeros(k), retried=np.zeros(1), in_elem=in_elem, out_elem=out_elem,
+                     in_spring=in_spring, out_spring=out_spring, travel=travel, ref_elem=ref_elem,
+                     ref_spring=ref_spring, ratio=np.ones(k), creep=np.zeros(k), step=np.zeros(1))
 
 
 def _embed(A, slip: WrapSlip, n_new: int):
