@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from beltdyn.analysis import integrator as itg
+from beltdyn.analysis import friction_kernel
 from beltdyn.analysis.transient import stepper_arms
 from beltdyn.config import load_config
 from beltdyn.model.system import build_system
@@ -73,11 +74,11 @@ def test_bristle_friction_is_the_clipped_spring():
                     anchor=np.zeros(3), n_q=3)
     q = np.array([5e-4, -4e-3, 0.7, 0, 0, 0, 0, 0, 0])
     f = np.zeros(9)
-    stored = itg.arm_friction(arms, q, f)
+    stored = friction_kernel.arm_friction(arms, q, f)
     tau = np.array([2000.0 * 5e-4, -3.0, 0.0])
     np.testing.assert_allclose(f[:3], tau, rtol=1e-15)
     assert stored == pytest.approx(tau[0] ** 2 / 4000.0 + 9.0 / 6000.0, rel=1e-15)
-    itg.slide_anchors(arms, q)
+    friction_kernel.slide_anchors(arms, q)
     np.testing.assert_allclose(arms.anchor, [0.0, -4e-3 + 1e-3, 0.0], rtol=1e-15)
 
 
@@ -90,11 +91,11 @@ def test_asymmetric_bristle_slides_at_its_limit_by_sense():
                     anchor=np.zeros(3), n_q=3)
     q = np.array([5e-3, -5e-3, -1e-4, 0, 0, 0, 0, 0, 0])
     f = np.zeros(9)
-    stored = itg.arm_friction(arms, q, f)
+    stored = friction_kernel.arm_friction(arms, q, f)
     tau = np.array([2.0, -0.5, -0.2])
     np.testing.assert_allclose(f[:3], tau, rtol=1e-15)
     assert stored == pytest.approx(float(np.sum(tau**2)) / 4000.0, rel=1e-15)
-    itg.slide_anchors(arms, q)
+    friction_kernel.slide_anchors(arms, q)
     np.testing.assert_allclose(arms.anchor, [5e-3 - 1e-3, -5e-3 + 2.5e-4, 0.0], rtol=1e-15)
 
 

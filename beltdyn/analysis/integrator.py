@@ -80,7 +80,7 @@ from numba import njit  # noqa: E402
 from beltdyn.model import belt_kernel as bk
 from beltdyn.model import spring_kernel as sk
 
-# the dry-friction kernels (re-exported: `integrator.X` is where the tests and the transient read them)
+# the dry-friction parts the loop calls
 from beltdyn.analysis.friction_kernel import (  # noqa: E402,F401
     accept_clutches, arm_friction, bristle, clutch_stored, clutch_torques, end_stretch, regime_changed, slid_anchor,
     slide_anchors, slide_wraps, wrap_friction, wrap_limits)

@@ -8,7 +8,7 @@ stiffness (N m/rad), c the viscous damping across it (N m s/rad), d_r the access
 to ground (the pulley's `rotational_damping`, moved onto the rotor). With the clutch engaged the
 decoupler is linear: torque tau = k phi + c phi' on the hub (-tau on the rotor), mass J_r on
 theta_r; that is the component the static, modal and response analyses see (the clutch held engaged).
-The one-way clutch (transient only, `integrator.clutch_torques`) sits in series with the spring and
+The one-way clutch (transient only, `analysis.friction_kernel.clutch_torques`) sits in series with the spring and
 damper: it slips by an angle z when the torque would fall below -DRAG (overrunning: the rotor runs
 ahead), tau = max(k (phi - z) + c (phi' - z'), -DRAG).
 """
