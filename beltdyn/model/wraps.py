@@ -251,7 +251,12 @@ def slip_part(wm: WrapModel, *, span_tension: np.ndarray, radius: np.ndarray, wr
     if not k.any():
         return 0.0
     a, b, phi = te[k], T[k], np.minimum(phi[k], wrap[k])
-    profile = c + (a - c)[:, None] * ((b - c) / (a - c))[:, None] ** _XI[None, :]  # T(phi) at the quadrature points
-    stretch = wm.stretch
-    inner = (_W[None, :] / stretch(profile, wm.EA)).sum(axis=1) - 1.0 / stretch(a, wm.EA)
+    m = len(a)
+    at = np.empty((m, QUADRATURE_POINTS + 1))  # T(phi) at the quadrature points, then the entry tension
+    np.power(((b - c) / (a - c))[:, None], _XI[None, :], out=at[:, :-1])
+    at[:, :-1] *= (a - c)[:, None]
+    at[:, :-1] += c
+    at[:, -1] = a
+    lam = wm.stretch(at, wm.EA)  # (one call of the bar law's inverse for both)
+    inner = (_W[None, :] / lam[:, :-1]).sum(axis=1) - 1.0 / lam[:, -1]
     return float((radius[k] * phi * inner).sum())

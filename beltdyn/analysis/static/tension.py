@@ -196,7 +196,7 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
     T_ref = EA * (float(L.sum()) / total - 1.0) - float(L @ sp) / float(L.sum())  # the linear start
     if start is not None and wraps is not None:
         T_ref = start[0]  # (a nearby solve's)
-    lam = law.stretch_for_tension(T_ref + sp, EA)
+    lam = 1.0 + (T_ref + sp) / law.axial_stiffness(1.0, EA)  # the first-order stretches (Newton steps them)
     if wraps is None:
         T_ref, lam = _budget_newton(L, sp, total, 0.0, T_ref, lam, EA, law, rv2)
         return tension(T_ref, lam), None
@@ -225,8 +225,13 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
 def _budget_newton(L: np.ndarray, sp: np.ndarray, total: float, d_slope: float, T_ref: float, lam: np.ndarray,
                    EA: float, law: BarLaw, centrifugal: float = 0.0) -> tuple[float, np.ndarray]:
     """(T_ref, lambda (n,)) with sum_s L_s / lambda_s + d_slope T_ref = total, N(lambda_s) - rho v^2 lambda_s =
-    T_ref + split_s (N the bar law, rho v^2 = centrifugal: 0 at rest) (Newton, each stretch first stepped
-    to its span's tension: one Newton step on the bar law)."""
+    T_ref + split_s (N the bar law, rho v^2 = centrifugal: 0 at rest): Newton on both, each stretch stepped
+    to its span's tension (one Newton step on the bar law), then T_ref, the stretches following it to first
+    order (d lambda / d T = 1 / k, k = dN/dlambda - rho v^2). Done when the stretches needed no step beyond
+    1e-8 and the step of T_ref leaves a Newton remainder below 1e-13 of the tension scale: the remainder
+    after a step dT is |f''| / (2 |f'|) dT^2 <= 5 dT^2 / EA for strains below 10 % (f = sum L_s / lambda_s,
+    f' ~ -sum L / EA, f'' ~ 5 sum L / EA^2 for either bar law: 2 from 1 / lambda, 3 from the law's
+    curvature), counted twice."""
     for _ in range(60):
         k = law.axial_stiffness(lam, EA)  # dT/dlambda
         N = law.axial_force(lam, EA)
@@ -234,11 +239,13 @@ def _budget_newton(L: np.ndarray, sp: np.ndarray, total: float, d_slope: float, 
             k, N = k - centrifugal, N - centrifugal * lam
         d = (N - (T_ref + sp)) / k
         lam = lam - d
-        f = float((L / lam).sum()) + d_slope * T_ref - total
-        step = f / (d_slope - float((L / (lam * lam * k)).sum()))  # f / (d f / d T_ref)
+        share = L / lam  # L_s / lambda_s
+        f = float(share.sum()) + d_slope * T_ref - total
+        step = f / (d_slope - float((share / (lam * k)).sum()))  # f / (d f / d T_ref)
         T_ref -= step
-        if abs(step) <= 1e-13 * max(abs(T_ref), 1e-6 * EA) and float(np.abs(d).max()) <= 1e-8:  # (the scalar first)
-            break
+        lam = lam - step / k
+        if 10.0 * step * step <= 1e-13 * max(abs(T_ref), 1e-6 * EA) * EA and float(np.abs(d).max()) <= 1e-8:
+            break  # (the scalar first)
     return T_ref, lam
 
 
