@@ -115,9 +115,11 @@ def stress_free_length(radius, wrap, t_entry, t_exit, arc, EA: float, centrifuga
     te, tx = np.asarray(t_entry, dtype=float), np.asarray(t_exit, dtype=float)
     c = np.broadcast_to(np.asarray(centrifugal, dtype=float), te.shape)
     phi = np.minimum(np.asarray(arc, dtype=float), beta)
-    lam_e = stretch(te, EA)
-    lam = stretch(_slip_tensions(te, tx, c, phi), EA)  # (n, points)
-    return R * (beta - phi) / lam_e + R * phi * ((_W[None, :] / lam).sum(axis=1))
+    at = np.empty((te.shape[0], QUADRATURE_POINTS + 1))  # the slip arc's tensions, then the entry's
+    at[:, :-1] = _slip_tensions(te, tx, c, phi)
+    at[:, -1] = te
+    lam = stretch(at, EA)  # (one call of the bar law's inverse for both)
+    return R * (beta - phi) / lam[:, -1] + R * phi * ((_W[None, :] / lam[:, :-1]).sum(axis=1))
 
 
 def rim_speed_ratio(t_entry, driver: int, EA: float, stretch: Callable = stretch_for_tension) -> np.ndarray:
