@@ -281,6 +281,9 @@ def _predicted_start(plan: _Plan):
         lam = plan.law.stretch_for_tension(T, EA)
         if ts.target is None:  # the belt's conserved length settled on the spans: references L_s / lambda(T_s)
             built = plan.build(lay, lam, free)
+            # (each span laid at the stretch of its predicted tension: `predictor`'s elongations are all 0, and
+            # so is its answer, the pulleys unturned and the spans straight between their tangent points)
+            return built, lay, free, np.zeros(built.n_dof), lam_p
         elif plan.conserve:  # the same, scaled to the belt's carried reference total (exact without torques)
             ref = lay.span_length / lam
             change = wrap_budget_change(system.wraps, lay)  # creep wraps: their stretch to the spans
