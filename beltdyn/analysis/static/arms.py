@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from beltdyn.model.angles import pivot_angle, unwrap_near
-from beltdyn.model.geometry import belt_path, relay
+from beltdyn.model.geometry import Layout, belt_path, relay
 from beltdyn.model.system import System
 from beltdyn.model.wraps import centrifugal_tension
 
@@ -17,8 +17,9 @@ from beltdyn.model.wraps import centrifugal_tension
 ROUGH_STEPS = 1e4  # the arm secant's trials rough (`span_tension`'s rough) while its step exceeds this x tol_x
 
 
-def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_tension) -> np.ndarray:
-    """Pulley centres (n, 2) of the drive on a rigid belt whose span tensions `span_tension(angles,
+def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_tension) -> tuple[np.ndarray, Layout | None]:
+    """(pulley centres (n, 2), the checked layout at them where `fit` alone placed the pulleys, else None) of
+    the drive on a rigid belt whose span tensions `span_tension(angles,
     lengths, rough)` (arrays (n,) of a layout's span angles and lengths -> (n,); rough: a cheaper value
     for a trial far from the answer, the secant's steps above ROUGH_STEPS x tol_x) gives (the target or the
     belt's length, split by the accessory torques): the adjustable pulley where `fit(centers)` places
@@ -49,7 +50,8 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
                          float(a.angle[k]) + free))
     centers = lay0.center.copy()
     if not anchored and not arms and fit is not None:  # nothing deflects: the fit alone places the pulleys
-        return fit(centers).center
+        laid = fit(centers)
+        return laid.center, laid
 
     v = float(system.belt_speed)
     wm = system.wraps
@@ -112,6 +114,4 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
         centers = new
         if done:
             break
-    return centers
-
-
+    return centers, None
