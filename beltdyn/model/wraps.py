@@ -111,18 +111,29 @@ def stress_free_length(radius, wrap, t_entry, t_exit, arc, EA: float, centrifuga
                        stretch: Callable = stretch_for_tension) -> np.ndarray:
     """The wraps' reference lengths (n,): R (beta - phi) / lambda(T_e) + R int_0^phi dphi / lambda(T),
     phi = min(arc, beta) (module docstring); `stretch(T, EA)` the bar law's inverse."""
+    return _lengths_and_entry_stretch(radius, wrap, t_entry, t_exit, arc, EA, centrifugal, stretch)[0]
+
+
+def _lengths_and_entry_stretch(radius, wrap, t_entry, t_exit, arc, EA: float, centrifugal,
+                               stretch: Callable) -> tuple[np.ndarray, np.ndarray]:
+    """(`stress_free_length` (n,), the entry stretches lambda(T_e) (n,)): one call of the bar law's inverse."""
     R, beta = np.asarray(radius, dtype=float), np.asarray(wrap, dtype=float)
     te, tx = np.asarray(t_entry, dtype=float), np.asarray(t_exit, dtype=float)
     c = np.broadcast_to(np.asarray(centrifugal, dtype=float), te.shape)
     phi = np.minimum(np.asarray(arc, dtype=float), beta)
-    lam_e = stretch(te, EA)
-    lam = stretch(_slip_tensions(te, tx, c, phi), EA)  # (n, points)
-    return R * (beta - phi) / lam_e + R * phi * ((_W[None, :] / lam).sum(axis=1))
+    at = np.empty((te.shape[0], QUADRATURE_POINTS + 1))  # the slip arc's tensions, then the entry's
+    at[:, :-1] = _slip_tensions(te, tx, c, phi)
+    at[:, -1] = te
+    lam = stretch(at, EA)
+    lam_e = lam[:, -1]
+    return R * (beta - phi) / lam_e + R * phi * ((_W[None, :] / lam[:, :-1]).sum(axis=1)), lam_e
 
 
-def rim_speed_ratio(t_entry, driver: int, EA: float, stretch: Callable = stretch_for_tension) -> np.ndarray:
-    """(n,) lambda(T_e,j) / lambda(T_e,driver): each pulley's rim speed over the driver's."""
-    lam = stretch(np.asarray(t_entry, dtype=float), EA)
+def rim_speed_ratio(t_entry, driver: int, EA: float, stretch: Callable = stretch_for_tension, *,
+                    entry_stretch: np.ndarray | None = None) -> np.ndarray:
+    """(n,) lambda(T_e,j) / lambda(T_e,driver): each pulley's rim speed over the driver's (entry_stretch:
+    lambda(T_e) (n,), if at hand)."""
+    lam = stretch(np.asarray(t_entry, dtype=float), EA) if entry_stretch is None else entry_stretch
     return lam / lam[driver]
 
 
@@ -163,10 +174,10 @@ def wrap_state(*, t_in: np.ndarray, t_out: np.ndarray, radius: np.ndarray, wrap:
     c = (centrifugal_tension(te, mass_per_length, belt_speed, EA, stretch) if centrifugal is None
          else np.full(n, float(centrifugal)))
     arc = slip_arc(te, tx, mu, c)
+    length, lam_e = _lengths_and_entry_stretch(R, beta, te, tx, arc, EA, c, stretch)
     return WrapState(entry_tension=te, exit_tension=tx, slip_arc=arc, adhesion_arc=np.maximum(beta - arc, 0.0),
-                     gross_slip=arc > beta,
-                     stress_free_length=stress_free_length(R, beta, te, tx, arc, EA, c, stretch),
-                     rim_speed_ratio=rim_speed_ratio(te, driver, EA, stretch),
+                     gross_slip=arc > beta, stress_free_length=length,
+                     rim_speed_ratio=rim_speed_ratio(te, driver, EA, stretch, entry_stretch=lam_e),
                      creep_power_loss=np.where(mu == mu, creep_power_loss(te, tx, belt_speed, EA, stretch), 0.0))
 
 
@@ -251,7 +262,12 @@ def slip_part(wm: WrapModel, *, span_tension: np.ndarray, radius: np.ndarray, wr
     if not k.any():
         return 0.0
     a, b, phi = te[k], T[k], np.minimum(phi[k], wrap[k])
-    profile = c + (a - c)[:, None] * ((b - c) / (a - c))[:, None] ** _XI[None, :]  # T(phi) at the quadrature points
-    stretch = wm.stretch
-    inner = (_W[None, :] / stretch(profile, wm.EA)).sum(axis=1) - 1.0 / stretch(a, wm.EA)
+    m = len(a)
+    at = np.empty((m, QUADRATURE_POINTS + 1))  # T(phi) at the quadrature points, then the entry tension
+    np.power(((b - c) / (a - c))[:, None], _XI[None, :], out=at[:, :-1])
+    at[:, :-1] *= (a - c)[:, None]
+    at[:, :-1] += c
+    at[:, -1] = a
+    lam = wm.stretch(at, wm.EA)  # (one call of the bar law's inverse for both)
+    inner = (_W[None, :] / lam[:, :-1]).sum(axis=1) - 1.0 / lam[:, -1]
     return float((radius[k] * phi * inner).sum())

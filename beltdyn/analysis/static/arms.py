@@ -4,10 +4,12 @@ pivots (`predicted_centers`)."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from beltdyn.model.angles import pivot_angle, unwrap_near
-from beltdyn.model.geometry import belt_path, relay
+from beltdyn.model.geometry import Layout, belt_path, relay
 from beltdyn.model.system import System
 from beltdyn.model.wraps import centrifugal_tension
 
@@ -15,8 +17,9 @@ from beltdyn.model.wraps import centrifugal_tension
 ROUGH_STEPS = 1e4  # the arm secant's trials rough (`span_tension`'s rough) while its step exceeds this x tol_x
 
 
-def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_tension) -> np.ndarray:
-    """Pulley centres (n, 2) of the drive on a rigid belt whose span tensions `span_tension(angles,
+def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_tension) -> tuple[np.ndarray, Layout | None]:
+    """(pulley centres (n, 2), the checked layout at them where `fit` alone placed the pulleys, else None) of
+    the drive on a rigid belt whose span tensions `span_tension(angles,
     lengths, rough)` (arrays (n,) of a layout's span angles and lengths -> (n,); rough: a cheaper value
     for a trial far from the answer, the secant's steps above ROUGH_STEPS x tol_x) gives (the target or the
     belt's length, split by the accessory torques): the adjustable pulley where `fit(centers)` places
@@ -47,7 +50,8 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
                          float(a.angle[k]) + free))
     centers = lay0.center.copy()
     if not anchored and not arms and fit is not None:  # nothing deflects: the fit alone places the pulleys
-        return fit(centers).center
+        laid = fit(centers)
+        return laid.center, laid
 
     v = float(system.belt_speed)
     wm = system.wraps
@@ -60,18 +64,22 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
         T = span_tension(lay.span_angle, lay.span_length, rough)
         if rho_v2:
             T = T - centrifugal_tension(T, wm.mass_per_length, v, wm.EA, wm.stretch)
+        if at is not None:  # (two spans: their directions on floats)
+            a, b = float(lay.span_angle[at]), float(lay.span_angle[at - 1])
+            t_a, t_b = float(T[at]), float(T[at - 1])
+            return np.array([t_a * math.cos(a) - t_b * math.cos(b), t_a * math.sin(a) - t_b * math.sin(b)])
         f = T[:, None] * lay.span_direction
-        j = np.arange(len(f)) if at is None else at
-        return f[j] - f[j - 1]  # (span j - 1 arrives at pulley j; index -1 is the last span)
+        return f - np.roll(f, 1, axis=0)  # (span j - 1 arrives at pulley j)
 
     def arm_moment(j: int, pv: np.ndarray, length: float, k_s: float, phi_f: float):
         """The moment about the pivot on arm pulley j at arm angle phi (spring and belt pull), the other
         pulleys where `centers` has them (the fit, if any, moves the adjustable pulley with it)."""
         def moment(phi: float, rough: bool = False) -> float:
             c = centers.copy()
-            c[j] = pv + length * np.array([np.cos(phi), np.sin(phi)])
-            r, f = c[j] - pv, pull(path(c), j, rough)
-            return float(r[0] * f[1] - r[1] * f[0]) - k_s * (phi - phi_f)
+            rx, ry = length * math.cos(phi), length * math.sin(phi)  # pivot -> pulley
+            c[j] = (pv[0] + rx, pv[1] + ry)
+            f = pull(path(c), j, rough)
+            return rx * float(f[1]) - ry * float(f[0]) - k_s * (phi - phi_f)
         return moment
 
     for _ in range(50):
@@ -106,6 +114,4 @@ def predicted_centers(system: System, anchored: set, fit, tol_x: float, span_ten
         centers = new
         if done:
             break
-    return centers
-
-
+    return centers, None

@@ -186,12 +186,17 @@ def _spring_free(plan: _Plan, centers: np.ndarray) -> np.ndarray:
 
 
 def _lay_out(plan: _Plan, old: Layout, centers: np.ndarray, ref_old: np.ndarray, step: str, *, carry: bool = False,
-             build: bool = True):
+             build: bool = True, laid: Layout | None = None):
     """(layout, spring_free, system or None) at `centers`, the belt carried over from `old` (its
     reference lengths carried, `carried_reference`, where the mode conserves the belt or `carry`: the
-    spans' references already hold the material the rotations moved); build=False: no system (None)."""
+    spans' references already hold the material the rotations moved); build=False: no system (None).
+    laid: the checked layout of old's pulleys at `centers`, if at hand (`relay`'s but for the adjustable
+    pulley's fields, which are old's and its offset at `centers`)."""
     try:
-        new = relay(old, centers, adjust_offset=_adjust_offset(plan, old, centers))
+        offset = _adjust_offset(plan, old, centers)
+        new = relay(old, centers, adjust_offset=offset) if laid is None else \
+            replace(laid, adjust_index=old.adjust_index, adjust_kind=old.adjust_kind,
+                    adjust_offset=old.adjust_offset if offset is None else float(offset))
     except GeometryError as exc:
         j = int(np.argmax(np.linalg.norm(centers - old.center, axis=1)))
         raise SolverError(f"no belt path through the solved pulley positions: {exc}", analysis="static",
@@ -272,15 +277,19 @@ def _predicted_start(plan: _Plan):
         return system, lay0, np.zeros(n_dof), None, lam_p
     fit = _adjust_fit(plan) if ts.mode == "adjust" else None
     try:
-        centers = predicted_centers(system, plan.anchored, fit, plan.tol_x, span_tension)
+        centers, laid = predicted_centers(system, plan.anchored, fit, plan.tol_x, span_tension)
         settled = not plan.prestrain and (ts.target is None or plan.conserve)
-        lay, free, built = _lay_out(plan, lay0, centers, system.belt.reference_length, "prediction", build=not settled)
+        lay, free, built = _lay_out(plan, lay0, centers, system.belt.reference_length, "prediction", build=not settled,
+                                    laid=laid)
         if plan.prestrain:
             return system, lay, free, None, plan.law.stretch_for_tension(float(ts.target), EA)
         T = span_tension(lay.span_angle, lay.span_length)
         lam = plan.law.stretch_for_tension(T, EA)
         if ts.target is None:  # the belt's conserved length settled on the spans: references L_s / lambda(T_s)
             built = plan.build(lay, lam, free)
+            # (each span laid at the stretch of its predicted tension: `predictor`'s elongations are all 0, and
+            # so is its answer, the pulleys unturned and the spans straight between their tangent points)
+            return built, lay, free, np.zeros(built.n_dof), lam_p
         elif plan.conserve:  # the same, scaled to the belt's carried reference total (exact without torques)
             ref = lay.span_length / lam
             change = wrap_budget_change(system.wraps, lay)  # creep wraps: their stretch to the spans

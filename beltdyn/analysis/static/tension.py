@@ -193,15 +193,18 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
     if wraps is not None:
         L = L + wraps.entry_arc
         total += wraps.arc_total
-    T_ref = EA * (float(L.sum()) / total - 1.0) - float(L @ sp) / float(L.sum())  # the linear start
+    length = float(L.sum())
+    T_ref = EA * (length / total - 1.0) - float(L @ sp) / length  # the linear start
     if start is not None and wraps is not None:
         T_ref = start[0]  # (a nearby solve's)
-    lam = law.stretch_for_tension(T_ref + sp, EA)
+    lam = None  # the first-order stretches (`_budget_newton`)
     if wraps is None:
         T_ref, lam = _budget_newton(L, sp, total, 0.0, T_ref, lam, EA, law, rv2)
         return tension(T_ref, lam), None
     model = start  # (T_ref, delta, d delta / d T_ref) the inner solve holds delta to
-    if model is not None:
+    if model is None:  # (delta evaluated first: at the first-order stretches)
+        lam = 1.0 + (T_ref + sp) / law.axial_stiffness(1.0, EA)
+    else:
         T_ref, lam = _budget_newton(L, sp, total - model[1] + model[2] * model[0], model[2], T_ref, lam, EA, law,
                                     rv2)
     for _ in range(evaluations):  # the slip part evaluated, the budget solved with it linear in T_ref
@@ -222,24 +225,47 @@ def settled_budget(lengths: np.ndarray, split: np.ndarray, total_reference: floa
     return tension(T_ref, lam), model
 
 
-def _budget_newton(L: np.ndarray, sp: np.ndarray, total: float, d_slope: float, T_ref: float, lam: np.ndarray,
+def _budget_newton(L: np.ndarray, sp: np.ndarray, total: float, d_slope: float, T_ref: float, lam: np.ndarray | None,
                    EA: float, law: BarLaw, centrifugal: float = 0.0) -> tuple[float, np.ndarray]:
     """(T_ref, lambda (n,)) with sum_s L_s / lambda_s + d_slope T_ref = total, N(lambda_s) - rho v^2 lambda_s =
-    T_ref + split_s (N the bar law, rho v^2 = centrifugal: 0 at rest) (Newton, each stretch first stepped
-    to its span's tension: one Newton step on the bar law)."""
+    T_ref + split_s (N the bar law, rho v^2 = centrifugal: 0 at rest), from the stretches lam (None: the first
+    order ones, 1 + (T_ref + split_s) / k(1)): Newton on both, each stretch stepped
+    to its span's tension (one Newton step on the bar law), then T_ref, the stretches following it to first
+    order (d lambda / d T = 1 / k, k = dN/dlambda - rho v^2). Done when the stretches needed no step beyond
+    1e-8 and the step of T_ref leaves a Newton remainder below 1e-13 of the tension scale: the remainder
+    after a step dT is |f''| / (2 |f'|) dT^2 <= 5 dT^2 / EA for strains below 10 % (f = sum L_s / lambda_s,
+    f' ~ -sum L / EA, f'' ~ 5 sum L / EA^2 for either bar law: 2 from 1 / lambda, 3 from the law's
+    curvature), counted twice. On Python floats, span by span (numpy's calls on a few numbers cost more than
+    the arithmetic; the bar law's functions take floats as arrays)."""
+    force, stiffness = law.axial_force, law.axial_stiffness
+    rv2 = float(centrifugal)
+    lengths, split = L.tolist(), sp.tolist()
+    if lam is None:  # the first-order stretches 1 + T / k(1)
+        k1 = stiffness(1.0, EA)
+        stretch = [1.0 + (T_ref + s) / k1 for s in split]
+    else:
+        stretch = np.asarray(lam, dtype=float).tolist()
+    n = len(lengths)
+    k = [0.0] * n
     for _ in range(60):
-        k = law.axial_stiffness(lam, EA)  # dT/dlambda
-        N = law.axial_force(lam, EA)
-        if centrifugal:
-            k, N = k - centrifugal, N - centrifugal * lam
-        d = (N - (T_ref + sp)) / k
-        lam = lam - d
-        f = float((L / lam).sum()) + d_slope * T_ref - total
-        step = f / (d_slope - float((L / (lam * lam * k)).sum()))  # f / (d f / d T_ref)
+        f, df, worst = d_slope * T_ref - total, d_slope, 0.0  # f and d f / d T_ref
+        for i in range(n):
+            y = stretch[i]
+            k_i = stiffness(y, EA) - rv2  # dT/dlambda
+            d = (force(y, EA) - rv2 * y - (T_ref + split[i])) / k_i
+            y -= d
+            share = lengths[i] / y  # L_s / lambda_s
+            f += share
+            df -= share / (y * k_i)
+            stretch[i], k[i] = y, k_i
+            worst = max(worst, abs(d))
+        step = f / df
         T_ref -= step
-        if abs(step) <= 1e-13 * max(abs(T_ref), 1e-6 * EA) and float(np.abs(d).max()) <= 1e-8:  # (the scalar first)
+        for i in range(n):
+            stretch[i] -= step / k[i]
+        if 10.0 * step * step <= 1e-13 * max(abs(T_ref), 1e-6 * EA) * EA and worst <= 1e-8:
             break
-    return T_ref, lam
+    return T_ref, np.array(stretch)
 
 
 @dataclass(frozen=True, kw_only=True)
