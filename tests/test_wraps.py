@@ -121,12 +121,17 @@ def test_rim_speed_ratio_of_a_two_pulley_drive_is_the_stretch_ratio_of_its_span_
     assert np.allclose(rim_speed_ratio(np.array([T[1, 1], T[0, 1]]), 0, EA), lam / lam[0], rtol=1e-15)
 
 
-def test_a_pulley_without_friction_neither_slips_nor_loses_power():
-    """Pulley 1 has no friction value: no slip arc, no creep loss; pulley 0 (mu = 0.3) has both, its loss
-    the linear-law closed form v (T_e - T_x)^2 / (2 EA) to the law's curvature (1e-2 at 0.3 % strain)."""
+def test_a_pulley_without_friction_never_slips_but_creeps():
+    """Pulley 1 has no friction value: no slip arc (mu -> inf) but the creep loss, which does not depend on
+    mu; pulley 0 (mu = 0.3) has both. Each loss is the linear-law closed form v (T_e - T_x)^2 / (2 EA) to the
+    law's curvature (1e-2 at 0.3 % strain), and the two add up to the power the belt delivers,
+    sum_j (T_e,j - T_x,j) v lambda(T_e,j) (1e-12: the balance of the module docstring)."""
     st = wrap_state(t_in=np.array([300.0, 200.0]), t_out=np.array([200.0, 300.0]), radius=np.array([0.05, 0.1]),
                     wrap=np.array([2.5, 3.78]), friction=np.array([0.3, np.nan]), EA=EA, mass_per_length=0.0,
                     belt_speed=10.0, driver=0)
-    assert st.slip_arc[1] == 0.0 and st.creep_power_loss[1] == 0.0 and st.adhesion_arc[1] == 3.78
+    assert st.slip_arc[1] == 0.0 and st.adhesion_arc[1] == 3.78
     assert st.slip_arc[0] == pytest.approx(math.log(1.5) / 0.3, rel=1e-15)
-    assert st.creep_power_loss[0] == pytest.approx(10.0 * 100.0 ** 2 / (2 * EA), rel=1e-2)
+    assert st.creep_power_loss.tolist() == pytest.approx([10.0 * 100.0 ** 2 / (2 * EA)] * 2, rel=1e-2)
+    te = np.array([300.0, 200.0])
+    delivered = np.sum((te - np.array([200.0, 300.0])) * 10.0 * stretch_for_tension(te, EA))
+    assert st.creep_power_loss.sum() == pytest.approx(delivered, rel=1e-12)

@@ -16,7 +16,8 @@ tension of the span that departs (T_x, the exit). With creep wraps the wrap carr
   (mass-flow) speed, lambda the stretch: the true-force form of rho v_true^2 / lambda; 0 at rest;
   the statics take one c for the drive, the slip margin's, at the mean span tension, so that the
   slip arc and the margin agree exactly: `wrap_state(centrifugal=...)`). The slip arc is absent where the two tensions are equal (idlers, backside pulleys without
-  torque: `ROUND_OFF` of `model.slip`), and a pulley without a friction value never slips (phi_s = 0).
+  torque: `ROUND_OFF` of `model.slip`), and a pulley without a friction value never slips (phi_s = 0,
+  the limit mu -> inf: its stretch changes at the exit point, and its creep loss, independent of mu, stays).
   Where phi_s > beta the wrap cannot hold the tension ratio: gross slip (the slip margin < 1;
   phi_s / beta = 1 / margin exactly, both from the same capstan law).
 
@@ -156,7 +157,8 @@ def wrap_state(*, t_in: np.ndarray, t_out: np.ndarray, radius: np.ndarray, wrap:
     """The wraps of a drive (`WrapState`) from the span tensions at each pulley (`slip.pulley_tensions`),
     the radii and wrap angles (n,), the friction coefficients (n,; NaN: none given, or None), the
     belt's EA (N), mass per unit reference length (kg/m) and reference speed (m/s), the driver's index.
-    A pulley without friction has no slip arc and no creep loss (it never slips).
+    A pulley without friction has no slip arc (it never slips: the limit mu -> inf) but its creep loss, which
+    does not depend on mu (the losses of all wraps add up to the power the belt delivers).
     model "rigid": no slip arc, the wraps inextensible (reference length R beta), rim speeds equal.
     centrifugal: c (N) of the slip arcs, one for the drive (the slip margin's, `slip.drive_centrifugal_tension`,
     so that slip arc / wrap = 1 / slip margin exactly); None: rho v^2 lambda(T_e) of each wrap's entry."""
@@ -178,7 +180,7 @@ def wrap_state(*, t_in: np.ndarray, t_out: np.ndarray, radius: np.ndarray, wrap:
     return WrapState(entry_tension=te, exit_tension=tx, slip_arc=arc, adhesion_arc=np.maximum(beta - arc, 0.0),
                      gross_slip=arc > beta, stress_free_length=length,
                      rim_speed_ratio=rim_speed_ratio(te, driver, EA, stretch, entry_stretch=lam_e),
-                     creep_power_loss=np.where(mu == mu, creep_power_loss(te, tx, belt_speed, EA, stretch), 0.0))
+                     creep_power_loss=creep_power_loss(te, tx, belt_speed, EA, stretch))
 
 
 def centrifugal_tension(t_entry, mass_per_length: float, belt_speed: float, EA: float,
