@@ -53,7 +53,7 @@ from beltdyn.analysis.transient_setup import (  # noqa: F401  (set-up, re-export
 from beltdyn.analysis.transient_factor import (  # noqa: F401  (the iteration matrix, re-exported)
     IterationPlan, band_factor, factorizer, stepper_system)
 from beltdyn.analysis.transient_outputs import Observers, slip_warning, stop_warning, tension_warnings  # noqa: F401
-from beltdyn.analysis.transient_factor import WrapFactors
+from beltdyn.analysis.transient_factor import wrap_factorizer
 from beltdyn.analysis.transient_wraps import stepper_arms as wrap_arms, stepper_setup, stepper_wraps, wrap_slip
 
 Sink = Callable[[np.ndarray, dict[str, np.ndarray]], None]
@@ -251,8 +251,6 @@ class StepProblem:
     transport: tuple | None = None  # integrator.Transport (None: the belt at rest)
     decouplers: tuple | None = None  # integrator.Decouplers (None: no one-way decoupler)
     wraps: tuple | None = None  # integrator.Wraps (None: no wrap slips)
-    regime_factor: Callable | None = None  # () -> integrator.Factor of the last factor's matrix with the wraps'
-    # regime now, or None (then a new factor): a wrap's stick-slip transition (`transient_factor.WrapFactors`)
 
 
 def initial_state(problem: StepProblem, step: float, start: Callable):
@@ -494,12 +492,6 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
                 fac, fresh, calm = new_factor(), True, 0
                 run.refactors += 1
                 continue
-            if code == itg.REGIME:  # (a wrap's stick-slip transition: no trouble, the step keeps growing back)
-                # the last factor's matrix with the new regime (fresh if it was: no step since, the same state)
-                got = problem.regime_factor() if problem.regime_factor is not None else None
-                fac, fresh = (got, fresh) if got is not None else (new_factor(), True)
-                run.refactors += 1
-                continue
             # HALVE
             if th[itg.H] / 2.0 < min_step:
                 dof = problem.labels[int(info[2])] if int(info[2]) < n else "?"
@@ -560,13 +552,13 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
         parts = stepper_setup(slip, system, setup)
         wraps = stepper_wraps(slip, system, setup)
         arms = wrap_arms(slip, arms)
-        factor = WrapFactors(system, setup, opts.rho_inf, arms, slip, wraps, perm=parts.pop("perm"),
-                             bandwidth=parts.pop("bandwidth"), hold=parts["constraints"].dof)
+        factor = wrap_factorizer(system, setup, opts.rho_inf, arms, slip, wraps, perm=parts.pop("perm"),
+                                 bandwidth=parts.pop("bandwidth"), hold=parts["constraints"].dof)
         labels = list(system.dof_labels)
         labels[slip.n_dof:slip.n_dof] = [f"pulley {system.layout.names[j]} rotation (behind its wrap)"
                                          for j in slip.pulleys]
         problem = StepProblem(**parts, labels=tuple(labels), factor=factor, arms=arms, wraps=wraps,
-                              decouplers=stepper_decouplers(system), regime_factor=factor.regime)
+                              decouplers=stepper_decouplers(system))
     observer = Observers(system=system, setup=setup, slip=slip)
     if resume is not None:
         observer.restore(tension_low=resume.tension_low, tension_low_time=resume.tension_low_time,

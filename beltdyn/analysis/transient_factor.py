@@ -192,7 +192,7 @@ class IterationPlan:
 
     The band may hold more coordinates than the system's q (`order`: the stepper's band order, e.g. the
     slipping wraps' hubs after the system's DOFs, `transient_wraps.band_order`): the system's terms go to
-    their q's places, and `place` gives the places of the other entries, which `WrapFactors` adds to
+    their q's places, and `place` gives the places of the other entries, which `wrap_factorizer` adds to
     `band` before `factor_band`."""
 
     system: System  # as `stepper_system` gives it
@@ -398,93 +398,50 @@ def _weighted_sum(terms):
     return S if rest is None else S + rest
 
 
-class WrapFactors:
-    """The iteration matrix's factors of the stepper with slipping wraps (`transient_wraps`):
-    factor(q, h, v=None, t=0.0) at the state q (n_dof + k + offsets,) for the step h at time t, and `regime()`.
+def wrap_factorizer(system: System, setup: TransientSetup, rho_inf: float, arms, slip, wraps, *, perm: np.ndarray,
+                    bandwidth: int, hold: np.ndarray, plan: bool = True) -> Callable:
+    """factor(q, h, v=None, t=0.0) of the stepper with slipping wraps (`transient_wraps`) at the state q
+    (n_dof + k + offsets,) for the step h at time t: the system's iteration matrix S (`_iteration_matrix`) on
+    the stepper's q (n_dof + k,), each pulley's inertia J and damping d moved from its wrap angle psi onto
+    its own rotation theta (c_m J + c_c d), and a sticking wrap's bristle (1 - alpha_f) k_b [[1, -1], [-1, 1]]
+    on (psi, theta) (none while it slides: its torque is the constant capstan limit over the step).
+    Sticking or sliding as the stepper's last evaluation found it (`Wraps.sliding`, copied into
+    `Wraps.factored`; the Newton corrections follow later changes by a low-rank update of the solve,
+    `integrator.regime_correction`). Assembled by the run's `IterationPlan` on the stepper's band order where
+    it applies (plan=True: the fast path of the runs without slip), else (or when its factorization needs row
+    exchanges) by `band_factor` of the scipy sum. wraps: the stepper's `Wraps` (its state)."""
+    from scipy.sparse import coo_matrix, csr_matrix
 
-    S on the stepper's q (n_dof + k,): the system's iteration matrix (`_iteration_matrix`), each pulley's
-    inertia J and damping d moved from its wrap angle psi onto its own rotation theta (c_m J + c_c d), and a
-    sticking wrap's bristle (1 - alpha_f) k_b [[1, -1], [-1, 1]] on (psi, theta) (none while it slides: its
-    torque is the constant capstan limit over the step). Sticking or sliding as the stepper's last
-    evaluation found it (`Wraps.sliding`, copied into `Wraps.factored`): a factor asked for because Newton
-    slowed down at a stick-slip transition (a kink of the bristle's law) takes the regime the iterates went
-    into, not the step start's.
+    from beltdyn.analysis.timestep import alpha_parameters
 
-    Assembled by the run's `IterationPlan` on the stepper's band order where it applies (the fast path of
-    the runs without slip), else (plan=False, or a factor that needs row exchanges) `band_factor` of the
-    scipy sum. `regime()` is a regime change's factor: the band of the last factor kept without its
-    bristles (the run's state, here), the bristles of the wraps' current regime added and the band
-    factorized again, nothing re-assembled: the same matrix as `factor` at that state would give with the
-    new regime (about a fifth of its cost on the FEAD example). wraps: the stepper's `Wraps` (its state)."""
+    am, af, beta, gamma = alpha_parameters(rho_inf)
+    tr = setup.transport
+    symmetric = tr is None or not (tr.follow or tr.speed)  # the gyroscopic term makes S non-symmetric: band LU
+    n, k = system.n_dof, slip.n
+    rows, cols = np.r_[slip.wrap, slip.hub, slip.wrap, slip.hub], np.r_[slip.wrap, slip.hub, slip.hub, slip.wrap]
+    fast = IterationPlan.build(system, setup, rho_inf, arms, symmetric=symmetric,
+                               order=(perm, bandwidth, hold)) if plan else None
+    if fast is not None:
+        slots, keep = fast.place(rows, cols)  # each wrap's (psi, theta) block in the band
 
-    def __init__(self, system: System, setup: TransientSetup, rho_inf: float, arms, slip, wraps, *,
-                 perm: np.ndarray, bandwidth: int, hold: np.ndarray, plan: bool = True):
-        from beltdyn.analysis.timestep import alpha_parameters
-
-        self.system, self.setup, self.rho_inf, self.arms, self.slip, self.wraps = system, setup, rho_inf, arms, slip, wraps
-        self.perm, self.bandwidth, self.hold = perm, bandwidth, hold
-        self.alpha = alpha_parameters(rho_inf)
-        tr = setup.transport
-        self.symmetric = tr is None or not (tr.follow or tr.speed)  # the gyroscopic term: band LU
-        self.plan = IterationPlan.build(system, setup, rho_inf, arms, symmetric=self.symmetric,
-                                        order=(perm, bandwidth, hold)) if plan else None
-        w, hb = slip.wrap, slip.hub
-        self.rows, self.cols = np.r_[w, hb, w, hb], np.r_[w, hb, hb, w]  # each wrap's (psi, theta) block
-        if self.plan is not None:
-            self.slots, self.keep = self.plan.place(self.rows, self.cols)
-        self.base = None  # (mutable: the run's state) the flat band of the last factor, without the bristles
-
-    def _moved(self, h: float) -> np.ndarray:
-        """(k,) c_m J + c_c d: each pulley's inertia and damping terms, moved from psi onto theta."""
-        am, af, beta, gamma = self.alpha
-        return (1.0 - am) / (beta * h * h) * self.slip.inertia + (1.0 - af) * gamma / (beta * h) * self.slip.damping
-
-    def _bristles(self) -> np.ndarray:
-        """(4k,) the bristles' entries of the block rows/cols in the regime `Wraps.factored`."""
-        kb = (1.0 - self.alpha[1]) * np.where(self.wraps.factored > 0.0, 0.0, self.wraps.bristle)
-        return np.r_[kb, kb, -kb, -kb]
-
-    def _factor_base(self):
-        """The factor of the kept band with the bristles of the regime `Wraps.factored` (None: row exchanges)."""
-        ab = self.base.copy()
-        np.add.at(ab, self.slots[self.keep], self._bristles()[self.keep])
-        return self.plan.factor_band(ab)
-
-    def __call__(self, q, h, v=None, t=0.0):
-        wraps = self.wraps
+    def factor(q, h, v=None, t=0.0):
+        c_m = (1.0 - am) / (beta * h * h)
+        c_c = (1.0 - af) * gamma / (beta * h)
+        move = c_m * slip.inertia + c_c * slip.damping
         wraps.factored[:] = wraps.sliding  # the regime the last evaluation found (the stepper compares)
-        move = self._moved(h)
-        k = self.slip.n
-        if self.plan is not None:
-            base = self.plan.band(q, h, t)
-            np.add.at(base, self.slots[:2 * k][self.keep[:2 * k]], np.r_[-move, move][self.keep[:2 * k]])
-            self.base = base
-            got = self._factor_base()
+        kb = (1.0 - af) * np.where(wraps.factored > 0.0, 0.0, wraps.bristle)
+        block = np.r_[kb - move, kb + move, -kb, -kb]
+        if fast is not None:
+            ab = fast.band(q, h, t)
+            np.add.at(ab, slots[keep], block[keep])
+            got = fast.factor_band(ab)
             if got is not None:
                 return got
-        self.base = None
-        return self.reference(q, h, v, t)
-
-    def regime(self):
-        """The factor of the last factor's matrix with the bristles of the wraps' regime now (`Wraps.sliding`),
-        or None where none is kept (the reference path) or it needs row exchanges: then a new factor."""
-        if self.base is None:
-            return None
-        self.wraps.factored[:] = self.wraps.sliding
-        return self._factor_base()
-
-    def reference(self, q, h, v=None, t=0.0):
-        """The factor by `band_factor` of the scipy sum (`_iteration_matrix`), the regime `Wraps.factored`."""
-        from scipy.sparse import coo_matrix, csr_matrix
-
-        system, slip = self.system, self.slip
-        n, k = system.n_dof, slip.n
-        S, diagonal = _iteration_matrix(system, self.setup, q, h, self.rho_inf, v, self.arms, t)
-        move = self._moved(h)
+        S, diagonal = _iteration_matrix(system, setup, q, h, rho_inf, v, arms, t)
         C = coo_matrix(S)
-        rows = np.r_[C.row, self.rows]
-        cols = np.r_[C.col, self.cols]
-        vals = np.r_[C.data, self._bristles() + np.r_[-move, move, np.zeros(2 * k)]]
-        S_all = csr_matrix((vals, (rows, cols)), shape=(n + k, n + k))
+        S_all = csr_matrix((np.r_[C.data, block], (np.r_[C.row, rows], np.r_[C.col, cols])), shape=(n + k, n + k))
         d_all = None if diagonal is None else np.r_[diagonal, np.zeros(k)]
-        return band_factor(S_all, self.perm, self.bandwidth, symmetric=self.symmetric, hold=self.hold, diagonal=d_all)
+        return band_factor(S_all, perm, bandwidth, symmetric=symmetric, hold=hold, diagonal=d_all)
+
+    factor.plan = fast
+    return factor
