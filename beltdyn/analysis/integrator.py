@@ -870,12 +870,12 @@ def regime_correction(wraps, fac, held, weight, dx, work_q):
             s -= A[c, j] * A[j, m]
         A[c, m] = s / A[c, c]
     j = 0
-    for kj in range(kn):
+    for kj in range(kn):  # dx' = dx - Z coef
         if wraps.sliding[kj] != wraps.factored[kj]:
-            c = A[j, m]
+            coef = A[j, m]
             z = wraps.update[kj]
             for i in range(dx.shape[0]):
-                dx[i] -= c * z[i]
+                dx[i] -= coef * z[i]
             j += 1
 
 
