@@ -498,7 +498,7 @@ def test_refreshed_factor_gives_the_same_history(monkeypatch):
     # changes only the Newton path, not the converged steps: span tensions and hub loads agree with a
     # run on one factor within 1e-6 of the mean tension (each step converged to 1e-8 of its forces;
     # measured 1e-9), with fewer Newton iterations (8 factors: 9306 instead of 9636 over 0.3 s). Rigid
-    # wraps: the wraps that may slip refactorize at their stick-slip transitions whatever the rule.
+    # wraps: the counts are those of the model without slip.
     import beltdyn.analysis.transient as tr
 
     cfg = load_config(ROOT / "configs" / "examples" / "fead_4cyl.toml",

@@ -26,9 +26,9 @@ independent coordinates), joined by the same elasto-plastic bristle (`bristle`, 
 M = clip(k_b (psi - theta - z), -M_cap, M_cap), +M on psi and -M on theta, the limit M_cap = R (T_max - c)
 (1 - exp(-mu beta)) of the end tensions at the last accepted step (`wrap_limits`, explicit over a step;
 the stored energy a falling limit releases is dissipated). The iteration matrix holds a sticking
-bristle's k_b and none of a sliding one, in the regime the last evaluation found (`Wraps.sliding`): an
-accepted step that changed regime returns REGIME (a new factor, the step not shortened), a fresh
-factor's failure into the other regime is retried once with that regime's factor before HALVE. Without
+bristle's k_b and none of a sliding one, in the regime the last evaluation found (`Wraps.sliding`;
+`regime_changed` tells the stepper where the factor's regime differs, `integrator.regime_correction` updates
+its solve by a low-rank correction). Without
 slipping wraps (k = 0) none of this runs: the stepper is the one without the part.
 
 Creep of a sticking wrap (`wrap_creep`, docs/wraps.md "Creep in time"): the rim of pulley k moves with the

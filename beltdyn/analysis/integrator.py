@@ -58,8 +58,13 @@ Forces are evaluated on p and the residual projected on q by J(q)^T (`project`);
 weights apply to the projected terms, each at its own time (Chung-Hulbert for nonlinear systems).
 
 Dry friction (`friction_kernel`: its docstring explains the models): the tensioner arms' elasto-plastic
-bristle, the decouplers' one-way clutches and the wraps that may slip (the REGIME code below), with their
-return mappings after each accepted step (`accept`) and the wraps' capstan limits (`wrap_limits`).
+bristle, the decouplers' one-way clutches and the wraps that may slip, with their return mappings after
+each accepted step (`accept`) and the wraps' capstan limits (`wrap_limits`). The iteration matrix holds a
+sticking wrap bristle's k_b and none of a sliding one: a factor holds the regime of its moment
+(`Wraps.factored`), and each Newton correction adds or removes the bristles of the wraps that changed
+since by a low-rank update of its solve (`regime_correction`, the Woodbury identity), so a stick-slip
+transition costs neither a factor nor a return to Python (on the FEAD example: ~500 transitions a second
+had cost as many factors and ~800 failed Newton steps).
 
 Array conventions: belt data as `belt_kernel` (T (n_elem, 8, m), idx (n_elem, m) with padding
 index n, tsel, e0 (n_elem, 8), dS/d2S (n_elem, n_qp, 4), wEA/wEI (n_elem, n_qp), Kb (n_elem, 8, 8)).
@@ -108,8 +113,6 @@ REFACTOR = 2  # convergence slowed (or the factor's extra iterations outweigh a 
 #              current state and call again
 HALVE = 3  # no convergence with a fresh factor: halve the step, refactorize, call again
 MAX_STEPS = 4  # step budget of this call used up (keeps Ctrl-C responsive)
-REGIME = 5  # a wrap went from sticking to sliding or back at the accepted step: refactorize (not a convergence
-#             trouble: the step is not shortened for it)
 
 EPS = float(np.finfo(np.float64).eps)  # a constant to the compiled code (np.finfo there is numba's array module)
 
@@ -634,11 +637,84 @@ def scaled_residual(chk, held, am, af, x, R, work):
 
 
 @njit(**PART)
-def correct(fac, cons, R, c_v, c_a, q1, v1, a1, work):
+def regime_correction(wraps, fac, held, weight, dx, work_q):
+    """Newton's correction dx = S^-1 R, S the factor's matrix with its wraps in the regime `Wraps.factored`,
+    made the correction of S' = S + U D U^T, the matrix of the regime the last evaluation found
+    (`Wraps.sliding`): for each wrap whose regime differs, u_k = e_psi - e_theta (a held DOF's entry left
+    out, as the factor holds its row and column) and d_k = +weight k_b where it sticks now (the factor
+    left its bristle out), -weight k_b where it slides now. By the Woodbury identity
+        dx' = dx - Z (D^-1 + U^T Z)^-1 U^T dx,   Z = S^-1 U,
+    Z the factor's solves of the changed wraps (`Wraps.update`, each solved once per factor: `Wraps.updated`,
+    cleared by `run_steps`), the small system (m <= k) by Gaussian elimination with partial pivoting in
+    `Wraps.small` (m, m + 1). The same correction as a new factor of the new regime at the factor's state,
+    without one: a stick-slip transition costs neither a factor nor a return to Python."""
+    kn = wraps.wrap.shape[0]
+    m = 0
+    for k in range(kn):
+        if wraps.sliding[k] != wraps.factored[k]:
+            if wraps.updated[k] == 0.0:
+                z = wraps.update[k]
+                for i in range(z.shape[0]):
+                    z[i] = 0.0
+                if held[wraps.wrap[k]] == 0:
+                    z[wraps.wrap[k]] = 1.0
+                if held[wraps.hub[k]] == 0:
+                    z[wraps.hub[k]] = -1.0
+                factor_solve(fac, z, z, work_q)  # (the solvers copy b first: in place)
+                wraps.updated[k] = 1.0
+            m += 1
+    A = wraps.small
+    i = 0
+    for ki in range(kn):  # A = D^-1 + U^T Z, the right-hand side U^T dx in column m
+        if wraps.sliding[ki] == wraps.factored[ki]:
+            continue
+        w, hb = wraps.wrap[ki], wraps.hub[ki]
+        j = 0
+        for kj in range(kn):
+            if wraps.sliding[kj] != wraps.factored[kj]:
+                z = wraps.update[kj]
+                A[i, j] = z[w] - z[hb]  # (z and dx are 0 on held DOFs)
+                j += 1
+        d = weight * wraps.bristle[ki]
+        A[i, i] += 1.0 / d if wraps.sliding[ki] == 0.0 else -1.0 / d
+        A[i, m] = dx[w] - dx[hb]
+        i += 1
+    for c in range(m):  # elimination with partial pivoting
+        p = c
+        for r in range(c + 1, m):
+            if abs(A[r, c]) > abs(A[p, c]):
+                p = r
+        if p != c:
+            for j in range(c, m + 1):
+                A[c, j], A[p, j] = A[p, j], A[c, j]
+        for r in range(c + 1, m):
+            f = A[r, c] / A[c, c]
+            for j in range(c, m + 1):
+                A[r, j] -= f * A[c, j]
+    for c in range(m - 1, -1, -1):  # back substitution: the coefficients in column m
+        s = A[c, m]
+        for j in range(c + 1, m):
+            s -= A[c, j] * A[j, m]
+        A[c, m] = s / A[c, c]
+    j = 0
+    for kj in range(kn):  # dx' = dx - Z coef
+        if wraps.sliding[kj] != wraps.factored[kj]:
+            coef = A[j, m]
+            z = wraps.update[kj]
+            for i in range(dx.shape[0]):
+                dx[i] -= coef * z[i]
+            j += 1
+
+
+@njit(**PART)
+def correct(fac, cons, wraps, weight, R, c_v, c_a, q1, v1, a1, work):
     """One Newton correction with the factor: dx = S^-1 R (zero on the prescribed DOFs), q1 -= dx,
-    v1 -= c_v dx, a1 -= c_a dx. Returns |dx|^2."""
+    v1 -= c_v dx, a1 -= c_a dx, S in the wraps' regime of the last evaluation (`regime_correction`; weight
+    1 - alpha_f). Returns |dx|^2."""
     dx, work_q = work.proj[1], work.proj[2]
     factor_solve(fac, R, dx, work_q)
+    if wraps.wrap.shape[0] > 0 and regime_changed(wraps):
+        regime_correction(wraps, fac, work.held, weight, dx, work_q)
     for k in range(cons.dof.shape[0]):
         dx[cons.dof[k]] = 0.0
     norm = 0.0
@@ -677,7 +753,7 @@ def solve_step(state, model, opts, fac, t1, h, x, work):
             return True, res, worst, it, bristle1, qbq, p_tr
         if it >= chk.max_iter:
             return False, res, worst, it, bristle1, qbq, p_tr
-        norm = correct(fac, cons, R, c_v, c_a, q1, v1, a1, work)
+        norm = correct(fac, cons, model.wraps, 1.0 - opts.af, R, c_v, c_a, q1, v1, a1, work)
         complete(arms, q1, v1, a1)
         it += 1
         if it >= 3 and norm > 0.25 * prev:  # convergence rate worse than 1/2 per iteration
@@ -871,7 +947,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     (`solve_step`), the step's power (`step_power`), observers (`balance_energy`, `record_outputs`,
     `slack_events`), `accept` and the factor's age (`factor_aged`).
 
-    Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS, REGIME). out receives the states at the
+    Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
     output times (Hermite interpolation within the step), the energy terms of the step that contains
     each output time (exact at that step) and the constraint reactions. info (4,): on HALVE the
     time, the scaled residual, the worst DOF and the iterations.
@@ -896,6 +972,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         th[STALE] = 0.0
         th[REF_SUM] = 0.0
         th[REF_N] = 0.0
+    for k in range(model.wraps.updated.shape[0]):  # the factor's solves of the wraps (`regime_correction`): anew
+        model.wraps.updated[k] = 0.0
     wv[12, :] = 0.0
     bristle0 = arm_friction(arms, q, wv[12]) + clutch_stored(model.decouplers, q)
     if model.wraps.wrap.shape[0] > 0:
@@ -920,10 +998,6 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
             info[2] = worst
             info[3] = it
             if fresh:
-                wr = model.wraps
-                if wr.wrap.shape[0] > 0 and wr.retried[0] == 0.0 and regime_changed(wr):
-                    wr.retried[0] = 1.0  # the iterates went into the other regime: once more with its factor
-                    return REGIME
                 return HALVE
             return REFACTOR
         # the step is accepted only if all of its output samples fit in the buffer
@@ -944,7 +1018,6 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         accept(state, model, x, p_tr, work)
         bristle0 = arm_friction(arms, q, wv[12]) + clutch_stored(model.decouplers, q)  # after the return mapping
         if model.wraps.wrap.shape[0] > 0:  # the wraps' limits from the accepted tensions (work.elem[0]: q1's)
-            model.wraps.retried[0] = 0.0
             c1 = transport_speed(model.transport, model.forcing, t1)[0]
             th[DISS] += wrap_limits(model.wraps, model.belt, work.elem[0], work.ext[0], c1,
                                     travel_speed(model.forcing, t1))
@@ -955,7 +1028,5 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         steps += 1
         if factor_aged(th, it, opts.refresh):
             return REFACTOR
-        if model.wraps.wrap.shape[0] > 0 and regime_changed(model.wraps):
-            return REGIME  # a wrap went from sticking to sliding or back: the iteration matrix follows
 
 

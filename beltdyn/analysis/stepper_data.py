@@ -64,9 +64,10 @@ Decouplers = namedtuple("Decouplers", ["hub", "rotor", "stiffness", "damping", "
 # the spring span (in_spring, out_spring; -1: none). anchor z, limit and torque (the bristle torque at
 # the last accepted step) are the state; preload (k,) the static torque the bristle carries at the start; sliding
 # (k,) 1 where the last Newton evaluation found the bristle at its limit, factored (k,) the regime the current
-# iteration matrix holds (its sticking stiffness: `transient_factor.wrap_factorizer`); an accepted step whose
-# regime differs from the factor's asks for a new one, and so does, once per step (retried (1,): 1 once done), a
-# step that fails with a fresh factor while its iterates went into the other regime.
+# iteration matrix holds (its sticking stiffness: `transient_factor.wrap_factorizer`); the Newton corrections
+# follow `sliding` by a low-rank update of the factor's solve (`integrator.regime_correction`): update (k, n_q)
+# the factor's solves S^-1 (e_psi - e_theta), updated (k,) 1 where that solve is of the current factor, small
+# (k, k + 1) the scratch of the update's small system.
 # Creep (docs/wraps.md "Creep in time"): travel (k,) rad/m, the pulley's nominal rotation per metre of belt travel
 # (u_nom, signed +-1/R); ref_elem, ref_spring (2,): the driver's (the pulley carrying the nominal rotation) arriving
 # span's last element and leaving span's first (or their spring spans; all -1: no driver, no creep), whose
@@ -75,7 +76,8 @@ Decouplers = namedtuple("Decouplers", ["hub", "rotor", "stiffness", "damping", "
 # at z' over the next step, z = anchor + creep dt; step (1,) dt of the step the last Newton evaluation solved.
 Wraps = namedtuple("Wraps", ["wrap", "hub", "radius", "capstan", "rho", "bristle", "anchor", "limit", "torque",
                              "preload", "in_elem", "out_elem", "in_spring", "out_spring", "sliding", "factored",
-                             "retried", "travel", "ref_elem", "ref_spring", "ratio", "creep", "step"])
+                             "update", "updated", "small", "travel", "ref_elem", "ref_spring", "ratio", "creep",
+                             "step"])
 # The stepper's model, its named parts built in one place (`transient.stepper_model`): the belt (BeltData),
 # the linear part (Linear), forcing (Forcing), constraints (prescribed rotations, Constraints), the convergence
 # check (Check), the arms with their dry friction (Arms), the running belt's transport (Transport), the
@@ -116,8 +118,9 @@ def no_wraps() -> Wraps:
     return Wraps(wrap=i, hub=i.copy(), radius=z, capstan=z.copy(), rho=0.0, bristle=z.copy(), anchor=z.copy(),
                  limit=z.copy(), torque=z.copy(), preload=z.copy(), in_elem=i.copy(), out_elem=i.copy(),
                  in_spring=i.copy(), out_spring=i.copy(), sliding=z.copy(), factored=z.copy(),
-                 retried=np.zeros(1), travel=z.copy(), ref_elem=np.full(2, -1, dtype=np.int64),
-                 ref_spring=np.full(2, -1, dtype=np.int64), ratio=z.copy(), creep=z.copy(), step=np.zeros(1))
+                 update=np.zeros((0, 0)), updated=z.copy(), small=np.zeros((0, 1)), travel=z.copy(),
+                 ref_elem=np.full(2, -1, dtype=np.int64), ref_spring=np.full(2, -1, dtype=np.int64), ratio=z.copy(),
+                 creep=z.copy(), step=np.zeros(1))
 
 
 def no_transport(n: int) -> Transport:

@@ -493,10 +493,6 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
                 fac, fresh, calm = new_factor(), True, 0
                 run.refactors += 1
                 continue
-            if code == itg.REGIME:  # (a wrap's stick-slip transition: no trouble, the step keeps growing back)
-                fac, fresh = new_factor(), True
-                run.refactors += 1
-                continue
             # HALVE
             if th[itg.H] / 2.0 < min_step:
                 dof = problem.labels[int(info[2])] if int(info[2]) < n else "?"

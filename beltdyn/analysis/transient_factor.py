@@ -185,44 +185,75 @@ class IterationPlan:
     one pass (numpy), instead of summing, projecting and converting scipy matrices: ~0.15 instead of
     ~0.55 ms on the FEAD example, so the refresh rule (`integrator.run_steps`) affords more factors
     and the Newton iterations fewer. Same matrix (summed in another order: round-off).
-    `build` returns None where it does not apply (a dense system, a matrix off the pattern, an entry
-    outside the band): `band_factor(_iteration_matrix(...))` then."""
+    A dense system (a few DOFs, `system.DENSE_LIMIT`) has as its pattern the entries of its matrices that
+    the band holds (the coupling graph `transient_setup.band_order` measured the band on).
+    `build` returns None where it does not apply (a matrix off the pattern, an entry outside the band):
+    `band_factor(_iteration_matrix(...))` then.
+
+    The band may hold more coordinates than the system's q (`order`: the stepper's band order, e.g. the
+    slipping wraps' hubs after the system's DOFs, `transient_wraps.band_order`): the system's terms go to
+    their q's places, and `place` gives the places of the other entries, which `wrap_factorizer` adds to
+    `band` before `factor_band`."""
 
     system: System  # as `stepper_system` gives it
     at_rest: System  # the same without the belt speed (the transport terms are added at their time)
     setup: TransientSetup
     arms: tuple  # integrator.Arms (their bristles' anchors: the state of the run)
     symmetric: bool  # band Cholesky (upper, u + 1 rows), else LU without row exchanges (2 u + 1 rows)
-    n: int  # DOFs of q
+    dense: bool  # the system's matrices are dense arrays: the pattern is their entries within the band
+    n: int  # DOFs of q (the system's)
+    n_band: int  # columns of the band: the stepper's coordinates (the system's q first, then any wrap's hub)
     u: int  # half-bandwidth
     height: int  # rows of the band storage
+    perm: np.ndarray  # (n_band,) the band order (the stepper's coordinate at each position)
+    inv: np.ndarray  # (n_band,) each stepper coordinate's position in the band order
     const: dict  # name -> (nnz,) data on the joint pattern: M, C (and A, G, B when the belt runs)
     moving: bool  # the transport terms are in
     entries: np.ndarray  # (k,) the pattern entries that go into the band (held rows/columns out)
     flat: np.ndarray  # (k,) their places in the band storage, column-major, flattened
     rows_p: np.ndarray  # (nnz,) row of each pattern entry (joint coordinates)
     cols_p: np.ndarray  # (nnz,) its column
-    diag: np.ndarray  # (n,) the flat place of each q's diagonal
+    diag: np.ndarray  # (n_band,) the flat place of each coordinate's diagonal
     held: np.ndarray  # (h,) the held (prescribed) DOFs: identity
     alpha: tuple  # (alpha_m, alpha_f, beta, gamma)
 
     @classmethod
-    def build(cls, system: System, setup: TransientSetup, rho_inf: float, arms, *, symmetric: bool):
-        from scipy.sparse import coo_matrix
+    def build(cls, system: System, setup: TransientSetup, rho_inf: float, arms, *, symmetric: bool,
+              order: tuple[np.ndarray, int, np.ndarray] | None = None):
+        """The plan of the run, or None where it does not apply. order: (perm (n_band,), half-bandwidth,
+        held DOFs) of the stepper's coordinates, the system's q (n_dof,) first (default: the system's own,
+        `setup.perm`, `setup.bandwidth`, `setup.constraints.dof`)."""
+        from scipy.sparse import coo_matrix, issparse
 
         pat = system.pattern
-        if system.dense or pat.indptr is None:
-            return None
         n_p, n = system.n_p, system.n_dof
-        nnz = pat.nnz
-        rows_p = np.repeat(np.arange(n_p, dtype=np.int64), np.diff(pat.indptr))
-        cols_p = np.asarray(pat.indices, dtype=np.int64)
+        to_q = p_to_q(system)
+        perm, u, hold = order if order is not None else (setup.perm, setup.bandwidth, setup.constraints.dof)
+        n_band = len(perm)
+        inv = np.empty(n_band, dtype=np.int64)
+        inv[perm] = np.arange(n_band)
+        held = np.zeros(n_band, dtype=bool)
+        held[hold] = True
+        dense = bool(system.dense or pat.indptr is None)
+        if dense:  # the entries of a dense system's matrices that the band can hold (the others: zeros)
+            grid_r, grid_c = np.divmod(np.arange(n_p * n_p, dtype=np.int64), n_p)
+            live = np.abs(inv[to_q[grid_r]] - inv[to_q[grid_c]]) <= u
+            rows_p, cols_p = grid_r[live], grid_c[live]
+            nnz = len(rows_p)
+        else:
+            nnz = pat.nnz
+            rows_p = np.repeat(np.arange(n_p, dtype=np.int64), np.diff(pat.indptr))
+            cols_p = np.asarray(pat.indices, dtype=np.int64)
         keys = rows_p * (n_p + 1) + cols_p
 
         def on_pattern(A):
             """A's entries as data on the pattern (None if one lies off it)."""
             if A is None:
                 return np.zeros(nnz)
+            if dense:
+                full = A.toarray() if issparse(A) else np.asarray(A, dtype=float)
+                out = full[rows_p, cols_p]
+                return out if np.count_nonzero(out) == np.count_nonzero(full) else None
             C = coo_matrix(A)
             C.sum_duplicates()
             live = C.data != 0.0
@@ -243,12 +274,6 @@ class IterationPlan:
             const.update(A=on_pattern(A), G=on_pattern(A - A.T), B=on_pattern(B))
         if any(v is None for v in const.values()):
             return None
-        to_q = p_to_q(system)
-        inv = np.empty(n, dtype=np.int64)
-        inv[setup.perm] = np.arange(n)
-        u = setup.bandwidth
-        held = np.zeros(n, dtype=bool)
-        held[setup.constraints.dof] = True
         r, c = inv[to_q[rows_p]], inv[to_q[cols_p]]
         keep = ~held[to_q[rows_p]] & ~held[to_q[cols_p]]
         if np.abs(r - c)[keep].max(initial=0) > u:
@@ -259,15 +284,43 @@ class IterationPlan:
         diag = inv * height + u  # the flat place of each q's diagonal
         from beltdyn.analysis.timestep import alpha_parameters
 
-        return cls(system=system, at_rest=at_rest, setup=setup, arms=arms, symmetric=symmetric, n=n, u=u,
-                   height=height, const=const, moving=moving, entries=np.flatnonzero(keep),
-                   flat=(c * height + u + r - c)[keep], rows_p=rows_p, cols_p=cols_p, diag=diag,
-                   held=np.asarray(setup.constraints.dof, dtype=np.int64), alpha=alpha_parameters(rho_inf))
+        return cls(system=system, at_rest=at_rest, setup=setup, arms=arms, symmetric=symmetric, dense=dense, n=n,
+                   n_band=n_band,
+                   u=int(u), height=height, perm=np.asarray(perm, dtype=np.int64), inv=inv, const=const,
+                   moving=moving, entries=np.flatnonzero(keep), flat=(c * height + u + r - c)[keep], rows_p=rows_p,
+                   cols_p=cols_p, diag=diag,
+                   held=np.asarray(hold, dtype=np.int64), alpha=alpha_parameters(rho_inf))
 
     def factor(self, q: np.ndarray, h: float, t: float = 0.0):
         """The integrator.Factor of S at the state q (n_dof,) for the step h at time t."""
-        from beltdyn.analysis.integrator import Factor, band_lu_nopivot
+        return self.factor_band(self.band(q, h, t))
 
+    def place(self, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(flat, keep) (m,): the places in `band`'s flat storage of the entries (rows, cols) (m,) on the
+        stepper's coordinates, and whether each goes in (not on a held row or column; symmetric: the
+        upper triangle of the band order only). Every entry must lie within the band."""
+        r, c = self.inv[rows], self.inv[cols]
+        if np.abs(r - c).max(initial=0) > self.u:
+            raise ValueError("an entry outside the iteration matrix's band")
+        held = np.zeros(self.n_band, dtype=bool)
+        held[self.held] = True
+        keep = ~held[rows] & ~held[cols]
+        if self.symmetric:
+            keep &= r <= c
+        return c * self.height + self.u + r - c, keep
+
+    def _on_pattern(self, A) -> np.ndarray:
+        """(nnz,) the data of a matrix the system assembled (a CSR on its pattern, or a dense array)."""
+        if self.dense:
+            return A[self.rows_p, self.cols_p]
+        if len(A.data) != len(self.rows_p):
+            raise AssertionError("a matrix off the joint pattern")
+        return A.data
+
+    def band(self, q: np.ndarray, h: float, t: float = 0.0) -> np.ndarray:
+        """S at the state q (the system's q first) for the step h at time t in band storage, flat
+        (n_band * height,): column j of the band order at [j * height, (j + 1) * height), the held DOFs'
+        rows and columns the identity. `factor_band` factorizes it (in place for the LU)."""
         am, af, beta, gamma = self.alpha
         c_m = (1.0 - am) / (beta * h * h)
         c_c = (1.0 - af) * gamma / (beta * h)
@@ -275,15 +328,13 @@ class IterationPlan:
         q = q[: self.n]
         p = system.expand(q)
         f, K = self.at_rest.belt_force_and_tangent(p)  # on the pattern (+ the components' constant stiffness)
-        if len(K.data) != len(k["M"]):
-            raise AssertionError("the belt's tangent is off the joint pattern")
-        data = (1.0 - af) * K.data + c_m * k["M"] + c_c * k["C"]
+        data = (1.0 - af) * self._on_pattern(K) + c_m * k["M"] + c_c * k["C"]
         if self.moving:
             c, cd = (float(x[0]) for x in transport_speed(setup, np.array([t])))
             data += (c_c * c) * k["G"] + ((1.0 - af) * cd) * k["A"] - ((1.0 - af) * c * c) * k["B"]
         C_belt = _belt_damping_matrix(system, setup, q, p)
         if C_belt is not None:
-            data += c_c * C_belt.data
+            data += c_c * self._on_pattern(C_belt)
         arms, a = self.arms, system.arms
         if a is not None:  # J^T S J: the arm offsets' rows and columns scaled by dc/dphi, folded onto the angle
             phi = a.phi(q)
@@ -291,7 +342,7 @@ class IterationPlan:
             dc = a.first(phi)
             w[a.slot], w[a.slot + 1] = dc[:, 0], dc[:, 1]
             data = data * w[self.rows_p] * w[self.cols_p]
-        ab = np.bincount(self.flat, weights=data[self.entries], minlength=self.height * self.n)
+        ab = np.bincount(self.flat, weights=data[self.entries], minlength=self.height * self.n_band)
         if a is not None:
             f_loaded = f + system.linear_force(p) - system.external_force(1.0)
             geo = np.einsum("kd,kd->k", a.second(phi), f_loaded[a.n_q:].reshape(len(a.dof), 2))
@@ -299,8 +350,15 @@ class IterationPlan:
             if np.any(arms.friction_up) or np.any(arms.friction_down):  # a sticking bristle is a spring k_b
                 np.add.at(ab, self.diag[arms.dof], (1.0 - af) * np.where(sticking(arms, q), arms.bristle, 0.0))
         ab[self.diag[self.held]] = 1.0  # held DOFs: identity
-        ab = ab.reshape(self.n, self.height).T  # (height, n), column-major
-        perm, none, u = setup.perm, np.zeros(1, dtype=np.int64), self.u
+        return ab
+
+    def factor_band(self, ab: np.ndarray):
+        """The integrator.Factor of a flat band of `band` (the LU overwrites it), None where it needs row
+        exchanges or is not positive definite (then `band_factor`)."""
+        from beltdyn.analysis.integrator import Factor, band_lu_nopivot
+
+        ab = ab.reshape(self.n_band, self.height).T  # (height, n_band), column-major
+        perm, none, u = self.perm, np.zeros(1, dtype=np.int64), self.u
         if self.symmetric:
             from scipy.linalg import cholesky_banded
 
@@ -310,7 +368,7 @@ class IterationPlan:
             except np.linalg.LinAlgError:
                 return None
         ab = np.asfortranarray(ab)
-        if band_lu_nopivot(ab, u) == self.n:
+        if band_lu_nopivot(ab, u) == self.n_band:
             return Factor(kind=2, ab=ab, piv=none, perm=perm, kl=u, ku=u)
         return None  # a pivot not positive: `band_factor` (partial pivoting)
 
@@ -341,38 +399,49 @@ def _weighted_sum(terms):
 
 
 def wrap_factorizer(system: System, setup: TransientSetup, rho_inf: float, arms, slip, wraps, *, perm: np.ndarray,
-                    bandwidth: int, hold: np.ndarray) -> Callable:
-    """factor(q, h, v=None, t=0.0) of the stepper with slipping wraps (`transient_wraps`): the system's
-    iteration matrix S (n_dof,) of `_iteration_matrix` on the stepper's q (n_dof + k,), each pulley's
-    inertia J and damping d moved from its wrap angle psi onto its own rotation theta (c_m J + c_c d), and
-    a sticking wrap's bristle (1 - alpha_f) k_b [[1, -1], [-1, 1]] on (psi, theta) (none while it slides:
-    its torque is the constant capstan limit over the step). Sticking or sliding as the stepper's last
-    evaluation found it (`Wraps.sliding`): a factor asked for because Newton slowed down at a stick-slip
-    transition (a kink of the bristle's law) takes the regime the iterates went into, not the step
-    start's. wraps: the stepper's `Wraps` (its state)."""
+                    bandwidth: int, hold: np.ndarray, plan: bool = True) -> Callable:
+    """factor(q, h, v=None, t=0.0) of the stepper with slipping wraps (`transient_wraps`) at the state q
+    (n_dof + k + offsets,) for the step h at time t: the system's iteration matrix S (`_iteration_matrix`) on
+    the stepper's q (n_dof + k,), each pulley's inertia J and damping d moved from its wrap angle psi onto
+    its own rotation theta (c_m J + c_c d), and a sticking wrap's bristle (1 - alpha_f) k_b [[1, -1], [-1, 1]]
+    on (psi, theta) (none while it slides: its torque is the constant capstan limit over the step).
+    Sticking or sliding as the stepper's last evaluation found it (`Wraps.sliding`, copied into
+    `Wraps.factored`; the Newton corrections follow later changes by a low-rank update of the solve,
+    `integrator.regime_correction`). Assembled by the run's `IterationPlan` on the stepper's band order where
+    it applies (plan=True: the fast path of the runs without slip), else (or when its factorization needs row
+    exchanges) by `band_factor` of the scipy sum. wraps: the stepper's `Wraps` (its state)."""
     from scipy.sparse import coo_matrix, csr_matrix
 
-    from beltdyn.analysis.integrator import alpha_parameters
+    from beltdyn.analysis.timestep import alpha_parameters
 
     am, af, beta, gamma = alpha_parameters(rho_inf)
-    symmetric = not (setup.transport is not None and (setup.transport.follow or setup.transport.speed))
+    tr = setup.transport
+    symmetric = tr is None or not (tr.follow or tr.speed)  # the gyroscopic term makes S non-symmetric: band LU
     n, k = system.n_dof, slip.n
-    w, hb = slip.wrap, slip.hub
+    rows, cols = np.r_[slip.wrap, slip.hub, slip.wrap, slip.hub], np.r_[slip.wrap, slip.hub, slip.hub, slip.wrap]
+    fast = IterationPlan.build(system, setup, rho_inf, arms, symmetric=symmetric,
+                               order=(perm, bandwidth, hold)) if plan else None
+    if fast is not None:
+        slots, keep = fast.place(rows, cols)  # each wrap's (psi, theta) block in the band
 
     def factor(q, h, v=None, t=0.0):
-        S, diagonal = _iteration_matrix(system, setup, q, h, rho_inf, v, arms, t)
         c_m = (1.0 - am) / (beta * h * h)
         c_c = (1.0 - af) * gamma / (beta * h)
         move = c_m * slip.inertia + c_c * slip.damping
         wraps.factored[:] = wraps.sliding  # the regime the last evaluation found (the stepper compares)
         kb = (1.0 - af) * np.where(wraps.factored > 0.0, 0.0, wraps.bristle)
+        block = np.r_[kb - move, kb + move, -kb, -kb]
+        if fast is not None:
+            ab = fast.band(q, h, t)
+            np.add.at(ab, slots[keep], block[keep])
+            got = fast.factor_band(ab)
+            if got is not None:
+                return got
+        S, diagonal = _iteration_matrix(system, setup, q, h, rho_inf, v, arms, t)
         C = coo_matrix(S)
-        rows = np.r_[C.row, w, hb, w, hb]
-        cols = np.r_[C.col, w, hb, hb, w]
-        vals = np.r_[C.data, kb - move, kb + move, -kb, -kb]
-        S_all = csr_matrix((vals, (rows, cols)), shape=(n + k, n + k))
+        S_all = csr_matrix((np.r_[C.data, block], (np.r_[C.row, rows], np.r_[C.col, cols])), shape=(n + k, n + k))
         d_all = None if diagonal is None else np.r_[diagonal, np.zeros(k)]
         return band_factor(S_all, perm, bandwidth, symmetric=symmetric, hold=hold, diagonal=d_all)
 
-    factor.plan = None
+    factor.plan = fast
     return factor

@@ -148,7 +148,8 @@ def stepper_wraps(slip: WrapSlip, system: System, setup: TransientSetup):
                      capstan=1.0 - np.exp(-system.pulley_friction[slip.pulleys] * lay.wrap_angle[slip.pulleys]),
                      rho=float(belt_density(system)), bristle=slip.bristle.astype(float), anchor=np.zeros(k),
                      limit=np.zeros(k), torque=np.zeros(k), preload=np.zeros(k), sliding=np.zeros(k),
-                     factored=np.zeros(k), retried=np.zeros(1), in_elem=in_elem, out_elem=out_elem,
+                     factored=np.zeros(k), update=np.zeros((k, slip.n_dof + k)), updated=np.zeros(k),
+                     small=np.zeros((k, k + 1)), in_elem=in_elem, out_elem=out_elem,
                      in_spring=in_spring, out_spring=out_spring, travel=travel, ref_elem=ref_elem,
                      ref_spring=ref_spring, ratio=np.ones(k), creep=np.zeros(k), step=np.zeros(1))
 
