@@ -272,30 +272,32 @@ def rotation_state(rot, t):
 @njit(**KERNEL)
 def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross):
     """Reduced belt elastic (f_el) and damping (f_dmp) forces (n + 1,) at (q, v); with_gross: also
-    gross (n + 1,), the sum of |T^T f_e| over elements (the round-off scale)."""
-    bk.gather(q_ext, belt.e0, belt.T, belt.idx, belt.tsel, E)
-    bk.element_forces(E, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, fe)
+    gross (n + 1,), the sum of |T^T f_e| over elements (the round-off scale). (belt's arrays are read
+    once: a field read at each call site costs a reference count per array and call.)"""
+    e0, T, idx, tsel, Kb, curvature = belt.e0, belt.T, belt.idx, belt.tsel, belt.Kb, belt.curvature
+    dS, d2S, wEA, wEI = belt.dS, belt.d2S, belt.wEA, belt.wEI
+    bk.gather(q_ext, e0, T, idx, tsel, E)
+    bk.element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe)
     f_el[:] = 0.0
-    bk.scatter_vector(fe, belt.T, belt.idx, belt.tsel, f_el)
+    bk.scatter_vector(fe, T, idx, tsel, f_el)
     if with_gross:  # gross scale: |T^T f_e| per element entry
         gross[:] = 0.0
-        n_elem, _, m = belt.T.shape
+        n_elem, _, m = T.shape
         for e in range(n_elem):
-            if belt.tsel[e] < 0:
+            if tsel[e] < 0:
                 for i in range(8):
-                    gross[belt.idx[e, i]] += abs(fe[e, i])
+                    gross[idx[e, i]] += abs(fe[e, i])
             else:
                 for j in range(m):
                     s = 0.0
                     for i in range(8):
-                        s += belt.T[e, i, j] * fe[e, i]
-                    gross[belt.idx[e, j]] += abs(s)
+                        s += T[e, i, j] * fe[e, i]
+                    gross[idx[e, j]] += abs(s)
     f_dmp[:] = 0.0
     if belt.eta_a != 0.0 or belt.eta_b != 0.0:
-        bk.gather_velocity(v_ext, belt.T, belt.idx, belt.tsel, Ed)
-        bk.element_damping(E, Ed, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, belt.eta_a,
-                           belt.eta_b, fd)
-        bk.scatter_vector(fd, belt.T, belt.idx, belt.tsel, f_dmp)
+        bk.gather_velocity(v_ext, T, idx, tsel, Ed)
+        bk.element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, belt.eta_a, belt.eta_b, fd)
+        bk.scatter_vector(fd, T, idx, tsel, f_dmp)
     sk.spring_forces(belt.springs, q_ext, v_ext, f_el, f_dmp, gross, with_gross)
 
 
@@ -730,7 +732,8 @@ def step_forces(belt, lin, tr, arms, dec, wraps, constant, q1, v1, a1, c1, cd1, 
         v_ext[i] = v1[i]
         dq[i] = q1[i] - q_ref[i]
     belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross)
-    bristle = arm_friction(arms, q1, f_dmp) + clutch_torques(dec, q1, v1, inv_h, f_dmp)
+    bristle = ((arm_friction(arms, q1, f_dmp) if arms.dof.shape[0] > 0 else 0.0)
+               + (clutch_torques(dec, q1, v1, inv_h, f_dmp) if dec.hub.shape[0] > 0 else 0.0))
     if wraps.wrap.shape[0] > 0:
         bristle += wrap_friction(wraps, q1, f_dmp, True)
     split_matvec(lin.K, dq, Kd)
@@ -865,7 +868,8 @@ def solve_step(state, model, opts, fac, t1, h, x, work):
         if it >= max_iter:
             return False, res, worst, it, bristle1, qbq, p_tr
         norm = correct(fac, cons, R, c_v, c_a, q1, v1, a1, work)
-        complete(arms, q1, v1, a1)
+        if arms.dof.shape[0] > 0:
+            complete(arms, q1, v1, a1)
         it += 1
         if it >= 3 and norm > 0.25 * prev:  # convergence rate worse than 1/2 per iteration
             return False, res, worst, it, bristle1, qbq, p_tr
@@ -1024,10 +1028,20 @@ def accept(state, model, x, p_tr, work):
     for k in range(dof.shape[0]):
         R0[k] = react[k]
     th[TR_P0] = p_tr
-    slide_anchors(arms, q)
-    accept_clutches(dec)
+    if arms.dof.shape[0] > 0:
+        slide_anchors(arms, q)
+    if dec.hub.shape[0] > 0:
+        accept_clutches(dec)
     if wraps.wrap.shape[0] > 0:
         slide_wraps(wraps, q)
+
+
+@njit(**PART)
+def stored_friction(arms, dec, q, scratch):
+    """The arms' bristles' and the clutches' stored energy at q (the arms' torques go to scratch, (n,) zeros).
+    A part the drive does not have is not called (each call passes its arrays: reference counts)."""
+    return ((arm_friction(arms, q, scratch) if arms.dof.shape[0] > 0 else 0.0)
+            + (clutch_stored(dec, q) if dec.hub.shape[0] > 0 else 0.0))
 
 
 @njit(**PART)
@@ -1091,7 +1105,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         th[REF_SUM] = 0.0
         th[REF_N] = 0.0
     wv[12, :] = 0.0
-    bristle0 = arm_friction(arms, q, wv[12]) + clutch_stored(dec, q)
+    bristle0 = stored_friction(arms, dec, q, wv[12])
     if wraps.wrap.shape[0] > 0:
         bristle0 += wrap_friction(wraps, q, wv[12], False)
     while True:
@@ -1105,7 +1119,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         t1 = t + h
         predict(h, q, v, a, q1, v1, a1, arms.n_q)
         hold_prescribed(cons, t1, q1, v1, a1)
-        complete(arms, q1, v1, a1)
+        if arms.dof.shape[0] > 0:
+            complete(arms, q1, v1, a1)
         external_forces(F, cons, t1, F1, work.sig)
         converged, res, worst, it, bristle1, qbq, p_tr = solve_step(state, model, opts, fac, t1, h, x, work)
         if not converged:
@@ -1135,7 +1150,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, work.react)
         slack_events(belt, t1, ev, work)
         accept(state, model, x, p_tr, work)
-        bristle0 = arm_friction(arms, q, wv[12]) + clutch_stored(dec, q)  # after the return mapping
+        bristle0 = stored_friction(arms, dec, q, wv[12])  # after the return mapping
         if wraps.wrap.shape[0] > 0:  # the wraps' limits from the accepted tensions (work.elem[0]: q1's)
             wraps.retried[0] = 0.0
             c1 = transport_speed(tr, F, t1)[0]
