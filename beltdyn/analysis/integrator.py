@@ -713,45 +713,6 @@ def predict(h, q, v, a, q1, v1, a1, nq):
         v1[i] = v[i] + h * a[i]
 
 
-@njit(**PART)
-def step_forces(belt, lin, tr, arms, dec, wraps, constant, q1, v1, a1, c1, cd1, with_gross, inv_h, work):
-    """The forces at the new state (q1, v1, a1), into the scratch rows (`Work`): f_el, f_dmp (belt and
-    arm friction), K (q1 - q_ref), C v1, M a1, the transport terms f_tr at the belt speed c1 and rate
-    cd1, fi = f_el + K d + f_dmp + f_tr and fl the round-off scale (gross only when with_gross); the
-    decouplers' clutches over a step of length 1 / inv_h. The model's parts as `StepperModel` names them
-    (constant: the forcing's constant part), read by `solve_step` before its Newton loop (see `run_steps`).
-    Returns (the bristles' and clutches' stored energy, q.B q + 2 b0.q, the transport power)."""
-    n = q1.shape[0]
-    q_ref = lin.q_ref
-    q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
-    E, Ed, fe, fd = work.elem[0], work.elem[1], work.elem[2], work.elem[3]
-    wv = work.vec
-    dq, Ma, Cv, Kd, fi, fl, f_tr, tr_Bq, tr_Aq = wv[4], wv[5], wv[7], wv[9], wv[10], wv[11], wv[14], wv[15], wv[16]
-    for i in range(n):
-        q_ext[i] = q1[i]
-        v_ext[i] = v1[i]
-        dq[i] = q1[i] - q_ref[i]
-    belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross)
-    bristle = ((arm_friction(arms, q1, f_dmp) if arms.dof.shape[0] > 0 else 0.0)
-               + (clutch_torques(dec, q1, v1, inv_h, f_dmp) if dec.hub.shape[0] > 0 else 0.0))
-    if wraps.wrap.shape[0] > 0:
-        bristle += wrap_friction(wraps, q1, f_dmp, True)
-    split_matvec(lin.K, dq, Kd)
-    split_matvec(lin.C, v1, Cv)
-    qbq = 0.0
-    p_tr = 0.0
-    if tr.follow != 0 or tr.speed != 0.0:  # moving: M a, A q, G v, B q in one pass
-        fused_matvec(tr.mag, a1, q1, v1, Ma, tr_Aq, tr_Bq, f_tr)
-        qbq, vaq = transport_from(tr, c1, cd1, q1, v1, f_tr, tr_Bq, tr_Aq)
-        p_tr = -cd1 * (c1 * qbq + vaq)
-    else:
-        split_matvec(lin.M, a1, Ma)
-    for i in range(n):
-        fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
-        fl[i] = gross[i] + abs(Kd[i]) + abs(constant[i]) + abs(f_tr[i])
-    return bristle, qbq, p_tr
-
-
 # The terms of the residual on the independent coordinates (the joint coordinates' terms projected by J^T at
 # their own state, or the terms themselves without arms): new (step end) and old (step start), Fc the constant
 # force, fl the round-off scale. Each (n_q,).
@@ -761,15 +722,14 @@ Terms = namedtuple("Terms", ["Ma", "Ma0", "Cv", "Cv0", "fi", "f0", "F1", "F0", "
 @njit(**PART)
 def project_new(arms, constant, q1, work, terms):
     """The arms' part: the new terms (work rows M a, C v, fi, F1, fl and the constant force) projected
-    on q by J(q1)^T into `terms` (nothing to do without arms: the terms are the rows)."""
-    if arms.dof.shape[0] > 0:
-        wv = work.vec
-        project(arms, q1, wv[5], terms.Ma)
-        project(arms, q1, wv[7], terms.Cv)
-        project(arms, q1, wv[10], terms.fi)
-        project(arms, q1, wv[0], terms.F1)
-        project(arms, q1, constant, terms.Fc)
-        project(arms, q1, wv[11], terms.fl, True)
+    on q by J(q1)^T into `terms` (called only with arms: without, the terms are the rows)."""
+    wv = work.vec
+    project(arms, q1, wv[5], terms.Ma)
+    project(arms, q1, wv[7], terms.Cv)
+    project(arms, q1, wv[10], terms.fi)
+    project(arms, q1, wv[0], terms.F1)
+    project(arms, q1, constant, terms.Fc)
+    project(arms, q1, wv[11], terms.fl, True)
 
 
 @njit(**PART)
@@ -839,27 +799,64 @@ def solve_step(state, model, opts, fac, t1, h, x, work):
     """Newton on the step ending at t1 from the predictor (in work rows q1, v1, a1): at most max_iter
     corrections, the residual after the last one checked. Returns (converged, scaled residual, worst
     DOF, corrections, bristle energy, q.B q + 2 b0.q, transport power) with the forces of the last
-    evaluation in the work rows and `x`. The model's parts are read here, once per step: the Newton
-    loop's parts take them by name (see `run_steps`)."""
+    evaluation in the work rows and `x`.
+
+    Each evaluation: the forces at the new state (q1, v1, a1) into the scratch rows (`Work`): f_el, f_dmp
+    (belt, arm friction, the decouplers' clutches over the step, the wraps), K (q1 - q_ref), C v1, M a1, the
+    transport terms f_tr at the belt speed c1 and rate cd1, fi = f_el + K d + f_dmp + f_tr and fl the
+    round-off scale (gross at the step's first evaluation only: a floor, not a force); then the arms'
+    projection (`project_new`), the residual (`scaled_residual`) and the correction (`correct`).
+    The model's parts and the scratch rows are read once per step, before the Newton loop, and the forces
+    are evaluated in this loop's body, not in a part of their own: with numba's runtime an inlined part's
+    arguments are new references, one reference count per array (about a hundred per evaluation here)."""
     belt, lin, tr, arms = model.belt, model.linear, model.transport, model.arms
     dec, wraps, chk, cons = model.decouplers, model.wraps, model.check, model.constraints
     F = model.forcing
     constant = F.constant
+    q_ref, K, C, M = lin.q_ref, lin.K, lin.C, lin.M
+    moving = tr.follow != 0 or tr.speed != 0.0
+    with_arms, with_clutches, with_wraps = arms.dof.shape[0] > 0, dec.hub.shape[0] > 0, wraps.wrap.shape[0] > 0
     am, af, max_iter = opts.am, opts.af, chk.max_iter
     held = work.held
+    q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
+    E, Ed, fe, fd = work.elem[0], work.elem[1], work.elem[2], work.elem[3]
     wv = work.vec
     q1, v1, a1 = wv[1], wv[2], wv[3]
+    dq, Ma, Cv, Kd, fi, fl, f_tr, tr_Bq, tr_Aq = wv[4], wv[5], wv[7], wv[9], wv[10], wv[11], wv[14], wv[15], wv[16]
     R = work.proj[0]
+    n = q1.shape[0]
+    inv_h = 1.0 / h
     c_a = 1.0 / (opts.beta * h * h)
     c_v = opts.gamma / (opts.beta * h)
     c1, cd1 = transport_speed(tr, F, t1)
     prev = np.inf
     it = 0
     while True:
-        # the round-off scale at the step's first evaluation: a floor, not a force
-        bristle1, qbq, p_tr = step_forces(belt, lin, tr, arms, dec, wraps, constant, q1, v1, a1, c1, cd1, it == 0,
-                                          1.0 / h, work)
-        project_new(arms, constant, q1, work, x)
+        # the forces at the new state
+        for i in range(n):
+            q_ext[i] = q1[i]
+            v_ext[i] = v1[i]
+            dq[i] = q1[i] - q_ref[i]
+        belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, it == 0)
+        bristle1 = ((arm_friction(arms, q1, f_dmp) if with_arms else 0.0)
+                    + (clutch_torques(dec, q1, v1, inv_h, f_dmp) if with_clutches else 0.0))
+        if with_wraps:
+            bristle1 += wrap_friction(wraps, q1, f_dmp, True)
+        split_matvec(K, dq, Kd)
+        split_matvec(C, v1, Cv)
+        qbq = 0.0
+        p_tr = 0.0
+        if moving:  # M a, A q, G v, B q in one pass
+            fused_matvec(tr.mag, a1, q1, v1, Ma, tr_Aq, tr_Bq, f_tr)
+            qbq, vaq = transport_from(tr, c1, cd1, q1, v1, f_tr, tr_Bq, tr_Aq)
+            p_tr = -cd1 * (c1 * qbq + vaq)
+        else:
+            split_matvec(M, a1, Ma)
+        for i in range(n):
+            fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
+            fl[i] = gross[i] + abs(Kd[i]) + abs(constant[i]) + abs(f_tr[i])
+        if with_arms:
+            project_new(arms, constant, q1, work, x)
         res, worst, finite = scaled_residual(chk, held, am, af, x, R, work)
         if not finite:
             return False, res, worst, it, bristle1, qbq, p_tr
@@ -868,7 +865,7 @@ def solve_step(state, model, opts, fac, t1, h, x, work):
         if it >= max_iter:
             return False, res, worst, it, bristle1, qbq, p_tr
         norm = correct(fac, cons, R, c_v, c_a, q1, v1, a1, work)
-        if arms.dof.shape[0] > 0:
+        if with_arms:
             complete(arms, q1, v1, a1)
         it += 1
         if it >= 3 and norm > 0.25 * prev:  # convergence rate worse than 1/2 per iteration
