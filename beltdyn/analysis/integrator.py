@@ -1139,12 +1139,11 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         p_ext, p_dis = step_power(state, model, x, v1, p_tr, work)
         th[WORK] = th[WORK] + h * p_ext
         th[DISS] = th[DISS] + h * p_dis - (bristle1 - bristle0)  # the bristles' stored part is not lost
-        kin = 0.0
-        pot = 0.0
-        if n_pend > 0:  # energy at this step (exact, not interpolated)
+        if n_pend > 0:  # energy at this step (exact, not interpolated) and the samples in (t, t1] (only then
+            # called: an inlined part's arguments are new references, a reference count per array)
             c1 = transport_speed(tr, F, t1)[0]
             kin, pot = balance_energy(state, model, q1, v1, c1, qbq, bristle1, work)
-        record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, work.react)
+            record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, work.react)
         slack_events(belt, t1, ev, work)
         accept(state, model, x, p_tr, work)
         bristle0 = stored_friction(arms, dec, q, wv[12])  # after the return mapping
