@@ -31,7 +31,6 @@ from typing import Any
 
 import numpy as np
 
-from beltdyn.analysis.orders import order_tracking
 from beltdyn.analysis.spectrum import amplitude_spectrum, find_peaks
 from beltdyn.analysis.timestep import describe, frequency_error, step_warnings
 from beltdyn.analysis.transient import TransientSnapshot, prepare, run_transient, snapshot_bytes, snapshot_from_bytes
@@ -275,6 +274,11 @@ def order_tracking_variables(writer, setup, opts, pulley_names) -> list[str]:
     """/transient order_amplitude and order_phase (speed, order, channel) of the recorded ORDER_SERIES
     against the reference pulley's angle (`analysis.orders.order_tracking`, options [transient.orders]),
     added to `writer`; returns warnings (the run too short for one window: nothing added)."""
+    # imported here, not at the top: scipy.interpolate (which it needs) costs ~0.3 s of every `beltdyn transient`'s
+    # start-up on a quiet machine (python -X importtime, after scipy.linalg, scipy.sparse and h5py), and only a
+    # run with [transient.orders] uses it
+    from beltdyn.analysis.orders import order_tracking
+
     o = opts.orders
     ref = o.reference if o.reference is not None else opts.rotation[0].pulley
     j = list(pulley_names).index(ref)

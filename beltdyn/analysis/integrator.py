@@ -255,30 +255,32 @@ def rotation_state(rot, t):
 @njit(**KERNEL)
 def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross):
     """Reduced belt elastic (f_el) and damping (f_dmp) forces (n + 1,) at (q, v); with_gross: also
-    gross (n + 1,), the sum of |T^T f_e| over elements (the round-off scale)."""
-    bk.gather(q_ext, belt.e0, belt.T, belt.idx, belt.tsel, E)
-    bk.element_forces(E, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, fe)
+    gross (n + 1,), the sum of |T^T f_e| over elements (the round-off scale). (belt's arrays are read
+    once: a field read at each call site costs a reference count per array and call.)"""
+    e0, T, idx, tsel, Kb, curvature = belt.e0, belt.T, belt.idx, belt.tsel, belt.Kb, belt.curvature
+    dS, d2S, wEA, wEI = belt.dS, belt.d2S, belt.wEA, belt.wEI
+    bk.gather(q_ext, e0, T, idx, tsel, E)
+    bk.element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe)
     f_el[:] = 0.0
-    bk.scatter_vector(fe, belt.T, belt.idx, belt.tsel, f_el)
+    bk.scatter_vector(fe, T, idx, tsel, f_el)
     if with_gross:  # gross scale: |T^T f_e| per element entry
         gross[:] = 0.0
-        n_elem, _, m = belt.T.shape
+        n_elem, _, m = T.shape
         for e in range(n_elem):
-            if belt.tsel[e] < 0:
+            if tsel[e] < 0:
                 for i in range(8):
-                    gross[belt.idx[e, i]] += abs(fe[e, i])
+                    gross[idx[e, i]] += abs(fe[e, i])
             else:
                 for j in range(m):
                     s = 0.0
                     for i in range(8):
-                        s += belt.T[e, i, j] * fe[e, i]
-                    gross[belt.idx[e, j]] += abs(s)
+                        s += T[e, i, j] * fe[e, i]
+                    gross[idx[e, j]] += abs(s)
     f_dmp[:] = 0.0
     if belt.eta_a != 0.0 or belt.eta_b != 0.0:
-        bk.gather_velocity(v_ext, belt.T, belt.idx, belt.tsel, Ed)
-        bk.element_damping(E, Ed, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, belt.eta_a,
-                           belt.eta_b, fd)
-        bk.scatter_vector(fd, belt.T, belt.idx, belt.tsel, f_dmp)
+        bk.gather_velocity(v_ext, T, idx, tsel, Ed)
+        bk.element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, belt.eta_a, belt.eta_b, fd)
+        bk.scatter_vector(fd, T, idx, tsel, f_dmp)
     sk.spring_forces(belt.springs, q_ext, v_ext, f_el, f_dmp, gross, with_gross)
 
 
@@ -455,10 +457,11 @@ def clear(work):
 def hold_prescribed(cons, t, q, v, a):
     """Constraints: the prescribed DOFs' q, v, a at time t (the static rotation params[k, 7] plus the
     prescribed fluctuation of `rotation_state`)."""
-    for k in range(cons.dof.shape[0]):
-        g, gd, gdd = rotation_state(cons.params[k], t)[3:]
-        d = cons.dof[k]
-        q[d] = cons.params[k, 7] + g
+    dof, params = cons.dof, cons.params
+    for k in range(dof.shape[0]):
+        g, gd, gdd = rotation_state(params[k], t)[3:]
+        d = dof[k]
+        q[d] = params[k, 7] + g
         v[d] = gd
         a[d] = gdd
 
@@ -537,43 +540,6 @@ def predict(h, q, v, a, q1, v1, a1, nq):
         v1[i] = v[i] + h * a[i]
 
 
-@njit(**PART)
-def step_forces(model, q1, v1, a1, c1, cd1, with_gross, inv_h, work):
-    """The forces at the new state (q1, v1, a1), into the scratch rows (`Work`): f_el, f_dmp (belt and
-    arm friction), K (q1 - q_ref), C v1, M a1, the transport terms f_tr at the belt speed c1 and rate
-    cd1, fi = f_el + K d + f_dmp + f_tr and fl the round-off scale (gross only when with_gross); the
-    decouplers' clutches over a step of length 1 / inv_h.
-    Returns (the bristles' and clutches' stored energy, q.B q + 2 b0.q, the transport power)."""
-    belt, lin, tr = model.belt, model.linear, model.transport
-    n = q1.shape[0]
-    q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
-    E, Ed, fe, fd = work.elem[0], work.elem[1], work.elem[2], work.elem[3]
-    wv = work.vec
-    dq, Ma, Cv, Kd, fi, fl, f_tr, tr_Bq, tr_Aq = wv[4], wv[5], wv[7], wv[9], wv[10], wv[11], wv[14], wv[15], wv[16]
-    for i in range(n):
-        q_ext[i] = q1[i]
-        v_ext[i] = v1[i]
-        dq[i] = q1[i] - lin.q_ref[i]
-    belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross)
-    bristle = arm_friction(model.arms, q1, f_dmp) + clutch_torques(model.decouplers, q1, v1, inv_h, f_dmp)
-    if model.wraps.wrap.shape[0] > 0:
-        bristle += wrap_friction(model.wraps, q1, f_dmp, True, 1.0 / inv_h)
-    split_matvec(lin.K, dq, Kd)
-    split_matvec(lin.C, v1, Cv)
-    qbq = 0.0
-    p_tr = 0.0
-    if tr.follow != 0 or tr.speed != 0.0:  # moving: M a, A q, G v, B q in one pass
-        fused_matvec(tr.mag, a1, q1, v1, Ma, tr_Aq, tr_Bq, f_tr)
-        qbq, vaq = transport_from(tr, c1, cd1, q1, v1, f_tr, tr_Bq, tr_Aq)
-        p_tr = -cd1 * (c1 * qbq + vaq)
-    else:
-        split_matvec(lin.M, a1, Ma)
-    for i in range(n):
-        fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
-        fl[i] = gross[i] + abs(Kd[i]) + abs(model.forcing.constant[i]) + abs(f_tr[i])
-    return bristle, qbq, p_tr
-
-
 # The terms of the residual on the independent coordinates (the joint coordinates' terms projected by J^T at
 # their own state, or the terms themselves without arms): new (step end) and old (step start), Fc the constant
 # force, fl the round-off scale. Each (n_q,).
@@ -581,18 +547,16 @@ Terms = namedtuple("Terms", ["Ma", "Ma0", "Cv", "Cv0", "fi", "f0", "F1", "F0", "
 
 
 @njit(**PART)
-def project_new(model, q1, work, terms):
+def project_new(arms, constant, q1, work, terms):
     """The arms' part: the new terms (work rows M a, C v, fi, F1, fl and the constant force) projected
-    on q by J(q1)^T into `terms` (nothing to do without arms: the terms are the rows)."""
-    arms = model.arms
-    if arms.dof.shape[0] > 0:
-        wv = work.vec
-        project(arms, q1, wv[5], terms.Ma)
-        project(arms, q1, wv[7], terms.Cv)
-        project(arms, q1, wv[10], terms.fi)
-        project(arms, q1, wv[0], terms.F1)
-        project(arms, q1, model.forcing.constant, terms.Fc)
-        project(arms, q1, wv[11], terms.fl, True)
+    on q by J(q1)^T into `terms` (called only with arms: without, the terms are the rows)."""
+    wv = work.vec
+    project(arms, q1, wv[5], terms.Ma)
+    project(arms, q1, wv[7], terms.Cv)
+    project(arms, q1, wv[10], terms.fi)
+    project(arms, q1, wv[0], terms.F1)
+    project(arms, q1, constant, terms.Fc)
+    project(arms, q1, wv[11], terms.fl, True)
 
 
 @njit(**PART)
@@ -602,6 +566,8 @@ def scaled_residual(chk, held, am, af, x, R, work):
     (max_g res_g / (tol s_g + 1e3 eps floor_g + noise), worst DOF, finite)."""
     res_g, scale_g, floor_g = work.group[0], work.group[1], work.group[2]
     worst_g = work.worst
+    group, tol, noise = chk.group, chk.tol, chk.noise
+    Ma, Ma0, Cv, Cv0, fi, f0, F1, F0, Fc, fl = x.Ma, x.Ma0, x.Cv, x.Cv0, x.fi, x.f0, x.F1, x.F0, x.Fc, x.fl
     G = chk.n_groups
     for g in range(G):
         res_g[g] = 0.0
@@ -609,14 +575,14 @@ def scaled_residual(chk, held, am, af, x, R, work):
         floor_g[g] = 0.0
     worst = 0
     for i in range(R.shape[0]):  # residual, scales and floors (every row), checked (the free rows)
-        Ri = ((1.0 - am) * x.Ma[i] + am * x.Ma0[i]
-              + (1.0 - af) * (x.Cv[i] + x.fi[i] - x.F1[i]) + af * (x.Cv0[i] + x.f0[i] - x.F0[i]))
-        g = chk.group[i]
-        sc = abs(x.Ma[i]) + abs(x.Cv[i]) + abs(x.fi[i] - x.Fc[i]) + abs(x.F1[i] - x.Fc[i])
+        Ri = ((1.0 - am) * Ma[i] + am * Ma0[i]
+              + (1.0 - af) * (Cv[i] + fi[i] - F1[i]) + af * (Cv0[i] + f0[i] - F0[i]))
+        g = group[i]
+        sc = abs(Ma[i]) + abs(Cv[i]) + abs(fi[i] - Fc[i]) + abs(F1[i] - Fc[i])
         if sc > scale_g[g]:
             scale_g[g] = sc
-        if x.fl[i] > floor_g[g]:
-            floor_g[g] = x.fl[i]
+        if fl[i] > floor_g[g]:
+            floor_g[g] = fl[i]
         if held[i]:  # a prescribed row: no residual
             Ri = 0.0
         R[i] = Ri
@@ -628,7 +594,7 @@ def scaled_residual(chk, held, am, af, x, R, work):
             worst_g[g] = i
     res = 0.0
     for g in range(G):
-        allowed = chk.tol * scale_g[g] + 1e3 * EPS * floor_g[g] + chk.noise
+        allowed = tol * scale_g[g] + 1e3 * EPS * floor_g[g] + noise
         x_g = res_g[g] / allowed if allowed > 0.0 else (0.0 if res_g[g] == 0.0 else np.inf)
         if x_g > res:
             res = x_g
@@ -712,11 +678,12 @@ def correct(fac, cons, wraps, weight, R, c_v, c_a, q1, v1, a1, work):
     v1 -= c_v dx, a1 -= c_a dx, S in the wraps' regime of the last evaluation (`regime_correction`; weight
     1 - alpha_f). Returns |dx|^2."""
     dx, work_q = work.proj[1], work.proj[2]
+    dof = cons.dof
     factor_solve(fac, R, dx, work_q)
     if wraps.wrap.shape[0] > 0 and regime_changed(wraps):
         regime_correction(wraps, fac, work.held, weight, dx, work_q)
-    for k in range(cons.dof.shape[0]):
-        dx[cons.dof[k]] = 0.0
+    for k in range(dof.shape[0]):
+        dx[dof[k]] = 0.0
     norm = 0.0
     for i in range(R.shape[0]):
         d = -dx[i]
@@ -732,29 +699,74 @@ def solve_step(state, model, opts, fac, t1, h, x, work):
     """Newton on the step ending at t1 from the predictor (in work rows q1, v1, a1): at most max_iter
     corrections, the residual after the last one checked. Returns (converged, scaled residual, worst
     DOF, corrections, bristle energy, q.B q + 2 b0.q, transport power) with the forces of the last
-    evaluation in the work rows and `x`."""
-    chk, cons, arms = model.check, model.constraints, model.arms
+    evaluation in the work rows and `x`.
+
+    Each evaluation: the forces at the new state (q1, v1, a1) into the scratch rows (`Work`): f_el, f_dmp
+    (belt, arm friction, the decouplers' clutches over the step, the wraps), K (q1 - q_ref), C v1, M a1, the
+    transport terms f_tr at the belt speed c1 and rate cd1, fi = f_el + K d + f_dmp + f_tr and fl the
+    round-off scale (gross at the step's first evaluation only: a floor, not a force); then the arms'
+    projection (`project_new`), the residual (`scaled_residual`) and the correction (`correct`).
+    The model's parts and the scratch rows are read once per step, before the Newton loop, and the forces
+    are evaluated in this loop's body, not in a part of their own: with numba's runtime an inlined part's
+    arguments are new references, one reference count per array (about a hundred per evaluation here)."""
+    belt, lin, tr, arms = model.belt, model.linear, model.transport, model.arms
+    dec, wraps, chk, cons = model.decouplers, model.wraps, model.check, model.constraints
+    F = model.forcing
+    constant = F.constant
+    q_ref, K, C, M = lin.q_ref, lin.K, lin.C, lin.M
+    moving = tr.follow != 0 or tr.speed != 0.0
+    with_arms, with_clutches, with_wraps = arms.dof.shape[0] > 0, dec.hub.shape[0] > 0, wraps.wrap.shape[0] > 0
+    am, af, max_iter = opts.am, opts.af, chk.max_iter
+    held = work.held
+    q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
+    E, Ed, fe, fd = work.elem[0], work.elem[1], work.elem[2], work.elem[3]
     wv = work.vec
     q1, v1, a1 = wv[1], wv[2], wv[3]
+    dq, Ma, Cv, Kd, fi, fl, f_tr, tr_Bq, tr_Aq = wv[4], wv[5], wv[7], wv[9], wv[10], wv[11], wv[14], wv[15], wv[16]
     R = work.proj[0]
+    n = q1.shape[0]
+    inv_h = 1.0 / h
     c_a = 1.0 / (opts.beta * h * h)
     c_v = opts.gamma / (opts.beta * h)
-    c1, cd1 = transport_speed(model.transport, model.forcing, t1)
+    c1, cd1 = transport_speed(tr, F, t1)
     prev = np.inf
     it = 0
     while True:
-        # the round-off scale at the step's first evaluation: a floor, not a force
-        bristle1, qbq, p_tr = step_forces(model, q1, v1, a1, c1, cd1, it == 0, 1.0 / h, work)
-        project_new(model, q1, work, x)
-        res, worst, finite = scaled_residual(chk, work.held, opts.am, opts.af, x, R, work)
+        # the forces at the new state
+        for i in range(n):
+            q_ext[i] = q1[i]
+            v_ext[i] = v1[i]
+            dq[i] = q1[i] - q_ref[i]
+        belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, it == 0)
+        bristle1 = ((arm_friction(arms, q1, f_dmp) if with_arms else 0.0)
+                    + (clutch_torques(dec, q1, v1, inv_h, f_dmp) if with_clutches else 0.0))
+        if with_wraps:
+            bristle1 += wrap_friction(wraps, q1, f_dmp, True, h)
+        split_matvec(K, dq, Kd)
+        split_matvec(C, v1, Cv)
+        qbq = 0.0
+        p_tr = 0.0
+        if moving:  # M a, A q, G v, B q in one pass
+            fused_matvec(tr.mag, a1, q1, v1, Ma, tr_Aq, tr_Bq, f_tr)
+            qbq, vaq = transport_from(tr, c1, cd1, q1, v1, f_tr, tr_Bq, tr_Aq)
+            p_tr = -cd1 * (c1 * qbq + vaq)
+        else:
+            split_matvec(M, a1, Ma)
+        for i in range(n):
+            fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
+            fl[i] = gross[i] + abs(Kd[i]) + abs(constant[i]) + abs(f_tr[i])
+        if with_arms:
+            project_new(arms, constant, q1, work, x)
+        res, worst, finite = scaled_residual(chk, held, am, af, x, R, work)
         if not finite:
             return False, res, worst, it, bristle1, qbq, p_tr
         if res <= 1.0:
             return True, res, worst, it, bristle1, qbq, p_tr
-        if it >= chk.max_iter:
+        if it >= max_iter:
             return False, res, worst, it, bristle1, qbq, p_tr
-        norm = correct(fac, cons, model.wraps, 1.0 - opts.af, R, c_v, c_a, q1, v1, a1, work)
-        complete(arms, q1, v1, a1)
+        norm = correct(fac, cons, wraps, 1.0 - af, R, c_v, c_a, q1, v1, a1, work)
+        if with_arms:
+            complete(arms, q1, v1, a1)
         it += 1
         if it >= 3 and norm > 0.25 * prev:  # convergence rate worse than 1/2 per iteration
             return False, res, worst, it, bristle1, qbq, p_tr
@@ -776,21 +788,22 @@ def count_outputs(t_out, t1, h, dt_out):
 def step_power(state, model, x, v1, p_tr, work):
     """The trapezoid of the step's power: (external forces and reactions, dissipated), on p (power is
     invariant: F . v_p = (J^T F) . v_q); the reactions R1 (work.react) of the prescribed DOFs."""
-    cons = model.constraints
+    dof = model.constraints.dof
     th = state.scal
-    v = state.v
+    v, F0, fd0, R0 = state.v, state.F0, state.fd0, state.R0
+    Ma, Cv_q, fi, F1_q = x.Ma, x.Cv, x.fi, x.F1
     wv = work.vec
     F1, Cv, Cv0, f_dmp = wv[0], wv[7], wv[8], work.ext[3]
     R1 = work.react
     p_ext = 0.0
     p_dis = 0.0
     for i in range(v.shape[0]):
-        p_ext += 0.5 * (F1[i] * v1[i] + state.F0[i] * v[i])
-        p_dis += 0.5 * ((Cv[i] + f_dmp[i]) * v1[i] + (Cv0[i] + state.fd0[i]) * v[i])
-    for k in range(cons.dof.shape[0]):
-        d = cons.dof[k]
-        R1[k] = x.Ma[d] + x.Cv[d] + x.fi[d] - x.F1[d]
-        p_ext += 0.5 * (R1[k] * v1[d] + state.R0[k] * v[d])
+        p_ext += 0.5 * (F1[i] * v1[i] + F0[i] * v[i])
+        p_dis += 0.5 * ((Cv[i] + f_dmp[i]) * v1[i] + (Cv0[i] + fd0[i]) * v[i])
+    for k in range(dof.shape[0]):
+        d = dof[k]
+        R1[k] = Ma[d] + Cv_q[d] + fi[d] - F1_q[d]
+        p_ext += 0.5 * (R1[k] * v1[d] + R0[k] * v[d])
     p_ext += 0.5 * (p_tr + th[TR_P0])  # the drive's work on the belt's transport while its speed changes
     return p_ext, p_dis
 
@@ -817,8 +830,13 @@ def balance_energy(state, model, q1, v1, c1, qbq, bristle1, work):
 def record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, R1):
     """Observer: the samples at the output times in (t, t1] (Hermite interpolation within the step, the
     arms' dependent entries kinematically exact), the step's energy terms and the reactions."""
-    q, v, a = state.q, state.v, state.a
+    q, v, a, R0 = state.q, state.v, state.a, state.R0
     th = state.scal
+    arms, dec, wr = model.arms, model.decouplers, model.wraps
+    n_con = model.constraints.dof.shape[0]
+    o_t, o_q, o_v, o_a, o_n = out.t, out.q, out.v, out.a, out.n
+    o_energy, o_reaction, o_clutch, o_wrap = out.energy, out.reaction, out.clutch, out.wrap
+    dt_out = opts.dt_out
     n = q.shape[0]
     t1 = t + h
     while th[T_OUT] <= t1 + 1e-6 * h:  # outputs at t_next_out in (t, t1]
@@ -828,34 +846,32 @@ def record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, R1):
         h10 = s ** 3 - 2 * s ** 2 + s
         h01 = -2 * s ** 3 + 3 * s ** 2
         h11 = s ** 3 - s ** 2
-        k = out.n[0]
-        out.t[k] = tau
+        k = o_n[0]
+        o_t[k] = tau
         for i in range(n):
-            out.q[k, i] = h00 * q[i] + h10 * h * v[i] + h01 * q1[i] + h11 * h * v1[i]
-            out.v[k, i] = h00 * v[i] + h10 * h * a[i] + h01 * v1[i] + h11 * h * a1[i]
-            out.a[k, i] = (1.0 - s) * a[i] + s * a1[i]
-        if model.arms.dof.shape[0] > 0:  # the dependent entries stay kinematically exact
-            complete(model.arms, out.q[k], out.v[k], out.a[k])
-        out.energy[k, 0] = kin
-        out.energy[k, 1] = pot
-        out.energy[k, 2] = th[WORK]
-        out.energy[k, 3] = th[DISS]
-        out.energy[k, 4] = kin + pot - th[WORK] + th[DISS] - th[E0]
-        for c in range(model.constraints.dof.shape[0]):
-            out.reaction[k, c] = (1.0 - s) * state.R0[c] + s * R1[c]
-        dec = model.decouplers
+            o_q[k, i] = h00 * q[i] + h10 * h * v[i] + h01 * q1[i] + h11 * h * v1[i]
+            o_v[k, i] = h00 * v[i] + h10 * h * a[i] + h01 * v1[i] + h11 * h * a1[i]
+            o_a[k, i] = (1.0 - s) * a[i] + s * a1[i]
+        if arms.dof.shape[0] > 0:  # the dependent entries stay kinematically exact
+            complete(arms, o_q[k], o_v[k], o_a[k])
+        o_energy[k, 0] = kin
+        o_energy[k, 1] = pot
+        o_energy[k, 2] = th[WORK]
+        o_energy[k, 3] = th[DISS]
+        o_energy[k, 4] = kin + pot - th[WORK] + th[DISS] - th[E0]
+        for c in range(n_con):
+            o_reaction[k, c] = (1.0 - s) * R0[c] + s * R1[c]
         for c in range(dec.hub.shape[0]):
-            out.clutch[k, c] = (1.0 - s) * dec.torque[0, c] + s * dec.torque[1, c]
-        wr = model.wraps
+            o_clutch[k, c] = (1.0 - s) * dec.torque[0, c] + s * dec.torque[1, c]
         for c in range(wr.wrap.shape[0]):  # the bristle torque at the step's end: the anchor of its start, crept
             z1 = wr.anchor[c] + wr.creep[c] * wr.step[0]
             tau1 = bristle(wr.bristle[c], q1[wr.wrap[c]] - q1[wr.hub[c]], z1, wr.limit[c], wr.limit[c])[0]
-            out.wrap[k, 0, c] = (1.0 - s) * wr.torque[c] + s * tau1
-            out.wrap[k, 1, c] = wr.limit[c]
-            out.wrap[k, 2, c] = wr.creep[c]
-            out.wrap[k, 3, c] = wr.ratio[c]
-        out.n[0] += 1
-        th[T_OUT] += opts.dt_out
+            o_wrap[k, 0, c] = (1.0 - s) * wr.torque[c] + s * tau1
+            o_wrap[k, 1, c] = wr.limit[c]
+            o_wrap[k, 2, c] = wr.creep[c]
+            o_wrap[k, 3, c] = wr.ratio[c]
+        o_n[0] += 1
+        th[T_OUT] += dt_out
 
 
 @njit(**PART)
@@ -864,53 +880,68 @@ def slack_events(belt, t1, ev, work):
     accepted state, the last one evaluated unless an energy evaluation gathered it again at q1)."""
     E, min_elem, min_span = work.elem[0], work.elem1[1], work.span
     bk.element_min_axial_force(E, belt.dS, belt.EA, min_elem)
-    for sp in range(belt.n_span):
+    elem_span, n_span, n_elem, springs = belt.elem_span, belt.n_span, belt.T.shape[0], belt.springs
+    slack, data, count = ev.slack, ev.data, ev.n
+    for sp in range(n_span):
         min_span[sp] = np.inf
-    for e in range(belt.T.shape[0]):
-        sp = belt.elem_span[e]
+    for e in range(n_elem):
+        sp = elem_span[e]
         if min_elem[e] < min_span[sp]:
             min_span[sp] = min_elem[e]
-    sk.spring_min_force(belt.springs, work.ext[0], min_span)
-    for sp in range(belt.n_span):
+    sk.spring_min_force(springs, work.ext[0], min_span)
+    for sp in range(n_span):
         now = 1.0 if min_span[sp] < 0.0 else 0.0
-        if now != ev.slack[sp] and ev.n[0] < ev.data.shape[0]:
-            ev.data[ev.n[0], 0] = t1
-            ev.data[ev.n[0], 1] = sp
-            ev.data[ev.n[0], 2] = now
-            ev.data[ev.n[0], 3] = min_span[sp]
-            ev.n[0] += 1
-        ev.slack[sp] = now
+        if now != slack[sp] and count[0] < data.shape[0]:
+            data[count[0], 0] = t1
+            data[count[0], 1] = sp
+            data[count[0], 2] = now
+            data[count[0], 3] = min_span[sp]
+            count[0] += 1
+        slack[sp] = now
 
 
 @njit(**PART)
 def accept(state, model, x, p_tr, work):
     """The new state becomes the old one: q, v, a, the forces, the projected terms, the reactions,
     the transport power; the arms' friction anchors slide (return mapping)."""
+    arms, dec, wraps, dof = model.arms, model.decouplers, model.wraps, model.constraints.dof
+    q, v, a, f0, fd0, F0, R0, th = state.q, state.v, state.a, state.f0, state.fd0, state.F0, state.R0, state.scal
     wv = work.vec
     q1, v1, a1, Ma, Ma0, Cv, Cv0, fi, F1 = wv[1], wv[2], wv[3], wv[5], wv[6], wv[7], wv[8], wv[10], wv[0]
-    f_dmp = work.ext[3]
-    for i in range(state.q.shape[0]):
-        state.q[i] = q1[i]
-        state.v[i] = v1[i]
-        state.a[i] = a1[i]
-        state.f0[i] = fi[i]
-        state.fd0[i] = f_dmp[i]
-        state.F0[i] = F1[i]
+    f_dmp, react = work.ext[3], work.react
+    for i in range(q.shape[0]):
+        q[i] = q1[i]
+        v[i] = v1[i]
+        a[i] = a1[i]
+        f0[i] = fi[i]
+        fd0[i] = f_dmp[i]
+        F0[i] = F1[i]
         Ma0[i] = Ma[i]
         Cv0[i] = Cv[i]
-    if model.arms.dof.shape[0] > 0:
-        for i in range(model.arms.n_q):
-            x.Ma0[i] = x.Ma[i]
-            x.Cv0[i] = x.Cv[i]
-            x.f0[i] = x.fi[i]
-            x.F0[i] = x.F1[i]
-    for k in range(model.constraints.dof.shape[0]):
-        state.R0[k] = work.react[k]
-    state.scal[TR_P0] = p_tr
-    slide_anchors(model.arms, state.q)
-    accept_clutches(model.decouplers)
-    if model.wraps.wrap.shape[0] > 0:
-        slide_wraps(model.wraps, state.q)
+    if arms.dof.shape[0] > 0:
+        x_Ma, x_Ma0, x_Cv, x_Cv0, x_fi, x_f0, x_F1, x_F0 = x.Ma, x.Ma0, x.Cv, x.Cv0, x.fi, x.f0, x.F1, x.F0
+        for i in range(arms.n_q):
+            x_Ma0[i] = x_Ma[i]
+            x_Cv0[i] = x_Cv[i]
+            x_f0[i] = x_fi[i]
+            x_F0[i] = x_F1[i]
+    for k in range(dof.shape[0]):
+        R0[k] = react[k]
+    th[TR_P0] = p_tr
+    if arms.dof.shape[0] > 0:
+        slide_anchors(arms, q)
+    if dec.hub.shape[0] > 0:
+        accept_clutches(dec)
+    if wraps.wrap.shape[0] > 0:
+        slide_wraps(wraps, q)
+
+
+@njit(**PART)
+def stored_friction(arms, dec, q, scratch):
+    """The arms' bristles' and the clutches' stored energy at q (the arms' torques go to scratch, (n,) zeros).
+    A part the drive does not have is not called (each call passes its arrays: reference counts)."""
+    return ((arm_friction(arms, q, scratch) if arms.dof.shape[0] > 0 else 0.0)
+            + (clutch_stored(dec, q) if dec.hub.shape[0] > 0 else 0.0))
 
 
 @njit(**PART)
@@ -955,6 +986,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     q, v, a = state.q, state.v, state.a  # on the joint coordinates p (n); q[:nq] independent
     th = state.scal
     lin, arms, cons = model.linear, model.arms, model.constraints
+    belt, F, tr, dec, wraps = model.belt, model.forcing, model.transport, model.decouplers, model.wraps
     wv = work.vec
     F1, q1, v1, a1, Ma0, Cv0 = wv[0], wv[1], wv[2], wv[3], wv[6], wv[8]
     x = terms_of(state, model, work)
@@ -972,12 +1004,12 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         th[STALE] = 0.0
         th[REF_SUM] = 0.0
         th[REF_N] = 0.0
-    for k in range(model.wraps.updated.shape[0]):  # the factor's solves of the wraps (`regime_correction`): anew
+    for k in range(wraps.updated.shape[0]):  # the factor's solves of the wraps (`regime_correction`): anew
         model.wraps.updated[k] = 0.0
     wv[12, :] = 0.0
-    bristle0 = arm_friction(arms, q, wv[12]) + clutch_stored(model.decouplers, q)
-    if model.wraps.wrap.shape[0] > 0:
-        bristle0 += wrap_friction(model.wraps, q, wv[12], False, 0.0)
+    bristle0 = stored_friction(arms, dec, q, wv[12])
+    if wraps.wrap.shape[0] > 0:
+        bristle0 += wrap_friction(wraps, q, wv[12], False, 0.0)
     while True:
         t, h = th[T_NOW], th[H]
         if t >= opts.t_stop - 1e-6 * h:
@@ -989,8 +1021,9 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         t1 = t + h
         predict(h, q, v, a, q1, v1, a1, arms.n_q)
         hold_prescribed(cons, t1, q1, v1, a1)
-        complete(arms, q1, v1, a1)
-        external_forces(model.forcing, cons, t1, F1, work.sig)
+        if arms.dof.shape[0] > 0:
+            complete(arms, q1, v1, a1)
+        external_forces(F, cons, t1, F1, work.sig)
         converged, res, worst, it, bristle1, qbq, p_tr = solve_step(state, model, opts, fac, t1, h, x, work)
         if not converged:
             info[0] = t1
@@ -1008,20 +1041,18 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         p_ext, p_dis = step_power(state, model, x, v1, p_tr, work)
         th[WORK] = th[WORK] + h * p_ext
         th[DISS] = th[DISS] + h * p_dis - (bristle1 - bristle0)  # the bristles' stored part is not lost
-        kin = 0.0
-        pot = 0.0
-        if n_pend > 0:  # energy at this step (exact, not interpolated)
-            c1 = transport_speed(model.transport, model.forcing, t1)[0]
+        if n_pend > 0:  # energy at this step (exact, not interpolated) and the samples in (t, t1] (only then
+            # called: an inlined part's arguments are new references, a reference count per array)
+            c1 = transport_speed(tr, F, t1)[0]
             kin, pot = balance_energy(state, model, q1, v1, c1, qbq, bristle1, work)
-        record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, work.react)
-        slack_events(model.belt, t1, ev, work)
+            record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, work.react)
+        slack_events(belt, t1, ev, work)
         accept(state, model, x, p_tr, work)
-        bristle0 = arm_friction(arms, q, wv[12]) + clutch_stored(model.decouplers, q)  # after the return mapping
-        if model.wraps.wrap.shape[0] > 0:  # the wraps' limits from the accepted tensions (work.elem[0]: q1's)
-            c1 = transport_speed(model.transport, model.forcing, t1)[0]
-            th[DISS] += wrap_limits(model.wraps, model.belt, work.elem[0], work.ext[0], c1,
-                                    travel_speed(model.forcing, t1))
-            bristle0 += wrap_friction(model.wraps, q, wv[12], False, 0.0)
+        bristle0 = stored_friction(arms, dec, q, wv[12])  # after the return mapping
+        if wraps.wrap.shape[0] > 0:  # the wraps' limits from the accepted tensions (work.elem[0]: q1's)
+            c1 = transport_speed(tr, F, t1)[0]
+            th[DISS] += wrap_limits(wraps, belt, work.elem[0], work.ext[0], c1, travel_speed(F, t1))
+            bristle0 += wrap_friction(wraps, q, wv[12], False, 0.0)
         th[T_NOW] = t1
         th[STEPS] += 1.0
         th[ITERS] += it
