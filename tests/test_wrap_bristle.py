@@ -64,8 +64,8 @@ def test_the_bristle_is_the_creep_laws_tangent_at_the_static_tensions_on_a_two_p
 def test_the_bristle_stiffens_with_friction_and_is_bounded_without_torque():
     # k_b of a loaded wrap does not fall as mu rises (0.3 to 5: the tangent grows as mu, the secant falls),
     # and an unloaded wrap (no slip arc: the tangent is infinite) takes the step's bound (pi / h)^2 J_r,
-    # J_r the reduced inertia of the wrap angle psi (the stepper's mass on it: the span ends') and the pulley's J,
-    # computed here from the stepper's mass matrix.
+    # J_r the reduced inertia of the wrap angle psi (the stepper's mass on it: the span ends' and the belt on the
+    # wrap, rho R^2 beta) and the pulley's J, computed here from the stepper's mass matrix.
     from beltdyn.analysis.stepper_data import split_matrix
     from beltdyn.analysis.transient_wraps import stepper_setup
 
@@ -78,6 +78,9 @@ def test_the_bristle_stiffens_with_friction_and_is_bounded_without_torque():
     M = split_matrix(parts["linear"].M, system.n_p + slip.n).diagonal()
     J_psi, J = M[slip.wrap], M[slip.hub]
     assert np.allclose(J, slip.inertia, rtol=1e-14)
+    R, beta = np.abs(system.layout.radius[slip.pulleys]), system.layout.wrap_angle[slip.pulleys]
+    rho = float(system.belt.elements.rho.max())
+    assert np.all(J_psi >= rho * R**2 * beta)  # the belt on the wrap is on psi (with the span ends' share)
     want = (np.pi / opts.step) ** 2 * J_psi * J / (J_psi + J)
     assert np.abs(slip.bristle - want).max() <= 1e-12 * want.max()
 
