@@ -164,13 +164,27 @@ def resolved_stiffness(reduced_inertia: np.ndarray, step: float) -> np.ndarray:
     return (np.pi / step) ** 2 * reduced_inertia
 
 
+def half_torque_friction(mu: np.ndarray, beta: np.ndarray) -> np.ndarray:
+    """mu_half (k,): the tension ratio's friction exp(mu_half beta) = (T_e - c) / (T_x - c) of a wrap carrying half
+    its capstan torque, T_e - T_x = (T_e - c)(1 - exp(-mu beta)) / 2: exp(mu_half beta) = 2 / (1 + exp(-mu beta)).
+    The tangent there (`tangent_stiffness`) is EA R mu / tanh(mu beta / 2)."""
+    return np.log(2.0 / (1.0 + np.exp(-mu * beta))) / beta
+
+
 def presliding_stiffness(system: System, pulleys: np.ndarray, *, required: np.ndarray | None = None,
                          reduced_inertia: np.ndarray | None = None, step: float | None = None) -> np.ndarray:
     """k_b (k,) N m/rad of the wraps' bristles (docs/wraps.md, "The bristle's stiffness"): the creep law's
-    tangent about the run's operating point (the static state's tension ratio, `required`), bounded below by
-    the secant up to gross slip and above by the step's resolved stiffness:
+    tangent about the run's operating point, bounded below by the secant up to gross slip and above by the
+    step's resolved stiffness:
 
-        k_b = max(k_s, min(k_t, k_h))   (`secant_stiffness`, `tangent_stiffness`, `resolved_stiffness`).
+        k_b = max(k_s, min(k_t(max(mu_req, mu_half)), k_h))
+        (`secant_stiffness`, `tangent_stiffness`, `half_torque_friction`, `resolved_stiffness`).
+
+    The operating point is the static state's tension ratio (`required`: mu_req), or half the capstan torque
+    (mu_half) for a wrap the static loads less: such a wrap (an idler's, or one the run alone loads) carries the
+    run's torque swings, which the static does not know; its tangent at no torque is infinite, and at half its
+    torque range it is the stiffness of the middle of the range it can carry, finite, continuous in the static
+    torque and growing with mu.
 
     Without an operating point (required None) the secant k_s."""
     lay = system.layout
@@ -179,7 +193,8 @@ def presliding_stiffness(system: System, pulleys: np.ndarray, *, required: np.nd
     k_s = secant_stiffness(EA, R, mu, beta)
     if required is None or reduced_inertia is None or step is None:
         return k_s
-    k_t = tangent_stiffness(EA, R, mu, beta, np.asarray(required, dtype=float))
+    operating = np.maximum(np.asarray(required, dtype=float), half_torque_friction(mu, beta))
+    k_t = tangent_stiffness(EA, R, mu, beta, operating)
     return np.maximum(k_s, np.minimum(k_t, resolved_stiffness(np.asarray(reduced_inertia, dtype=float), step)))
 
 
