@@ -27,7 +27,7 @@ def wrap_stepper(sets: list[str]):
     run = analyse(cfg)
     setup = prepare(run.system, run.static, cfg.transient)
     system = stepper_system(run.system, cfg.transient)
-    slip = wrap_slip(system, cfg.transient)
+    slip = wrap_slip(system, cfg.transient, static=run.static, setup=setup)  # (as the run builds it)
     parts = stepper_setup(slip, system, setup)
     wraps = stepper_wraps(slip, system, setup)
     arms = wrap_arms(slip, stepper_arms(system))
@@ -92,7 +92,9 @@ def test_the_regime_update_of_a_solve_is_the_solve_of_the_new_regimes_factor(bef
     dx, want, work = np.empty(n), np.empty(n), np.empty(n)
     itg.factor_solve(old, R, dx, work)
     itg.factor_solve(new, R, want, work)
-    assert np.abs(dx - want).max() > 1e-5 * np.abs(want).max()  # the regimes differ in the solve
+    on = np.r_[slip.wrap, slip.hub]  # the regimes differ in the solve where they act (measured 4 %; over the
+    # whole solve 4e-6, the belt's entries dominating, since the wrap angles carry the belt on their wraps)
+    assert np.abs(dx - want)[on].max() > 1e-3 * np.abs(want[on]).max()
     _, af, _, _ = itg.alpha_parameters(cfg.transient.rho_inf)
     itg.regime_correction.py_func(wraps, old, held, 1.0 - af, dx, work)
     assert np.abs(dx - want).max() <= 1e-12 * np.abs(want).max()

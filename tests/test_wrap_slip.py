@@ -62,9 +62,12 @@ def test_a_load_above_the_capstan_torque_decelerates_the_pulley_at_the_load_less
     cap = _capstan(h["span_tension"], lay.wrap_angle[0], lay.radius[0])
     sel = t >= 0.01
     assert np.all(h["wrap_sliding"][sel, 0] == 1.0)
-    accel = np.polyfit(t[sel], w[sel], 1)[0]  # rad/s^2 (the capstan torque varies by 1.5 % in the window)
-    expected = np.mean((L + cap[sel]) / J)
-    assert abs(accel / expected - 1.0) < 0.01  # measured: 9e-5
+    # the speed change over the window against the integral of (L + M_cap) / J (the capstan torque of the
+    # recorded tensions swings by ~10 % in the window: the belt on the sliding wrap, rho R^2 beta, and its
+    # spans vibrate after the load's ramp, so a straight line's slope is not the mean deceleration)
+    ts, ws = t[sel], w[sel]
+    expected = np.trapezoid((L + cap[sel]) / J, ts)
+    assert abs((ws[-1] - ws[0]) / expected - 1.0) < 0.01  # measured: 5e-4
     # the transmitted torque is the capstan torque of the tensions (the stepper's: the elastic end force of
     # the previous step; the recorded joint reactions carry the spans' vibration, +-0.8 % sample by sample)
     assert abs(np.mean(h["wrap_torque"][sel, 0]) / np.mean(cap[sel]) - 1.0) < 1e-3  # measured: 2e-5

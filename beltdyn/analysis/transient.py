@@ -542,7 +542,7 @@ def run_transient(system: System, static: StaticResult, opts: TransientOptions, 
     system = stepper_system(system, opts)
     tr = setup.transport
     arms = stepper_arms(system)
-    slip = wrap_slip(system, opts)
+    slip = wrap_slip(system, opts, static=static, setup=setup)
     if slip is None:  # (no wrap slips: the stepper's structures as set up)
         factor = factorizer(system, setup, opts.rho_inf, arms)
         problem = StepProblem(

@@ -403,7 +403,7 @@ def wrap_factorizer(system: System, setup: TransientSetup, rho_inf: float, arms,
     """factor(q, h, v=None, t=0.0) of the stepper with slipping wraps (`transient_wraps`) at the state q
     (n_dof + k + offsets,) for the step h at time t: the system's iteration matrix S (`_iteration_matrix`) on
     the stepper's q (n_dof + k,), each pulley's inertia J and damping d moved from its wrap angle psi onto
-    its own rotation theta (c_m J + c_c d), and a sticking wrap's bristle (1 - alpha_f) k_b [[1, -1], [-1, 1]]
+    its own rotation theta (c_m J + c_c d), the belt on the wrap added to psi (`WrapSlip.belt_inertia`), and a sticking wrap's bristle (1 - alpha_f) k_b [[1, -1], [-1, 1]]
     on (psi, theta) (none while it slides: its torque is the constant capstan limit over the step).
     Sticking or sliding as the stepper's last evaluation found it (`Wraps.sliding`, copied into
     `Wraps.factored`; the Newton corrections follow later changes by a low-rank update of the solve,
@@ -430,7 +430,8 @@ def wrap_factorizer(system: System, setup: TransientSetup, rho_inf: float, arms,
         move = c_m * slip.inertia + c_c * slip.damping
         wraps.factored[:] = wraps.sliding  # the regime the last evaluation found (the stepper compares)
         kb = (1.0 - af) * np.where(wraps.factored > 0.0, 0.0, wraps.bristle)
-        block = np.r_[kb - move, kb + move, -kb, -kb]
+        stays = c_m * slip.belt_inertia + c_c * slip.belt_damping  # the belt on the wrap stays on psi
+        block = np.r_[kb - move + stays, kb + move, -kb, -kb]
         if fast is not None:
             ab = fast.band(q, h, t)
             np.add.at(ab, slots[keep], block[keep])

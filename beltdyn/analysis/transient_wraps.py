@@ -12,10 +12,12 @@ joined by the elasto-plastic bristle of the arms' friction (`friction_kernel.bri
 
 +M on psi and -M on theta, z the anchor (slides in the return mapping after each accepted step), T_max
 the larger end tension of the wrap's two spans at the last accepted step, c = rho v^2 lambda(T_max) its
-centrifugal part, k_b the secant of the wrap's creep up to gross slip (`presliding_stiffness`). Below
+centrifugal part, k_b the creep law's tangent about the run's operating point (`presliding_stiffness`). Below
 M_cap the wrap sticks (no drift beyond M / k_b but the creep: z drifts at z' = c u (1 - lambda_e /
 lambda_e,drv), the pulley at the static rim speed ratio, `friction_kernel.wrap_creep`); beyond it the wrap
-slides and transmits exactly M_cap (Coulomb): the capstan law of the running belt. The wrap angle keeps the inertia the span-end nodes give it through the joints.
+slides and transmits exactly M_cap (Coulomb): the capstan law of the running belt. The wrap angle keeps the
+inertia the span-end nodes give it through the joints and carries the belt lying on the wrap, rho R^2 beta
+(`wrap_belt_inertia`).
 
 Nothing here when `belt.wraps = "rigid"` or no pulley has a friction value (`wrap_slip` is None): the
 stepper's structures are then those of `transient_setup.prepare`, unchanged.
@@ -32,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from beltdyn.config import TransientOptions
+from beltdyn.analysis.stepper_data import split_matrix
 from beltdyn.analysis.transient_setup import TransientSetup, slipping_pulleys  # noqa: F401  (re-exported)
 from beltdyn.model.slip import belt_density
 from beltdyn.model.system import System
@@ -47,6 +50,8 @@ class WrapSlip:
     inertia: np.ndarray  # kg m^2, J of the pulley (moved from the wrap to the hub)
     damping: np.ndarray  # N m s/rad, the pulley's rotational damping + rayleigh_mass J (moved likewise)
     bristle: np.ndarray  # N m/rad, k_b
+    belt_inertia: np.ndarray  # kg m^2, rho R^2 beta: the belt lying on the wrap (on the wrap angle)
+    belt_damping: np.ndarray  # N m s/rad, rayleigh_mass rho R^2 beta (likewise)
     n_dof: int  # the system's independent coordinates
     mapping: np.ndarray  # (n_p + 1,) the stepper's index of each joint coordinate (and of the padding n_p)
     driver: int = -1  # the pulley whose prescribed rotation carries the belt's nominal travel (-1: none, no creep)
@@ -75,8 +80,11 @@ def _pulley_rotation(system: System) -> tuple[np.ndarray, np.ndarray]:
     return J, d
 
 
-def wrap_slip(system: System, opts: TransientOptions) -> WrapSlip | None:
-    """The run's slipping wraps (module docstring), None when no wrap may slip."""
+def wrap_slip(system: System, opts: TransientOptions, *, static=None, setup: TransientSetup | None = None
+              ) -> WrapSlip | None:
+    """The run's slipping wraps (module docstring), None when no wrap may slip. With the static state
+    (`static.required_friction`, its wraps' operating point) and the run's set-up (the wrap angles' inertia
+    and the step), k_b is the creep law's tangent there (`presliding_stiffness`); without them, the secant."""
     pulleys = slipping_pulleys(system)
     if not len(pulleys):
         return None
@@ -84,11 +92,30 @@ def wrap_slip(system: System, opts: TransientOptions) -> WrapSlip | None:
     J, d = _pulley_rotation(system)
     old = np.arange(n_p + 1)
     mapping = np.where(old < n_dof, old, old + k).astype(np.int64)
-    return WrapSlip(pulleys=pulleys, wrap=system.rot_dof[pulleys].astype(np.int64),
-                    hub=n_dof + np.arange(k, dtype=np.int64), inertia=J[pulleys],
-                    damping=d[pulleys] + float(opts.damping.rayleigh_mass) * J[pulleys],
-                    bristle=presliding_stiffness(system, pulleys), n_dof=n_dof, mapping=mapping,
-                    driver=travel_driver(system, opts))
+    wrap = system.rot_dof[pulleys].astype(np.int64)
+    m_w = wrap_belt_inertia(system, pulleys)
+    alpha = float(opts.damping.rayleigh_mass)
+    if static is not None and setup is not None:
+        held = {int(system.pulley_index(r.pulley)) for r in opts.rotation}  # prescribed hubs: theta held
+        J_psi = split_matrix(setup.linear.M, n_p).diagonal()[wrap] - J[pulleys] + m_w
+        reduced = np.array([J_psi[i] if int(j) in held else J_psi[i] * J[j] / max(J_psi[i] + J[j], 1e-300)
+                            for i, j in enumerate(pulleys)])
+        bristle = presliding_stiffness(system, pulleys, required=np.asarray(static.required_friction)[pulleys],
+                                       reduced_inertia=reduced, step=float(opts.step))
+    else:
+        bristle = presliding_stiffness(system, pulleys)
+    return WrapSlip(pulleys=pulleys, wrap=wrap, hub=n_dof + np.arange(k, dtype=np.int64), inertia=J[pulleys],
+                    damping=d[pulleys] + alpha * J[pulleys], bristle=bristle, belt_inertia=m_w,
+                    belt_damping=alpha * m_w, n_dof=n_dof, mapping=mapping, driver=travel_driver(system, opts))
+
+
+def wrap_belt_inertia(system: System, pulleys: np.ndarray) -> np.ndarray:
+    """(k,) kg m^2: the belt lying on each wrap, rho R beta of belt (rho per undeformed length, the wrap's
+    stretch neglected: below 1 %) at radius R: rho R^2 beta. The spans' elements end at the tangent points,
+    so without it the wrap angle psi has only the span ends' inertia."""
+    lay = system.layout
+    R = np.abs(lay.radius[pulleys])
+    return float(belt_density(system)) * R * R * lay.wrap_angle[pulleys]
 
 
 def travel_driver(system: System, opts: TransientOptions) -> int:
@@ -100,18 +127,75 @@ def travel_driver(system: System, opts: TransientOptions) -> int:
     return -1
 
 
-def presliding_stiffness(system: System, pulleys: np.ndarray) -> np.ndarray:
-    """k_b (k,) N m/rad of the wraps' bristles: the secant of the wrap's creep at rest up to gross slip.
-    Loaded by a torque below the capstan torque, a wrap at rest carries the tension change on its slip
-    arc, where the belt stretches against the rim; at impending gross slip the slip arc is the whole wrap
-    and the belt has crept by delta = int_0^beta (lambda(T(phi)) - lambda(T_e)) dphi ~ (T_t - c)(beta -
-    (1 - exp(-mu beta)) / mu) / EA (the capstan profile, the linear law) against the rim, while it
-    transmits M_cap = R (T_t - c)(1 - exp(-mu beta)): k_b = M_cap / delta = EA R (1 - exp(-mu beta)) /
-    (beta - (1 - exp(-mu beta)) / mu), whatever the tension (1.7 mrad of presliding on the bench at 200 N)."""
-    lay = system.layout
-    mu, beta = system.pulley_friction[pulleys], lay.wrap_angle[pulleys]
+def secant_stiffness(EA: float, R: np.ndarray, mu: np.ndarray, beta: np.ndarray) -> np.ndarray:
+    """k_s (k,) N m/rad: the secant of a wrap's creep at rest from zero torque up to gross slip (linear law).
+    At impending gross slip the slip arc is the whole wrap beta: the belt has crept by delta = int_0^beta
+    (lambda(T(phi)) - lambda(T_e)) dphi = (T_e - c)(beta - (1 - exp(-mu beta)) / mu) / EA against the rim
+    while it transmits M_cap = R (T_e - c)(1 - exp(-mu beta)): k_s = M_cap / delta, whatever the tension.
+    The softest the wrap is anywhere below gross slip (the creep law's tangent falls as the torque rises)."""
     cap = 1.0 - np.exp(-mu * beta)
-    return float(system.EA) * np.abs(lay.radius[pulleys]) * cap / np.maximum(beta - cap / mu, 1e-12)
+    return EA * R * cap / np.maximum(beta - cap / mu, 1e-12)
+
+
+def tangent_stiffness(EA: float, R: np.ndarray, mu: np.ndarray, beta: np.ndarray, required: np.ndarray
+                      ) -> np.ndarray:
+    """k_t (k,) N m/rad: the creep law's tangent dM / d(delta) about a wrap loaded to the tension ratio
+    (T_e - c) / (T_x - c) = exp(mu_req beta) (`required`: mu_req, the static's required friction).
+    Nomenclature: T_e, T_x the tight and slack end tensions, c the centrifugal part, phi_s the slip arc
+    (T_x - c = (T_e - c) exp(-mu phi_s), so mu phi_s = mu_req beta), delta the belt's creep against the rim
+    (an angle) over the slip arc. With T_e held, dM/dphi_s = R mu (T_x - c), d delta/dphi_s = (T_e - T_x) / EA:
+
+        k_t = EA R mu (T_x - c) / (T_e - T_x) = EA R mu / (exp(mu_req beta) - 1),
+
+    which grows with mu (a longer adhesion arc) and without bound as the torque vanishes (inf where
+    mu_req = 0: no slip arc); 0 where a span is slack (mu_req = inf)."""
+    x = required * beta
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        k = EA * R * mu / np.expm1(x)
+    return np.where(x <= 0.0, np.inf, np.where(np.isfinite(x), k, 0.0))
+
+
+def resolved_stiffness(reduced_inertia: np.ndarray, step: float) -> np.ndarray:
+    """k_h (k,) N m/rad: the bristle stiffness whose psi-theta mode sits at the step's Nyquist frequency,
+    omega h = pi: k_h = (pi / h)^2 J_r, J_r = J_psi J / (J_psi + J) the reduced inertia of the wrap angle psi
+    and the pulley theta (J_psi where theta is prescribed). A stiffer bristle puts its mode beyond what the
+    step can represent (the generalized-alpha maps it to its high-frequency limit, damped by rho_inf): the
+    wrap is then rigid for every frequency the run resolves."""
+    return (np.pi / step) ** 2 * reduced_inertia
+
+
+def half_torque_friction(mu: np.ndarray, beta: np.ndarray) -> np.ndarray:
+    """mu_half (k,): the tension ratio's friction exp(mu_half beta) = (T_e - c) / (T_x - c) of a wrap carrying half
+    its capstan torque, T_e - T_x = (T_e - c)(1 - exp(-mu beta)) / 2: exp(mu_half beta) = 2 / (1 + exp(-mu beta)).
+    The tangent there (`tangent_stiffness`) is EA R mu / tanh(mu beta / 2)."""
+    return np.log(2.0 / (1.0 + np.exp(-mu * beta))) / beta
+
+
+def presliding_stiffness(system: System, pulleys: np.ndarray, *, required: np.ndarray | None = None,
+                         reduced_inertia: np.ndarray | None = None, step: float | None = None) -> np.ndarray:
+    """k_b (k,) N m/rad of the wraps' bristles (docs/wraps.md, "The bristle's stiffness"): the creep law's
+    tangent about the run's operating point, bounded below by the secant up to gross slip and above by the
+    step's resolved stiffness:
+
+        k_b = max(k_s, min(k_t(max(mu_req, mu_half)), k_h))
+        (`secant_stiffness`, `tangent_stiffness`, `half_torque_friction`, `resolved_stiffness`).
+
+    The operating point is the static state's tension ratio (`required`: mu_req), or half the capstan torque
+    (mu_half) for a wrap the static loads less: such a wrap (an idler's, or one the run alone loads) carries the
+    run's torque swings, which the static does not know; its tangent at no torque is infinite, and at half its
+    torque range it is the stiffness of the middle of the range it can carry, finite, continuous in the static
+    torque and growing with mu.
+
+    Without an operating point (required None) the secant k_s."""
+    lay = system.layout
+    EA, R = float(system.EA), np.abs(lay.radius[pulleys])
+    mu, beta = system.pulley_friction[pulleys], lay.wrap_angle[pulleys]
+    k_s = secant_stiffness(EA, R, mu, beta)
+    if required is None or reduced_inertia is None or step is None:
+        return k_s
+    operating = np.maximum(np.asarray(required, dtype=float), half_torque_friction(mu, beta))
+    k_t = tangent_stiffness(EA, R, mu, beta, operating)
+    return np.maximum(k_s, np.minimum(k_t, resolved_stiffness(np.asarray(reduced_inertia, dtype=float), step)))
 
 
 def stepper_wraps(slip: WrapSlip, system: System, setup: TransientSetup):
@@ -193,8 +277,9 @@ def stepper_setup(slip: WrapSlip, system: System, setup: TransientSetup) -> dict
     springs = belt.springs._replace(idx=m[belt.springs.idx]) if belt.springs.idx.size else belt.springs
     belt = belt._replace(idx=m[belt.idx], springs=springs)
     lin = setup.linear
-    M = _embed(itg.split_matrix(lin.M, n_p), slip, n_new) + _on_hubs(slip, n_new, -J, J)
-    C = _embed(itg.split_matrix(lin.C, n_p), slip, n_new) + _on_hubs(slip, n_new, -d, d)
+    m_w, d_w = slip.belt_inertia, slip.belt_damping  # the belt on the wrap stays on the wrap angle
+    M = _embed(itg.split_matrix(lin.M, n_p), slip, n_new) + _on_hubs(slip, n_new, m_w - J, J)
+    C = _embed(itg.split_matrix(lin.C, n_p), slip, n_new) + _on_hubs(slip, n_new, d_w - d, d)
     K = _embed(itg.split_matrix(lin.K, n_p), slip, n_new)
     for A in (M, C):
         A.eliminate_zeros()
@@ -208,7 +293,7 @@ def stepper_setup(slip: WrapSlip, system: System, setup: TransientSetup) -> dict
     constant[slip.wrap] = weight
     nominal_mass = _vector(F.nominal_mass, slip, n_new)  # the pulleys' inertia of the nominal travel
     u_rot = setup.u_nom[slip.wrap]
-    nominal_mass[slip.wrap] -= J * u_rot
+    nominal_mass[slip.wrap] += (m_w - J) * u_rot  # (the belt on the wrap travels with it)
     nominal_mass[slip.hub] = J * u_rot
     nominal_damping = _vector(F.nominal_damping, slip, n_new)
     moved = nominal_damping[slip.wrap].copy()  # (the components' damping: the pulleys' rotational damping)
