@@ -1,6 +1,6 @@
 """The iteration matrix of the stepper with slipping wraps (issue 25 speed): its factor by the run's
 `IterationPlan` against the reference assembly, and the Newton correction's low-rank regime update
-(`integrator.regime_correction`) against a factor of the new regime."""
+(`friction_kernel.regime_correction`) against a factor of the new regime."""
 
 from __future__ import annotations
 
@@ -72,6 +72,7 @@ def test_the_regime_update_of_a_solve_is_the_solve_of_the_new_regimes_factor(bef
     # wraps changed, the crank's held hub among them) against the correction of a factor of that regime at
     # the same state: equal within 1e-12 relative (round-off; measured 3e-15, against 3e-4 to 1e-3 between the
     # two regimes' solves); the prescribed DOFs' entries stay 0.
+    from beltdyn.analysis import friction_kernel
     from beltdyn.analysis import integrator as itg
     from beltdyn.analysis.transient_factor import wrap_factorizer
 
@@ -96,7 +97,7 @@ def test_the_regime_update_of_a_solve_is_the_solve_of_the_new_regimes_factor(bef
     # whole solve 4e-6, the belt's entries dominating, since the wrap angles carry the belt on their wraps)
     assert np.abs(dx - want)[on].max() > 1e-3 * np.abs(want[on]).max()
     _, af, _, _ = itg.alpha_parameters(cfg.transient.rho_inf)
-    itg.regime_correction.py_func(wraps, old, held, 1.0 - af, dx, work)
+    friction_kernel.regime_correction.py_func(wraps, old, held, 1.0 - af, dx, work)
     assert np.abs(dx - want).max() <= 1e-12 * np.abs(want).max()
     assert np.all(dx[held == 1] == 0.0)
     changed = before != after

@@ -27,7 +27,7 @@ M = clip(k_b (psi - theta - z), -M_cap, M_cap), +M on psi and -M on theta, the l
 (1 - exp(-mu beta)) of the end tensions at the last accepted step (`wrap_limits`, explicit over a step;
 the stored energy a falling limit releases is dissipated). The iteration matrix holds a sticking
 bristle's k_b and none of a sliding one, in the regime the last evaluation found (`Wraps.sliding`;
-`regime_changed` tells the stepper where the factor's regime differs, `integrator.regime_correction` updates
+`regime_changed` tells the stepper where the factor's regime differs, `friction_kernel.regime_correction` updates
 its solve by a low-rank correction). Without
 slipping wraps (k = 0) none of this runs: the stepper is the one without the part.
 
@@ -54,9 +54,11 @@ from beltdyn.jitcache import configure, kernel_options
 configure()  # where numba caches the kernels (the package folder, else a user cache folder): before numba loads
 from numba import njit  # noqa: E402
 
+from beltdyn.analysis.band_solve import factor_solve  # noqa: E402
 from beltdyn.model import spring_kernel as sk  # noqa: E402
 
 KERNEL = kernel_options()  # the njit options of this module's kernels (numba loaded)
+PART = dict(KERNEL, inline="always")  # a part of the stepper's Newton loop (`integrator.correct`), inlined there
 
 
 @njit(**KERNEL)
@@ -195,6 +197,76 @@ def regime_changed(wraps):
         if wraps.sliding[k] != wraps.factored[k]:
             return True
     return False
+
+
+@njit(**PART)
+def regime_correction(wraps, fac, held, weight, dx, work_q):
+    """Newton's correction dx = S^-1 R, S the factor's matrix with its wraps in the regime `Wraps.factored`,
+    made the correction of S' = S + U D U^T, the matrix of the regime the last evaluation found
+    (`Wraps.sliding`): for each wrap whose regime differs, u_k = e_psi - e_theta (a held DOF's entry left
+    out, as the factor holds its row and column) and d_k = +weight k_b where it sticks now (the factor
+    left its bristle out), -weight k_b where it slides now. By the Woodbury identity
+        dx' = dx - Z (D^-1 + U^T Z)^-1 U^T dx,   Z = S^-1 U,
+    Z the factor's solves of the changed wraps (`Wraps.update`, each solved once per factor: `Wraps.updated`,
+    cleared by `run_steps`), the small system (m <= k) by Gaussian elimination with partial pivoting in
+    `Wraps.small` (m, m + 1). The same correction as a new factor of the new regime at the factor's state,
+    without one: a stick-slip transition costs neither a factor nor a return to Python."""
+    kn = wraps.wrap.shape[0]
+    m = 0
+    for k in range(kn):
+        if wraps.sliding[k] != wraps.factored[k]:
+            if wraps.updated[k] == 0.0:
+                z = wraps.update[k]
+                for i in range(z.shape[0]):
+                    z[i] = 0.0
+                if held[wraps.wrap[k]] == 0:
+                    z[wraps.wrap[k]] = 1.0
+                if held[wraps.hub[k]] == 0:
+                    z[wraps.hub[k]] = -1.0
+                factor_solve(fac, z, z, work_q)  # (the solvers copy b first: in place)
+                wraps.updated[k] = 1.0
+            m += 1
+    A = wraps.small
+    i = 0
+    for ki in range(kn):  # A = D^-1 + U^T Z, the right-hand side U^T dx in column m
+        if wraps.sliding[ki] == wraps.factored[ki]:
+            continue
+        w, hb = wraps.wrap[ki], wraps.hub[ki]
+        j = 0
+        for kj in range(kn):
+            if wraps.sliding[kj] != wraps.factored[kj]:
+                z = wraps.update[kj]
+                A[i, j] = z[w] - z[hb]  # (z and dx are 0 on held DOFs)
+                j += 1
+        d = weight * wraps.bristle[ki]
+        A[i, i] += 1.0 / d if wraps.sliding[ki] == 0.0 else -1.0 / d
+        A[i, m] = dx[w] - dx[hb]
+        i += 1
+    for c in range(m):  # elimination with partial pivoting
+        p = c
+        for r in range(c + 1, m):
+            if abs(A[r, c]) > abs(A[p, c]):
+                p = r
+        if p != c:
+            for j in range(c, m + 1):
+                A[c, j], A[p, j] = A[p, j], A[c, j]
+        for r in range(c + 1, m):
+            f = A[r, c] / A[c, c]
+            for j in range(c, m + 1):
+                A[r, j] -= f * A[c, j]
+    for c in range(m - 1, -1, -1):  # back substitution: the coefficients in column m
+        s = A[c, m]
+        for j in range(c + 1, m):
+            s -= A[c, j] * A[j, m]
+        A[c, m] = s / A[c, c]
+    j = 0
+    for kj in range(kn):  # dx' = dx - Z coef
+        if wraps.sliding[kj] != wraps.factored[kj]:
+            coef = A[j, m]
+            z = wraps.update[kj]
+            for i in range(dx.shape[0]):
+                dx[i] -= coef * z[i]
+            j += 1
 
 
 @njit(**KERNEL)

@@ -87,8 +87,8 @@ from beltdyn.model import spring_kernel as sk
 
 # the dry-friction parts the loop calls
 from beltdyn.analysis.friction_kernel import (  # noqa: E402,F401
-    accept_clutches, arm_friction, bristle, clutch_stored, clutch_torques, end_stretch, regime_changed, slid_anchor,
-    slide_anchors, slide_wraps, wrap_friction, wrap_limits)
+    accept_clutches, arm_friction, bristle, clutch_stored, clutch_torques, end_stretch, regime_changed,
+    regime_correction, slid_anchor, slide_anchors, slide_wraps, wrap_friction, wrap_limits)
 
 KERNEL = kernel_options()  # the njit options of this module's kernels (numba loaded)
 PART = dict(KERNEL, inline="always")  # the stepper's parts: inlined into `run_steps` at numba's IR level (public
@@ -600,76 +600,6 @@ def scaled_residual(chk, held, am, af, x, R, work):
             res = x_g
             worst = worst_g[g]
     return res, worst, True
-
-
-@njit(**PART)
-def regime_correction(wraps, fac, held, weight, dx, work_q):
-    """Newton's correction dx = S^-1 R, S the factor's matrix with its wraps in the regime `Wraps.factored`,
-    made the correction of S' = S + U D U^T, the matrix of the regime the last evaluation found
-    (`Wraps.sliding`): for each wrap whose regime differs, u_k = e_psi - e_theta (a held DOF's entry left
-    out, as the factor holds its row and column) and d_k = +weight k_b where it sticks now (the factor
-    left its bristle out), -weight k_b where it slides now. By the Woodbury identity
-        dx' = dx - Z (D^-1 + U^T Z)^-1 U^T dx,   Z = S^-1 U,
-    Z the factor's solves of the changed wraps (`Wraps.update`, each solved once per factor: `Wraps.updated`,
-    cleared by `run_steps`), the small system (m <= k) by Gaussian elimination with partial pivoting in
-    `Wraps.small` (m, m + 1). The same correction as a new factor of the new regime at the factor's state,
-    without one: a stick-slip transition costs neither a factor nor a return to Python."""
-    kn = wraps.wrap.shape[0]
-    m = 0
-    for k in range(kn):
-        if wraps.sliding[k] != wraps.factored[k]:
-            if wraps.updated[k] == 0.0:
-                z = wraps.update[k]
-                for i in range(z.shape[0]):
-                    z[i] = 0.0
-                if held[wraps.wrap[k]] == 0:
-                    z[wraps.wrap[k]] = 1.0
-                if held[wraps.hub[k]] == 0:
-                    z[wraps.hub[k]] = -1.0
-                factor_solve(fac, z, z, work_q)  # (the solvers copy b first: in place)
-                wraps.updated[k] = 1.0
-            m += 1
-    A = wraps.small
-    i = 0
-    for ki in range(kn):  # A = D^-1 + U^T Z, the right-hand side U^T dx in column m
-        if wraps.sliding[ki] == wraps.factored[ki]:
-            continue
-        w, hb = wraps.wrap[ki], wraps.hub[ki]
-        j = 0
-        for kj in range(kn):
-            if wraps.sliding[kj] != wraps.factored[kj]:
-                z = wraps.update[kj]
-                A[i, j] = z[w] - z[hb]  # (z and dx are 0 on held DOFs)
-                j += 1
-        d = weight * wraps.bristle[ki]
-        A[i, i] += 1.0 / d if wraps.sliding[ki] == 0.0 else -1.0 / d
-        A[i, m] = dx[w] - dx[hb]
-        i += 1
-    for c in range(m):  # elimination with partial pivoting
-        p = c
-        for r in range(c + 1, m):
-            if abs(A[r, c]) > abs(A[p, c]):
-                p = r
-        if p != c:
-            for j in range(c, m + 1):
-                A[c, j], A[p, j] = A[p, j], A[c, j]
-        for r in range(c + 1, m):
-            f = A[r, c] / A[c, c]
-            for j in range(c, m + 1):
-                A[r, j] -= f * A[c, j]
-    for c in range(m - 1, -1, -1):  # back substitution: the coefficients in column m
-        s = A[c, m]
-        for j in range(c + 1, m):
-            s -= A[c, j] * A[j, m]
-        A[c, m] = s / A[c, c]
-    j = 0
-    for kj in range(kn):  # dx' = dx - Z coef
-        if wraps.sliding[kj] != wraps.factored[kj]:
-            coef = A[j, m]
-            z = wraps.update[kj]
-            for i in range(dx.shape[0]):
-                dx[i] -= coef * z[i]
-            j += 1
 
 
 @njit(**PART)

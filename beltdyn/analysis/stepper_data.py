@@ -65,7 +65,7 @@ Decouplers = namedtuple("Decouplers", ["hub", "rotor", "stiffness", "damping", "
 # the last accepted step) are the state; preload (k,) the static torque the bristle carries at the start; sliding
 # (k,) 1 where the last Newton evaluation found the bristle at its limit, factored (k,) the regime the current
 # iteration matrix holds (its sticking stiffness: `transient_factor.wrap_factorizer`); the Newton corrections
-# follow `sliding` by a low-rank update of the factor's solve (`integrator.regime_correction`): update (k, n_q)
+# follow `sliding` by a low-rank update of the factor's solve (`friction_kernel.regime_correction`): update (k, n_q)
 # the factor's solves S^-1 (e_psi - e_theta), updated (k,) 1 where that solve is of the current factor, small
 # (k, k + 1) the scratch of the update's small system.
 # Creep (docs/wraps.md "Creep in time"): travel (k,) rad/m, the pulley's nominal rotation per metre of belt travel

@@ -407,7 +407,7 @@ def wrap_factorizer(system: System, setup: TransientSetup, rho_inf: float, arms,
     on (psi, theta) (none while it slides: its torque is the constant capstan limit over the step).
     Sticking or sliding as the stepper's last evaluation found it (`Wraps.sliding`, copied into
     `Wraps.factored`; the Newton corrections follow later changes by a low-rank update of the solve,
-    `integrator.regime_correction`). Assembled by the run's `IterationPlan` on the stepper's band order where
+    `friction_kernel.regime_correction`). Assembled by the run's `IterationPlan` on the stepper's band order where
     it applies (plan=True: the fast path of the runs without slip), else (or when its factorization needs row
     exchanges) by `band_factor` of the scipy sum. wraps: the stepper's `Wraps` (its state)."""
     from scipy.sparse import coo_matrix, csr_matrix
