@@ -166,7 +166,7 @@ def wrap_friction(wraps, q, f, mark, dt):
     stored = 0.0
     for k in range(wraps.wrap.shape[0]):
         w, hb = wraps.wrap[k], wraps.hub[k]
-        z = wraps.anchor[k] + wraps.creep[k] * dt
+        z = crept_anchor(wraps, k, dt)
         tau, e = bristle(wraps.bristle[k], q[w] - q[hb], z, wraps.limit[k], wraps.limit[k])
         if mark:
             wraps.sliding[k] = 1.0 if abs(wraps.bristle[k] * (q[w] - q[hb] - z)) > wraps.limit[k] else 0.0
@@ -179,13 +179,28 @@ def wrap_friction(wraps, q, f, mark, dt):
 
 
 @njit(**KERNEL)
+def crept_anchor(wraps, k, dt):
+    """Wrap k's bristle anchor crept at its rate z' (`wraps.creep`, `wrap_creep`) over the time dt since the
+    accepted step: anchor + z' dt."""
+    return wraps.anchor[k] + wraps.creep[k] * dt
+
+
+@njit(**KERNEL)
+def stepped_wrap_torque(wraps, k, q):
+    """Wrap k's bristle torque at the state q of the step solved (its anchor crept over that step,
+    `wraps.step`), before the return mapping."""
+    z = crept_anchor(wraps, k, wraps.step[0])
+    return bristle(wraps.bristle[k], q[wraps.wrap[k]] - q[wraps.hub[k]], z, wraps.limit[k], wraps.limit[k])[0]
+
+
+@njit(**KERNEL)
 def slide_wraps(wraps, q):
     """The wraps' return mapping after an accepted step (`slid_anchor`, from the anchor crept over the step,
-    anchor + z' dt) and their torques there."""
+    `crept_anchor`) and their torques there (`stepped_wrap_torque`)."""
     for k in range(wraps.wrap.shape[0]):
         x = q[wraps.wrap[k]] - q[wraps.hub[k]]
-        z = wraps.anchor[k] + wraps.creep[k] * wraps.step[0]
-        wraps.torque[k] = bristle(wraps.bristle[k], x, z, wraps.limit[k], wraps.limit[k])[0]
+        z = crept_anchor(wraps, k, wraps.step[0])
+        wraps.torque[k] = stepped_wrap_torque(wraps, k, q)
         wraps.anchor[k] = slid_anchor(wraps.bristle[k], x, z, wraps.limit[k], wraps.limit[k])
 
 

@@ -88,7 +88,7 @@ from beltdyn.model import spring_kernel as sk
 # the dry-friction parts the loop calls
 from beltdyn.analysis.friction_kernel import (  # noqa: E402,F401
     accept_clutches, arm_friction, bristle, clutch_stored, clutch_torques, end_stretch, regime_changed,
-    regime_correction, slid_anchor, slide_anchors, slide_wraps, wrap_friction, wrap_limits)
+    regime_correction, slid_anchor, slide_anchors, slide_wraps, stepped_wrap_torque, wrap_friction, wrap_limits)
 
 KERNEL = kernel_options()  # the njit options of this module's kernels (numba loaded)
 PART = dict(KERNEL, inline="always")  # the stepper's parts: inlined into `run_steps` at numba's IR level (public
@@ -794,9 +794,7 @@ def record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, R1):
         for c in range(dec.hub.shape[0]):
             o_clutch[k, c] = (1.0 - s) * dec.torque[0, c] + s * dec.torque[1, c]
         for c in range(wr.wrap.shape[0]):  # the bristle torque at the step's end: the anchor of its start, crept
-            z1 = wr.anchor[c] + wr.creep[c] * wr.step[0]
-            tau1 = bristle(wr.bristle[c], q1[wr.wrap[c]] - q1[wr.hub[c]], z1, wr.limit[c], wr.limit[c])[0]
-            o_wrap[k, 0, c] = (1.0 - s) * wr.torque[c] + s * tau1
+            o_wrap[k, 0, c] = (1.0 - s) * wr.torque[c] + s * stepped_wrap_torque(wr, c, q1)
             o_wrap[k, 1, c] = wr.limit[c]
             o_wrap[k, 2, c] = wr.creep[c]
             o_wrap[k, 3, c] = wr.ratio[c]

@@ -167,6 +167,15 @@ def band_order(system: System) -> tuple[np.ndarray, int]:
     return perm, int(np.abs(inv[rows] - inv[cols]).max(initial=0))
 
 
+def travel_rotation(opts: TransientOptions) -> int:
+    """The index in `opts.rotation` of the prescribed rotation that carries the belt's nominal travel: the
+    first with a speed; -1 without one."""
+    for i, r in enumerate(opts.rotation):
+        if r.speed != 0.0:
+            return i
+    return -1
+
+
 def prepare(system: System, static: StaticResult, opts: TransientOptions) -> TransientSetup:
     """The stepper's structures for the run: only the loads, damping and outputs the options ask for."""
     from beltdyn.analysis import integrator as itg
@@ -178,13 +187,14 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
     # constraints: prescribed rotations (any number); the first with a speed carries the belt travel
     cons_dof, cons_par = [], []
     nom_rot, nom_scale, f_exc = np.zeros(10), 0.0, None
-    for r in opts.rotation:
+    nominal = travel_rotation(opts)
+    for i, r in enumerate(opts.rotation):
         d = int(system.rot_dof[system.pulley_index(r.pulley)])
         par = np.array([r.speed, r.ramp_time, r.amplitude, r.speed_amplitude, r.frequency, r.phase, r.fluctuation_ramp,
                         static.q[d] if opts.start == "static" else 0.0, r.order, r.start_speed])
         cons_dof.append(d)
         cons_par.append(par)
-        if r.speed != 0.0 and nom_scale == 0.0:
+        if i == nominal:
             nom_rot, nom_scale = par.copy(), 1.0 / u_nom[d]
         if f_exc is None and (r.amplitude or r.speed_amplitude):  # at the mean speed for an engine order
             f_exc = r.order * abs(r.speed) / (2.0 * np.pi) if r.order > 0 else r.frequency

@@ -35,7 +35,8 @@ import numpy as np
 
 from beltdyn.config import TransientOptions
 from beltdyn.analysis.stepper_data import split_matrix
-from beltdyn.analysis.transient_setup import TransientSetup, slipping_pulleys  # noqa: F401  (re-exported)
+from beltdyn.analysis.transient_setup import TransientSetup, slipping_pulleys, travel_rotation  # noqa: F401
+# (slipping_pulleys re-exported)
 from beltdyn.model.slip import belt_density
 from beltdyn.model.system import System
 
@@ -119,12 +120,10 @@ def wrap_belt_inertia(system: System, pulleys: np.ndarray) -> np.ndarray:
 
 
 def travel_driver(system: System, opts: TransientOptions) -> int:
-    """The pulley whose prescribed rotation carries the belt's nominal travel (the first with a speed, as
+    """The pulley whose prescribed rotation carries the belt's nominal travel (`travel_rotation`, as
     `transient_setup.prepare` takes it), -1 without one: the reference of the wraps' creep."""
-    for r in opts.rotation:
-        if r.speed != 0.0:
-            return int(system.pulley_index(r.pulley))
-    return -1
+    i = travel_rotation(opts)
+    return -1 if i < 0 else int(system.pulley_index(opts.rotation[i].pulley))
 
 
 def secant_stiffness(EA: float, R: np.ndarray, mu: np.ndarray, beta: np.ndarray) -> np.ndarray:
