@@ -560,12 +560,12 @@ def project_new(arms, constant, q1, work, terms):
 
 
 @njit(**PART)
-def scaled_residual(chk, held, am, af, x, R, work):
+def scaled_residual(chk, held, am, af, x, R, rows, worst_g):
     """The generalized-alpha residual R (n_q,) of the terms x (`Terms`), zero on the prescribed rows
     (held), and its size against the allowed one per DOF group (module docstring):
-    (max_g res_g / (tol s_g + 1e3 eps floor_g + noise), worst DOF, finite)."""
-    res_g, scale_g, floor_g = work.group[0], work.group[1], work.group[2]
-    worst_g = work.worst
+    (max_g res_g / (tol s_g + 1e3 eps floor_g + noise), worst DOF, finite). rows (3, n_groups): the scratch of
+    res_g, scale_g, floor_g (`Work.group`); worst_g (n_groups,) the worst DOF of each (`Work.worst`)."""
+    res_g, scale_g, floor_g = rows[0], rows[1], rows[2]
     group, tol, noise = chk.group, chk.tol, chk.noise
     Ma, Ma0, Cv, Cv0, fi, f0, F1, F0, Fc, fl = x.Ma, x.Ma0, x.Cv, x.Cv0, x.fi, x.f0, x.F1, x.F0, x.Fc, x.fl
     G = chk.n_groups
@@ -603,15 +603,9 @@ def scaled_residual(chk, held, am, af, x, R, work):
 
 
 @njit(**PART)
-def correct(fac, cons, wraps, weight, R, c_v, c_a, q1, v1, a1, work):
-    """One Newton correction with the factor: dx = S^-1 R (zero on the prescribed DOFs), q1 -= dx,
-    v1 -= c_v dx, a1 -= c_a dx, S in the wraps' regime of the last evaluation (`regime_correction`; weight
-    1 - alpha_f). Returns |dx|^2."""
-    dx, work_q = work.proj[1], work.proj[2]
-    dof = cons.dof
-    factor_solve(fac, R, dx, work_q)
-    if wraps.wrap.shape[0] > 0 and regime_changed(wraps):
-        regime_correction(wraps, fac, work.held, weight, dx, work_q)
+def correct(dof, dx, R, c_v, c_a, q1, v1, a1):
+    """One Newton correction dx = S^-1 R (solved by the caller: the factor's solve, in the wraps' regime),
+    zero on the prescribed DOFs `dof`: q1 -= dx, v1 -= c_v dx, a1 -= c_a dx. Returns |dx|^2."""
     for k in range(dof.shape[0]):
         dx[dof[k]] = 0.0
     norm = 0.0
@@ -625,7 +619,7 @@ def correct(fac, cons, wraps, weight, R, c_v, c_a, q1, v1, a1, work):
 
 
 @njit(**PART)
-def solve_step(state, model, opts, fac, t1, h, x, work):
+def solve_step(belt, lin, F, tr, arms, dec, wraps, chk, cons, opts, fac, t1, h, x, work):
     """Newton on the step ending at t1 from the predictor (in work rows q1, v1, a1): at most max_iter
     corrections, the residual after the last one checked. Returns (converged, scaled residual, worst
     DOF, corrections, bristle energy, q.B q + 2 b0.q, transport power) with the forces of the last
@@ -638,10 +632,8 @@ def solve_step(state, model, opts, fac, t1, h, x, work):
     projection (`project_new`), the residual (`scaled_residual`) and the correction (`correct`).
     The model's parts and the scratch rows are read once per step, before the Newton loop, and the forces
     are evaluated in this loop's body, not in a part of their own: with numba's runtime an inlined part's
-    arguments are new references, one reference count per array (about a hundred per evaluation here)."""
-    belt, lin, tr, arms = model.belt, model.linear, model.transport, model.arms
-    dec, wraps, chk, cons = model.decouplers, model.wraps, model.check, model.constraints
-    F = model.forcing
+    arguments are new references, one reference count per array (about a hundred per evaluation here); so the
+    parts take the model's parts they use, which `run_steps` reads once per call, not the whole model."""
     constant = F.constant
     q_ref, K, C, M = lin.q_ref, lin.K, lin.C, lin.M
     moving = tr.follow != 0 or tr.speed != 0.0
@@ -653,7 +645,9 @@ def solve_step(state, model, opts, fac, t1, h, x, work):
     wv = work.vec
     q1, v1, a1 = wv[1], wv[2], wv[3]
     dq, Ma, Cv, Kd, fi, fl, f_tr, tr_Bq, tr_Aq = wv[4], wv[5], wv[7], wv[9], wv[10], wv[11], wv[14], wv[15], wv[16]
-    R = work.proj[0]
+    R, dx, work_q = work.proj[0], work.proj[1], work.proj[2]
+    group_rows, worst_g = work.group, work.worst
+    dof = cons.dof
     n = q1.shape[0]
     inv_h = 1.0 / h
     c_a = 1.0 / (opts.beta * h * h)
@@ -687,14 +681,17 @@ def solve_step(state, model, opts, fac, t1, h, x, work):
             fl[i] = gross[i] + abs(Kd[i]) + abs(constant[i]) + abs(f_tr[i])
         if with_arms:
             project_new(arms, constant, q1, work, x)
-        res, worst, finite = scaled_residual(chk, held, am, af, x, R, work)
+        res, worst, finite = scaled_residual(chk, held, am, af, x, R, group_rows, worst_g)
         if not finite:
             return False, res, worst, it, bristle1, qbq, p_tr
         if res <= 1.0:
             return True, res, worst, it, bristle1, qbq, p_tr
         if it >= max_iter:
             return False, res, worst, it, bristle1, qbq, p_tr
-        norm = correct(fac, cons, wraps, 1.0 - af, R, c_v, c_a, q1, v1, a1, work)
+        factor_solve(fac, R, dx, work_q)
+        if with_wraps and regime_changed(wraps):  # S in the wraps' regime of this evaluation
+            regime_correction(wraps, fac, held, 1.0 - af, dx, work_q)
+        norm = correct(dof, dx, R, c_v, c_a, q1, v1, a1)
         if with_arms:
             complete(arms, q1, v1, a1)
         it += 1
@@ -715,10 +712,9 @@ def count_outputs(t_out, t1, h, dt_out):
 
 
 @njit(**PART)
-def step_power(state, model, x, v1, p_tr, work):
+def step_power(state, dof, x, v1, p_tr, work):
     """The trapezoid of the step's power: (external forces and reactions, dissipated), on p (power is
-    invariant: F . v_p = (J^T F) . v_q); the reactions R1 (work.react) of the prescribed DOFs."""
-    dof = model.constraints.dof
+    invariant: F . v_p = (J^T F) . v_q); the reactions R1 (work.react) of the prescribed DOFs `dof`."""
     th = state.scal
     v, F0, fd0, R0 = state.v, state.F0, state.fd0, state.R0
     Ma, Cv_q, fi, F1_q = x.Ma, x.Cv, x.fi, x.F1
@@ -739,13 +735,13 @@ def step_power(state, model, x, v1, p_tr, work):
 
 
 @njit(**PART)
-def balance_energy(state, model, q1, v1, c1, qbq, bristle1, work):
+def balance_energy(state, belt, lin, q1, v1, c1, qbq, bristle1, work):
     """Observer: kinetic and potential energy at the accepted step (exact, not interpolated), the
     balance error's running maximum scal[WORST] and the energy moved scal[MOVED]. Returns (kin, pot)."""
     th = state.scal
     tmp, tmp2 = work.vec[12], work.vec[13]
-    kin = kinetic_energy(model.linear, v1, tmp)
-    pot = potential_energy(model.belt, model.linear, q1, work.ext[0], work.elem[0], work.elem1[0], tmp,
+    kin = kinetic_energy(lin, v1, tmp)
+    pot = potential_energy(belt, lin, q1, work.ext[0], work.elem[0], work.elem1[0], tmp,
                            tmp2) + bristle1 - 0.5 * c1 * c1 * qbq
     bal = kin + pot - th[WORK] + th[DISS] - th[E0]
     if abs(bal) > th[WORST]:
@@ -757,13 +753,11 @@ def balance_energy(state, model, q1, v1, c1, qbq, bristle1, work):
 
 
 @njit(**PART)
-def record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, R1):
+def record_outputs(state, arms, dec, wr, n_con, opts, out, t, h, q1, v1, a1, kin, pot, R1):
     """Observer: the samples at the output times in (t, t1] (Hermite interpolation within the step, the
     arms' dependent entries kinematically exact), the step's energy terms and the reactions."""
     q, v, a, R0 = state.q, state.v, state.a, state.R0
     th = state.scal
-    arms, dec, wr = model.arms, model.decouplers, model.wraps
-    n_con = model.constraints.dof.shape[0]
     o_t, o_q, o_v, o_a, o_n = out.t, out.q, out.v, out.a, out.n
     o_energy, o_reaction, o_clutch, o_wrap = out.energy, out.reaction, out.clutch, out.wrap
     dt_out = opts.dt_out
@@ -829,10 +823,9 @@ def slack_events(belt, t1, ev, work):
 
 
 @njit(**PART)
-def accept(state, model, x, p_tr, work):
+def accept(state, arms, dec, wraps, dof, x, p_tr, work):
     """The new state becomes the old one: q, v, a, the forces, the projected terms, the reactions,
     the transport power; the arms' friction anchors slide (return mapping)."""
-    arms, dec, wraps, dof = model.arms, model.decouplers, model.wraps, model.constraints.dof
     q, v, a, f0, fd0, F0, R0, th = state.q, state.v, state.a, state.f0, state.fd0, state.F0, state.R0, state.scal
     wv = work.vec
     q1, v1, a1, Ma, Ma0, Cv, Cv0, fi, F1 = wv[1], wv[2], wv[3], wv[5], wv[6], wv[7], wv[8], wv[10], wv[0]
@@ -914,7 +907,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     q, v, a = state.q, state.v, state.a  # on the joint coordinates p (n); q[:nq] independent
     th = state.scal
     lin, arms, cons = model.linear, model.arms, model.constraints
-    belt, F, tr, dec, wraps = model.belt, model.forcing, model.transport, model.decouplers, model.wraps
+    belt, F, tr, dec, wraps, chk = model.belt, model.forcing, model.transport, model.decouplers, model.wraps, model.check
+    dof = cons.dof
     wv = work.vec
     F1, q1, v1, a1, Ma0, Cv0 = wv[0], wv[1], wv[2], wv[3], wv[6], wv[8]
     x = terms_of(state, model, work)
@@ -952,7 +946,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         if arms.dof.shape[0] > 0:
             complete(arms, q1, v1, a1)
         external_forces(F, cons, t1, F1, work.sig)
-        converged, res, worst, it, bristle1, qbq, p_tr = solve_step(state, model, opts, fac, t1, h, x, work)
+        converged, res, worst, it, bristle1, qbq, p_tr = solve_step(belt, lin, F, tr, arms, dec, wraps, chk, cons, opts, fac, t1,
+                                                                    h, x, work)
         if not converged:
             info[0] = t1
             info[1] = res
@@ -966,16 +961,17 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         if out.n[0] + n_pend > out.t.shape[0]:
             return BUFFER_FULL
         fresh = False
-        p_ext, p_dis = step_power(state, model, x, v1, p_tr, work)
+        p_ext, p_dis = step_power(state, dof, x, v1, p_tr, work)
         th[WORK] = th[WORK] + h * p_ext
         th[DISS] = th[DISS] + h * p_dis - (bristle1 - bristle0)  # the bristles' stored part is not lost
         if n_pend > 0:  # energy at this step (exact, not interpolated) and the samples in (t, t1] (only then
             # called: an inlined part's arguments are new references, a reference count per array)
             c1 = transport_speed(tr, F, t1)[0]
-            kin, pot = balance_energy(state, model, q1, v1, c1, qbq, bristle1, work)
-            record_outputs(state, model, opts, out, t, h, q1, v1, a1, kin, pot, work.react)
+            kin, pot = balance_energy(state, belt, lin, q1, v1, c1, qbq, bristle1, work)
+            record_outputs(state, arms, dec, wraps, dof.shape[0], opts, out, t, h, q1, v1, a1, kin, pot,
+                           work.react)
         slack_events(belt, t1, ev, work)
-        accept(state, model, x, p_tr, work)
+        accept(state, arms, dec, wraps, dof, x, p_tr, work)
         bristle0 = stored_friction(arms, dec, q, wv[12])  # after the return mapping
         if wraps.wrap.shape[0] > 0:  # the wraps' limits from the accepted tensions (work.elem[0]: q1's)
             c1 = transport_speed(tr, F, t1)[0]
