@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from beltdyn.analysis.response import ResponseResult
     from beltdyn.analysis.modal import ModalResult
     from beltdyn.analysis.static import StaticResult
-    from beltdyn.model.system import System
+    from beltdyn.model.system import DriveFacts, System
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -49,11 +49,14 @@ class Analysis:
 
 
 def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_modes: int | None = None,
-            layout: Layout | None = None, compiled: bool = False, belt_speed: float | None = None) -> Analysis:
+            layout: Layout | None = None, compiled: bool = False, belt_speed: float | None = None,
+            facts: "DriveFacts | None" = None) -> Analysis:
     """Geometry, system, and the static equilibrium (on the solved geometry) and modes if asked for
     (modal implies static). `layout`: the L0 fit, if already computed. belt_speed (m/s): the running
     belt's speed instead of [running]'s (`running.belt_speed_of`); the static equilibrium is then the
-    running one and the modes the gyroscopic ones.
+    running one and the modes the gyroscopic ones. facts: the configuration's `DriveFacts` on `layout`
+    (`drive_facts`), if at hand: the analyses of one configuration at several belt speeds share them
+    (`response_of`).
 
     compiled: belt forces by the compiled kernel, for a process that evaluates them many times (a
     sweep, a transient follows); the numpy reference otherwise, which spares numba's ~0.3 s start-up
@@ -66,9 +69,12 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
                               facts=facts)
         return system.with_belt(compiled=True) if compiled else system
 
-    check_model_size(cfg)  # before the L0 fit: an impossible mesh is refused at once
-    layout = layout or layout_from_config(cfg)
-    facts = drive_facts(cfg, layout)  # what every build of this analysis takes from the configuration alone
+    if facts is None:
+        check_model_size(cfg)  # before the L0 fit: an impossible mesh is refused at once
+        layout = layout or layout_from_config(cfg)
+        facts = drive_facts(cfg, layout)  # what every build of this analysis takes from the configuration alone
+    elif layout is not facts.layout:
+        raise ValueError("analyse: the facts given are of another layout than `layout`")
     if not (static or modal):
         return Analysis(config=cfg, layout=layout, system=build(layout), fit_layout=layout)
     initial = DeferredSystem(cfg, layout, build, facts=facts, belt_speed=belt_speed)  # built only if the static analysis solves on the L0 fit
@@ -167,6 +173,7 @@ def response_of(cfg: DriveConfig, run: Analysis) -> "ResponseResult":
     speed x R_driver (one static solve per speed, warm from the L0 fit), else once about `run`."""
     from beltdyn.analysis.response import merge_responses, solve_response, speeds_of
     from beltdyn.model.geometry import travel_sense
+    from beltdyn.model.system import drive_facts
 
     opts = cfg.response
     assert opts is not None
@@ -181,8 +188,9 @@ def response_of(cfg: DriveConfig, run: Analysis) -> "ResponseResult":
     lay = run.fit_layout if run.fit_layout is not None else run.layout
     driver = cfg.driver_index
     per_metre = float(lay.radius[driver]) * travel_sense(lay, driver)
+    facts = drive_facts(cfg, lay)  # (the same at every speed: the configuration's, on the L0 fit)
     parts = []
     for omega in speeds_of(opts):
-        at = analyse(cfg, belt_speed=float(omega) * per_metre, layout=lay)
+        at = analyse(cfg, belt_speed=float(omega) * per_metre, layout=lay, facts=facts)
         parts.append(solve_response(damped(at.system), at.static, opts, np.array([omega])))
     return merge_responses(parts)
