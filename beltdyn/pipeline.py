@@ -22,8 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from beltdyn.config import DriveConfig
 from beltdyn.errors import SolverError
 from beltdyn.model.geometry import Layout, layout_from_config
@@ -32,7 +30,7 @@ if TYPE_CHECKING:
     from beltdyn.analysis.response import ResponseResult
     from beltdyn.analysis.modal import ModalResult
     from beltdyn.analysis.static import StaticResult
-    from beltdyn.model.system import System
+    from beltdyn.model.system import DriveFacts, System
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -49,11 +47,13 @@ class Analysis:
 
 
 def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_modes: int | None = None,
-            layout: Layout | None = None, compiled: bool = False, belt_speed: float | None = None) -> Analysis:
+            layout: Layout | None = None, compiled: bool = False, belt_speed: float | None = None,
+            facts: "DriveFacts | None" = None) -> Analysis:
     """Geometry, system, and the static equilibrium (on the solved geometry) and modes if asked for
     (modal implies static). `layout`: the L0 fit, if already computed. belt_speed (m/s): the running
     belt's speed instead of [running]'s (`running.belt_speed_of`); the static equilibrium is then the
-    running one and the modes the gyroscopic ones.
+    running one and the modes the gyroscopic ones. facts: `drive_facts(cfg, layout)`, if the caller holds
+    it (a response analyses the same configuration and L0 fit at each of its speeds).
 
     compiled: belt forces by the compiled kernel, for a process that evaluates them many times (a
     sweep, a transient follows); the numpy reference otherwise, which spares numba's ~0.3 s start-up
@@ -68,7 +68,8 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
 
     check_model_size(cfg)  # before the L0 fit: an impossible mesh is refused at once
     layout = layout or layout_from_config(cfg)
-    facts = drive_facts(cfg, layout)  # what every build of this analysis takes from the configuration alone
+    if facts is None:  # what every build of this analysis takes from the configuration alone
+        facts = drive_facts(cfg, layout)
     if not (static or modal):
         return Analysis(config=cfg, layout=layout, system=build(layout), fit_layout=layout)
     initial = DeferredSystem(cfg, layout, build, facts=facts, belt_speed=belt_speed)  # built only if the static analysis solves on the L0 fit
@@ -165,8 +166,9 @@ def response_of(cfg: DriveConfig, run: Analysis) -> "ResponseResult":
     """The response of an analysed drive (`pipeline.analyse`) to cfg.response: with response.transport
     (default) linearized at each speed about the running equilibrium at the belt speed
     speed x R_driver (one static solve per speed, warm from the L0 fit), else once about `run`."""
-    from beltdyn.analysis.response import merge_responses, solve_response, speeds_of
+    from beltdyn.analysis.response import running_response, solve_response
     from beltdyn.model.geometry import travel_sense
+    from beltdyn.model.system import drive_facts
 
     opts = cfg.response
     assert opts is not None
@@ -181,8 +183,9 @@ def response_of(cfg: DriveConfig, run: Analysis) -> "ResponseResult":
     lay = run.fit_layout if run.fit_layout is not None else run.layout
     driver = cfg.driver_index
     per_metre = float(lay.radius[driver]) * travel_sense(lay, driver)
-    parts = []
-    for omega in speeds_of(opts):
-        at = analyse(cfg, belt_speed=float(omega) * per_metre, layout=lay)
-        parts.append(solve_response(damped(at.system), at.static, opts, np.array([omega])))
-    return merge_responses(parts)
+    facts = drive_facts(cfg, lay)  # the same configuration and L0 fit at every speed: its facts made once
+
+    def drive_at(omega: float):
+        at = analyse(cfg, belt_speed=omega * per_metre, layout=lay, facts=facts)
+        return damped(at.system), at.static
+    return running_response(drive_at, opts)
