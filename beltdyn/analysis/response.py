@@ -164,17 +164,17 @@ def solve_harmonic(lin: LinearDrive, omega: np.ndarray, presc: np.ndarray, theta
     from scipy.sparse import issparse
 
     n = lin.q0.shape[0]
-    free = np.setdiff1d(np.arange(n), presc)
+    is_free = np.ones(n, dtype=bool)
+    is_free[presc] = False
+    free = np.flatnonzero(is_free)
     X = np.zeros((len(omega), n), dtype=complex)
     X[:, presc] = theta
     if not issparse(lin.K):
-        K, C, M = (np.asarray(A) for A in (lin.K, lin.C, lin.M))
-        Kff, Cff, Mff = (A[np.ix_(free, free)] for A in (K, C, M))
-        Kfp, Cfp, Mfp = (A[np.ix_(free, presc)] for A in (K, C, M))
-        for lo in range(0, len(omega), 64):  # (chunk, n_f, n_f) complex systems at once
+        K, C, M = (np.asarray(A)[free] for A in (lin.K, lin.C, lin.M))  # the free rows (n_f, n)
+        for lo in range(0, len(omega), 64):  # (chunk, n_f, n) complex rows at once, D_ff and D_fp their columns
             w = omega[lo: lo + 64, None, None]
-            D = Kff[None] + 1j * w * Cff[None] - w * w * Mff[None]
-            Dp = Kfp[None] + 1j * w * Cfp[None] - w * w * Mfp[None]
+            D_rows = K[None] + 1j * w * C[None] - w * w * M[None]
+            D, Dp = D_rows[:, :, free], D_rows[:, :, presc]
             rhs = force[lo: lo + 64][:, free] - np.einsum("fij,fj->fi", Dp, theta[lo: lo + 64])
             try:
                 X[lo: lo + 64, free] = np.linalg.solve(D, rhs[..., None])[..., 0]
