@@ -22,8 +22,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from beltdyn.config import DriveConfig
 from beltdyn.errors import SolverError
 from beltdyn.model.geometry import Layout, layout_from_config
@@ -171,7 +169,7 @@ def response_of(cfg: DriveConfig, run: Analysis) -> "ResponseResult":
     """The response of an analysed drive (`pipeline.analyse`) to cfg.response: with response.transport
     (default) linearized at each speed about the running equilibrium at the belt speed
     speed x R_driver (one static solve per speed, warm from the L0 fit), else once about `run`."""
-    from beltdyn.analysis.response import merge_responses, solve_response, speeds_of
+    from beltdyn.analysis.response import running_response, solve_response
     from beltdyn.model.geometry import travel_sense
     from beltdyn.model.system import drive_facts
 
@@ -188,9 +186,9 @@ def response_of(cfg: DriveConfig, run: Analysis) -> "ResponseResult":
     lay = run.fit_layout if run.fit_layout is not None else run.layout
     driver = cfg.driver_index
     per_metre = float(lay.radius[driver]) * travel_sense(lay, driver)
-    facts = drive_facts(cfg, lay)  # (the same at every speed: the configuration's, on the L0 fit)
-    parts = []
-    for omega in speeds_of(opts):
-        at = analyse(cfg, belt_speed=float(omega) * per_metre, layout=lay, facts=facts)
-        parts.append(solve_response(damped(at.system), at.static, opts, np.array([omega])))
-    return merge_responses(parts)
+    facts = drive_facts(cfg, lay)  # the same configuration and L0 fit at every speed: its facts made once
+
+    def drive_at(omega: float):
+        at = analyse(cfg, belt_speed=omega * per_metre, layout=lay, facts=facts)
+        return damped(at.system), at.static
+    return running_response(drive_at, opts)

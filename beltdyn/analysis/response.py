@@ -164,17 +164,17 @@ def solve_harmonic(lin: LinearDrive, omega: np.ndarray, presc: np.ndarray, theta
     from scipy.sparse import issparse
 
     n = lin.q0.shape[0]
-    free = np.setdiff1d(np.arange(n), presc)
+    is_free = np.ones(n, dtype=bool)
+    is_free[presc] = False
+    free = np.flatnonzero(is_free)
     X = np.zeros((len(omega), n), dtype=complex)
     X[:, presc] = theta
     if not issparse(lin.K):
-        K, C, M = (np.asarray(A) for A in (lin.K, lin.C, lin.M))
-        Kff, Cff, Mff = (A[np.ix_(free, free)] for A in (K, C, M))
-        Kfp, Cfp, Mfp = (A[np.ix_(free, presc)] for A in (K, C, M))
-        for lo in range(0, len(omega), 64):  # (chunk, n_f, n_f) complex systems at once
+        K, C, M = (np.asarray(A)[free] for A in (lin.K, lin.C, lin.M))  # the free rows (n_f, n)
+        for lo in range(0, len(omega), 64):  # (chunk, n_f, n) complex rows at once, D_ff and D_fp their columns
             w = omega[lo: lo + 64, None, None]
-            D = Kff[None] + 1j * w * Cff[None] - w * w * Mff[None]
-            Dp = Kfp[None] + 1j * w * Cfp[None] - w * w * Mfp[None]
+            D_rows = K[None] + 1j * w * C[None] - w * w * M[None]
+            D, Dp = D_rows[:, :, free], D_rows[:, :, presc]
             rhs = force[lo: lo + 64][:, free] - np.einsum("fij,fj->fi", Dp, theta[lo: lo + 64])
             try:
                 X[lo: lo + 64, free] = np.linalg.solve(D, rhs[..., None])[..., 0]
@@ -262,13 +262,28 @@ def speeds_of(opts: ResponseOptions) -> np.ndarray:
     return np.linspace(opts.speed[0], opts.speed[1], opts.points)
 
 
-def solve_response(system: System, static: StaticResult, opts: ResponseOptions,
-                   speed: np.ndarray | None = None) -> ResponseResult:
-    """The steady forced response over the speeds (default `speeds_of(opts)`) x opts.orders, all about
-    the one equilibrium `static` of `system` (see the module docstring)."""
-    lin = linearize(system, static, opts.damping)
+@dataclass(frozen=True, kw_only=True)
+class Excitation:
+    """What the response prescribes and applies, on a drive's DOF map (`excitation_sets`): the same for
+    every speed of a response (each speed's drive has the DOF map of the configuration)."""
+
+    prescribed: np.ndarray  # (p,) the DOFs whose rotation is prescribed, the driver's first
+    speed_amplitude: np.ndarray  # (n_order, p) complex, B e^{i phase} of each order's speed excitations
+    torque: np.ndarray  # (n_order, n_dof) complex, tau e^{i phase} of each order's torques
+
+
+def excitation_of(system: System, opts: ResponseOptions) -> Excitation:
+    """The `Excitation` of opts on the system's DOF map."""
     presc, B, tau = excitation_sets(system, opts)
-    speed = speeds_of(opts) if speed is None else np.asarray(speed, dtype=float)
+    return Excitation(prescribed=presc, speed_amplitude=B, torque=tau)
+
+
+def harmonic_outputs(system: System, static: StaticResult, opts: ResponseOptions, speed: np.ndarray,
+                     excitation: Excitation) -> dict:
+    """The complex amplitudes (name -> (S, O, ...)) of the outputs at the speeds (S,) x opts.orders (O,),
+    all about the one equilibrium `static` of `system` (the module docstring)."""
+    lin = linearize(system, static, opts.damping)
+    presc, B, tau = excitation.prescribed, excitation.speed_amplitude, excitation.torque
     orders = np.asarray(opts.orders, dtype=float)
     omega = (speed[:, None] * orders[None, :]).ravel()  # (S * O,)
     o_idx = np.tile(np.arange(len(orders)), len(speed))
@@ -279,11 +294,12 @@ def solve_response(system: System, static: StaticResult, opts: ResponseOptions,
     preload[: system.n_dof] = static.spring_preload
     Y = linear_outputs(system, lin, X, omega, preload, presc, theta, force)
     S, O = len(speed), len(orders)
-    outputs = {name: y.reshape(S, O, *y.shape[1:]) for name, y in Y.items()}
-    lay = system.layout
-    dims, units = {}, {}
-    for name in outputs:
-        dims[name], units[name] = _dims_units(system, name, outputs[name].ndim - 2)
+    return {name: y.reshape(S, O, *y.shape[1:]) for name, y in Y.items()}
+
+
+def response_notes(system: System, opts: ResponseOptions) -> tuple[str, ...]:
+    """What the response says of its model (damping, the arms' friction, decouplers, wraps): of the drive's
+    make, the same at every speed."""
     notes = []
     if not (opts.damping.rayleigh_mass or opts.damping.rayleigh_stiffness or opts.damping.belt_axial
             or opts.damping.belt_bending) and system.linear_damping is None:
@@ -302,34 +318,64 @@ def solve_response(system: System, static: StaticResult, opts: ResponseOptions,
                      f"(the transient models that)")
     slipping = slipping_pulleys(system)
     if len(slipping):
-        notes.append(f"the wraps stick in the linear response: pulley(s) {', '.join(lay.names[j] for j in slipping)} "
+        notes.append(f"the wraps stick in the linear response: pulley(s) {', '.join(system.layout.names[j] for j in slipping)} "
                      f"turn with their wraps (rigid wraps, without the transient's presliding compliance and "
                      f"without slip); a wrap whose torque reaches its capstan torque slips: run a transient")
+    return tuple(notes)
+
+
+def response_result(system: System, opts: ResponseOptions, speed: np.ndarray, outputs: dict,
+                    static_tension: np.ndarray, excitation: Excitation) -> ResponseResult:
+    """The `ResponseResult` of the amplitudes `outputs` (name -> (S, O, ...), `harmonic_outputs`) at the
+    speeds (S,), with static_tension (S, n_span, 2) the span-end tensions of each speed's equilibrium, its
+    notes (`response_notes`) and the limit warnings of the whole speed range."""
     from beltdyn.model.geometry import travel_sense
 
+    lay = system.layout
+    orders = np.asarray(opts.orders, dtype=float)
+    dims, units = {}, {}
+    for name in outputs:
+        dims[name], units[name] = _dims_units(system, name, outputs[name].ndim - 2)
+    arms = system.arms
     R_d = float(lay.radius[system.driver]) * travel_sense(lay, system.driver)
-    names = tuple(lay.names[j] for j in range(lay.n) if int(system.rot_dof[j]) in set(presc.tolist()))
+    presc = set(excitation.prescribed.tolist())
+    names = tuple(lay.names[j] for j in range(lay.n) if int(system.rot_dof[j]) in presc)
     result = ResponseResult(speed=speed, orders=orders, frequency=(speed[:, None] * orders[None, :]) / (2 * np.pi),
                             belt_speed=speed * R_d, outputs=outputs, dims=dims, units=units, prescribed=names,
-                            static_tension=np.broadcast_to(np.asarray(static.span_tension, dtype=float),
-                                                           (len(speed), *np.shape(static.span_tension))).copy(),
-                            span_names=tuple(lay.span_name(i) for i in range(lay.n)),
-                            arm_names=() if arms is None else tuple(arms.names), arm_friction=friction,
-                            notes=tuple(notes))
+                            static_tension=static_tension, span_names=tuple(lay.span_name(i) for i in range(lay.n)),
+                            arm_names=() if arms is None else tuple(arms.names),
+                            arm_friction=np.zeros(0) if arms is None else arm_friction_limit(arms),
+                            notes=response_notes(system, opts))
     return replace(result, warnings=result.notes + limit_warnings(result))
 
 
-def merge_responses(parts: list[ResponseResult]) -> ResponseResult:
-    """One result of results over successive speeds (each linearized about its own equilibrium), with the
-    limit warnings of the whole speed range."""
-    first = parts[0]
-    merged = replace(first, speed=np.concatenate([p.speed for p in parts]),
-                     frequency=np.concatenate([p.frequency for p in parts]),
-                     belt_speed=np.concatenate([p.belt_speed for p in parts]),
-                     outputs={k: np.concatenate([p.outputs[k] for p in parts]) for k in first.outputs},
-                     static_tension=np.concatenate([p.static_tension for p in parts]),
-                     notes=tuple(dict.fromkeys(n for p in parts for n in p.notes)))
-    return replace(merged, warnings=merged.notes + limit_warnings(merged))
+def solve_response(system: System, static: StaticResult, opts: ResponseOptions,
+                   speed: np.ndarray | None = None) -> ResponseResult:
+    """The steady forced response over the speeds (default `speeds_of(opts)`) x opts.orders, all about
+    the one equilibrium `static` of `system` (see the module docstring)."""
+    speed = speeds_of(opts) if speed is None else np.asarray(speed, dtype=float)
+    excitation = excitation_of(system, opts)
+    tension = np.broadcast_to(np.asarray(static.span_tension, dtype=float),
+                              (len(speed), *np.shape(static.span_tension))).copy()
+    return response_result(system, opts, speed, harmonic_outputs(system, static, opts, speed, excitation), tension,
+                           excitation)
+
+
+def running_response(drive_at, opts: ResponseOptions) -> ResponseResult:
+    """The response with each speed linearized about its own equilibrium: drive_at(speed) -> (system,
+    static result) the drive at that driver speed (rad/s) and its running equilibrium (`pipeline.response_of`
+    with response.transport). The excitation, notes and result are made once, for the speed range, on
+    the DOF map all these drives share; the amplitudes speed by speed (as `solve_response` of each)."""
+    speed = speeds_of(opts)
+    parts, tension, excitation = [], [], None
+    for omega in speed:
+        system, static = drive_at(float(omega))
+        if excitation is None:
+            excitation = excitation_of(system, opts)
+        parts.append(harmonic_outputs(system, static, opts, np.array([omega]), excitation))
+        tension.append(np.asarray(static.span_tension, dtype=float))
+    outputs = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+    return response_result(system, opts, speed, outputs, np.stack(tension), excitation)
 
 
 def _first_and_worst(r: np.ndarray) -> tuple[tuple, tuple] | None:

@@ -86,7 +86,13 @@ def linearized_matrices(system: "System", q0: np.ndarray, damping: "Damping | No
     G = system.gyroscopic_matrix(q0) if system.belt_speed else 0.0 * M
     C_p = system.linear_damping
     if damping is not None and (damping.rayleigh_mass or damping.rayleigh_stiffness):
-        ray = damping.rayleigh_mass * system.mass + damping.rayleigh_stiffness * system.tangent_on_joints(q0)
+        # (a zero coefficient's term is not evaluated: adding its zeros changes no entry, and K_0 is a tangent)
+        if not damping.rayleigh_stiffness:
+            ray = damping.rayleigh_mass * system.mass
+        elif not damping.rayleigh_mass:
+            ray = damping.rayleigh_stiffness * system.tangent_on_joints(q0)
+        else:
+            ray = damping.rayleigh_mass * system.mass + damping.rayleigh_stiffness * system.tangent_on_joints(q0)
         C_p = ray if C_p is None else C_p + ray
     if damping is not None and (damping.belt_axial or damping.belt_bending):
         from beltdyn.model import belt_kernel as bk

@@ -19,7 +19,7 @@ from beltdyn.config import DriveConfig, resolved_toml
 from beltdyn.errors import ConfigError
 
 from beltdyn.study.assembly import Assembly, Column, SweepResult, assemble, static_columns
-from beltdyn.study.cases import run_case, run_chunk
+from beltdyn.study.cases import load_case_modules, run_case, run_chunk
 from beltdyn.study.grid import (ANALYSES, Param, SweepSpec, case_assignments, make_spec, merge_params, parse_values,
                                 spec_hash, sweep_tables)
 from beltdyn.study.journal import Journal
@@ -140,5 +140,7 @@ def _execute(base: str, source: str, spec: SweepSpec, chunks: list, n_workers: i
             record(run_chunk(*args, c, spec.analysis, spec.n_modes))
         return
     # beltdyn's own worker processes (`pool.run_pool`): each chunk's results recorded as they arrive and
-    # then dropped; on Ctrl-C, SIGTERM or a journal write error the workers are stopped, the journal kept
+    # then dropped; on Ctrl-C, SIGTERM or a journal write error the workers are stopped, the journal kept.
+    # The workers are forked with the cases' modules already imported (`load_case_modules`).
+    load_case_modules(spec.analysis)
     run_pool(run_chunk, [(*args, c, spec.analysis, spec.n_modes) for c in chunks], n_workers, record)
