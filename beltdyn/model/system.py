@@ -43,7 +43,7 @@ from beltdyn.model.barlaw import bar_law
 from beltdyn.model.geometry import Layout, layout_from_config
 from beltdyn.model.geometry import belt_speed_of
 from beltdyn.model.supports import support_of
-from beltdyn.model.arms import ArmJoints, arm_joints
+from beltdyn.model.arms import ArmFolding, ArmJoints, arm_folding, arm_joints
 from beltdyn.model.assembly import (DENSE_LIMIT, NO_INDEX, Pattern, assemble_blocks, component_entries,
                                     component_nonzeros, component_sums, element_pairs, make_pattern)
 from beltdyn.model.belt import BeltSpans, build_belt, empty_element_set, plus
@@ -150,6 +150,7 @@ class System(DofNames):
     springs: SpringSpans | None = None  # the spans modelled as axial springs (None: every span flexible)
     wraps: WrapModel | None = None  # the belt on the pulleys (belt.wraps, belt.axial_law); None: creep, green-lagrange
     spring_scatter: np.ndarray | None = None  # (k m m,) where the springs' blocks go: flat (dense) or CSR slot
+    arm_folding: ArmFolding | None = None  # the sparse pattern folded onto q (`arms.arm_folding`), with arms and CSR
     # derived in the constructor (`__post_init__`), never passed: the running belt's terms (at speed only,
     # None at rest), the components' stiffness as a CSR matrix (sparse only), the mode classification's
     # component masses, the tensioner arms' statics
@@ -377,7 +378,8 @@ class System(DofNames):
             f, K = self.belt_force_and_tangent(p)
             f += self.linear_force(p)
             f -= self.external_force(load_factor)
-            r, K = (f, K) if self.arms is None else self.arms.project_both(q, f, K, dense=self.dense)
+            r, K = (f, K) if self.arms is None else self.arms.project_both(q, f, K, dense=self.dense,
+                                                                       folding=self.arm_folding)
         return (r, K, p) if joint else (r, K)
 
     def tangent_on_joints(self, q: np.ndarray):
@@ -395,7 +397,7 @@ class System(DofNames):
         """J(q)^T A J(q) for a matrix A on the joint coordinates (A itself without arms)."""
         if self.arms is None:
             return A
-        return self.arms.project_matrix(q, A, None, dense=self.dense)
+        return self.arms.project_matrix(q, A, None, dense=self.dense, folding=self.arm_folding)
 
     def mass_matrix(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None):
         """The mass matrix on q at the state q: J^T M J (constant without arms; slopes: the arms'
@@ -404,7 +406,7 @@ class System(DofNames):
             return self.mass
         if slopes is None:
             slopes = self.arm_slopes(np.zeros(self.n_dof) if q is None else q)
-        return self.arms.project_matrix_at(slopes, self.mass, dense=self.dense)
+        return self.arms.project_matrix_at(slopes, self.mass, dense=self.dense, folding=self.arm_folding)
 
     def arm_jacobian(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None) -> np.ndarray:
         """J = dp/dq (n_p, n_dof) dense at q: the identity on q, the arms' slopes dc/dphi in the arm
@@ -930,4 +932,6 @@ def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: t
                   driver=driver, tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M,
                   gravity_force=fg + sums.weight, linear_stiffness=sums.stiffness, linear_damping=sums.damping,
                   linear_offset=sums.offset, loads=loads, arms=arms, pulley_friction=friction, belt_speed=belt_speed,
-                  springs=springs, spring_scatter=scatter, wraps=wraps)
+                  springs=springs, spring_scatter=scatter, wraps=wraps,
+                  arm_folding=arm_folding(arms, pattern.indptr, pattern.indices) if arms is not None and pattern.sparse
+                  else None)
