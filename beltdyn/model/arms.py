@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from beltdyn.config import DriveConfig
 from beltdyn.model.angles import unwrap_near
+from beltdyn.model.assembly import sorted_unique
 from beltdyn.model.dofs import DofMap
 from beltdyn.model.geometry import Layout
 from beltdyn.model.supports import support_of
@@ -205,11 +206,10 @@ def arm_folding(arms: ArmJoints, indptr: np.ndarray, indices: np.ndarray) -> Arm
     to[arms.slot], to[arms.slot + 1] = arms.dof, arms.dof
     rows = np.repeat(np.arange(arms.n_p), np.diff(indptr))
     keys = to[rows] * arms.n_q + to[indices]
-    uniq, fold = np.unique(keys, return_inverse=True)
+    uniq, fold = sorted_unique(keys)
     r, c = uniq // arms.n_q, uniq % arms.n_q
     ptr = np.zeros(arms.n_q + 1, dtype=np.int64)
-    np.add.at(ptr, r + 1, 1)
-    ptr = np.cumsum(ptr)
+    np.cumsum(np.bincount(r, minlength=arms.n_q), out=ptr[1:])  # (entries per row)
     diag = np.searchsorted(uniq, arms.dof * arms.n_q + arms.dof)
     out = ArmFolding(indptr=indptr, indices=indices, rows=rows, fold=fold.ravel(), ptr=ptr, idx=c.astype(np.int64),
                      diag=diag)
