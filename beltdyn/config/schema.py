@@ -604,17 +604,21 @@ class DriveConfig:
     def span_models(self) -> tuple[str, ...]:
         """The resolved model of each span: "ancf", "string" or "spring" ([spans], else "ancf", or
         "string" where model.curvature = "none")."""
-        given = dict(self.spans)
-        default = "string" if self.model.curvature == "none" else "ancf"
-        return tuple((given[n].model if n in given and given[n].model else default) for n in self.span_names)
+        return _span_models(self, dict(self.spans), self.span_names)
 
     @property
     def span_elements(self) -> tuple[int, ...]:
         """The resolved elements of each span (0 for a spring span)."""
-        given = dict(self.spans)
-        return tuple(0 if m == "spring" else (given[n].elements if n in given and given[n].elements
-                                              else self.mesh.elements_per_span)
-                     for n, m in zip(self.span_names, self.span_models))
+        given, names = dict(self.spans), self.span_names
+        each = self.mesh.elements_per_span
+        return tuple([0 if m == "spring" else (given[n].elements if n in given and given[n].elements else each)
+                      for n, m in zip(names, _span_models(self, given, names))])
+
+
+def _span_models(cfg: "DriveConfig", given: dict, names: tuple[str, ...]) -> tuple[str, ...]:
+    """`DriveConfig.span_models` from its [spans] as a dict and its span names (each derived once by the caller)."""
+    default = "string" if cfg.model.curvature == "none" else "ancf"
+    return tuple([(given[n].model if n in given and given[n].model else default) for n in names])
 
 
 def span_names(pulleys) -> tuple[str, ...]:
