@@ -285,14 +285,15 @@ class SpringSpans:
         return e
 
 
-def spring_joints(cfg: DriveConfig, dofs: DofMap) -> tuple | None:
+def spring_joints(cfg: DriveConfig, dofs: DofMap, models: tuple[str, ...] | None = None) -> tuple | None:
     """What the configuration and the DOF map fix of the spring spans' joints, whatever the layout
     (`_spring_joints` of the spring spans; None without any): one analysis's builds share it
-    (`DriveFacts.spring_joints`, handed to `build_springs`)."""
-    spans = tuple([s for s, m in enumerate(cfg.span_models) if m == "spring"])
+    (`DriveFacts.spring_joints`, handed to `build_springs`). models: cfg.span_models, if at hand."""
+    models = cfg.span_models if models is None else models
+    spans = tuple([s for s, m in enumerate(models) if m == "spring"])
     if not spans:
         return None
-    idx, T, (at, pulley) = _spring_joints(dofs, spans, len(cfg.span_models))
+    idx, T, (at, pulley) = _spring_joints(dofs, spans, len(models))
     for a in (T, at, pulley):  # (idx is already)
         a.setflags(write=False)
     return idx, T, (at, pulley)
@@ -300,12 +301,13 @@ def spring_joints(cfg: DriveConfig, dofs: DofMap) -> tuple | None:
 
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
                   prestrain_stretch: float | np.ndarray = 1.0, direction: np.ndarray | None = None,
-                  reference_length: np.ndarray | None = None, joints: tuple | None = None) -> SpringSpans | None:
+                  reference_length: np.ndarray | None = None, joints: tuple | None = None,
+                  models: tuple[str, ...] | None = None) -> SpringSpans | None:
     """The spring spans of the configuration (None without any), on the layout's tangent points.
     direction: the layout's `span_direction`; reference_length (n_span,): every span's reference length at
     this prestrain_stretch (`BeltSpans.reference_length`); joints: `spring_joints` of cfg and dofs (not
-    changed here); each if at hand."""
-    spans = tuple([s for s, m in enumerate(cfg.span_models) if m == "spring"])
+    changed here); models: cfg.span_models; each if at hand."""
+    spans = tuple([s for s, m in enumerate(cfg.span_models if models is None else models) if m == "spring"])
     if not spans:
         return None
     n = layout.n

@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from beltdyn.model import ancf
-from beltdyn.config import DriveConfig
+from beltdyn.config import DriveConfig, resolved_spans
 from beltdyn.errors import ConfigError
 from beltdyn.model.components import ENERGY_KINDS, LinearComponent, arm_spring, belt_rotation_rates
 from beltdyn.model.pulleys import PulleyParts, pulley_components, pulley_parts
@@ -694,18 +694,20 @@ def memory_limit() -> int:
     return limit
 
 
-def model_dofs(cfg: DriveConfig) -> int:
+def model_dofs(cfg: DriveConfig, counts: tuple[int, ...] | None = None) -> int:
     """The DOF count of a configuration's model, known before anything is built: per span 4 per
     element (the interior nodes and the end slopes), 3 per pulley (rotation and translations, at most) and a
-    decoupler's rotor."""
-    return 3 * len(cfg.pulleys) + 4 * sum(cfg.span_elements) + sum(p.decoupler is not None for p in cfg.pulleys)
+    decoupler's rotor. counts: cfg.span_elements, if at hand."""
+    counts = cfg.span_elements if counts is None else counts
+    return 3 * len(cfg.pulleys) + 4 * sum(counts) + sum(p.decoupler is not None for p in cfg.pulleys)
 
 
 def check_model_size(cfg: DriveConfig) -> None:
     """A mesh whose model cannot fit in memory is a configuration error before any work (exit 2),
     not a run that is killed or fails after minutes."""
-    n_e = max(cfg.span_elements)
-    n_dof = model_dofs(cfg)
+    counts = cfg.span_elements
+    n_e = max(counts)
+    n_dof = model_dofs(cfg, counts)
     need = n_dof * BYTES_PER_DOF
     have = memory_limit()
     if need > 0.5 * have:
@@ -734,19 +736,21 @@ class DriveFacts:
     no_elements: ancf.ElementSet | None = None  # `belt.empty_element_set` when every span is a spring, else None
     spring_joints: tuple | None = None  # `springs.spring_joints` (None without spring spans)
     wraps: WrapModel | None = None  # `wrap_model`: belt.wraps and belt.axial_law with the belt's facts
+    spans: tuple | None = None  # `config.resolved_spans`: (models, elements) of each span
 
 
 def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
     """The `DriveFacts` of a configuration (`layout`: its L0 fit, where the arms are taken)."""
-    dofs = number_dofs(cfg)
+    spans = models, counts = resolved_spans(cfg)
+    dofs = number_dofs(cfg, counts)
     pulleys = cfg.pulleys
     friction = np.array([np.nan if p.friction is None else p.friction for p in pulleys])
     return DriveFacts(layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs), loads=static_loads(cfg, dofs),
                       friction=friction, wraps=wrap_model(cfg, friction),
                       pulley_names=tuple([p.name for p in pulleys]), gravity=np.asarray(cfg.model.gravity, dtype=float),
                       pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
-                      no_elements=empty_element_set(cfg) if sum(cfg.span_elements) == 0 else None,
-                      spring_joints=spring_joints(cfg, dofs))
+                      no_elements=empty_element_set(cfg) if sum(counts) == 0 else None,
+                      spring_joints=spring_joints(cfg, dofs, models), spans=spans)
 
 
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
@@ -773,9 +777,10 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
         arms = arm_joints(cfg, layout, dofs, like=arms)
     if belt_speed is None:
         belt_speed = belt_speed_of(cfg, layout)
-    belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam, no_elements=facts.no_elements)
+    belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam, no_elements=facts.no_elements, spans=facts.spans)
     springs = build_springs(cfg, layout, dofs, prestrain_stretch=lam, direction=belt.reference_direction,
-                            reference_length=belt.reference_length, joints=facts.spring_joints)
+                            reference_length=belt.reference_length, joints=facts.spring_joints,
+                            models=None if facts.spans is None else facts.spans[0])
     system = assemble_system(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free,
                                                                    parts=facts.pulleys) + tuple(extra),
                              pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
