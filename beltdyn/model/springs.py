@@ -343,11 +343,11 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
     m = max(2 + len(dofs.trans_dof[a]) + len(dofs.trans_dof[b]) for a, b in ends)
     T = np.zeros((k, 4, m))
     idx = np.full((k, m), dofs.n, dtype=np.int64)
-    rot_col = np.zeros((2, k), dtype=np.int64)
+    rot_col = ([], [])  # the rotation's column of each span's start and end
     for i, pair in enumerate(ends):
         col = 0
         for side, j in enumerate(pair):
-            rot_col[side, i] = col
+            rot_col[side].append(col)
             idx[i, col] = dofs.rot_dof[j]
             for col, (dof, v) in enumerate(zip(dofs.trans_dof[j], dofs.trans_dir[j]), start=col + 1):
                 idx[i, col] = dof
@@ -355,7 +355,7 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
             col += 1
     idx.setflags(write=False)
     sp = np.array(spans, dtype=np.int64)
-    rows = np.repeat([0, 2], k)
-    at = np.ravel_multi_index((np.repeat(np.tile(np.arange(k), 2), 2), np.stack([rows, rows + 1], axis=1).ravel(),
-                               np.repeat(rot_col.ravel(), 2)), T.shape)
+    # T's flat index of each rotation column's x and y entry: the k starts, then the k ends
+    at = np.array([(4 * i + 2 * side + r) * m + rot_col[side][i] for side in (0, 1) for i in range(k) for r in (0, 1)],
+                  dtype=np.intp)
     return idx, T, (at, np.concatenate([sp, (sp + 1) % n]))
