@@ -27,7 +27,7 @@ NO_INDEX = np.zeros(0, dtype=np.int64)  # an empty index array (no entries), sha
 
 
 def sorted_unique(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(the distinct keys ascending (u,), the index of each key among them (k,)) of integer keys (k,), k >= 1:
+    """(the distinct keys ascending (u,), the index of each key among them (k,)) of integer keys (k,):
     np.unique(keys, return_inverse=True)'s answer, by a stable sort, which is quick on keys that come mostly
     in order (a pattern's, element after element; numpy's unique sorts them as if they were random)."""
     order = np.argsort(keys, kind="stable")
