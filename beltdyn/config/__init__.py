@@ -35,7 +35,7 @@ from beltdyn.config.resolved import config_hash, config_to_dict, resolved_toml, 
 from beltdyn.config.schema import (Belt, Damping, Decoupler, DriveConfig, KeyDoc, Load, Mesh, ModalOptions, ModelOptions, Pulley,
                                    Record, ResponseExcitation, ResponseOptions, Rotation, RunningOptions, Signal,
                                    SpanSetting, SpectrumOptions, StaticOptions, StaticTorque, SweepTable, Tension,
-                                   TransientOptions, key_docs, span_name_key, span_names, valid_keys)
+                                   TransientOptions, key_docs, resolved_spans, span_name_key, span_names, valid_keys)
 from beltdyn.config.tables import table_bytes
 
 __all__ = [
@@ -44,6 +44,6 @@ __all__ = [
     "TransientOptions", "RunningOptions", "SweepTable", "DriveConfig", "KeyDoc",
     "AXIAL_LAWS", "CURVATURES", "DEFAULT_STEP", "MAX_GAUSS_POINTS", "SIDES", "SPAN_MODELS", "SUPPORTS", "TENSION_MODES", "WRAP_MODELS",
     "load_config", "config_from_dict", "config_to_dict", "resolved_toml", "config_hash", "apply_override",
-    "parse_toml_file", "with_overrides", "valid_keys", "key_docs", "key", "replace", "span_name_key", "span_names",
+    "parse_toml_file", "with_overrides", "valid_keys", "key_docs", "key", "replace", "resolved_spans", "span_name_key", "span_names",
     "table_bytes",
 ]

@@ -604,17 +604,24 @@ class DriveConfig:
     def span_models(self) -> tuple[str, ...]:
         """The resolved model of each span: "ancf", "string" or "spring" ([spans], else "ancf", or
         "string" where model.curvature = "none")."""
-        given = dict(self.spans)
-        default = "string" if self.model.curvature == "none" else "ancf"
-        return tuple((given[n].model if n in given and given[n].model else default) for n in self.span_names)
+        return resolved_spans(self)[0]
 
     @property
     def span_elements(self) -> tuple[int, ...]:
         """The resolved elements of each span (0 for a spring span)."""
-        given = dict(self.spans)
-        return tuple(0 if m == "spring" else (given[n].elements if n in given and given[n].elements
-                                              else self.mesh.elements_per_span)
-                     for n, m in zip(self.span_names, self.span_models))
+        return resolved_spans(self)[1]
+
+
+def resolved_spans(cfg: "DriveConfig") -> tuple[tuple[str, ...], tuple[int, ...]]:
+    """(`DriveConfig.span_models`, `DriveConfig.span_elements`) derived together: the resolved model of each
+    span ([spans], else "ancf", or "string" where model.curvature = "none") and its elements (0 for a spring
+    span; [spans], else mesh.elements_per_span). An analysis derives them once (`model.system.drive_facts`)."""
+    given, names = dict(cfg.spans), cfg.span_names
+    default = "string" if cfg.model.curvature == "none" else "ancf"
+    models = tuple([(given[n].model if n in given and given[n].model else default) for n in names])
+    each = cfg.mesh.elements_per_span
+    return models, tuple([0 if m == "spring" else (given[n].elements if n in given and given[n].elements else each)
+                          for n, m in zip(names, models)])
 
 
 def span_names(pulleys) -> tuple[str, ...]:

@@ -570,14 +570,18 @@ def make_elements(length, EA, EI, rho, *, curvature: str = "linear", n_gauss: in
     return subset(base, inverse.ravel())
 
 
+_NO_ELEMENT = np.zeros(0)  # no element's values: every table of `empty_elements` a view of it (read-only, shared)
+_NO_ELEMENT.setflags(write=False)
+
+
 def empty_elements(*, curvature: str = "linear", n_gauss: int = 5, axial_law: str = "green-lagrange") -> ElementSet:
     """An `ElementSet` of no element (a belt whose spans are all springs): every table of the class
     docstring's shape with n = 0 (what `subset` of a made set to no index gives, without making one:
     tests/test_ancf_empty.py holds the two equal)."""
     q = int(n_gauss)
 
-    def none(*shape: int) -> np.ndarray:
-        return _readonly(np.zeros((0, *shape)))
+    def none(*shape: int) -> np.ndarray:  # (a view of the one empty array: read-only as it is)
+        return _NO_ELEMENT.reshape((0, *shape))
 
     exact = curvature == "exact"
     return ElementSet(length=none(), EA=none(), EI=none(), rho=none(), curvature=curvature, n_gauss=q,

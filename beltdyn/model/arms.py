@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from beltdyn.config import DriveConfig
 from beltdyn.model.angles import unwrap_near
+from beltdyn.model.assembly import sorted_unique
 from beltdyn.model.dofs import DofMap
 from beltdyn.model.geometry import Layout
 from beltdyn.model.supports import support_of
@@ -130,29 +131,33 @@ class ArmJoints:
         J[self.slot, self.dof], J[self.slot + 1, self.dof] = dc[:, 0], dc[:, 1]
         return J
 
-    def project_matrix(self, q: np.ndarray, K, f: np.ndarray | None = None, *, dense: bool):
+    def project_matrix(self, q: np.ndarray, K, f: np.ndarray | None = None, *, dense: bool,
+                       folding: "ArmFolding | None" = None):
         """J^T K J (+ the geometric term sum_k (f_u,k . c''(phi_k)) on (phi_k, phi_k) for the force f
-        (n_p,) on the joint coordinates whose derivative K (n_p, n_p) is; none for f = None)."""
+        (n_p,) on the joint coordinates whose derivative K (n_p, n_p) is; none for f = None). folding: the
+        `ArmFolding` of K's CSR pattern, if at hand (`arm_folding`; derived from K where it does not match)."""
         if f is None:
-            return self._project_matrix(self.first(self.phi(q)), K, None, dense=dense)
-        return self.project_both(q, f, K, dense=dense)[1]
+            return self._project_matrix(self.first(self.phi(q)), K, None, dense=dense, folding=folding)
+        return self.project_both(q, f, K, dense=dense, folding=folding)[1]
 
-    def project_both(self, q: np.ndarray, f: np.ndarray, K, *, dense: bool):
+    def project_both(self, q: np.ndarray, f: np.ndarray, K, *, dense: bool, folding: "ArmFolding | None" = None):
         """(`project`(q, f), `project_matrix`(q, K, f)), the arms' angles evaluated once."""
         phi = self.phi(q)
         dc = self.first(phi)
         fu = f[self.n_q:].reshape(len(self.dof), 2)
         d2c = self.second(phi)
         geo = fu[:, 0] * d2c[:, 0] + fu[:, 1] * d2c[:, 1]  # f_u . d2c/dphi2
-        return self._project(dc, f), self._project_matrix(dc, K, geo, dense=dense)
+        return self._project(dc, f), self._project_matrix(dc, K, geo, dense=dense, folding=folding)
 
-    def project_matrix_at(self, slopes: np.ndarray, K, *, dense: bool):
+    def project_matrix_at(self, slopes: np.ndarray, K, *, dense: bool, folding: "ArmFolding | None" = None):
         """J^T K J with the arms' slopes dc/dphi (a, 2) at hand (`first`)."""
-        return self._project_matrix(slopes, K, None, dense=dense)
+        return self._project_matrix(slopes, K, None, dense=dense, folding=folding)
 
-    def _project_matrix(self, dc: np.ndarray, K, geo: np.ndarray | None, *, dense: bool):
+    def _project_matrix(self, dc: np.ndarray, K, geo: np.ndarray | None, *, dense: bool,
+                        folding: "ArmFolding | None" = None):
         """J^T K J + geo on the arms' diagonal, dc = dc/dphi (a, 2) (`project_matrix`); dense for a dense
-        K when `dense`, else CSR (the rows and columns of the offsets folded onto their arm angle)."""
+        K when `dense`, else CSR (the rows and columns of the offsets folded onto their arm angle,
+        `ArmFolding`: the one given where it is K's pattern's, else derived from K)."""
         if dense and not hasattr(K, "tocsr"):
             J = self.dense_jacobian(slopes=dc)
             out = J.T @ np.asarray(K) @ J
@@ -162,29 +167,55 @@ class ArmJoints:
         from scipy.sparse import csr_matrix
 
         K = csr_matrix(K)
-        fold, ptr, idx, diag = self._folding(K)
+        if folding is None or not folding.holds(K.indptr, K.indices):
+            folding = arm_folding(self, K.indptr, K.indices)
         w = np.ones(self.n_p)
         w[self.slot], w[self.slot + 1] = dc[:, 0], dc[:, 1]
-        rows = np.repeat(np.arange(self.n_p), np.diff(K.indptr))
-        data = np.bincount(fold, weights=K.data * w[rows] * w[K.indices], minlength=len(idx))
+        data = np.bincount(folding.fold, weights=K.data * w[folding.rows] * w[K.indices], minlength=len(folding.idx))
         if geo is not None:
-            data[diag] += geo
-        return csr_matrix((data, idx, ptr), shape=(self.n_q, self.n_q))
+            data[folding.diag] += geo
+        return csr_matrix((data, folding.idx, folding.ptr), shape=(self.n_q, self.n_q))
 
-    def _folding(self, K):
-        """For a CSR pattern on p: the slot of each entry in the pattern on q (rows and columns of the
-        dependent offsets folded onto their arm angle), that pattern, and the arms' diagonal slots."""
-        to = np.arange(self.n_p)
-        to[self.slot], to[self.slot + 1] = self.dof, self.dof
-        rows = np.repeat(np.arange(self.n_p), np.diff(K.indptr))
-        keys = to[rows] * self.n_q + to[K.indices]
-        uniq, fold = np.unique(keys, return_inverse=True)
-        r, c = uniq // self.n_q, uniq % self.n_q
-        ptr = np.zeros(self.n_q + 1, dtype=np.int64)
-        np.add.at(ptr, r + 1, 1)
-        ptr = np.cumsum(ptr)
-        diag = np.searchsorted(uniq, self.dof * self.n_q + self.dof)
-        return fold.ravel(), ptr, c.astype(np.int64), diag
+
+@dataclass(frozen=True, kw_only=True)
+class ArmFolding:
+    """A CSR pattern on the joint coordinates p (indptr (n_p + 1,), indices (nnz,)) folded onto q: the rows
+    and columns of the arms' dependent offsets onto their arm angle (`ArmJoints.project_matrix`). A
+    pattern's, derived once where the pattern is built (`arm_folding`). rows (nnz,) the row of each entry;
+    fold (nnz,) its slot in the pattern on q (ptr (n_q + 1,), idx (nnz_q,)); diag (a,) the arms' diagonal
+    slots there."""
+
+    indptr: np.ndarray
+    indices: np.ndarray
+    rows: np.ndarray
+    fold: np.ndarray
+    ptr: np.ndarray
+    idx: np.ndarray
+    diag: np.ndarray
+
+    def holds(self, indptr: np.ndarray, indices: np.ndarray) -> bool:
+        """Whether this is the folding of the CSR pattern (indptr, indices)."""
+        return (indptr is self.indptr and indices is self.indices) or (
+            len(indices) == len(self.indices) and np.array_equal(indptr, self.indptr)
+            and np.array_equal(indices, self.indices))
+
+
+def arm_folding(arms: ArmJoints, indptr: np.ndarray, indices: np.ndarray) -> ArmFolding:
+    """The `ArmFolding` of the CSR pattern (indptr, indices) on p of the arms' joint coordinates."""
+    to = np.arange(arms.n_p)
+    to[arms.slot], to[arms.slot + 1] = arms.dof, arms.dof
+    rows = np.repeat(np.arange(arms.n_p), np.diff(indptr))
+    keys = to[rows] * arms.n_q + to[indices]
+    uniq, fold = sorted_unique(keys)
+    r, c = uniq // arms.n_q, uniq % arms.n_q
+    ptr = np.zeros(arms.n_q + 1, dtype=np.int64)
+    np.cumsum(np.bincount(r, minlength=arms.n_q), out=ptr[1:])  # (entries per row)
+    diag = np.searchsorted(uniq, arms.dof * arms.n_q + arms.dof)
+    out = ArmFolding(indptr=indptr, indices=indices, rows=rows, fold=fold.ravel(), ptr=ptr, idx=c.astype(np.int64),
+                     diag=diag)
+    for a in (out.rows, out.fold, out.ptr, out.idx, out.diag):  # (read-only: a pattern's)
+        a.setflags(write=False)
+    return out
 
 
 def arm_joints(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, like: ArmJoints | None = None) -> ArmJoints | None:

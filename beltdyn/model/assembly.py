@@ -26,6 +26,20 @@ DENSE_LIMIT = 200  # models up to this many DOFs use dense linear algebra
 NO_INDEX = np.zeros(0, dtype=np.int64)  # an empty index array (no entries), shared: nothing can change it
 
 
+def sorted_unique(keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(the distinct keys ascending (u,), the index of each key among them (k,)) of integer keys (k,):
+    np.unique(keys, return_inverse=True)'s answer, by a stable sort, which is quick on keys that come mostly
+    in order (a pattern's, element after element; numpy's unique sorts them as if they were random)."""
+    order = np.argsort(keys, kind="stable")
+    ordered = keys[order]
+    first = np.empty(len(ordered), dtype=bool)
+    first[:1] = True
+    np.not_equal(ordered[1:], ordered[:-1], out=first[1:])
+    inverse = np.empty(len(ordered), dtype=np.intp)
+    inverse[order] = np.cumsum(first) - 1
+    return ordered[first], inverse
+
+
 @dataclass(frozen=True, kw_only=True)
 class Pattern:
     """Scatter indices for assembling (n_elem, m, m) blocks and component entries.
@@ -91,13 +105,12 @@ def make_pattern(idx: np.ndarray, n: int, *, sparse: bool, extra: tuple[np.ndarr
     keep = (rows < n) & (cols < n)
     diag_keys = np.arange(n) * (n + 1) + np.arange(n)
     more = [] if extra is None else [extra[0].astype(np.int64) * (n + 1) + extra[1]]
-    keys, inverse = np.unique(np.concatenate([flat[keep], diag_keys, *more]), return_inverse=True)
+    keys, inverse = sorted_unique(np.concatenate([flat[keep], diag_keys, *more]))
     slot = np.full(flat.shape, -1, dtype=np.int64)
     slot[keep] = inverse[: keep.sum()]
     r, c = np.divmod(keys, n + 1)
     indptr = np.zeros(n + 1, dtype=np.int64)
-    np.add.at(indptr, r + 1, 1)
-    indptr = np.cumsum(indptr)
+    np.cumsum(np.bincount(r, minlength=n), out=indptr[1:])  # (entries per row)
     diag_slot = np.searchsorted(keys, diag_keys)
     return Pattern(n=n, flat=flat, slot=slot, indices=c.astype(np.int32), indptr=indptr.astype(np.int32),
                    diag_slot=diag_slot, nnz=len(keys))

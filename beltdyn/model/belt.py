@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from beltdyn.model import ancf
-from beltdyn.config import DriveConfig
+from beltdyn.config import DriveConfig, resolved_spans
 from beltdyn.model.dofs import DofMap
 from beltdyn.model.geometry import Layout
 from beltdyn.model.joints import joint_selection
@@ -343,14 +343,15 @@ class BeltSpans:
 
 
 def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stretch: float | np.ndarray = 1.0,
-               no_elements: ancf.ElementSet | None = None) -> BeltSpans:
+               no_elements: ancf.ElementSet | None = None,
+               spans: tuple[tuple[str, ...], tuple[int, ...]] | None = None) -> BeltSpans:
     """Mesh each span and join its end nodes to the pulleys (constant-Jacobian joints).
 
     Span s gets cfg.span_elements[s] elements (none for a spring span: `build_springs`); a "string"
     span's elements have no bending stiffness (EI = 0).
     prestrain_stretch: the stretch of the spans at q = 0 (chord length / reference length), one
     number for all spans or one per span (n_span,). no_elements: `empty_element_set` of cfg, if at hand
-    (every span a spring)."""
+    (every span a spring); spans: `config.resolved_spans` of cfg (models, elements), if at hand."""
     n_p = layout.n
     n_dof = dofs.n
     pad = n_dof
@@ -361,7 +362,7 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stre
     else:  # one per span: the mean stretch, sum of chords / sum of reference lengths (their own if all equal)
         lam = float(lam_s[0]) if (lam_s == lam_s[0]).all() else float(layout.span_length.sum() / L_ref.sum())
     t_dir = layout.span_direction
-    span_counts = cfg.span_elements  # (a property of the configuration, computed on each call: once here)
+    models, span_counts = resolved_spans(cfg) if spans is None else spans  # (derived from cfg: once here)
     n_elem = sum(span_counts)
     if n_elem == 0:  # every span a spring (`build_springs`): no elements, no joints of the belt's own
         # (new empty arrays, writable: numba types a read-only array apart, and the transient's kernels would
@@ -413,7 +414,7 @@ def build_belt(cfg: DriveConfig, layout: Layout, dofs: DofMap, *, prestrain_stre
     used = max(int((idx != pad).sum(axis=1).max(initial=0)), 8)
     T, idx = np.ascontiguousarray(T[:, :, :used]), np.ascontiguousarray(idx[:, :used]).astype(np.int64)
     el = span_element_set(cfg, np.repeat(L_ref / np.maximum(counts, 1), counts),
-                          np.repeat([cfg.belt.EI if m == "ancf" else 0.0 for m in cfg.span_models], counts))
+                          np.repeat([cfg.belt.EI if m == "ancf" else 0.0 for m in models], counts), models=models)
     return BeltSpans(elements=el, elem_span=elem_span, span_elements=span_elements, T=T, idx=idx,
                      tsel=joint_selection(T, idx, n_dof), e0=e0, n_dof=n_dof, reference_length=L_ref,
                      reference_direction=t_dir, prestrain_stretch=lam, span_stretch=lam_s)
@@ -434,13 +435,14 @@ def empty_element_set(cfg: DriveConfig) -> ancf.ElementSet:
     return ancf.empty_elements(curvature="none", n_gauss=cfg.model.gauss_points, axial_law=cfg.belt.axial_law)
 
 
-def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray) -> ancf.ElementSet:
+def span_element_set(cfg: DriveConfig, length: np.ndarray, EI: np.ndarray,
+                     models: tuple[str, ...] | None = None) -> ancf.ElementSet:
     """The ANCF elements of the flexible spans: lengths and bending stiffnesses (n_elem,); the tables
     computed once per distinct (length, EI) and gathered. The bending law is model.curvature
     ("linear" when that is "none" but a span asks for "ancf"); without an "ancf" span, none. No
-    elements (every span a spring): an empty set."""
+    elements (every span a spring): an empty set. models: cfg.span_models, if at hand."""
     curvature = cfg.model.curvature
-    if "ancf" in cfg.span_models:
+    if "ancf" in (cfg.span_models if models is None else models):
         curvature = curvature if curvature != "none" else "linear"
     else:
         curvature = "none"

@@ -64,11 +64,11 @@ class DofMap:
         return len(self.labels) - self.dependent
 
 
-def number_dofs(cfg: DriveConfig) -> DofMap:
+def number_dofs(cfg: DriveConfig, counts: tuple[int, ...] | None = None) -> DofMap:
     """DOF order along the loop: pulley j (its support's DOFs, rotation), then span j (start
     gradients, interior nodes, end gradients; none for a spring span); the supports' dependent DOFs
-    after all of them."""
-    counts = cfg.span_elements  # elements of each span (0: a spring span, no DOFs of its own)
+    after all of them. counts: cfg.span_elements, if at hand."""
+    counts = cfg.span_elements if counts is None else counts  # elements of each span (0: a spring span)
     labels: list[str] = []
     units: list[str] = []
     group: list[int] = []

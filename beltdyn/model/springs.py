@@ -285,14 +285,15 @@ class SpringSpans:
         return e
 
 
-def spring_joints(cfg: DriveConfig, dofs: DofMap) -> tuple | None:
+def spring_joints(cfg: DriveConfig, dofs: DofMap, models: tuple[str, ...] | None = None) -> tuple | None:
     """What the configuration and the DOF map fix of the spring spans' joints, whatever the layout
     (`_spring_joints` of the spring spans; None without any): one analysis's builds share it
-    (`DriveFacts.spring_joints`, handed to `build_springs`)."""
-    spans = tuple([s for s, m in enumerate(cfg.span_models) if m == "spring"])
+    (`DriveFacts.spring_joints`, handed to `build_springs`). models: cfg.span_models, if at hand."""
+    models = cfg.span_models if models is None else models
+    spans = tuple([s for s, m in enumerate(models) if m == "spring"])
     if not spans:
         return None
-    idx, T, (at, pulley) = _spring_joints(dofs, spans, len(cfg.span_models))
+    idx, T, (at, pulley) = _spring_joints(dofs, spans, len(models))
     for a in (T, at, pulley):  # (idx is already)
         a.setflags(write=False)
     return idx, T, (at, pulley)
@@ -300,12 +301,13 @@ def spring_joints(cfg: DriveConfig, dofs: DofMap) -> tuple | None:
 
 def build_springs(cfg: DriveConfig, layout: Layout, dofs: DofMap, *,
                   prestrain_stretch: float | np.ndarray = 1.0, direction: np.ndarray | None = None,
-                  reference_length: np.ndarray | None = None, joints: tuple | None = None) -> SpringSpans | None:
+                  reference_length: np.ndarray | None = None, joints: tuple | None = None,
+                  models: tuple[str, ...] | None = None) -> SpringSpans | None:
     """The spring spans of the configuration (None without any), on the layout's tangent points.
     direction: the layout's `span_direction`; reference_length (n_span,): every span's reference length at
     this prestrain_stretch (`BeltSpans.reference_length`); joints: `spring_joints` of cfg and dofs (not
-    changed here); each if at hand."""
-    spans = tuple([s for s, m in enumerate(cfg.span_models) if m == "spring"])
+    changed here); models: cfg.span_models; each if at hand."""
+    spans = tuple([s for s, m in enumerate(cfg.span_models if models is None else models) if m == "spring"])
     if not spans:
         return None
     n = layout.n
@@ -341,11 +343,11 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
     m = max(2 + len(dofs.trans_dof[a]) + len(dofs.trans_dof[b]) for a, b in ends)
     T = np.zeros((k, 4, m))
     idx = np.full((k, m), dofs.n, dtype=np.int64)
-    rot_col = np.zeros((2, k), dtype=np.int64)
+    rot_col = ([], [])  # the rotation's column of each span's start and end
     for i, pair in enumerate(ends):
         col = 0
         for side, j in enumerate(pair):
-            rot_col[side, i] = col
+            rot_col[side].append(col)
             idx[i, col] = dofs.rot_dof[j]
             for col, (dof, v) in enumerate(zip(dofs.trans_dof[j], dofs.trans_dir[j]), start=col + 1):
                 idx[i, col] = dof
@@ -353,7 +355,7 @@ def _spring_joints(dofs: DofMap, spans: tuple[int, ...], n: int) -> tuple[np.nda
             col += 1
     idx.setflags(write=False)
     sp = np.array(spans, dtype=np.int64)
-    rows = np.repeat([0, 2], k)
-    at = np.ravel_multi_index((np.repeat(np.tile(np.arange(k), 2), 2), np.stack([rows, rows + 1], axis=1).ravel(),
-                               np.repeat(rot_col.ravel(), 2)), T.shape)
+    # T's flat index of each rotation column's x and y entry: the k starts, then the k ends
+    at = np.array([(4 * i + 2 * side + r) * m + rot_col[side][i] for side in (0, 1) for i in range(k) for r in (0, 1)],
+                  dtype=np.intp)
     return idx, T, (at, np.concatenate([sp, (sp + 1) % n]))

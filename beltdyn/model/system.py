@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from beltdyn.model import ancf
-from beltdyn.config import DriveConfig
+from beltdyn.config import DriveConfig, resolved_spans
 from beltdyn.errors import ConfigError
 from beltdyn.model.components import ENERGY_KINDS, LinearComponent, arm_spring, belt_rotation_rates
 from beltdyn.model.pulleys import PulleyParts, pulley_components, pulley_parts
@@ -43,7 +43,7 @@ from beltdyn.model.barlaw import bar_law
 from beltdyn.model.geometry import Layout, layout_from_config
 from beltdyn.model.geometry import belt_speed_of
 from beltdyn.model.supports import support_of
-from beltdyn.model.arms import ArmJoints, arm_joints
+from beltdyn.model.arms import ArmFolding, ArmJoints, arm_folding, arm_joints
 from beltdyn.model.assembly import (DENSE_LIMIT, NO_INDEX, Pattern, assemble_blocks, component_entries,
                                     component_nonzeros, component_sums, element_pairs, make_pattern)
 from beltdyn.model.belt import BeltSpans, build_belt, empty_element_set, plus
@@ -150,6 +150,7 @@ class System(DofNames):
     springs: SpringSpans | None = None  # the spans modelled as axial springs (None: every span flexible)
     wraps: WrapModel | None = None  # the belt on the pulleys (belt.wraps, belt.axial_law); None: creep, green-lagrange
     spring_scatter: np.ndarray | None = None  # (k m m,) where the springs' blocks go: flat (dense) or CSR slot
+    arm_folding: ArmFolding | None = None  # the sparse pattern folded onto q (`arms.arm_folding`), with arms and CSR
     # derived in the constructor (`__post_init__`), never passed: the running belt's terms (at speed only,
     # None at rest), the components' stiffness as a CSR matrix (sparse only), the mode classification's
     # component masses, the tensioner arms' statics
@@ -377,7 +378,8 @@ class System(DofNames):
             f, K = self.belt_force_and_tangent(p)
             f += self.linear_force(p)
             f -= self.external_force(load_factor)
-            r, K = (f, K) if self.arms is None else self.arms.project_both(q, f, K, dense=self.dense)
+            r, K = (f, K) if self.arms is None else self.arms.project_both(q, f, K, dense=self.dense,
+                                                                       folding=self.arm_folding)
         return (r, K, p) if joint else (r, K)
 
     def tangent_on_joints(self, q: np.ndarray):
@@ -395,7 +397,7 @@ class System(DofNames):
         """J(q)^T A J(q) for a matrix A on the joint coordinates (A itself without arms)."""
         if self.arms is None:
             return A
-        return self.arms.project_matrix(q, A, None, dense=self.dense)
+        return self.arms.project_matrix(q, A, None, dense=self.dense, folding=self.arm_folding)
 
     def mass_matrix(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None):
         """The mass matrix on q at the state q: J^T M J (constant without arms; slopes: the arms'
@@ -404,7 +406,7 @@ class System(DofNames):
             return self.mass
         if slopes is None:
             slopes = self.arm_slopes(np.zeros(self.n_dof) if q is None else q)
-        return self.arms.project_matrix_at(slopes, self.mass, dense=self.dense)
+        return self.arms.project_matrix_at(slopes, self.mass, dense=self.dense, folding=self.arm_folding)
 
     def arm_jacobian(self, q: np.ndarray | None = None, *, slopes: np.ndarray | None = None) -> np.ndarray:
         """J = dp/dq (n_p, n_dof) dense at q: the identity on q, the arms' slopes dc/dphi in the arm
@@ -692,18 +694,20 @@ def memory_limit() -> int:
     return limit
 
 
-def model_dofs(cfg: DriveConfig) -> int:
+def model_dofs(cfg: DriveConfig, counts: tuple[int, ...] | None = None) -> int:
     """The DOF count of a configuration's model, known before anything is built: per span 4 per
     element (the interior nodes and the end slopes), 3 per pulley (rotation and translations, at most) and a
-    decoupler's rotor."""
-    return 3 * len(cfg.pulleys) + 4 * sum(cfg.span_elements) + sum(p.decoupler is not None for p in cfg.pulleys)
+    decoupler's rotor. counts: cfg.span_elements, if at hand."""
+    counts = cfg.span_elements if counts is None else counts
+    return 3 * len(cfg.pulleys) + 4 * sum(counts) + sum(p.decoupler is not None for p in cfg.pulleys)
 
 
 def check_model_size(cfg: DriveConfig) -> None:
     """A mesh whose model cannot fit in memory is a configuration error before any work (exit 2),
     not a run that is killed or fails after minutes."""
-    n_e = max(cfg.span_elements)
-    n_dof = model_dofs(cfg)
+    counts = cfg.span_elements
+    n_e = max(counts)
+    n_dof = model_dofs(cfg, counts)
     need = n_dof * BYTES_PER_DOF
     have = memory_limit()
     if need > 0.5 * have:
@@ -732,19 +736,21 @@ class DriveFacts:
     no_elements: ancf.ElementSet | None = None  # `belt.empty_element_set` when every span is a spring, else None
     spring_joints: tuple | None = None  # `springs.spring_joints` (None without spring spans)
     wraps: WrapModel | None = None  # `wrap_model`: belt.wraps and belt.axial_law with the belt's facts
+    spans: tuple | None = None  # `config.resolved_spans`: (models, elements) of each span
 
 
 def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
     """The `DriveFacts` of a configuration (`layout`: its L0 fit, where the arms are taken)."""
-    dofs = number_dofs(cfg)
+    spans = models, counts = resolved_spans(cfg)
+    dofs = number_dofs(cfg, counts)
     pulleys = cfg.pulleys
     friction = np.array([np.nan if p.friction is None else p.friction for p in pulleys])
     return DriveFacts(layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs), loads=static_loads(cfg, dofs),
                       friction=friction, wraps=wrap_model(cfg, friction),
                       pulley_names=tuple([p.name for p in pulleys]), gravity=np.asarray(cfg.model.gravity, dtype=float),
                       pulleys=pulley_parts(cfg, dofs), arms=arm_joints(cfg, layout, dofs),
-                      no_elements=empty_element_set(cfg) if sum(cfg.span_elements) == 0 else None,
-                      spring_joints=spring_joints(cfg, dofs))
+                      no_elements=empty_element_set(cfg) if sum(counts) == 0 else None,
+                      spring_joints=spring_joints(cfg, dofs, models), spans=spans)
 
 
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
@@ -771,9 +777,10 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
         arms = arm_joints(cfg, layout, dofs, like=arms)
     if belt_speed is None:
         belt_speed = belt_speed_of(cfg, layout)
-    belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam, no_elements=facts.no_elements)
+    belt = build_belt(cfg, layout, dofs, prestrain_stretch=lam, no_elements=facts.no_elements, spans=facts.spans)
     springs = build_springs(cfg, layout, dofs, prestrain_stretch=lam, direction=belt.reference_direction,
-                            reference_length=belt.reference_length, joints=facts.spring_joints)
+                            reference_length=belt.reference_length, joints=facts.spring_joints,
+                            models=None if facts.spans is None else facts.spans[0])
     system = assemble_system(layout, dofs, belt, pulley_components(cfg, dofs, layout, spring_free=spring_free,
                                                                    parts=facts.pulleys) + tuple(extra),
                              pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
@@ -930,4 +937,6 @@ def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: t
                   driver=driver, tension=tension, gravity=g, dense=use_dense, pattern=pattern, mass=M,
                   gravity_force=fg + sums.weight, linear_stiffness=sums.stiffness, linear_damping=sums.damping,
                   linear_offset=sums.offset, loads=loads, arms=arms, pulley_friction=friction, belt_speed=belt_speed,
-                  springs=springs, spring_scatter=scatter, wraps=wraps)
+                  springs=springs, spring_scatter=scatter, wraps=wraps,
+                  arm_folding=arm_folding(arms, pattern.indptr, pattern.indices) if arms is not None and pattern.sparse
+                  else None)
