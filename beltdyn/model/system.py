@@ -720,8 +720,9 @@ def check_model_size(cfg: DriveConfig) -> None:
 @dataclass(frozen=True, kw_only=True)
 class DriveFacts:
     """What a build takes from the configuration alone, whatever the layout: computed once per analysis
-    (`drive_facts`), by `DeferredSystem`, and handed to each `build_system` of that analysis (not kept
-    across analyses). arms: the arms on `layout`, the L0 fit (`arm_joints`; the builds on other layouts
+    (`drive_facts`), by `DeferredSystem`, and handed to each `build_system` of that analysis; a caller that
+    analyses one configuration on one L0 fit several times (`response_of`, at each belt speed) computes them
+    once and passes them on (`pipeline.analyse`'s facts). arms: the arms on `layout`, the L0 fit (`arm_joints`; the builds on other layouts
     take what the configuration fixes from them)."""
 
     layout: Layout
