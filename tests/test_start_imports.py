@@ -56,3 +56,12 @@ def test_importing_the_cli_leaves_the_garbage_collector_alone_the_console_script
             "seen, flush=True))\n"
             "sys.argv = ['beltdyn', '--help']\nbeltdyn.cli.run()\n")
     assert _fresh(code).splitlines()[-1] == "True True []"
+
+
+def test_the_transient_command_path_imports_neither_scipy_signal_nor_matplotlib():
+    # the spectra import scipy.signal when a run computes them (measured in a 10 el/span, 10 ms `beltdyn
+    # transient` without spectra: neither module loaded, as in the base bca9ecb); matplotlib only `beltdyn plot`
+    code = ("import sys, beltdyn.cli.main, beltdyn.cli.commands.transient, beltdyn.workflow, "
+            "beltdyn.analysis.transient, beltdyn.results.io; "
+            "print([m for m in ('scipy.signal', 'matplotlib') if m in sys.modules])")
+    assert _fresh(code) == "[]"
