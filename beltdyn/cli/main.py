@@ -48,25 +48,16 @@ for _name in command_modules():
     importlib.import_module(f"{commands.__name__}.{_name}").register(app)
 
 
-GC_YOUNG = 200_000  # the console script's first-generation threshold of the garbage collector (`run`)
-
-
 def run() -> None:
-    """The `beltdyn` console script: the app, then a quick exit. The interpreter's teardown (freeing
+    """The app, then a quick exit (what the `beltdyn` console script, `beltdyn.cli.run`, runs once it
+    has set the garbage collector's threshold). The interpreter's teardown (freeing
     every module numba, scipy and h5py loaded) takes ~0.2 s of a short command; it is skipped once the
     command is over: output flushed, beltdyn's own cleanup list run (`beltdyn.cleanup`: results-file
     locks released; the results files are closed by then), no other thread alive and no process pool
     used (`multiprocessing` imported: a sweep; its exit handlers join and clean up, so the normal exit).
-    The exit code is the app's.
-
-    The cyclic garbage collector runs once per GC_YOUNG net new container objects instead of Python's
-    700: a command's start-up (numpy, scipy, numba, h5py, rich and the model: ~10^6 long-lived objects)
-    otherwise triggers ~250 collections that traverse them, ~90 ms of a short `beltdyn transient`
-    (measured), while it makes almost no cyclic garbage; a long run still collects, every GC_YOUNG."""
-    import gc
+    The exit code is the app's."""
     import threading
 
-    gc.set_threshold(GC_YOUNG, *gc.get_threshold()[1:])
     code: int | str | None = 0
     try:
         app()
