@@ -21,6 +21,7 @@ from __future__ import annotations
 import itertools
 import json
 import os
+import secrets
 import shutil
 import time
 from collections.abc import Callable, Mapping
@@ -37,6 +38,7 @@ from beltdyn.analysis.transient import TransientSnapshot, prepare, run_transient
 from beltdyn.analysis.transient_setup import wrap_slip_notes
 from beltdyn.errors import ConfigError, OutputError
 from beltdyn.pipeline import Analysis, transient_start
+from beltdyn.results.files import temp_name
 from beltdyn.results.io import GroupData, StreamWriter, Variable, WriteFailure, fsync_dir, read_group, recover
 
 ORDER_SERIES = ("span_tension", "hub_load", "arm_angle", "pulley_speed", "rotor_speed",
@@ -110,8 +112,11 @@ def resume_folder(output: Path) -> Path:
 def _replace_file(folder: Path, name: str, data: bytes, *, durable: bool = True) -> None:
     """`folder/name` replaced by `data` atomically (temporary file, rename: a reader, or the next run
     after a kill -9, sees the old or the new file whole); durable: fsync'ed first and the folder after
-    (also safe from a power loss)."""
-    tmp = folder / f"{name}.tmp-{os.getpid()}"
+    (also safe from a power loss). The temporary file lies beside the output the journal belongs to,
+    named as a results file's temporary root (`results.files.temp_name`): one that a kill -9 leaves
+    behind is removed, with the dead writer's other leftovers, by the next command on that output."""
+    output = folder.with_name(folder.name.removesuffix(".transient"))
+    tmp = temp_name(output, secrets.token_hex(6))
     try:
         with open(tmp, "wb") as fh:
             fh.write(data)

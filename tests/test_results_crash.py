@@ -100,6 +100,31 @@ def assert_nothing_unexplained(path: Path) -> None:
 # ------------------------------------------------------------------------------ signals, kills
 
 
+def test_kill_9_while_a_checkpoint_is_written_leaves_nothing_the_next_command_does_not_remove(tmp_path):
+    # A kill -9 inside the resume checkpoint's write window (the temporary written, not yet renamed; CI hit it
+    # once in a streaming transient): the journal keeps its old checkpoint whole, and the temporary is removed
+    # by the next command on the output with the dead writer's other leftovers (nothing unexplained beside it).
+    out = tmp_path / "c.h5"
+    assert run("geometry", BENCH, "-o", out, cwd=tmp_path).returncode == 0
+    killed = textwrap.dedent(f"""
+        import os, signal
+        from pathlib import Path
+        from beltdyn import workflow
+        folder = workflow.start_resume_journal(Path({str(out)!r}), "c" * 64)
+        def die(*args):  # the kill lands between the write and the rename
+            os.kill(os.getpid(), signal.SIGKILL)
+        os.replace = die
+        workflow._replace_file(folder, workflow.RESUME_STATE, b"a checkpoint")
+    """)
+    p = subprocess.run([sys.executable, "-c", killed], cwd=tmp_path, env=_env(), capture_output=True, timeout=120)
+    assert p.returncode == -signal.SIGKILL, p.stderr
+    assert files_beside(out) != sorted([out.name, *referenced_parts(out), f"{out.name}.transient/spec.json"])  # (left)
+    r = run("geometry", BENCH, "-o", out, "--force", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert_nothing_unexplained(out)
+    assert files_beside(out) == sorted([out.name, *referenced_parts(out), f"{out.name}.transient/spec.json"])
+
+
 def test_transient_kill_9_leaves_running_with_dead_writer_and_next_command_recovers(tmp_path):
     # A streaming `beltdyn transient` killed with SIGKILL: every reader then sees /transient "running"
     # with its writer dead (group_states(...).orphaned, read_group(...)["writer"]["alive"] False) and
