@@ -9,7 +9,7 @@ when it ends). Nothing here prints: notes and progress go to the callbacks given
 Resume. While a transient runs, its resume journal `<output>.transient/` holds `spec.json` (the
 configuration's SHA-256, written at the start) and `state.bin`, the stepper's last checkpoint
 (`transient.TransientSnapshot` as one checksummed record, `snapshot_bytes`), replaced atomically
-(temporary file, rename) every CHECKPOINT_SECONDS of wall time once the samples up to it are in the
+(a temporary file beside the output, renamed into the folder: `_replace_file`) every CHECKPOINT_SECONDS of wall time once the samples up to it are in the
 group's stream journal, fsync'ed every DURABLE_SECONDS. A run that ends (complete or failed) removes the folder; an interrupted
 one (Ctrl-C, SIGTERM, kill -9) leaves it, and `transient_to_file(resume=True)` continues from the
 checkpoint: the group is written again with the samples up to the checkpoint, then the rest of the
