@@ -87,12 +87,10 @@ def linearized_matrices(system: "System", q0: np.ndarray, damping: "Damping | No
     C_p = system.linear_damping
     if damping is not None and (damping.rayleigh_mass or damping.rayleigh_stiffness):
         # (a zero coefficient's term is not evaluated: adding its zeros changes no entry, and K_0 is a tangent)
-        if not damping.rayleigh_stiffness:
-            ray = damping.rayleigh_mass * system.mass
-        elif not damping.rayleigh_mass:
-            ray = damping.rayleigh_stiffness * system.tangent_on_joints(q0)
-        else:
-            ray = damping.rayleigh_mass * system.mass + damping.rayleigh_stiffness * system.tangent_on_joints(q0)
+        ray = damping.rayleigh_mass * system.mass if damping.rayleigh_mass else None
+        if damping.rayleigh_stiffness:
+            stiff = damping.rayleigh_stiffness * system.tangent_on_joints(q0)
+            ray = stiff if ray is None else ray + stiff
         C_p = ray if C_p is None else C_p + ray
     if damping is not None and (damping.belt_axial or damping.belt_bending):
         from beltdyn.model import belt_kernel as bk
