@@ -281,7 +281,8 @@ def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gros
         bk.gather_velocity(v_ext, T, idx, tsel, Ed)
         bk.element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, belt.eta_a, belt.eta_b, fd)
         bk.scatter_vector(fd, T, idx, tsel, f_dmp)
-    sk.spring_forces(belt.springs, q_ext, v_ext, f_el, f_dmp, gross, with_gross)
+    if belt.n_springs > 0:
+        sk.spring_forces(belt.springs, q_ext, v_ext, f_el, f_dmp, gross, with_gross)
 
 
 @njit(**KERNEL)
@@ -371,7 +372,7 @@ def potential_energy(belt, lin, q, q_ext, E, U, dq, Kdq):
     """Belt strain energy (elements and spring spans) + 1/2 (q - q_ref)^T K_lin (q - q_ref)."""
     bk.gather(q_ext, belt.e0, belt.T, belt.idx, belt.tsel, E)
     bk.element_strain_energy(E, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature, U)
-    total = sk.spring_energy(belt.springs, q_ext)
+    total = sk.spring_energy(belt.springs, q_ext) if belt.n_springs > 0 else 0.0
     for e in range(U.shape[0]):
         total += U[e]
     n = q.shape[0]
@@ -619,8 +620,9 @@ def correct(dof, dx, R, c_v, c_a, q1, v1, a1):
 
 
 @njit(**PART)
-def solve_step(belt, lin, F, tr, arms, dec, wraps, chk, cons, opts, fac, t1, h, x, work):
-    """Newton on the step ending at t1 from the predictor (in work rows q1, v1, a1): at most max_iter
+def solve_step(belt, lin, constant, tr, c1, cd1, arms, dec, wraps, chk, cons, opts, fac, h, x, work):
+    """Newton on a step of length h from the predictor (in work rows q1, v1, a1), the belt's speed c1 and
+    rate cd1 at its end (`transport_speed`), constant the constant force: at most max_iter
     corrections, the residual after the last one checked. Returns (converged, scaled residual, worst
     DOF, corrections, bristle energy, q.B q + 2 b0.q, transport power) with the forces of the last
     evaluation in the work rows and `x`.
@@ -634,7 +636,6 @@ def solve_step(belt, lin, F, tr, arms, dec, wraps, chk, cons, opts, fac, t1, h, 
     are evaluated in this loop's body, not in a part of their own: with numba's runtime an inlined part's
     arguments are new references, one reference count per array (about a hundred per evaluation here); so the
     parts take the model's parts they use, which `run_steps` reads once per call, not the whole model."""
-    constant = F.constant
     q_ref, K, C, M = lin.q_ref, lin.K, lin.C, lin.M
     moving = tr.follow != 0 or tr.speed != 0.0
     with_arms, with_clutches, with_wraps = arms.dof.shape[0] > 0, dec.hub.shape[0] > 0, wraps.wrap.shape[0] > 0
@@ -652,7 +653,6 @@ def solve_step(belt, lin, F, tr, arms, dec, wraps, chk, cons, opts, fac, t1, h, 
     inv_h = 1.0 / h
     c_a = 1.0 / (opts.beta * h * h)
     c_v = opts.gamma / (opts.beta * h)
-    c1, cd1 = transport_speed(tr, F, t1)
     prev = np.inf
     it = 0
     while True:
@@ -802,7 +802,7 @@ def slack_events(belt, t1, ev, work):
     accepted state, the last one evaluated unless an energy evaluation gathered it again at q1)."""
     E, min_elem, min_span = work.elem[0], work.elem1[1], work.span
     bk.element_min_axial_force(E, belt.dS, belt.EA, min_elem)
-    elem_span, n_span, n_elem, springs = belt.elem_span, belt.n_span, belt.T.shape[0], belt.springs
+    elem_span, n_span, n_elem = belt.elem_span, belt.n_span, belt.T.shape[0]
     slack, data, count = ev.slack, ev.data, ev.n
     for sp in range(n_span):
         min_span[sp] = np.inf
@@ -810,7 +810,8 @@ def slack_events(belt, t1, ev, work):
         sp = elem_span[e]
         if min_elem[e] < min_span[sp]:
             min_span[sp] = min_elem[e]
-    sk.spring_min_force(springs, work.ext[0], min_span)
+    if belt.n_springs > 0:
+        sk.spring_min_force(belt.springs, work.ext[0], min_span)
     for sp in range(n_span):
         now = 1.0 if min_span[sp] < 0.0 else 0.0
         if now != slack[sp] and count[0] < data.shape[0]:
@@ -823,9 +824,10 @@ def slack_events(belt, t1, ev, work):
 
 
 @njit(**PART)
-def accept(state, arms, dec, wraps, dof, x, p_tr, work):
-    """The new state becomes the old one: q, v, a, the forces, the projected terms, the reactions,
-    the transport power; the arms' friction anchors slide (return mapping)."""
+def accept(state, projected, dof, x, p_tr, work):
+    """The new state becomes the old one: q, v, a, the forces, the projected terms (projected: the arms'
+    terms on q, rows of their own), the reactions, the transport power. (The dry friction's return
+    mappings are parts of their own, `run_steps` calls those the drive has.)"""
     q, v, a, f0, fd0, F0, R0, th = state.q, state.v, state.a, state.f0, state.fd0, state.F0, state.R0, state.scal
     wv = work.vec
     q1, v1, a1, Ma, Ma0, Cv, Cv0, fi, F1 = wv[1], wv[2], wv[3], wv[5], wv[6], wv[7], wv[8], wv[10], wv[0]
@@ -839,9 +841,9 @@ def accept(state, arms, dec, wraps, dof, x, p_tr, work):
         F0[i] = F1[i]
         Ma0[i] = Ma[i]
         Cv0[i] = Cv[i]
-    if arms.dof.shape[0] > 0:
+    if projected:
         x_Ma, x_Ma0, x_Cv, x_Cv0, x_fi, x_f0, x_F1, x_F0 = x.Ma, x.Ma0, x.Cv, x.Cv0, x.fi, x.f0, x.F1, x.F0
-        for i in range(arms.n_q):
+        for i in range(x_Ma.shape[0]):
             x_Ma0[i] = x_Ma[i]
             x_Cv0[i] = x_Cv[i]
             x_f0[i] = x_fi[i]
@@ -849,18 +851,13 @@ def accept(state, arms, dec, wraps, dof, x, p_tr, work):
     for k in range(dof.shape[0]):
         R0[k] = react[k]
     th[TR_P0] = p_tr
-    if arms.dof.shape[0] > 0:
-        slide_anchors(arms, q)
-    if dec.hub.shape[0] > 0:
-        accept_clutches(dec)
-    if wraps.wrap.shape[0] > 0:
-        slide_wraps(wraps, q)
 
 
 @njit(**PART)
 def stored_friction(arms, dec, q, scratch):
     """The arms' bristles' and the clutches' stored energy at q (the arms' torques go to scratch, (n,) zeros).
-    A part the drive does not have is not called (each call passes its arrays: reference counts)."""
+    A part the drive does not have is not called (each call passes its arrays: reference counts); the
+    caller calls this only for a drive with arms or clutches."""
     return ((arm_friction(arms, q, scratch) if arms.dof.shape[0] > 0 else 0.0)
             + (clutch_stored(dec, q) if dec.hub.shape[0] > 0 else 0.0))
 
@@ -897,7 +894,10 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     loop over the stepper's parts (as PyElastica's do_step calls the system's hooks): predictor,
     constraints (`hold_prescribed`), arms (`complete`), forcing (`external_forces`), Newton
     (`solve_step`), the step's power (`step_power`), observers (`balance_energy`, `record_outputs`,
-    `slack_events`), `accept` and the factor's age (`factor_aged`).
+    `slack_events`), `accept`, the dry friction's return mappings (`slide_anchors`, `accept_clutches`,
+    `slide_wraps`) and the factor's age (`factor_aged`). A part of a feature the drive does not have (arms,
+    clutches, wraps, spring spans) is not called: with numba's runtime each call of an inlined part takes a
+    reference count per array of its arguments (on the paper bench 424 -> 333 a step, NUMBA_DEBUG_NRT).
 
     Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
     output times (Hermite interpolation within the step), the energy terms of the step that contains
@@ -908,7 +908,9 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     th = state.scal
     lin, arms, cons = model.linear, model.arms, model.constraints
     belt, F, tr, dec, wraps, chk = model.belt, model.forcing, model.transport, model.decouplers, model.wraps, model.check
-    dof = cons.dof
+    dof, constant = cons.dof, F.constant
+    with_arms, with_clutches, with_wraps = arms.dof.shape[0] > 0, dec.hub.shape[0] > 0, wraps.wrap.shape[0] > 0
+    with_stored = with_arms or with_clutches
     wv = work.vec
     F1, q1, v1, a1, Ma0, Cv0 = wv[0], wv[1], wv[2], wv[3], wv[6], wv[8]
     x = terms_of(state, model, work)
@@ -929,8 +931,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     for k in range(wraps.updated.shape[0]):  # the factor's solves of the wraps (`regime_correction`): anew
         model.wraps.updated[k] = 0.0
     wv[12, :] = 0.0
-    bristle0 = stored_friction(arms, dec, q, wv[12])
-    if wraps.wrap.shape[0] > 0:
+    bristle0 = stored_friction(arms, dec, q, wv[12]) if with_stored else 0.0
+    if with_wraps:
         bristle0 += wrap_friction(wraps, q, wv[12], False, 0.0)
     while True:
         t, h = th[T_NOW], th[H]
@@ -946,8 +948,9 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         if arms.dof.shape[0] > 0:
             complete(arms, q1, v1, a1)
         external_forces(F, cons, t1, F1, work.sig)
-        converged, res, worst, it, bristle1, qbq, p_tr = solve_step(belt, lin, F, tr, arms, dec, wraps, chk, cons, opts, fac, t1,
-                                                                    h, x, work)
+        c1, cd1 = transport_speed(tr, F, t1)
+        converged, res, worst, it, bristle1, qbq, p_tr = solve_step(belt, lin, constant, tr, c1, cd1, arms, dec, wraps,
+                                                                    chk, cons, opts, fac, h, x, work)
         if not converged:
             info[0] = t1
             info[1] = res
@@ -966,15 +969,19 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         th[DISS] = th[DISS] + h * p_dis - (bristle1 - bristle0)  # the bristles' stored part is not lost
         if n_pend > 0:  # energy at this step (exact, not interpolated) and the samples in (t, t1] (only then
             # called: an inlined part's arguments are new references, a reference count per array)
-            c1 = transport_speed(tr, F, t1)[0]
             kin, pot = balance_energy(state, belt, lin, q1, v1, c1, qbq, bristle1, work)
             record_outputs(state, arms, dec, wraps, dof.shape[0], opts, out, t, h, q1, v1, a1, kin, pot,
                            work.react)
         slack_events(belt, t1, ev, work)
-        accept(state, arms, dec, wraps, dof, x, p_tr, work)
-        bristle0 = stored_friction(arms, dec, q, wv[12])  # after the return mapping
-        if wraps.wrap.shape[0] > 0:  # the wraps' limits from the accepted tensions (work.elem[0]: q1's)
-            c1 = transport_speed(tr, F, t1)[0]
+        accept(state, with_arms, dof, x, p_tr, work)
+        if with_arms:  # the dry friction's return mappings
+            slide_anchors(arms, q)
+        if with_clutches:
+            accept_clutches(dec)
+        if with_wraps:
+            slide_wraps(wraps, q)
+        bristle0 = stored_friction(arms, dec, q, wv[12]) if with_stored else 0.0  # after the return mapping
+        if with_wraps:  # the wraps' limits from the accepted tensions (work.elem[0]: q1's)
             th[DISS] += wrap_limits(wraps, belt, work.elem[0], work.ext[0], c1, travel_speed(F, t1))
             bristle0 += wrap_friction(wraps, q, wv[12], False, 0.0)
         th[T_NOW] = t1

@@ -10,7 +10,9 @@ import numpy as np
 
 # Named structures handed to the compiled stepper (numba reads namedtuples by attribute).
 BeltData = namedtuple("BeltData", ["e0", "T", "idx", "tsel", "dS", "d2S", "wEA", "wEI", "EA", "Kb", "curvature",
-                                   "eta_a", "eta_b", "elem_span", "n_span", "springs"])  # springs: spring_kernel.SpringData
+                                   "eta_a", "eta_b", "elem_span", "n_span", "springs", "n_springs"])
+# springs: spring_kernel.SpringData, n_springs their number (the kernels read `springs` only where there are some:
+# each read of a struct is a reference count per array it holds)
 Csr = namedtuple("Csr", ["indptr", "indices", "data"])
 # A constant matrix A (n, n) of the stepper (`split`): its entries within w of the diagonal as a band (band
 # (2 w + 1, n), band[k, i] = A[i, i - w + k], zeros where A has none), the others as lists in row-major

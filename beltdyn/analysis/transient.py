@@ -608,7 +608,7 @@ def integrate_linear(M: np.ndarray, K: np.ndarray, C: np.ndarray | None, q0: np.
                         tsel=np.zeros(0, dtype=np.int64), dS=np.zeros((0, 1, 4)), d2S=np.zeros((0, 1, 4)),
                         wEA=np.zeros((0, 1)), wEI=np.zeros((0, 1)), EA=np.zeros(0), Kb=np.zeros((0, 8, 8)),
                         curvature=1, eta_a=0.0, eta_b=0.0, elem_span=np.zeros(0, dtype=np.int64), n_span=0,
-                        springs=no_springs())
+                        springs=no_springs(), n_springs=0)
     Cm = np.zeros((n, n)) if C is None else np.asarray(C, dtype=float)
     lin = itg.Linear(K=itg.split(K, n), q_ref=np.zeros(n), C=itg.split(None if C is None else Cm, n), M=itg.split(M, n))
     forcing = itg.Forcing(constant=np.zeros(n), load_dof=np.zeros(0, dtype=np.int64), load_coef=np.zeros(0),

@@ -244,11 +244,12 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
         nominal_damping = np.asarray(system.linear_damping @ u_nom, dtype=float).ravel()
     tab = system.belt.kernel_tables
     belt = system.belt
+    springs = spring_data(system.springs, d.belt_axial)
     belt_data = itg.BeltData(
         e0=belt.e0, T=belt.T, idx=belt.idx, tsel=belt.tsel, dS=tab.dS, d2S=tab.d2S, wEA=tab.wEA, wEI=tab.wEI,
         EA=tab.EA, Kb=tab.Kb, curvature=int(tab.curvature), eta_a=float(d.belt_axial), eta_b=float(d.belt_bending),
         elem_span=belt.elem_span.astype(np.int64), n_span=int(belt.n_span),
-        springs=spring_data(system.springs, d.belt_axial))
+        springs=springs, n_springs=int(springs.L.shape[0]))
     assert CURVATURE_CODE[belt.elements.curvature] == tab.curvature
     linear = itg.Linear(K=itg.split(K_lin, n), q_ref=q_ref, C=itg.split(C, n), M=itg.split(M, n))
     forcing = itg.Forcing(
