@@ -255,32 +255,35 @@ def rotation_state(rot, t):
 @njit(**KERNEL)
 def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross):
     """Reduced belt elastic (f_el) and damping (f_dmp) forces (n + 1,) at (q, v); with_gross: also
-    gross (n + 1,), the sum of |T^T f_e| over elements (the round-off scale). (belt's arrays are read
-    once: a field read at each call site costs a reference count per array and call.)"""
-    e0, T, idx, tsel, Kb, curvature = belt.e0, belt.T, belt.idx, belt.tsel, belt.Kb, belt.curvature
-    dS, d2S, wEA, wEI = belt.dS, belt.d2S, belt.wEA, belt.wEI
-    bk.gather(q_ext, e0, T, idx, tsel, E)
-    bk.element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe)
+    gross (n + 1,), the sum of |T^T f_e| over elements (the round-off scale): the elements' where the
+    belt has elements, the spring spans' where it has some. (belt's arrays are read once, and only
+    those of the parts it has: a field read costs a reference count per array and call.)"""
     f_el[:] = 0.0
-    bk.scatter_vector(fe, T, idx, tsel, f_el)
-    if with_gross:  # gross scale: |T^T f_e| per element entry
+    if with_gross:
         gross[:] = 0.0
-        n_elem, _, m = T.shape
-        for e in range(n_elem):
-            if tsel[e] < 0:
-                for i in range(8):
-                    gross[idx[e, i]] += abs(fe[e, i])
-            else:
-                for j in range(m):
-                    s = 0.0
-                    for i in range(8):
-                        s += T[e, i, j] * fe[e, i]
-                    gross[idx[e, j]] += abs(s)
     f_dmp[:] = 0.0
-    if belt.eta_a != 0.0 or belt.eta_b != 0.0:
-        bk.gather_velocity(v_ext, T, idx, tsel, Ed)
-        bk.element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, belt.eta_a, belt.eta_b, fd)
-        bk.scatter_vector(fd, T, idx, tsel, f_dmp)
+    if belt.tsel.shape[0] > 0:  # the elements (an all-spring belt has none)
+        e0, T, idx, tsel, Kb, curvature = belt.e0, belt.T, belt.idx, belt.tsel, belt.Kb, belt.curvature
+        dS, d2S, wEA, wEI = belt.dS, belt.d2S, belt.wEA, belt.wEI
+        bk.gather(q_ext, e0, T, idx, tsel, E)
+        bk.element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe)
+        bk.scatter_vector(fe, T, idx, tsel, f_el)
+        if with_gross:  # gross scale: |T^T f_e| per element entry
+            n_elem, _, m = T.shape
+            for e in range(n_elem):
+                if tsel[e] < 0:
+                    for i in range(8):
+                        gross[idx[e, i]] += abs(fe[e, i])
+                else:
+                    for j in range(m):
+                        s = 0.0
+                        for i in range(8):
+                            s += T[e, i, j] * fe[e, i]
+                        gross[idx[e, j]] += abs(s)
+        if belt.eta_a != 0.0 or belt.eta_b != 0.0:
+            bk.gather_velocity(v_ext, T, idx, tsel, Ed)
+            bk.element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, belt.eta_a, belt.eta_b, fd)
+            bk.scatter_vector(fd, T, idx, tsel, f_dmp)
     if belt.n_springs > 0:
         sk.spring_forces(belt.springs, q_ext, v_ext, f_el, f_dmp, gross, with_gross)
 
@@ -547,17 +550,22 @@ def predict(h, q, v, a, q1, v1, a1, nq):
 Terms = namedtuple("Terms", ["Ma", "Ma0", "Cv", "Cv0", "fi", "f0", "F1", "F0", "Fc", "fl"])
 
 
-@njit(**PART)
+project_inline = njit(**PART)(project.py_func)  # `project` inlined where a part would call it six times
+
+
+@njit(**KERNEL)
 def project_new(arms, constant, q1, work, terms):
     """The arms' part: the new terms (work rows M a, C v, fi, F1, fl and the constant force) projected
-    on q by J(q1)^T into `terms` (called only with arms: without, the terms are the rows)."""
+    on q by J(q1)^T into `terms` (called only with arms: without, the terms are the rows). Called, not
+    inlined, and calling no compiled function with arrays (`project` inlined): numba's pruner then
+    removes its reference counts (`PART`)."""
     wv = work.vec
-    project(arms, q1, wv[5], terms.Ma)
-    project(arms, q1, wv[7], terms.Cv)
-    project(arms, q1, wv[10], terms.fi)
-    project(arms, q1, wv[0], terms.F1)
-    project(arms, q1, constant, terms.Fc)
-    project(arms, q1, wv[11], terms.fl, True)
+    project_inline(arms, q1, wv[5], terms.Ma)
+    project_inline(arms, q1, wv[7], terms.Cv)
+    project_inline(arms, q1, wv[10], terms.fi)
+    project_inline(arms, q1, wv[0], terms.F1)
+    project_inline(arms, q1, constant, terms.Fc)
+    project_inline(arms, q1, wv[11], terms.fl, True)
 
 
 @njit(**PART)
