@@ -559,9 +559,8 @@ project_inline = njit(**PART)(project.py_func)  # `project` inlined where a part
 @njit(**KERNEL)
 def project_new(arms, constant, q1, work, terms):
     """The arms' part: the new terms (work rows M a, C v, fi, F1, fl and the constant force) projected
-    on q by J(q1)^T into `terms` (called only with arms: without, the terms are the rows). Called, not
-    inlined, and calling no compiled function with arrays (`project` inlined): numba's pruner then
-    removes its reference counts (`PART`)."""
+    on q by J(q1)^T into `terms` (called only with arms: without, the terms are the rows). Called, with
+    `project` inlined: no reference counts (`PART`)."""
     wv = work.vec
     project_inline(arms, q1, wv[5], terms.Ma)
     project_inline(arms, q1, wv[7], terms.Cv)
@@ -906,9 +905,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     constraints (`hold_prescribed`), arms (`complete`), forcing (`external_forces`), Newton
     (`solve_step`), the step's power (`step_power`), observers (`balance_energy`, `record_outputs`,
     `slack_events`), `accept`, the dry friction's return mappings (`slide_anchors`, `accept_clutches`,
-    `slide_wraps`) and the factor's age (`factor_aged`). A part of a feature the drive does not have (arms,
-    clutches, wraps, spring spans) is not called: with numba's runtime each call of an inlined part takes a
-    reference count per array of its arguments (on the paper bench 424 -> 333 a step, NUMBA_DEBUG_NRT).
+    `slide_wraps`) and the factor's age (`factor_aged`). A part of a feature the drive lacks (arms, clutches,
+    wraps, spring spans) is not called (its arrays' reference counts: `PART`).
 
     Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
     output times (Hermite interpolation within the step), the energy terms of the step that contains
@@ -929,7 +927,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         work.held[cons.dof[k]] = 1
     split_matvec(lin.M, a, Ma0)
     split_matvec(lin.C, v, Cv0)
-    if arms.dof.shape[0] > 0:
+    if with_arms:
         project(arms, q, Ma0, x.Ma0)
         project(arms, q, Cv0, x.Cv0)
         project(arms, q, state.f0, x.f0)
@@ -956,7 +954,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         t1 = t + h
         predict(h, q, v, a, q1, v1, a1, arms.n_q)
         hold_prescribed(cons, t1, q1, v1, a1)
-        if arms.dof.shape[0] > 0:
+        if with_arms:
             complete(arms, q1, v1, a1)
         external_forces(F, cons, t1, F1, work.sig)
         c1, cd1 = transport_speed(tr, F, t1)
