@@ -292,8 +292,9 @@ def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gros
 
 
 @njit(**KERNEL)
-def external_forces(F, cons, t, out, sig_val):
-    """F(t) (n,): constant part + loads + inertia and component damping of the nominal belt travel."""
+def external_forces(F, t, out, sig_val):
+    """F(t) (n,): constant part + loads + inertia and component damping of the nominal belt travel (`run_steps`
+    copies the constant part instead where the forcing has neither)."""
     n = out.shape[0]
     for i in range(n):
         out[i] = F.constant[i]
@@ -309,21 +310,23 @@ def external_forces(F, cons, t, out, sig_val):
 
 
 @njit(**KERNEL)
-def transport_speed(tr, F, t):
-    """(c, c') the belt speed (m/s) and its rate at time t."""
-    if tr.follow:
-        st = rotation_state(F.nominal_rotation, t)
-        return st[1] * F.nominal_scale, st[2] * F.nominal_scale
-    return tr.speed, 0.0
+def transport_speed(follow, speed, rotation, scale, t):
+    """(c, c') the belt speed (m/s) and its rate at time t: the nominal speed of the prescribed rotation (rotation:
+    its law's parameters, `rotation_state`) times scale where the speed follows it (follow), else the constant
+    speed. (Scalars and one array: each array a part takes is a reference count per call, `PART`.)"""
+    if follow:
+        st = rotation_state(rotation, t)
+        return st[1] * scale, st[2] * scale
+    return speed, 0.0
 
 
 @njit(**KERNEL)
-def travel_speed(F, t):
+def travel_speed(rotation, scale, t):
     """The belt's nominal travel speed (m/s) at time t: the prescribed rotation's nominal speed times
-    nominal_scale (the driver's rim speed), 0 without a nominal rotation (the wraps' creep, `wrap_limits`)."""
-    if F.nominal_scale == 0.0:
+    scale (the driver's rim speed), 0 without a nominal rotation (scale 0; the wraps' creep, `wrap_limits`)."""
+    if scale == 0.0:
         return 0.0
-    return rotation_state(F.nominal_rotation, t)[1] * F.nominal_scale
+    return rotation_state(rotation, t)[1] * scale
 
 
 @njit(**KERNEL)
@@ -504,8 +507,8 @@ def start_forces(state, model, work):
     for i in range(n):
         dq[i] = q[i] - lin.q_ref[i]
     split_matvec(lin.K, dq, Kd)
-    external_forces(F, model.constraints, 0.0, state.F0, work.sig)
-    c0, cd0 = transport_speed(tr, F, 0.0)
+    external_forces(F, 0.0, state.F0, work.sig)
+    c0, cd0 = transport_speed(tr.follow, tr.speed, F.nominal_rotation, F.nominal_scale, 0.0)
     qbq, vaq = transport_forces(tr, c0, cd0, q, v, f_tr, tmp, tmp2)
     wraps = model.wraps
     stored = 0.0
@@ -513,7 +516,8 @@ def start_forces(state, model, work):
         # (the static torque: the pulley's loads, inertia and damping sit on its own rotation, `Wraps`)
         for k in range(wraps.wrap.shape[0]):
             wraps.torque[k] = 0.0
-        wrap_limits(wraps, belt, E, q_ext, c0, travel_speed(F, 0.0))  # the capstan limits of the initial tensions
+        c_travel = travel_speed(F.nominal_rotation, F.nominal_scale, 0.0)
+        wrap_limits(wraps, belt, E, q_ext, c0, c_travel)  # the capstan limits of the initial tensions
         for k in range(wraps.wrap.shape[0]):
             w = wraps.wrap[k]
             wraps.preload[k] = state.F0[w] - (f_el[w] + Kd[w] + f_dmp[w] + f_tr[w])
@@ -807,21 +811,21 @@ def record_outputs(state, arms, dec, wr, n_con, opts, out, t, h, q1, v1, a1, kin
 
 
 @njit(**PART)
-def slack_events(belt, t1, ev, work):
-    """Observer: slack events, the smallest 2nd Piola-Kirchhoff force per span (work.elem[0]: the
-    accepted state, the last one evaluated unless an energy evaluation gathered it again at q1)."""
-    E, min_elem, min_span = work.elem[0], work.elem1[1], work.span
-    bk.element_min_axial_force(E, belt.dS, belt.EA, min_elem)
-    elem_span, n_span, n_elem = belt.elem_span, belt.n_span, belt.T.shape[0]
+def slack_events(E, dS, EA, elem_span, n_span, springs, n_springs, q_ext, t1, ev, min_elem, min_span):
+    """Observer: slack events, the smallest 2nd Piola-Kirchhoff force per span (elements: E the accepted
+    state's element coordinates, the last ones evaluated unless an energy evaluation gathered them again at q1;
+    spring spans: q_ext). dS, EA, elem_span: the belt's (`BeltData`); min_elem (n_elem,), min_span (n_span,) the
+    scratch. (The arrays it reads, not the belt: each is a reference count per step, `PART`.)"""
+    bk.element_min_axial_force(E, dS, EA, min_elem)
     slack, data, count = ev.slack, ev.data, ev.n
     for sp in range(n_span):
         min_span[sp] = np.inf
-    for e in range(n_elem):
+    for e in range(elem_span.shape[0]):
         sp = elem_span[e]
         if min_elem[e] < min_span[sp]:
             min_span[sp] = min_elem[e]
-    if belt.n_springs > 0:
-        sk.spring_min_force(belt.springs, work.ext[0], min_span)
+    if n_springs > 0:
+        sk.spring_min_force(springs, q_ext, min_span)
     for sp in range(n_span):
         now = 1.0 if min_span[sp] < 0.0 else 0.0
         if now != slack[sp] and count[0] < data.shape[0]:
@@ -920,6 +924,12 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     dof, constant = cons.dof, F.constant
     with_arms, with_clutches, with_wraps = arms.dof.shape[0] > 0, dec.hub.shape[0] > 0, wraps.wrap.shape[0] > 0
     with_stored = with_arms or with_clutches
+    forced = F.nominal_scale != 0.0 or F.sig_params.shape[0] > 0  # F(t) changes in time, else it is F.constant
+    follow, speed, rotation, scale, sig = tr.follow, tr.speed, F.nominal_rotation, F.nominal_scale, work.sig
+    n = q.shape[0]
+    dS, EA, elem_span, n_span = belt.dS, belt.EA, belt.elem_span, belt.n_span
+    springs, n_springs = belt.springs, belt.n_springs
+    E_acc, q_ext, min_elem, min_span = work.elem[0], work.ext[0], work.elem1[1], work.span  # the accepted state's
     wv = work.vec
     F1, q1, v1, a1, Ma0, Cv0 = wv[0], wv[1], wv[2], wv[3], wv[6], wv[8]
     x = terms_of(state, model, work)
@@ -956,8 +966,12 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         hold_prescribed(cons, t1, q1, v1, a1)
         if with_arms:
             complete(arms, q1, v1, a1)
-        external_forces(F, cons, t1, F1, work.sig)
-        c1, cd1 = transport_speed(tr, F, t1)
+        if forced:
+            external_forces(F, t1, F1, sig)
+        else:  # F(t) = F.constant
+            for i in range(n):
+                F1[i] = constant[i]
+        c1, cd1 = transport_speed(follow, speed, rotation, scale, t1)
         converged, res, worst, it, bristle1, qbq, p_tr = solve_step(belt, lin, constant, tr, c1, cd1, arms, dec, wraps,
                                                                     chk, cons, opts, fac, h, x, work)
         if not converged:
@@ -981,7 +995,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
             kin, pot = balance_energy(state, belt, lin, q1, v1, c1, qbq, bristle1, work)
             record_outputs(state, arms, dec, wraps, dof.shape[0], opts, out, t, h, q1, v1, a1, kin, pot,
                            work.react)
-        slack_events(belt, t1, ev, work)
+        slack_events(E_acc, dS, EA, elem_span, n_span, springs, n_springs, q_ext, t1, ev, min_elem, min_span)
         accept(state, with_arms, dof, x, p_tr, work)
         if with_arms:  # the dry friction's return mappings
             slide_anchors(arms, q)
@@ -990,8 +1004,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         if with_wraps:
             slide_wraps(wraps, q)
         bristle0 = stored_friction(arms, dec, q, wv[12]) if with_stored else 0.0  # after the return mapping
-        if with_wraps:  # the wraps' limits from the accepted tensions (work.elem[0]: q1's)
-            th[DISS] += wrap_limits(wraps, belt, work.elem[0], work.ext[0], c1, travel_speed(F, t1))
+        if with_wraps:  # the wraps' limits from the accepted tensions (E_acc: q1's)
+            th[DISS] += wrap_limits(wraps, belt, E_acc, q_ext, c1, travel_speed(rotation, scale, t1))
             bristle0 += wrap_friction(wraps, q, wv[12], False, 0.0)
         th[T_NOW] = t1
         th[STEPS] += 1.0
