@@ -634,87 +634,6 @@ def correct(dof, dx, R, c_v, c_a, q1, v1, a1):
 
 
 @njit(**PART)
-def solve_step(belt, lin, constant, tr, c1, cd1, arms, dec, wraps, chk, cons, opts, fac, h, x, work):
-    """Newton on a step of length h from the predictor (in work rows q1, v1, a1), the belt's speed c1 and
-    rate cd1 at its end (`transport_speed`), constant the constant force: at most max_iter
-    corrections, the residual after the last one checked. Returns (converged, scaled residual, worst
-    DOF, corrections, bristle energy, q.B q + 2 b0.q, transport power) with the forces of the last
-    evaluation in the work rows and `x`.
-
-    Each evaluation: the forces at the new state (q1, v1, a1) into the scratch rows (`Work`): f_el, f_dmp
-    (belt, arm friction, the decouplers' clutches over the step, the wraps), K (q1 - q_ref), C v1, M a1, the
-    transport terms f_tr at the belt speed c1 and rate cd1, fi = f_el + K d + f_dmp + f_tr and fl the
-    round-off scale (gross at the step's first evaluation only: a floor, not a force); then the arms'
-    projection (`project_new`), the residual (`scaled_residual`) and the correction (`correct`).
-    The model's parts and the scratch rows are read once per step, before the Newton loop, and the forces
-    are evaluated in this loop's body, not in a part of their own: with numba's runtime an inlined part's
-    arguments are new references, one reference count per array (about a hundred per evaluation here); so the
-    parts take the model's parts they use, which `run_steps` reads once per call, not the whole model."""
-    q_ref, K, C, M = lin.q_ref, lin.K, lin.C, lin.M
-    moving = tr.follow != 0 or tr.speed != 0.0
-    with_arms, with_clutches, with_wraps = arms.dof.shape[0] > 0, dec.hub.shape[0] > 0, wraps.wrap.shape[0] > 0
-    am, af, max_iter = opts.am, opts.af, chk.max_iter
-    held = work.held
-    q_ext, v_ext, f_el, f_dmp, gross = work.ext[0], work.ext[1], work.ext[2], work.ext[3], work.ext[4]
-    E, Ed, fe, fd = work.elem[0], work.elem[1], work.elem[2], work.elem[3]
-    wv = work.vec
-    q1, v1, a1 = wv[1], wv[2], wv[3]
-    dq, Ma, Cv, Kd, fi, fl, f_tr, tr_Bq, tr_Aq = wv[4], wv[5], wv[7], wv[9], wv[10], wv[11], wv[14], wv[15], wv[16]
-    R, dx, work_q = work.proj[0], work.proj[1], work.proj[2]
-    group_rows, worst_g = work.group, work.worst
-    dof = cons.dof
-    n = q1.shape[0]
-    inv_h = 1.0 / h
-    c_a = 1.0 / (opts.beta * h * h)
-    c_v = opts.gamma / (opts.beta * h)
-    prev = np.inf
-    it = 0
-    while True:
-        # the forces at the new state
-        for i in range(n):
-            q_ext[i] = q1[i]
-            v_ext[i] = v1[i]
-            dq[i] = q1[i] - q_ref[i]
-        belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, it == 0)
-        bristle1 = ((arm_friction(arms, q1, f_dmp) if with_arms else 0.0)
-                    + (clutch_torques(dec, q1, v1, inv_h, f_dmp) if with_clutches else 0.0))
-        if with_wraps:
-            bristle1 += wrap_friction(wraps, q1, f_dmp, True, h)
-        split_matvec(K, dq, Kd)
-        split_matvec(C, v1, Cv)
-        qbq = 0.0
-        p_tr = 0.0
-        if moving:  # M a, A q, G v, B q in one pass
-            fused_matvec(tr.mag, a1, q1, v1, Ma, tr_Aq, tr_Bq, f_tr)
-            qbq, vaq = transport_from(tr, c1, cd1, q1, v1, f_tr, tr_Bq, tr_Aq)
-            p_tr = -cd1 * (c1 * qbq + vaq)
-        else:
-            split_matvec(M, a1, Ma)
-        for i in range(n):
-            fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
-            fl[i] = gross[i] + abs(Kd[i]) + abs(constant[i]) + abs(f_tr[i])
-        if with_arms:
-            project_new(arms, constant, q1, work, x)
-        res, worst, finite = scaled_residual(chk, held, am, af, x, R, group_rows, worst_g)
-        if not finite:
-            return False, res, worst, it, bristle1, qbq, p_tr
-        if res <= 1.0:
-            return True, res, worst, it, bristle1, qbq, p_tr
-        if it >= max_iter:
-            return False, res, worst, it, bristle1, qbq, p_tr
-        factor_solve(fac, R, dx, work_q)
-        if with_wraps and regime_changed(wraps):  # S in the wraps' regime of this evaluation
-            regime_correction(wraps, fac, held, 1.0 - af, dx, work_q)
-        norm = correct(dof, dx, R, c_v, c_a, q1, v1, a1)
-        if with_arms:
-            complete(arms, q1, v1, a1)
-        it += 1
-        if it >= 3 and norm > 0.25 * prev:  # convergence rate worse than 1/2 per iteration
-            return False, res, worst, it, bristle1, qbq, p_tr
-        prev = norm
-
-
-@njit(**PART)
 def count_outputs(t_out, t1, h, dt_out):
     """The output times in (t, t1] still to come from t_out."""
     n_pend = 0
@@ -903,14 +822,53 @@ def terms_of(state, model, work):
 
 
 @njit(**KERNEL)
+def begin_steps(state, model, fresh, x, work):
+    """What a call of `run_steps` sets up once: the prescribed rows (work.held), the old terms M a and C v (and,
+    with arms, the old terms projected into x), the factor's age (fresh: a new factor, its age starts), the wraps'
+    solves of the factor anew (`regime_correction`). Returns the bristles' stored energy at the state."""
+    q, v, a, th = state.q, state.v, state.a, state.scal
+    lin, arms, dec, wraps, cons = model.linear, model.arms, model.decouplers, model.wraps, model.constraints
+    wv = work.vec
+    Ma0, Cv0 = wv[6], wv[8]
+    for k in range(cons.dof.shape[0]):
+        work.held[cons.dof[k]] = 1
+    split_matvec(lin.M, a, Ma0)
+    split_matvec(lin.C, v, Cv0)
+    if arms.dof.shape[0] > 0:
+        project(arms, q, Ma0, x.Ma0)
+        project(arms, q, Cv0, x.Cv0)
+        project(arms, q, state.f0, x.f0)
+        project(arms, q, state.F0, x.F0)
+    if fresh:
+        th[STALE], th[REF_SUM], th[REF_N] = 0.0, 0.0, 0.0
+    for k in range(wraps.updated.shape[0]):
+        wraps.updated[k] = 0.0
+    wv[12, :] = 0.0
+    bristle0 = 0.0
+    if arms.dof.shape[0] > 0 or dec.hub.shape[0] > 0:
+        bristle0 = stored_friction(arms, dec, q, wv[12])
+    if wraps.wrap.shape[0] > 0:
+        bristle0 += wrap_friction(wraps, q, wv[12], False, 0.0)
+    return bristle0
+
+
+@njit(**KERNEL)
 def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     """Advance the state until t_stop, a full buffer, a refactorization request or the step budget: a
     loop over the stepper's parts (as PyElastica's do_step calls the system's hooks): predictor,
-    constraints (`hold_prescribed`), arms (`complete`), forcing (`external_forces`), Newton
-    (`solve_step`), the step's power (`step_power`), observers (`balance_energy`, `record_outputs`,
-    `slack_events`), `accept`, the dry friction's return mappings (`slide_anchors`, `accept_clutches`,
-    `slide_wraps`) and the factor's age (`factor_aged`). A part of a feature the drive lacks (arms, clutches,
-    wraps, spring spans) is not called (its arrays' reference counts: `PART`).
+    constraints (`hold_prescribed`), arms (`complete`), forcing (`external_forces`), Newton, the step's
+    power (`step_power`), observers (`balance_energy`, `record_outputs`, `slack_events`), `accept`, the dry
+    friction's return mappings (`slide_anchors`, `accept_clutches`, `slide_wraps`) and the factor's age
+    (`factor_aged`). A part of a feature the drive lacks (arms, clutches, wraps, spring spans, loads) is not called.
+
+    Newton, from the predictor: at most max_iter corrections, the residual after the last one checked. Each
+    evaluation: the forces at the new state (q1, v1, a1) into the scratch rows (`Work`): f_el, f_dmp (belt,
+    arm friction, the clutches over the step, the wraps), K (q1 - q_ref), C v1, M a1, the transport terms f_tr
+    at the belt speed c1 and rate cd1 of the step's end, fi = f_el + K d + f_dmp + f_tr and fl the round-off
+    scale (gross at the first evaluation only: a floor, not a force); then the arms' projection
+    (`project_new`), the residual (`scaled_residual`) and the correction (`correct`). It is this loop's body,
+    not a part: the model's arrays and the scratch rows are read once per call, before the loop, since each
+    array a part takes is a reference count per call (`PART`: 288 -> 143 a step on the paper bench).
 
     Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
     output times (Hermite interpolation within the step), the energy terms of the step that contains
@@ -929,30 +887,20 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     n = q.shape[0]
     dS, EA, elem_span, n_span = belt.dS, belt.EA, belt.elem_span, belt.n_span
     springs, n_springs = belt.springs, belt.n_springs
-    E_acc, q_ext, min_elem, min_span = work.elem[0], work.ext[0], work.elem1[1], work.span  # the accepted state's
+    E, q_ext, min_elem, min_span = work.elem[0], work.ext[0], work.elem1[1], work.span  # E, q_ext: the last evaluation's
     wv = work.vec
-    F1, q1, v1, a1, Ma0, Cv0 = wv[0], wv[1], wv[2], wv[3], wv[6], wv[8]
+    F1, q1, v1, a1 = wv[0], wv[1], wv[2], wv[3]
     x = terms_of(state, model, work)
-    for k in range(cons.dof.shape[0]):
-        work.held[cons.dof[k]] = 1
-    split_matvec(lin.M, a, Ma0)
-    split_matvec(lin.C, v, Cv0)
-    if with_arms:
-        project(arms, q, Ma0, x.Ma0)
-        project(arms, q, Cv0, x.Cv0)
-        project(arms, q, state.f0, x.f0)
-        project(arms, q, state.F0, x.F0)
+    q_ref, K, C, M, mag = lin.q_ref, lin.K, lin.C, lin.M, tr.mag
+    moving = tr.follow != 0 or tr.speed != 0.0
+    am, af, max_iter = opts.am, opts.af, chk.max_iter
+    held, group_rows, worst_g = work.held, work.group, work.worst
+    v_ext, f_el, f_dmp, gross = work.ext[1], work.ext[2], work.ext[3], work.ext[4]
+    Ed, fe, fd = work.elem[1], work.elem[2], work.elem[3]
+    dq, Ma, Cv, Kd, fi, fl, f_tr, tr_Bq, tr_Aq = wv[4], wv[5], wv[7], wv[9], wv[10], wv[11], wv[14], wv[15], wv[16]
+    R, dx, work_q = work.proj[0], work.proj[1], work.proj[2]
+    bristle0 = begin_steps(state, model, fresh, x, work)
     steps = 0
-    if fresh:  # a new factor: its age starts
-        th[STALE] = 0.0
-        th[REF_SUM] = 0.0
-        th[REF_N] = 0.0
-    for k in range(wraps.updated.shape[0]):  # the factor's solves of the wraps (`regime_correction`): anew
-        model.wraps.updated[k] = 0.0
-    wv[12, :] = 0.0
-    bristle0 = stored_friction(arms, dec, q, wv[12]) if with_stored else 0.0
-    if with_wraps:
-        bristle0 += wrap_friction(wraps, q, wv[12], False, 0.0)
     while True:
         t, h = th[T_NOW], th[H]
         if t >= opts.t_stop - 1e-6 * h:
@@ -972,16 +920,52 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
             for i in range(n):
                 F1[i] = constant[i]
         c1, cd1 = transport_speed(follow, speed, rotation, scale, t1)
-        converged, res, worst, it, bristle1, qbq, p_tr = solve_step(belt, lin, constant, tr, c1, cd1, arms, dec, wraps,
-                                                                    chk, cons, opts, fac, h, x, work)
+        # Newton (the docstring)
+        inv_h, c_a, c_v = 1.0 / h, 1.0 / (opts.beta * h * h), opts.gamma / (opts.beta * h)
+        prev = np.inf
+        it = 0
+        while True:
+            for i in range(n):  # the forces at the new state
+                q_ext[i] = q1[i]
+                v_ext[i] = v1[i]
+                dq[i] = q1[i] - q_ref[i]
+            belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, it == 0)
+            bristle1 = ((arm_friction(arms, q1, f_dmp) if with_arms else 0.0)
+                        + (clutch_torques(dec, q1, v1, inv_h, f_dmp) if with_clutches else 0.0))
+            if with_wraps:
+                bristle1 += wrap_friction(wraps, q1, f_dmp, True, h)
+            split_matvec(K, dq, Kd)
+            split_matvec(C, v1, Cv)
+            qbq = 0.0
+            p_tr = 0.0
+            if moving:  # M a, A q, G v, B q in one pass
+                fused_matvec(mag, a1, q1, v1, Ma, tr_Aq, tr_Bq, f_tr)
+                qbq, vaq = transport_from(tr, c1, cd1, q1, v1, f_tr, tr_Bq, tr_Aq)
+                p_tr = -cd1 * (c1 * qbq + vaq)
+            else:
+                split_matvec(M, a1, Ma)
+            for i in range(n):
+                fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
+                fl[i] = gross[i] + abs(Kd[i]) + abs(constant[i]) + abs(f_tr[i])
+            if with_arms:
+                project_new(arms, constant, q1, work, x)
+            res, worst, finite = scaled_residual(chk, held, am, af, x, R, group_rows, worst_g)
+            converged = finite and res <= 1.0
+            if converged or not finite or it >= max_iter:
+                break
+            factor_solve(fac, R, dx, work_q)
+            if with_wraps and regime_changed(wraps):  # S in the wraps' regime of this evaluation
+                regime_correction(wraps, fac, held, 1.0 - af, dx, work_q)
+            norm = correct(dof, dx, R, c_v, c_a, q1, v1, a1)
+            if with_arms:
+                complete(arms, q1, v1, a1)
+            it += 1
+            if it >= 3 and norm > 0.25 * prev:  # convergence rate worse than 1/2 per iteration
+                break
+            prev = norm
         if not converged:
-            info[0] = t1
-            info[1] = res
-            info[2] = worst
-            info[3] = it
-            if fresh:
-                return HALVE
-            return REFACTOR
+            info[0], info[1], info[2], info[3] = t1, res, worst, it
+            return HALVE if fresh else REFACTOR
         # the step is accepted only if all of its output samples fit in the buffer
         n_pend = count_outputs(th[T_OUT], t1, h, opts.dt_out)
         if out.n[0] + n_pend > out.t.shape[0]:
@@ -990,12 +974,11 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         p_ext, p_dis = step_power(state, dof, x, v1, p_tr, work)
         th[WORK] = th[WORK] + h * p_ext
         th[DISS] = th[DISS] + h * p_dis - (bristle1 - bristle0)  # the bristles' stored part is not lost
-        if n_pend > 0:  # energy at this step (exact, not interpolated) and the samples in (t, t1] (only then
-            # called: an inlined part's arguments are new references, a reference count per array)
+        if n_pend > 0:  # energy at this step (exact, not interpolated) and the samples in (t, t1]
             kin, pot = balance_energy(state, belt, lin, q1, v1, c1, qbq, bristle1, work)
             record_outputs(state, arms, dec, wraps, dof.shape[0], opts, out, t, h, q1, v1, a1, kin, pot,
                            work.react)
-        slack_events(E_acc, dS, EA, elem_span, n_span, springs, n_springs, q_ext, t1, ev, min_elem, min_span)
+        slack_events(E, dS, EA, elem_span, n_span, springs, n_springs, q_ext, t1, ev, min_elem, min_span)
         accept(state, with_arms, dof, x, p_tr, work)
         if with_arms:  # the dry friction's return mappings
             slide_anchors(arms, q)
@@ -1004,8 +987,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
         if with_wraps:
             slide_wraps(wraps, q)
         bristle0 = stored_friction(arms, dec, q, wv[12]) if with_stored else 0.0  # after the return mapping
-        if with_wraps:  # the wraps' limits from the accepted tensions (E_acc: q1's)
-            th[DISS] += wrap_limits(wraps, belt, E_acc, q_ext, c1, travel_speed(rotation, scale, t1))
+        if with_wraps:  # the wraps' limits from the accepted tensions (E: q1's)
+            th[DISS] += wrap_limits(wraps, belt, E, q_ext, c1, travel_speed(rotation, scale, t1))
             bristle0 += wrap_friction(wraps, q, wv[12], False, 0.0)
         th[T_NOW] = t1
         th[STEPS] += 1.0
