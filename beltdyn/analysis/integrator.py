@@ -2,14 +2,14 @@
 
 Equations of motion on the independent coordinates q (n,):
     M a + C v + f(q, v) = F(t),
-f = f_belt(q) + f_damp(q, v) + K_lin (q - q_ref)  (belt elastic force of paper Eqs. 14/17 through
-the joints and of the spring spans (`spring_kernel`, `BeltData.springs`), Kelvin-Voigt belt damping, the linear components' constant stiffness measured from the
-reference state q_ref, usually the static equilibrium), F(t) = F_const + loads(t) - M u_nom s''(t)
-with F_const = preload + weight - K_lin q_ref (the constant part; it balances f at the static
-equilibrium, so no force of the size of a bearing preload ever enters a tolerance), C the constant
-damping (Rayleigh + components; M, C and K_lin as `Split`: a band and the entries off it). Any number
-of DOFs may be prescribed (constraint objects: the rotation law `rotation_state` per DOF); their
-residual rows are dropped and their reactions recorded.
+f = f_belt(q) + f_damp(q, v) + K_lin (q - q_ref)  (belt elastic force of paper Eqs. 14/17 through the joints and
+of the spring spans (`spring_kernel`, `BeltData.springs`), Kelvin-Voigt belt damping, the linear components'
+constant stiffness measured from the reference state q_ref, usually the static equilibrium), F(t) = F_const +
+loads(t) - M u_nom s''(t) with F_const = preload + weight - K_lin q_ref (the constant part; it balances f at the
+static equilibrium, so no force of the size of a bearing preload ever enters a tolerance), C the constant
+damping (Rayleigh + components; M, C and K_lin as `Split`: a band and the entries off it). Any number of DOFs
+may be prescribed (constraint objects: the rotation law `rotation_state` per DOF); their residual rows are
+dropped and their reactions recorded.
 
 Generalized-alpha with spectral radius rho_inf:
     alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1), gamma = 1/2 - alpha_m + alpha_f,
@@ -119,8 +119,6 @@ MAX_STEPS = 4  # step budget of this call used up (keeps Ctrl-C responsive)
 
 EPS = float(np.finfo(np.float64).eps)  # a constant to the compiled code (np.finfo there is numba's array module)
 
-
-
 # scal slots
 T_NOW, H, T_OUT, WORK, DISS, STEPS, E0, WORST, MOVED, KIN0, POT0, ITERS, TR_P0, STALE, REF_SUM, REF_N = range(16)
 N_SCAL = 16  # TR_P0: the transport power at the last accepted step; STALE, REF_SUM, REF_N: the factor's age
@@ -225,10 +223,10 @@ def rotation_state(rot, t):
 
     rot = [speed Omega, ramp T_r, angle amplitude A, speed amplitude B, frequency f, phase phi, fade T_f,
            static angle offset, engine order k, start speed Omega_0] (the offset is added to the prescribed DOF
-           by the caller). Nominal: speed ramps linearly from Omega_0 to Omega over T_r. Fluctuation: w(t) * A sin(psi) for an angle
-    amplitude, or the angle whose speed is w(t) * B sin(psi) (zero at t=0 for the unfaded part), w(t)
-    the smoothstep fade-in over T_f. The phase psi = 2 pi f t + phi, or with an engine order k > 0
-    psi = k theta_nominal(t) + phi (it follows the ramp). With an order, a speed amplitude is the
+           by the caller). Nominal: speed ramps linearly from Omega_0 to Omega over T_r. Fluctuation:
+    w(t) * A sin(psi) for an angle amplitude, or the angle whose speed is w(t) * B sin(psi) (zero at t=0 for
+    the unfaded part), w(t) the smoothstep fade-in over T_f. The phase psi = 2 pi f t + phi, or with an engine
+    order k > 0 psi = k theta_nominal(t) + phi (it follows the ramp). With an order, a speed amplitude is the
     angle (B / (k Omega)) (cos phi - cos psi): speed amplitude B at the mean speed, in proportion below.
     """
     om, tr, A, B, f, phi, tf, k, om0 = rot[0], rot[1], rot[2], rot[3], rot[4], rot[5], rot[6], rot[8], rot[9]
@@ -256,18 +254,17 @@ def rotation_state(rot, t):
 
 
 @njit(**KERNEL)
-def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross):
-    """Reduced belt elastic (f_el) and damping (f_dmp) forces (n + 1,) at (q, v); with_gross: also
-    gross (n + 1,), the sum of |T^T f_e| over elements (the round-off scale): the elements' where the
-    belt has elements, the spring spans' where it has some. (belt's arrays are read once, and only
-    those of the parts it has: a field read costs a reference count per array and call.)"""
+def belt_forces(e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, springs, n_springs,
+                q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross):
+    """Reduced belt elastic (f_el) and damping (f_dmp) forces (n + 1,) at q_ext, v_ext; with_gross: also gross
+    (n + 1,), the sum of |T^T f_e| (the round-off scale). The elements' (tables e0 ... curvature of `BeltData`, E,
+    Ed, fe, fd their scratch) where there are elements, the spring spans' where there are some. The belt's arrays
+    one by one, read once by the caller: a struct's would count at the call and at each read (`PART`)."""
     f_el[:] = 0.0
     if with_gross:
         gross[:] = 0.0
     f_dmp[:] = 0.0
-    if belt.tsel.shape[0] > 0:  # the elements (an all-spring belt has none)
-        e0, T, idx, tsel, Kb, curvature = belt.e0, belt.T, belt.idx, belt.tsel, belt.Kb, belt.curvature
-        dS, d2S, wEA, wEI = belt.dS, belt.d2S, belt.wEA, belt.wEI
+    if tsel.shape[0] > 0:  # the elements (an all-spring belt has none)
         bk.gather(q_ext, e0, T, idx, tsel, E)
         bk.element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe)
         bk.scatter_vector(fe, T, idx, tsel, f_el)
@@ -283,12 +280,12 @@ def belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gros
                         for i in range(8):
                             s += T[e, i, j] * fe[e, i]
                         gross[idx[e, j]] += abs(s)
-        if belt.eta_a != 0.0 or belt.eta_b != 0.0:
+        if eta_a != 0.0 or eta_b != 0.0:
             bk.gather_velocity(v_ext, T, idx, tsel, Ed)
-            bk.element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, belt.eta_a, belt.eta_b, fd)
+            bk.element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd)
             bk.scatter_vector(fd, T, idx, tsel, f_dmp)
-    if belt.n_springs > 0:
-        sk.spring_forces(belt.springs, q_ext, v_ext, f_el, f_dmp, gross, with_gross)
+    if n_springs > 0:
+        sk.spring_forces(springs, q_ext, v_ext, f_el, f_dmp, gross, with_gross)
 
 
 @njit(**KERNEL)
@@ -496,7 +493,9 @@ def start_forces(state, model, work):
     for i in range(n):
         q_ext[i] = q[i]
         v_ext[i] = v[i]
-    belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, False)
+    belt_forces(belt.e0, belt.T, belt.idx, belt.tsel, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature,
+                belt.eta_a, belt.eta_b, belt.springs, belt.n_springs, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross,
+                False)
     for k in range(arms.dof.shape[0]):
         arms.anchor[k] = q[arms.dof[k]]
     arm_friction(arms, q, f_dmp)
@@ -562,9 +561,8 @@ project_inline = njit(**PART)(project.py_func)  # `project` inlined where a part
 
 @njit(**KERNEL)
 def project_new(arms, constant, q1, work, terms):
-    """The arms' part: the new terms (work rows M a, C v, fi, F1, fl and the constant force) projected
-    on q by J(q1)^T into `terms` (called only with arms: without, the terms are the rows). Called, with
-    `project` inlined: no reference counts (`PART`)."""
+    """The arms' part: the new terms (work rows M a, C v, fi, F1, fl and the constant force) projected on q by
+    J(q1)^T into `terms` (only with arms). Called, `project` inlined: no reference counts (`PART`)."""
     wv = work.vec
     project_inline(arms, q1, wv[5], terms.Ma)
     project_inline(arms, q1, wv[7], terms.Cv)
@@ -878,7 +876,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     q, v, a = state.q, state.v, state.a  # on the joint coordinates p (n); q[:nq] independent
     th = state.scal
     lin, arms, cons = model.linear, model.arms, model.constraints
-    belt, F, tr, dec, wraps, chk = model.belt, model.forcing, model.transport, model.decouplers, model.wraps, model.check
+    belt, F, tr, chk = model.belt, model.forcing, model.transport, model.check
+    dec, wraps = model.decouplers, model.wraps
     dof, constant = cons.dof, F.constant
     with_arms, with_clutches, with_wraps = arms.dof.shape[0] > 0, dec.hub.shape[0] > 0, wraps.wrap.shape[0] > 0
     with_stored = with_arms or with_clutches
@@ -887,7 +886,9 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     n = q.shape[0]
     dS, EA, elem_span, n_span = belt.dS, belt.EA, belt.elem_span, belt.n_span
     springs, n_springs = belt.springs, belt.n_springs
-    E, q_ext, min_elem, min_span = work.elem[0], work.ext[0], work.elem1[1], work.span  # E, q_ext: the last evaluation's
+    e0, T, idx, tsel, d2S, wEA, wEI, Kb = belt.e0, belt.T, belt.idx, belt.tsel, belt.d2S, belt.wEA, belt.wEI, belt.Kb
+    curvature, eta_a, eta_b = belt.curvature, belt.eta_a, belt.eta_b
+    E, q_ext, min_elem, min_span = work.elem[0], work.ext[0], work.elem1[1], work.span  # E, q_ext: last evaluation
     wv = work.vec
     F1, q1, v1, a1 = wv[0], wv[1], wv[2], wv[3]
     x = terms_of(state, model, work)
@@ -929,7 +930,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
                 q_ext[i] = q1[i]
                 v_ext[i] = v1[i]
                 dq[i] = q1[i] - q_ref[i]
-            belt_forces(belt, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, it == 0)
+            belt_forces(e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, springs, n_springs,
+                        q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, it == 0)
             bristle1 = ((arm_friction(arms, q1, f_dmp) if with_arms else 0.0)
                         + (clutch_torques(dec, q1, v1, inv_h, f_dmp) if with_clutches else 0.0))
             if with_wraps:
