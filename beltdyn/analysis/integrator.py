@@ -308,9 +308,8 @@ def external_forces(F, t, out, sig_val):
 
 @njit(**KERNEL)
 def transport_speed(follow, speed, rotation, scale, t):
-    """(c, c') the belt speed (m/s) and its rate at time t: the nominal speed of the prescribed rotation (rotation:
-    its law's parameters, `rotation_state`) times scale where the speed follows it (follow), else the constant
-    speed. (Scalars and one array: each array a part takes is a reference count per call, `PART`.)"""
+    """(c, c') the belt speed (m/s) and its rate at time t: the prescribed rotation's nominal speed (rotation: its
+    law's parameters, `rotation_state`) times scale where it follows it (follow), else the constant speed."""
     if follow:
         st = rotation_state(rotation, t)
         return st[1] * scale, st[2] * scale
@@ -787,8 +786,7 @@ def accept(state, projected, dof, x, p_tr, work):
 @njit(**PART)
 def stored_friction(arms, dec, q, scratch):
     """The arms' bristles' and the clutches' stored energy at q (the arms' torques go to scratch, (n,) zeros).
-    A part the drive does not have is not called (each call passes its arrays: reference counts); the
-    caller calls this only for a drive with arms or clutches."""
+    Called only for a drive with arms or clutches, and only the parts it has (reference counts, `PART`)."""
     return ((arm_friction(arms, q, scratch) if arms.dof.shape[0] > 0 else 0.0)
             + (clutch_stored(dec, q) if dec.hub.shape[0] > 0 else 0.0))
 
@@ -865,8 +863,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     at the belt speed c1 and rate cd1 of the step's end, fi = f_el + K d + f_dmp + f_tr and fl the round-off
     scale (gross at the first evaluation only: a floor, not a force); then the arms' projection
     (`project_new`), the residual (`scaled_residual`) and the correction (`correct`). It is this loop's body,
-    not a part: the model's arrays and the scratch rows are read once per call, before the loop, since each
-    array a part takes is a reference count per call (`PART`: 288 -> 143 a step on the paper bench).
+    not a part, the model's arrays and scratch rows read once before the loop: each array a part takes is a
+    reference count per call (`PART`; `bench/refcounts.py` counts them).
 
     Returns a code (DONE, BUFFER_FULL, REFACTOR, HALVE, MAX_STEPS). out receives the states at the
     output times (Hermite interpolation within the step), the energy terms of the step that contains
@@ -893,7 +891,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     F1, q1, v1, a1 = wv[0], wv[1], wv[2], wv[3]
     x = terms_of(state, model, work)
     q_ref, K, C, M, mag = lin.q_ref, lin.K, lin.C, lin.M, tr.mag
-    moving = tr.follow != 0 or tr.speed != 0.0
+    moving = follow != 0 or speed != 0.0
     am, af, max_iter = opts.am, opts.af, chk.max_iter
     held, group_rows, worst_g = work.held, work.group, work.worst
     v_ext, f_el, f_dmp, gross = work.ext[1], work.ext[2], work.ext[3], work.ext[4]
