@@ -69,7 +69,7 @@ def user_cache_dir() -> Path:
 # Every module that defines a kernel (`@njit(**KERNEL)`), relative to the package (a test holds the list
 # to the package's sources): their text keys the cache folder (`source_key`).
 KERNEL_SOURCES = ("model/barlaw.py", "model/belt_kernel.py", "model/spring_kernel.py", "analysis/integrator.py",
-                  "analysis/friction_kernel.py", "analysis/band_solve.py")
+                  "analysis/forcing_laws.py", "analysis/friction_kernel.py", "analysis/band_solve.py")
 
 
 def source_key(package: Path = PACKAGE) -> str:

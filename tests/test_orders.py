@@ -161,7 +161,7 @@ def test_slow_run_up_approaches_the_steady_response():
     # (15 M, belt_axial 2e-5 s): a 3 s run-up of the crank to 240 rad/s (80 rad/s^2) with an order-2 speed
     # fluctuation, tracked in windows of 2 revolutions, against `response` at order 2 (crank speed
     # excitation 0.6 rad/s, interpolated on 46 speeds). The transient's order fluctuation has the speed
-    # amplitude 0.6 at the mean speed 240 and in proportion below (integrator.rotation_state: an angle
+    # amplitude 0.6 at the mean speed 240 and in proportion below (forcing_laws.rotation_state: an angle
     # amplitude B / (k Omega)), so the response is scaled by Omega / 240. Above 160 rad/s (the order-2
     # resonance near 120 rad/s passed and its ringing decayed) every channel (the arm angle, the 14 span-end
     # tensions) within 1 % (measured: 0.7 % at 160 rad/s, 0.2 % from 180 on); near the resonance the run-up

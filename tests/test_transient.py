@@ -366,10 +366,10 @@ def test_torque_table_content_is_part_of_the_configuration(tmp_path):
 
 @pytest.mark.parametrize("n_points", [1, 2, 7])
 def test_table_value_is_numpys_interp(n_points):
-    # The stepper's table interpolation (integrator.table_value, compiled) against np.interp, exactly
+    # The stepper's table interpolation (forcing_laws.table_value, compiled) against np.interp, exactly
     # (tolerance 0: the same formula): before, at, between and after the sample times of a table
     # stored after another one in the shared arrays (the offsets a:b).
-    from beltdyn.analysis.integrator import table_value
+    from beltdyn.analysis.forcing_laws import table_value
 
     rng = np.random.default_rng(n_points)
     xp = np.cumsum(rng.uniform(0.1, 1.0, n_points))

@@ -8,8 +8,8 @@ constant stiffness measured from the reference state q_ref, usually the static e
 loads(t) - M u_nom s''(t) with F_const = preload + weight - K_lin q_ref (the constant part; it balances f at the
 static equilibrium, so no force of the size of a bearing preload ever enters a tolerance), C the constant
 damping (Rayleigh + components; M, C and K_lin as `Split`: a band and the entries off it). Any number of DOFs
-may be prescribed (constraint objects: the rotation law `rotation_state` per DOF); their residual rows are
-dropped and their reactions recorded.
+may be prescribed (constraint objects: the rotation law `forcing_laws.rotation_state` per DOF); their residual
+rows are dropped and their reactions recorded.
 
 Generalized-alpha with spectral radius rho_inf:
     alpha_m = (2 rho - 1)/(rho + 1), alpha_f = rho/(rho + 1), gamma = 1/2 - alpha_m + alpha_f,
@@ -85,7 +85,8 @@ from numba import njit  # noqa: E402
 from beltdyn.model import belt_kernel as bk
 from beltdyn.model import spring_kernel as sk
 
-# the dry-friction parts the loop calls
+# the forcing laws (prescribed rotations, signals, tables) and the dry-friction parts the loop calls
+from beltdyn.analysis.forcing_laws import rotation_state, signal_values  # noqa: E402
 from beltdyn.analysis.friction_kernel import (  # noqa: E402,F401
     accept_clutches, arm_friction, bristle, clutch_stored, clutch_torques, end_stretch, regime_changed,
     regime_correction, slid_anchor, slide_anchors, slide_wraps, stepped_wrap_torque, wrap_friction, wrap_limits)
@@ -139,33 +140,6 @@ def csr_matvec(A, x, out):
 
 
 @njit(**KERNEL)
-def table_value(xp, fp, a, b, x):
-    """np.interp(x, xp[a:b], fp[a:b]) for one x, xp increasing (as numpy computes it: the end values
-    outside, fp at a sample time, else the slope times the distance from the sample below; np.interp
-    itself would make the cached stepper load numba's array modules, see `Work`)."""
-    if b - a == 1 or x < xp[a]:
-        return fp[a]
-    if x >= xp[b - 1]:
-        return fp[b - 1]
-    lo, hi = a, b - 1  # xp[lo] <= x < xp[hi]
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if xp[mid] <= x:
-            lo = mid
-        else:
-            hi = mid
-    if xp[lo] == x:
-        return fp[lo]
-    slope = (fp[lo + 1] - fp[lo]) / (xp[lo + 1] - xp[lo])
-    val = slope * (x - xp[lo]) + fp[lo]
-    if val != val:  # NaN one way: the other (numpy's rule)
-        val = slope * (x - xp[lo + 1]) + fp[lo + 1]
-        if val != val and fp[lo] == fp[lo + 1]:
-            val = fp[lo]
-    return val
-
-
-@njit(**KERNEL)
 def split_matvec(S, x, out):
     """out = A x for A a `Split`: per row the left entries, the band, the right entries, in ascending
     column order (the floating-point result of `csr_matvec` on A's CSR)."""
@@ -191,101 +165,31 @@ def split_matvec(S, x, out):
 
 
 @njit(**KERNEL)
-def signal_values(F, t, out):
-    """out[i] = ramp_i(t) * (c + A sin(2 pi f t + phi)) or table interpolation; params (n, 5) = c, A, f, phi, T_ramp."""
-    params = F.sig_params
-    for i in range(params.shape[0]):
-        a, b = F.tab_ptr[i], F.tab_ptr[i + 1]
-        if b > a:
-            val = table_value(F.tab_t, F.tab_v, a, b, t)
-        else:
-            val = params[i, 0] + params[i, 1] * np.sin(2.0 * np.pi * params[i, 2] * t + params[i, 3])
-        tr = params[i, 4]
-        if tr > 0.0 and t < tr:
-            val *= t / tr
-        out[i] = val
-
-
-@njit(**KERNEL)
-def smoothstep(t, tr):
-    """C1 fade-in 3x^2 - 2x^3 over [0, tr] and its first two derivatives."""
-    if tr <= 0.0 or t >= tr:
-        return 1.0, 0.0, 0.0
-    if t <= 0.0:
-        return 0.0, 0.0, 0.0
-    x = t / tr
-    return x * x * (3.0 - 2.0 * x), 6.0 * x * (1.0 - x) / tr, (6.0 - 12.0 * x) / (tr * tr)
-
-
-@njit(**KERNEL)
-def rotation_state(rot, t):
-    """Prescribed rotation: (nominal angle, speed, acceleration), (fluctuation angle, speed, acceleration).
-
-    rot = [speed Omega, ramp T_r, angle amplitude A, speed amplitude B, frequency f, phase phi, fade T_f,
-           static angle offset, engine order k, start speed Omega_0] (the offset is added to the prescribed DOF
-           by the caller). Nominal: speed ramps linearly from Omega_0 to Omega over T_r. Fluctuation:
-    w(t) * A sin(psi) for an angle amplitude, or the angle whose speed is w(t) * B sin(psi) (zero at t=0 for
-    the unfaded part), w(t) the smoothstep fade-in over T_f. The phase psi = 2 pi f t + phi, or with an engine
-    order k > 0 psi = k theta_nominal(t) + phi (it follows the ramp). With an order, a speed amplitude is the
-    angle (B / (k Omega)) (cos phi - cos psi): speed amplitude B at the mean speed, in proportion below.
-    """
-    om, tr, A, B, f, phi, tf, k, om0 = rot[0], rot[1], rot[2], rot[3], rot[4], rot[5], rot[6], rot[8], rot[9]
-    if tr > 0.0 and t < tr:
-        th, thd, thdd = om0 * t + 0.5 * (om - om0) * t * t / tr, om0 + (om - om0) * t / tr, (om - om0) / tr
-    else:
-        th, thd, thdd = om * (t - 0.5 * tr) + 0.5 * om0 * tr, om, 0.0
-    if k > 0.0:
-        psi, psid, psidd = k * th + phi, k * thd, k * thdd
-    else:
-        psi, psid, psidd = 2.0 * np.pi * f * t + phi, 2.0 * np.pi * f, 0.0
-    if A != 0.0:
-        g = A * np.sin(psi)
-        gd = A * psid * np.cos(psi)
-        gdd = A * (psidd * np.cos(psi) - psid * psid * np.sin(psi))
-    elif B != 0.0 and (k > 0.0 or f > 0.0):
-        c = B / (k * om) if k > 0.0 else B / psid
-        g = c * (np.cos(phi) - np.cos(psi))
-        gd = c * psid * np.sin(psi)
-        gdd = c * (psidd * np.sin(psi) + psid * psid * np.cos(psi))
-    else:
-        g, gd, gdd = 0.0, 0.0, 0.0
-    s, sd, sdd = smoothstep(t, tf)
-    return th, thd, thdd, s * g, sd * g + s * gd, sdd * g + 2.0 * sd * gd + s * gdd
-
-
-@njit(**KERNEL)
-def belt_forces(e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, springs, n_springs,
-                q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, with_gross):
-    """Reduced belt elastic (f_el) and damping (f_dmp) forces (n + 1,) at q_ext, v_ext; with_gross: also gross
-    (n + 1,), the sum of |T^T f_e| (the round-off scale). The elements' (tables e0 ... curvature of `BeltData`, E,
-    Ed, fe, fd their scratch) where there are elements, the spring spans' where there are some. The belt's arrays
-    one by one, read once by the caller: a struct's would count at the call and at each read (`PART`)."""
-    f_el[:] = 0.0
-    if with_gross:
-        gross[:] = 0.0
-    f_dmp[:] = 0.0
-    if tsel.shape[0] > 0:  # the elements (an all-spring belt has none)
-        bk.gather(q_ext, e0, T, idx, tsel, E)
-        bk.element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe)
-        bk.scatter_vector(fe, T, idx, tsel, f_el)
-        if with_gross:  # gross scale: |T^T f_e| per element entry
-            n_elem, _, m = T.shape
-            for e in range(n_elem):
-                if tsel[e] < 0:
+def add_element_forces(e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, q_ext, v_ext, E, Ed, fe,
+                        fd, f_el, f_dmp, gross, with_gross):
+    """Add the belt elements' reduced elastic (f_el) and damping (f_dmp) forces (n + 1,) at q_ext, v_ext; with_gross:
+    also to gross (n + 1,) the sum of |T^T f_e| (the round-off scale). The elements' tables e0 ... curvature of
+    `BeltData`, E, Ed, fe, fd their scratch. The belt's arrays one by one, read once by the caller: a struct's
+    would count at the call and at each read (`PART`)."""
+    bk.gather(q_ext, e0, T, idx, tsel, E)
+    bk.element_forces(E, dS, d2S, wEA, wEI, Kb, curvature, fe)
+    bk.scatter_vector(fe, T, idx, tsel, f_el)
+    if with_gross:  # gross scale: |T^T f_e| per element entry
+        n_elem, _, m = T.shape
+        for e in range(n_elem):
+            if tsel[e] < 0:
+                for i in range(8):
+                    gross[idx[e, i]] += abs(fe[e, i])
+            else:
+                for j in range(m):
+                    s = 0.0
                     for i in range(8):
-                        gross[idx[e, i]] += abs(fe[e, i])
-                else:
-                    for j in range(m):
-                        s = 0.0
-                        for i in range(8):
-                            s += T[e, i, j] * fe[e, i]
-                        gross[idx[e, j]] += abs(s)
-        if eta_a != 0.0 or eta_b != 0.0:
-            bk.gather_velocity(v_ext, T, idx, tsel, Ed)
-            bk.element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd)
-            bk.scatter_vector(fd, T, idx, tsel, f_dmp)
-    if n_springs > 0:
-        sk.spring_forces(springs, q_ext, v_ext, f_el, f_dmp, gross, with_gross)
+                        s += T[e, i, j] * fe[e, i]
+                    gross[idx[e, j]] += abs(s)
+    if eta_a != 0.0 or eta_b != 0.0:
+        bk.gather_velocity(v_ext, T, idx, tsel, Ed)
+        bk.element_damping(E, Ed, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, fd)
+        bk.scatter_vector(fd, T, idx, tsel, f_dmp)
 
 
 @njit(**KERNEL)
@@ -492,9 +396,14 @@ def start_forces(state, model, work):
     for i in range(n):
         q_ext[i] = q[i]
         v_ext[i] = v[i]
-    belt_forces(belt.e0, belt.T, belt.idx, belt.tsel, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb, belt.curvature,
-                belt.eta_a, belt.eta_b, belt.springs, belt.n_springs, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross,
-                False)
+    f_el[:] = 0.0
+    f_dmp[:] = 0.0
+    if belt.tsel.shape[0] > 0:
+        add_element_forces(belt.e0, belt.T, belt.idx, belt.tsel, belt.dS, belt.d2S, belt.wEA, belt.wEI, belt.Kb,
+                            belt.curvature, belt.eta_a, belt.eta_b, q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross,
+                            False)
+    if belt.n_springs > 0:
+        sk.spring_forces(belt.springs, q_ext, v_ext, f_el, f_dmp, gross, False)
     for k in range(arms.dof.shape[0]):
         arms.anchor[k] = q[arms.dof[k]]
     arm_friction(arms, q, f_dmp)
@@ -559,16 +468,17 @@ project_inline = njit(**PART)(project.py_func)  # `project` inlined where a part
 
 
 @njit(**KERNEL)
-def project_new(arms, constant, q1, work, terms):
-    """The arms' part: the new terms (work rows M a, C v, fi, F1, fl and the constant force) projected on q by
-    J(q1)^T into `terms` (only with arms). Called, `project` inlined: no reference counts (`PART`)."""
-    wv = work.vec
-    project_inline(arms, q1, wv[5], terms.Ma)
-    project_inline(arms, q1, wv[7], terms.Cv)
-    project_inline(arms, q1, wv[10], terms.fi)
-    project_inline(arms, q1, wv[0], terms.F1)
-    project_inline(arms, q1, constant, terms.Fc)
-    project_inline(arms, q1, wv[11], terms.fl, True)
+def project_new(arms, constant, q1, wv, wp):
+    """The arms' part: the new terms (work.vec rows M a, C v, fi, F1, fl and the constant force) projected on q by
+    J(q1)^T into their rows of work.proj (`projected_terms`). Called, `project` inlined, the scratch as its two
+    tables: no reference counts (`PART`)."""
+    x = projected_terms(wp)
+    project_inline(arms, q1, wv[5], x.Ma)
+    project_inline(arms, q1, wv[7], x.Cv)
+    project_inline(arms, q1, wv[10], x.fi)
+    project_inline(arms, q1, wv[0], x.F1)
+    project_inline(arms, q1, constant, x.Fc)
+    project_inline(arms, q1, wv[11], x.fl, True)
 
 
 @njit(**PART)
@@ -576,38 +486,38 @@ def scaled_residual(chk, held, am, af, x, R, rows, worst_g):
     """The generalized-alpha residual R (n_q,) of the terms x (`Terms`), zero on the prescribed rows
     (held), and its size against the allowed one per DOF group (module docstring):
     (max_g res_g / (tol s_g + 1e3 eps floor_g + noise), worst DOF, finite). rows (3, n_groups): the scratch of
-    res_g, scale_g, floor_g (`Work.group`); worst_g (n_groups,) the worst DOF of each (`Work.worst`)."""
-    res_g, scale_g, floor_g = rows[0], rows[1], rows[2]
+    res_g, scale_g, floor_g by row (`Work.group`, indexed: a row view would be a reference count); worst_g
+    (n_groups,) the worst DOF of each (`Work.worst`)."""
     group, tol, noise = chk.group, chk.tol, chk.noise
     Ma, Ma0, Cv, Cv0, fi, f0, F1, F0, Fc, fl = x.Ma, x.Ma0, x.Cv, x.Cv0, x.fi, x.f0, x.F1, x.F0, x.Fc, x.fl
     G = chk.n_groups
     for g in range(G):
-        res_g[g] = 0.0
-        scale_g[g] = 0.0
-        floor_g[g] = 0.0
+        rows[0, g] = 0.0
+        rows[1, g] = 0.0
+        rows[2, g] = 0.0
     worst = 0
     for i in range(R.shape[0]):  # residual, scales and floors (every row), checked (the free rows)
         Ri = ((1.0 - am) * Ma[i] + am * Ma0[i]
               + (1.0 - af) * (Cv[i] + fi[i] - F1[i]) + af * (Cv0[i] + f0[i] - F0[i]))
         g = group[i]
         sc = abs(Ma[i]) + abs(Cv[i]) + abs(fi[i] - Fc[i]) + abs(F1[i] - Fc[i])
-        if sc > scale_g[g]:
-            scale_g[g] = sc
-        if fl[i] > floor_g[g]:
-            floor_g[g] = fl[i]
+        if sc > rows[1, g]:
+            rows[1, g] = sc
+        if fl[i] > rows[2, g]:
+            rows[2, g] = fl[i]
         if held[i]:  # a prescribed row: no residual
             Ri = 0.0
         R[i] = Ri
         r = abs(Ri)
         if not np.isfinite(r):
             return np.inf, i, False
-        if r > res_g[g]:
-            res_g[g] = r
+        if r > rows[0, g]:
+            rows[0, g] = r
             worst_g[g] = i
     res = 0.0
     for g in range(G):
-        allowed = tol * scale_g[g] + 1e3 * EPS * floor_g[g] + noise
-        x_g = res_g[g] / allowed if allowed > 0.0 else (0.0 if res_g[g] == 0.0 else np.inf)
+        allowed = tol * rows[1, g] + 1e3 * EPS * rows[2, g] + noise
+        x_g = rows[0, g] / allowed if allowed > 0.0 else (0.0 if rows[0, g] == 0.0 else np.inf)
         if x_g > res:
             res = x_g
             worst = worst_g[g]
@@ -727,21 +637,25 @@ def record_outputs(state, arms, dec, wr, n_con, opts, out, t, h, q1, v1, a1, kin
 
 
 @njit(**PART)
-def slack_events(E, dS, EA, elem_span, n_span, springs, n_springs, q_ext, t1, ev, min_elem, min_span):
-    """Observer: slack events, the smallest 2nd Piola-Kirchhoff force per span (elements: E the accepted
-    state's element coordinates, the last ones evaluated unless an energy evaluation gathered them again at q1;
-    spring spans: q_ext). dS, EA, elem_span: the belt's (`BeltData`); min_elem (n_elem,), min_span (n_span,) the
-    scratch. (The arrays it reads, not the belt: each is a reference count per step, `PART`.)"""
+def span_min_forces(E, dS, EA, elem_span, n_span, min_elem, min_span):
+    """min_span (n_span,): the smallest 2nd Piola-Kirchhoff force of each span's elements (inf: none; E the
+    accepted state's element coordinates, the last ones evaluated unless an energy evaluation gathered them again
+    at q1). dS, EA, elem_span: the belt's (`BeltData`); min_elem (n_elem,) the scratch. (`sk.spring_min_force`
+    adds the spring spans'.)"""
     bk.element_min_axial_force(E, dS, EA, min_elem)
-    slack, data, count = ev.slack, ev.data, ev.n
     for sp in range(n_span):
         min_span[sp] = np.inf
     for e in range(elem_span.shape[0]):
         sp = elem_span[e]
         if min_elem[e] < min_span[sp]:
             min_span[sp] = min_elem[e]
-    if n_springs > 0:
-        sk.spring_min_force(springs, q_ext, min_span)
+
+
+@njit(**PART)
+def slack_events(min_span, n_span, t1, ev):
+    """Observer: a slack event (t1, span, slack or taut, force) where a span's smallest 2nd Piola-Kirchhoff force
+    min_span (n_span,) changes sign."""
+    slack, data, count = ev.slack, ev.data, ev.n
     for sp in range(n_span):
         now = 1.0 if min_span[sp] < 0.0 else 0.0
         if now != slack[sp] and count[0] < data.shape[0]:
@@ -754,10 +668,10 @@ def slack_events(E, dS, EA, elem_span, n_span, springs, n_springs, q_ext, t1, ev
 
 
 @njit(**PART)
-def accept(state, projected, dof, x, p_tr, work):
-    """The new state becomes the old one: q, v, a, the forces, the projected terms (projected: the arms'
-    terms on q, rows of their own), the reactions, the transport power. (The dry friction's return
-    mappings are parts of their own, `run_steps` calls those the drive has.)"""
+def accept(state, dof, p_tr, work):
+    """The new state becomes the old one: q, v, a, the forces, the reactions, the transport power. (The arms'
+    projected terms, `keep_projected`, and the dry friction's return mappings are parts of their own, `run_steps`
+    calls those the drive has.)"""
     q, v, a, f0, fd0, F0, R0, th = state.q, state.v, state.a, state.f0, state.fd0, state.F0, state.R0, state.scal
     wv = work.vec
     q1, v1, a1, Ma, Ma0, Cv, Cv0, fi, F1 = wv[1], wv[2], wv[3], wv[5], wv[6], wv[7], wv[8], wv[10], wv[0]
@@ -771,24 +685,21 @@ def accept(state, projected, dof, x, p_tr, work):
         F0[i] = F1[i]
         Ma0[i] = Ma[i]
         Cv0[i] = Cv[i]
-    if projected:
-        x_Ma, x_Ma0, x_Cv, x_Cv0, x_fi, x_f0, x_F1, x_F0 = x.Ma, x.Ma0, x.Cv, x.Cv0, x.fi, x.f0, x.F1, x.F0
-        for i in range(x_Ma.shape[0]):
-            x_Ma0[i] = x_Ma[i]
-            x_Cv0[i] = x_Cv[i]
-            x_f0[i] = x_fi[i]
-            x_F0[i] = x_F1[i]
     for k in range(dof.shape[0]):
         R0[k] = react[k]
     th[TR_P0] = p_tr
 
 
-@njit(**PART)
-def stored_friction(arms, dec, q, scratch):
-    """The arms' bristles' and the clutches' stored energy at q (the arms' torques go to scratch, (n,) zeros).
-    Called only for a drive with arms or clutches, and only the parts it has (reference counts, `PART`)."""
-    return ((arm_friction(arms, q, scratch) if arms.dof.shape[0] > 0 else 0.0)
-            + (clutch_stored(dec, q) if dec.hub.shape[0] > 0 else 0.0))
+@njit(**KERNEL)
+def keep_projected(wp):
+    """The arms' projected new terms (rows of work.proj, `projected_terms`) become the old ones. Called, taking
+    the table: no reference counts (`PART`)."""
+    x = projected_terms(wp)
+    for i in range(x.Ma.shape[0]):
+        x.Ma0[i] = x.Ma[i]
+        x.Cv0[i] = x.Cv[i]
+        x.f0[i] = x.fi[i]
+        x.F0[i] = x.F1[i]
 
 
 @njit(**PART)
@@ -806,13 +717,19 @@ def factor_aged(th, it, refresh):
 
 
 @njit(**PART)
+def projected_terms(wp):
+    """The residual's `Terms` with arms: views of the projection rows (work.proj)."""
+    return Terms(Ma=wp[3], Ma0=wp[9], Cv=wp[4], Cv0=wp[10], fi=wp[5], f0=wp[11], F1=wp[6], F0=wp[12], Fc=wp[7],
+                 fl=wp[8])
+
+
+@njit(**PART)
 def terms_of(state, model, work):
     """The residual's `Terms` on q: views of the work rows and the state (no arms: q = p, J = I, the
     terms themselves, no copies) or of the projection rows (arms)."""
-    wv, wp = work.vec, work.proj
+    wv = work.vec
     if model.arms.dof.shape[0] > 0:
-        return Terms(Ma=wp[3], Ma0=wp[9], Cv=wp[4], Cv0=wp[10], fi=wp[5], f0=wp[11], F1=wp[6], F0=wp[12],
-                     Fc=wp[7], fl=wp[8])
+        return projected_terms(work.proj)
     return Terms(Ma=wv[5], Ma0=wv[6], Cv=wv[7], Cv0=wv[8], fi=wv[10], f0=state.f0, F1=wv[0], F0=state.F0,
                  Fc=model.forcing.constant, fl=wv[11])
 
@@ -841,8 +758,10 @@ def begin_steps(state, model, fresh, x, work):
         wraps.updated[k] = 0.0
     wv[12, :] = 0.0
     bristle0 = 0.0
-    if arms.dof.shape[0] > 0 or dec.hub.shape[0] > 0:
-        bristle0 = stored_friction(arms, dec, q, wv[12])
+    if arms.dof.shape[0] > 0:
+        bristle0 += arm_friction(arms, q, wv[12])
+    if dec.hub.shape[0] > 0:
+        bristle0 += clutch_stored(dec, q)
     if wraps.wrap.shape[0] > 0:
         bristle0 += wrap_friction(wraps, q, wv[12], False, 0.0)
     return bristle0
@@ -853,13 +772,15 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     """Advance the state until t_stop, a full buffer, a refactorization request or the step budget: a
     loop over the stepper's parts (as PyElastica's do_step calls the system's hooks): predictor,
     constraints (`hold_prescribed`), arms (`complete`), forcing (`external_forces`), Newton, the step's
-    power (`step_power`), observers (`balance_energy`, `record_outputs`, `slack_events`), `accept`, the dry
-    friction's return mappings (`slide_anchors`, `accept_clutches`, `slide_wraps`) and the factor's age
-    (`factor_aged`). A part of a feature the drive lacks (arms, clutches, wraps, spring spans, loads) is not called.
+    power (`step_power`), observers (`balance_energy`, `record_outputs`, `span_min_forces`, `slack_events`),
+    `accept`, the dry friction's return mappings (`slide_anchors`, `accept_clutches`, `slide_wraps`) and the
+    factor's age (`factor_aged`). A part of a feature the drive lacks (belt elements, spring spans, arms, clutches,
+    wraps, loads) is not called.
 
     Newton, from the predictor: at most max_iter corrections, the residual after the last one checked. Each
-    evaluation: the forces at the new state (q1, v1, a1) into the scratch rows (`Work`): f_el, f_dmp (belt,
-    arm friction, the clutches over the step, the wraps), K (q1 - q_ref), C v1, M a1, the transport terms f_tr
+    evaluation: the forces at the new state (q1, v1, a1) into the scratch rows (`Work`): f_el, f_dmp (the belt's
+    elements, `add_element_forces`, and spring spans, `spring_forces`; arm friction, the clutches over the step,
+    the wraps), K (q1 - q_ref), C v1, M a1, the transport terms f_tr
     at the belt speed c1 and rate cd1 of the step's end, fi = f_el + K d + f_dmp + f_tr and fl the round-off
     scale (gross at the first evaluation only: a floor, not a force); then the arms' projection
     (`project_new`), the residual (`scaled_residual`) and the correction (`correct`). It is this loop's body,
@@ -878,7 +799,6 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     dec, wraps = model.decouplers, model.wraps
     dof, constant = cons.dof, F.constant
     with_arms, with_clutches, with_wraps = arms.dof.shape[0] > 0, dec.hub.shape[0] > 0, wraps.wrap.shape[0] > 0
-    with_stored = with_arms or with_clutches
     forced = F.nominal_scale != 0.0 or F.sig_params.shape[0] > 0  # F(t) changes in time, else it is F.constant
     follow, speed, rotation, scale, sig = tr.follow, tr.speed, F.nominal_rotation, F.nominal_scale, work.sig
     n = q.shape[0]
@@ -886,6 +806,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     springs, n_springs = belt.springs, belt.n_springs
     e0, T, idx, tsel, d2S, wEA, wEI, Kb = belt.e0, belt.T, belt.idx, belt.tsel, belt.d2S, belt.wEA, belt.wEI, belt.Kb
     curvature, eta_a, eta_b = belt.curvature, belt.eta_a, belt.eta_b
+    with_elements = tsel.shape[0] > 0
     E, q_ext, min_elem, min_span = work.elem[0], work.ext[0], work.elem1[1], work.span  # E, q_ext: last evaluation
     wv = work.vec
     F1, q1, v1, a1 = wv[0], wv[1], wv[2], wv[3]
@@ -897,7 +818,8 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
     v_ext, f_el, f_dmp, gross = work.ext[1], work.ext[2], work.ext[3], work.ext[4]
     Ed, fe, fd = work.elem[1], work.elem[2], work.elem[3]
     dq, Ma, Cv, Kd, fi, fl, f_tr, tr_Bq, tr_Aq = wv[4], wv[5], wv[7], wv[9], wv[10], wv[11], wv[14], wv[15], wv[16]
-    R, dx, work_q = work.proj[0], work.proj[1], work.proj[2]
+    wp = work.proj
+    R, dx, work_q = wp[0], wp[1], wp[2]
     bristle0 = begin_steps(state, model, fresh, x, work)
     steps = 0
     while True:
@@ -928,8 +850,17 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
                 q_ext[i] = q1[i]
                 v_ext[i] = v1[i]
                 dq[i] = q1[i] - q_ref[i]
-            belt_forces(e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, springs, n_springs,
-                        q_ext, v_ext, E, Ed, fe, fd, f_el, f_dmp, gross, it == 0)
+            for i in range(n + 1):
+                f_el[i] = 0.0
+                f_dmp[i] = 0.0
+            if it == 0:
+                for i in range(n + 1):
+                    gross[i] = 0.0
+            if with_elements:
+                add_element_forces(e0, T, idx, tsel, dS, d2S, wEA, wEI, Kb, curvature, eta_a, eta_b, q_ext, v_ext, E,
+                                    Ed, fe, fd, f_el, f_dmp, gross, it == 0)
+            if n_springs > 0:
+                sk.spring_forces(springs, q_ext, v_ext, f_el, f_dmp, gross, it == 0)
             bristle1 = ((arm_friction(arms, q1, f_dmp) if with_arms else 0.0)
                         + (clutch_torques(dec, q1, v1, inv_h, f_dmp) if with_clutches else 0.0))
             if with_wraps:
@@ -948,7 +879,7 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
                 fi[i] = f_el[i] + Kd[i] + f_dmp[i] + f_tr[i]
                 fl[i] = gross[i] + abs(Kd[i]) + abs(constant[i]) + abs(f_tr[i])
             if with_arms:
-                project_new(arms, constant, q1, work, x)
+                project_new(arms, constant, q1, wv, wp)
             res, worst, finite = scaled_residual(chk, held, am, af, x, R, group_rows, worst_g)
             converged = finite and res <= 1.0
             if converged or not finite or it >= max_iter:
@@ -978,15 +909,23 @@ def run_steps(state, model, opts, fac, fresh, out, ev, info, work):
             kin, pot = balance_energy(state, belt, lin, q1, v1, c1, qbq, bristle1, work)
             record_outputs(state, arms, dec, wraps, dof.shape[0], opts, out, t, h, q1, v1, a1, kin, pot,
                            work.react)
-        slack_events(E, dS, EA, elem_span, n_span, springs, n_springs, q_ext, t1, ev, min_elem, min_span)
-        accept(state, with_arms, dof, x, p_tr, work)
-        if with_arms:  # the dry friction's return mappings
+        span_min_forces(E, dS, EA, elem_span, n_span, min_elem, min_span)
+        if n_springs > 0:
+            sk.spring_min_force(springs, q_ext, min_span)
+        slack_events(min_span, n_span, t1, ev)
+        accept(state, dof, p_tr, work)
+        if with_arms:  # the projected terms, the dry friction's return mappings
+            keep_projected(wp)
             slide_anchors(arms, q)
         if with_clutches:
             accept_clutches(dec)
         if with_wraps:
             slide_wraps(wraps, q)
-        bristle0 = stored_friction(arms, dec, q, wv[12]) if with_stored else 0.0  # after the return mapping
+        bristle0 = 0.0  # the stored energy after the return mappings: the arms' bristles, the clutches', the wraps'
+        if with_arms:
+            bristle0 += arm_friction(arms, q, wv[12])
+        if with_clutches:
+            bristle0 += clutch_stored(dec, q)
         if with_wraps:  # the wraps' limits from the accepted tensions (E: q1's)
             th[DISS] += wrap_limits(wraps, belt, E, q_ext, c1, travel_speed(rotation, scale, t1))
             bristle0 += wrap_friction(wraps, q, wv[12], False, 0.0)

@@ -19,7 +19,7 @@ Small motions x(t) = Re(X e^{i omega t}) about q0 obey M x'' + C x' + K x = f(t)
 with the prescribed rotations held: the driver's (and any pulley with a "speed" excitation) move by
 Theta; the free DOFs solve D_ff X_f = F_f - D_fp Theta. A speed fluctuation B sin(omega t + phase) is
 the angle Theta = -(B / omega) e^{i phase} (the transient's engine-order fluctuation at constant speed,
-`integrator.rotation_state`); a torque tau cos(omega t + phase) is F = tau e^{i phase} on the pulley's
+`forcing_laws.rotation_state`); a torque tau cos(omega t + phase) is F = tau e^{i phase} on the pulley's
 rotation. The excitations of one order act together (their phases add).
 
 Outputs Y = h'(q0) X are the transient's own output functions linearized by central differences in the

@@ -27,7 +27,8 @@ Linear = namedtuple("Linear", ["K", "q_ref", "C", "M"])  # constant stiffness, i
 Forcing = namedtuple("Forcing", ["constant", "load_dof", "load_coef", "load_sig", "sig_params", "tab_ptr", "tab_t",
                                  "tab_v", "nominal_mass", "nominal_rotation", "nominal_scale",
                                  "nominal_damping"])  # nominal_damping (n,): C u_nom, the damping of the nominal travel
-Constraints = namedtuple("Constraints", ["dof", "params"])  # dof (k,), params (k, 10): rotation law (rotation_state)
+# dof (k,), params (k, 10): the rotation law (forcing_laws.rotation_state)
+Constraints = namedtuple("Constraints", ["dof", "params"])
 Check = namedtuple("Check", ["group", "n_groups", "tol", "max_iter", "noise"])
 # refresh: the cost of a new factor in Newton iterations (0: refactorize only when convergence slows)
 StepOptions = namedtuple("StepOptions", ["am", "af", "beta", "gamma", "t_stop", "dt_out", "max_steps", "refresh"])

@@ -282,7 +282,7 @@ def prepare(system: System, static: StaticResult, opts: TransientOptions) -> Tra
 
 def nominal_rotation(setup: TransientSetup, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The nominal angle (rad), speed and acceleration of the prescribed rotation at the times t (B,),
-    times the belt-travel scale `nom_scale` (m, m/s, m/s^2 of belt): `integrator.rotation_state`'s
+    times the belt-travel scale `nom_scale` (m, m/s, m/s^2 of belt): `forcing_laws.rotation_state`'s
     nominal part vectorized, a linear ramp of the speed from Omega_0 to Omega over T_r."""
     om, ramp_time = float(setup.forcing.nominal_rotation[0]), float(setup.forcing.nominal_rotation[1])
     om0 = float(setup.forcing.nominal_rotation[9])
