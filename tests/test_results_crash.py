@@ -22,6 +22,7 @@ import h5py
 import numpy as np
 import pytest
 
+from beltdyn.results import read as rread
 from beltdyn.results import write as rwrite
 from beltdyn.errors import OutputError
 from beltdyn.results.io import (
@@ -294,6 +295,31 @@ def test_readers_see_the_old_or_the_new_group_never_a_mix(tmp_path, monkeypatch)
     assert float(read_group(path, "modal")["variables"]["shape"][0, 0]) == 30.0
     assert len(seen) >= 2  # the reads did overlap the writes
     assert_nothing_unexplained(path)
+
+
+def test_a_read_of_a_file_replaced_meanwhile_is_retried_then_given_up_with_a_message(tmp_path, monkeypatch):
+    # `read._retry`: a read that finds the root replaced (a writer's commit) is read again, after growing
+    # pauses, until it sees one file whole; a file replaced for longer than PATIENCE gives the one-line
+    # OutputError instead of a wrong read or an endless loop.
+    monkeypatch.setattr(rread, "PATIENCE", 0.3)
+    path = tmp_path / "r.h5"
+    calls = []
+
+    def replaced_three_times():
+        calls.append(time.monotonic())
+        if len(calls) <= 3:
+            raise rread._Replaced
+        return "whole"
+
+    assert rread._retry(replaced_three_times, path) == "whole" and len(calls) == 4
+
+    def always_replaced():
+        raise rread._Replaced
+
+    t0 = time.monotonic()
+    with pytest.raises(OutputError, match="kept being replaced while it was read"):
+        rread._retry(always_replaced, path)
+    assert 0.3 <= time.monotonic() - t0 < 0.3 + 2 * rread._PAUSE[-1] + 0.5
 
 
 # ------------------------------------------------------------------------------ kill -9 in a commit

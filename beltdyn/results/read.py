@@ -1,11 +1,14 @@
 """Reading results files. Readers take no lock and are never blocked: writers never modify a file a
 reader may have open (the root is replaced by a rename, parts are never rewritten). A reader that
-finds a part or journal gone (a writer replaced the root meanwhile) reads the new root again.
+finds a part or journal gone (a writer replaced the root meanwhile) reads the new root again, at once
+and then after pauses that grow (`_retry`): a writer that replaces the file faster than it is read (a
+loop of commits on a busy machine) is given time to finish, within `PATIENCE` seconds.
 """
 
 from __future__ import annotations
 
 import os
+import time
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +22,8 @@ from beltdyn.results.journal import read_journal
 from beltdyn.results.schema import TIME_DIM, decode_attr, h5py_module
 from beltdyn.results.write import source_file
 
-_ATTEMPTS = 5
+PATIENCE = 10.0  # s: how long a reader keeps reading a file that keeps being replaced (`_retry`)
+_PAUSE = (0.0, 0.001, 0.004, 0.016, 0.064, 0.25)  # s, before the attempts; then _PAUSE[-1] until PATIENCE
 
 
 class _Replaced(Exception):
@@ -97,11 +101,19 @@ def _journal_of(path: Path, attrs: dict, replaced):
 
 
 def _retry(read, path: Path):
-    for _ in range(_ATTEMPTS):
+    """read(), again while it finds the root replaced (`_Replaced`): at once, then after the pauses of `_PAUSE`,
+    for up to PATIENCE seconds (a pause moves the next attempt off the writer's rhythm)."""
+    deadline = time.monotonic() + PATIENCE
+    attempt = 0
+    while True:
         try:
             return read()
         except _Replaced:
-            continue
+            pass
+        if time.monotonic() >= deadline:
+            break
+        time.sleep(_PAUSE[min(attempt, len(_PAUSE) - 1)])
+        attempt += 1
     raise OutputError(f"{path}: the file kept being replaced while it was read (another command writes it); "
                       "read it again when that command has finished")
 
