@@ -316,6 +316,91 @@ HANDOVER_SECONDS = 0.2  # wall time between hand-overs of samples to the sink (a
 REFRESH = True  # a new factor once the old one's extra Newton iterations cost more (`integrator.run_steps`)
 
 
+def _buffers(batch: int, n: int, n_con: int, dec, wraps, n_span: int):
+    """The stepper's output buffer (`integrator.Outputs`, batch samples of n DOFs, n_con reactions, the
+    decouplers' and wraps' columns) and its slack-event buffer (`integrator.Events`, n_span spans)."""
+    from beltdyn.analysis import integrator as itg
+
+    out = itg.Outputs(t=np.zeros(batch), q=np.zeros((batch, n)), v=np.zeros((batch, n)), a=np.zeros((batch, n)),
+                      energy=np.zeros((batch, 5)), reaction=np.zeros((batch, n_con)), n=np.zeros(1, dtype=np.int64),
+                      clutch=np.zeros((batch, len(dec.hub))),
+                      wrap=np.zeros((batch, 4, max(len(wraps.wrap), 1))))
+    ev = itg.Events(data=np.zeros((2000 * max(n_span, 1) + 8, 4)), n=np.zeros(1, dtype=np.int64),
+                    slack=np.zeros(max(n_span, 1)))
+    return out, ev
+
+
+def _resumed_state(resume: TransientSnapshot, arms, dec, wraps, ev):
+    """The stepper's `State` of a snapshot (copies), its arms' anchors, clutches, wraps and slack flags
+    written back into the stepper's parts (arms, dec, wraps, ev: `drive`'s)."""
+    from beltdyn.analysis import integrator as itg
+
+    state = itg.State(q=resume.q.copy(), v=resume.v.copy(), a=resume.a.copy(), f0=resume.f0.copy(),
+                      fd0=resume.fd0.copy(), F0=resume.F0.copy(), R0=resume.R0.copy(), scal=resume.scal.copy())
+    arms.anchor[:] = resume.anchor
+    if len(dec.hub):
+        dec.slip[0] = resume.clutch[0]
+        dec.torque[0] = resume.clutch[1]
+    if len(wraps.wrap):
+        for row, part in enumerate((wraps.anchor, wraps.limit, wraps.torque, wraps.preload, wraps.factored)):
+            part[:] = resume.wrap_state[row]
+        wraps.creep[:], wraps.ratio[:] = resume.wrap_state[6], resume.wrap_state[7]
+    ev.slack[:] = resume.slack
+    return state
+
+
+def _timed(opts, clock: dict, th: np.ndarray, steps_before: float, seconds: float):
+    """The step options after a stepper call of `seconds` that began at steps_before (th: the state's
+    scal): its step budget about HANDOVER_SECONDS of wall time, and the factor's cost in residual
+    evaluations (the refresh rule, `integrator.run_steps`) from the clock's totals, which it updates
+    (factor, factors: the factors' time and count; stepping, iterations: the calls' time and evaluations
+    but the first's, which may have loaded the kernels from numba's cache; counted, calls)."""
+    from beltdyn.analysis import integrator as itg
+
+    if th[itg.STEPS] > steps_before:
+        per_step = seconds / (th[itg.STEPS] - steps_before)
+        opts = opts._replace(max_steps=int(min(2000, max(10, HANDOVER_SECONDS / max(per_step, 1e-9)))))
+    evaluations = th[itg.ITERS] + th[itg.STEPS]  # residual evaluations: one more than corrections per step
+    if clock["calls"]:
+        clock["stepping"] += seconds
+        clock["iterations"] += evaluations - clock["counted"]
+    clock["counted"], clock["calls"] = evaluations, clock["calls"] + 1
+    if REFRESH and clock["iterations"] > 0 and clock["stepping"] > 0.0:
+        opts = opts._replace(refresh=(clock["factor"] / clock["factors"]) / (clock["stepping"] / clock["iterations"]))
+    return opts
+
+
+def _no_convergence(problem: StepProblem, info: np.ndarray, h: float, min_step: float) -> SolverError:
+    """The SolverError of a step that found no convergence at the smallest step h (info: `run_steps`'s
+    time, scaled residual, worst DOF and iterations)."""
+    dof = problem.labels[int(info[2])] if int(info[2]) < len(problem.q0) else "?"
+    return SolverError(f"no convergence at t = {info[0]:.6g} s even with the step reduced to {h:.3g} s "
+                       f"(transient.min_step = {min_step:g} s)", analysis="transient", step=f"t = {info[0]:.6g} s",
+                       residual=float(info[1]), item=dof)
+
+
+def _snapshot(state, arms, dec, wraps, slack: np.ndarray, events: list, at_factor: dict, run: _Run, *, fresh: bool,
+              calm: int, min_step: float, refresh: float) -> TransientSnapshot:
+    """The `TransientSnapshot` of `drive`'s stepper at an accepted step: the state, the stepper's parts (arms,
+    dec, wraps: their anchors, clutches and wraps), the slack flags and the events so far, the state the
+    factor was computed at, the run's counts and the step control (fresh factor, calm calls, smallest step,
+    the refresh rule's factor cost)."""
+    from beltdyn.analysis import integrator as itg
+
+    th = state.scal
+    return TransientSnapshot(
+        q=_frozen(state.q), v=_frozen(state.v), a=_frozen(state.a), f0=_frozen(state.f0), fd0=_frozen(state.fd0),
+        F0=_frozen(state.F0), R0=_frozen(state.R0), scal=_frozen(th), anchor=_frozen(arms.anchor),
+        clutch=_frozen(np.stack([dec.slip[0], dec.torque[0]])),
+        wrap_state=_frozen(np.array([wraps.anchor, wraps.limit, wraps.torque, wraps.preload, wraps.factored,
+                                     wraps.sliding, wraps.creep, wraps.ratio]).reshape(8, -1)),
+        slack=_frozen(slack), events=_frozen(np.concatenate(events) if events else np.zeros((0, 4))),
+        factor_q=_frozen(at_factor["q"]), factor_v=_frozen(at_factor["v"]), factor_h=float(at_factor["h"]),
+        factor_t=float(at_factor["t"]), fresh=bool(fresh), calm=int(calm), delivered=run.delivered,
+        steps=int(th[itg.STEPS]), refactorizations=run.refactors, halvings=run.halvings, min_step=float(min_step),
+        refresh=float(refresh))
+
+
 def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float, duration: float,
           output_interval: float, tolerance: float, max_iterations: int, on_batch: Callable,
           progress: Progress | None = None, batch: int = 256, n_span: int = 0,
@@ -342,14 +427,8 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     wraps = problem.wraps if problem.wraps is not None else itg.no_wraps()
     chk = itg.Check(group=problem.groups, n_groups=int(problem.groups.max(initial=0)) + 1, tol=float(tolerance),
                     max_iter=int(max_iterations), noise=residual_noise(problem.belt))
-    n_con = max(len(problem.constraints.dof), 1)
     batch = max(batch, int(math.ceil(step / output_interval)) + 2)  # a step's samples always fit
-    out = itg.Outputs(t=np.zeros(batch), q=np.zeros((batch, n)), v=np.zeros((batch, n)), a=np.zeros((batch, n)),
-                      energy=np.zeros((batch, 5)), reaction=np.zeros((batch, n_con)), n=np.zeros(1, dtype=np.int64),
-                      clutch=np.zeros((batch, len(dec.hub))),
-                      wrap=np.zeros((batch, 4, max(len(wraps.wrap), 1))))
-    ev = itg.Events(data=np.zeros((2000 * max(n_span, 1) + 8, 4)), n=np.zeros(1, dtype=np.int64),
-                    slack=np.zeros(max(n_span, 1)))
+    out, ev = _buffers(batch, n, max(len(problem.constraints.dof), 1), dec, wraps, n_span)
     all_events: list[np.ndarray] = []
     info = np.zeros(4)
     n_total_out = int(math.floor(duration / output_interval + 1e-9)) + 1
@@ -368,17 +447,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
     if resume is None:
         state = initial_state(problem, step, lambda st: advance(itg.START, st, itg.no_factor(), False))
     else:
-        state = itg.State(q=resume.q.copy(), v=resume.v.copy(), a=resume.a.copy(), f0=resume.f0.copy(),
-                          fd0=resume.fd0.copy(), F0=resume.F0.copy(), R0=resume.R0.copy(), scal=resume.scal.copy())
-        arms.anchor[:] = resume.anchor
-        if len(dec.hub):
-            dec.slip[0] = resume.clutch[0]
-            dec.torque[0] = resume.clutch[1]
-        if len(wraps.wrap):
-            for row, part in enumerate((wraps.anchor, wraps.limit, wraps.torque, wraps.preload, wraps.factored)):
-                part[:] = resume.wrap_state[row]
-            wraps.creep[:], wraps.ratio[:] = resume.wrap_state[6], resume.wrap_state[7]
-        ev.slack[:] = resume.slack
+        state = _resumed_state(resume, arms, dec, wraps, ev)
         if len(resume.events):
             all_events.append(np.array(resume.events))
         opts = opts._replace(refresh=float(resume.refresh))
@@ -432,18 +501,8 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
 
     def snapshot() -> TransientSnapshot:
         collect_events()
-        return TransientSnapshot(
-            q=_frozen(state.q), v=_frozen(state.v), a=_frozen(state.a), f0=_frozen(state.f0), fd0=_frozen(state.fd0),
-            F0=_frozen(state.F0), R0=_frozen(state.R0), scal=_frozen(th), anchor=_frozen(arms.anchor),
-            clutch=_frozen(np.stack([dec.slip[0], dec.torque[0]])),
-            wrap_state=_frozen(np.array([wraps.anchor, wraps.limit, wraps.torque, wraps.preload, wraps.factored,
-                                         wraps.sliding, wraps.creep, wraps.ratio]).reshape(8, -1)),
-            slack=_frozen(ev.slack),
-            events=_frozen(np.concatenate(all_events) if all_events else np.zeros((0, 4))),
-            factor_q=_frozen(at_factor["q"]), factor_v=_frozen(at_factor["v"]), factor_h=float(at_factor["h"]),
-            factor_t=float(at_factor["t"]), fresh=bool(fresh), calm=int(calm), delivered=run.delivered,
-            steps=int(th[itg.STEPS]), refactorizations=run.refactors, halvings=run.halvings, min_step=float(min_h),
-            refresh=float(opts.refresh))
+        return _snapshot(state, arms, dec, wraps, ev.slack, all_events, at_factor, run, fresh=fresh, calm=calm,
+                         min_step=min_h, refresh=opts.refresh)
 
     last_drain = last_checkpoint = time.perf_counter()
     try:
@@ -457,17 +516,7 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
             started, steps_before = time.perf_counter(), th[itg.STEPS]
             code = advance(itg.STEP, state, fac, fresh)
             now = time.perf_counter()
-            if th[itg.STEPS] > steps_before:  # the step budget of a call: about HANDOVER_SECONDS of wall time
-                per_step = (now - started) / (th[itg.STEPS] - steps_before)
-                opts = opts._replace(max_steps=int(min(2000, max(10, HANDOVER_SECONDS / max(per_step, 1e-9)))))
-            evaluations = th[itg.ITERS] + th[itg.STEPS]  # residual evaluations: one more than corrections per step
-            if clock["calls"]:  # (not the first call: it may have loaded the kernels from numba's cache)
-                clock["stepping"] += now - started
-                clock["iterations"] += evaluations - clock["counted"]
-            clock["counted"], clock["calls"] = evaluations, clock["calls"] + 1
-            if REFRESH and clock["iterations"] > 0 and clock["stepping"] > 0.0:  # a factor's cost in evaluations
-                opts = opts._replace(refresh=(clock["factor"] / clock["factors"])
-                                     / (clock["stepping"] / clock["iterations"]))
+            opts = _timed(opts, clock, th, steps_before, now - started)
             if now - last_drain >= HANDOVER_SECONDS:  # the samples so far reach the sink (the results file)
                 drain()
                 last_drain = now
@@ -495,12 +544,8 @@ def drive(problem: StepProblem, *, rho_inf: float, step: float, min_step: float,
                 continue
             # HALVE
             if th[itg.H] / 2.0 < min_step:
-                dof = problem.labels[int(info[2])] if int(info[2]) < n else "?"
                 drain()
-                raise SolverError(
-                    f"no convergence at t = {info[0]:.6g} s even with the step reduced to {th[itg.H]:.3g} s "
-                    f"(transient.min_step = {min_step:g} s)", analysis="transient", step=f"t = {info[0]:.6g} s",
-                    residual=float(info[1]), item=dof)
+                raise _no_convergence(problem, info, float(th[itg.H]), min_step)
             th[itg.H] /= 2.0
             min_h = min(min_h, th[itg.H])
             run.halvings += 1
