@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
 
-.PHONY: test test-slow test-all paper bench bench-compare trade clean
+.PHONY: test test-slow test-all paper bench bench-compare bench-interleave trade clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -54,6 +54,10 @@ bench: $(STAMP)
 # the same benchmarks of another commit and of this tree, side by side: make bench-compare BASE=<rev>
 bench-compare: $(STAMP)
 	$(BIN)/python bench/compare.py $(BASE)
+
+# the speed clause's in-process rows of another commit and of this tree, taking turns: make bench-interleave BASE=<rev>
+bench-interleave: $(STAMP)
+	$(BIN)/python bench/interleave.py $(BASE) $(ROUNDS)
 
 clean:
 	rm -rf results/*.h5 results/*.h5.parts results/paper/*.h5 results/paper/*.h5.parts .pytest_cache

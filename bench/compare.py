@@ -21,13 +21,19 @@ _UNIT = {"us": 1e-6, "ms": 1e-3, "s": 1.0, "MB": 1.0, "kB": 1e-3}
 _VALUE = re.compile(r"([0-9.]+(?:e[-+]?\d+)?)\s*(us|ms|s|MB|kB)\b")
 
 
-def run_bench(tree: Path) -> str:
-    """The table `bench/run.py` of `tree` prints, run with `tree` first on the import path."""
+def warm_up(tree: Path) -> None:
+    """Compile and cache the kernels of `tree` (numba's cache in its package folder), before anything is timed."""
     env = dict(os.environ, PYTHONPATH=str(tree))
     subprocess.run([sys.executable, "-c", "from beltdyn.pipeline import warm_up; warm_up()"], cwd=tree, env=env,
                    check=False, capture_output=True)
     subprocess.run([sys.executable, "-c", "from beltdyn.transient import warm_up; warm_up()"], cwd=tree, env=env,
                    check=False, capture_output=True)  # (the layout before the sub-packages)
+
+
+def run_bench(tree: Path) -> str:
+    """The table `bench/run.py` of `tree` prints, run with `tree` first on the import path."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    warm_up(tree)
     done = subprocess.run([sys.executable, str(tree / "bench" / "run.py")], cwd=tree, env=env, text=True,
                           capture_output=True)
     if done.returncode:

@@ -1,0 +1,150 @@
+"""`make bench-interleave BASE=<rev>`: the speed clause's in-process rows, base and this tree taking turns.
+
+`make bench-compare` runs one tree's `bench/run.py` after the other's; on a shared machine whose wall time
+drifts by 10 % within minutes it cannot tell 10 % apart. Here each (tree, case) is a long-lived worker
+process (that tree first on its import path, warmed up once), and the workers take turns, round after
+round: drift reaches both trees alike. Each turn times `TRIES` runs of the case and reports the fastest;
+the table gives, per case, the minimum and the 10th percentile over the rounds and the ratio of the
+minima. The other commit is checked out into a temporary git worktree (its kernels compile once there).
+
+    python bench/interleave.py BASE_REV [ROUNDS]
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from compare import warm_up  # bench/compare.py (this script's folder is first on the import path)
+
+ROOT = Path(__file__).resolve().parents[1]
+TRIES = {"transient": 1, "static": 10}  # runs per turn: the fastest is the turn's time
+
+# (name, kind, configuration, its overrides, rigid wraps: "belt.wraps" (this key exists since issue 25))
+CASES = (
+    ("transient 1 s at dt = 1e-4 s, paper bench 10 el/span", "transient", "configs/examples/bench_transient_small.toml",
+     ("mesh.elements_per_span=10",), False),
+    ("transient 1 s at dt = 1e-4 s, all-spring FEAD, rigid wraps", "transient", "configs/examples/fead_4cyl.toml",
+     ("spring",), True),
+    ("transient 1 s at dt = 1e-4 s, FEAD example, rigid wraps", "transient", "configs/examples/fead_4cyl.toml", (),
+     True),
+    ("static + modal, paper 10 el/span", "static", "configs/paper/bench_T200.toml", ("mesh.elements_per_span=10",),
+     False),
+    ("static + modal, paper 40 el/span", "static", "configs/paper/bench_T200.toml", ("mesh.elements_per_span=40",),
+     False),
+    ("static + modal, paper 160 el/span", "static", "configs/paper/bench_T200.toml", ("mesh.elements_per_span=160",),
+     False),
+    ("static + modal, FEAD example, rigid wraps", "static", "configs/examples/fead_4cyl.toml", (), True),
+    ("static + modal, all-spring FEAD, rigid wraps", "static", "configs/examples/fead_4cyl.toml", ("spring",), True),
+)
+
+WARM_SECONDS = 3.0  # each worker runs its case this long before the first turn (measured: the first second slower)
+
+# the worker: python -c WORKER tree kind config rigid override...; a line per turn (the runs to time), answered by
+# the fastest run's seconds
+WORKER = r'''
+import sys, time
+WARM_SECONDS = %r
+tree, kind, config, rigid, over = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4] == "1", sys.argv[5:]
+sys.path.insert(0, tree)
+from pathlib import Path
+from beltdyn.config import load_config
+from beltdyn.pipeline import analyse
+layered = (Path(tree) / "beltdyn" / "model").is_dir()  # (the package before its sub-packages: the base)
+if layered:
+    from beltdyn.analysis.transient import run_transient
+else:
+    from beltdyn.transient import run_transient
+path = str(Path(tree) / config)
+if "spring" in over:  # every span a spring span
+    over = [o for o in over if o != "spring"] + [f'spans.{n}.model="spring"' for n in load_config(path).span_names]
+if rigid and layered:
+    over = over + ['belt.wraps="rigid"']
+if kind == "transient":
+    over = over + ["transient.duration=1.0", "transient.step=1e-4", "transient.output_interval=1e-3",
+                   "transient.spectrum.enabled=false"]
+cfg = load_config(path, over)
+if kind == "transient":
+    run = analyse(cfg, compiled=True)
+    case = lambda: run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)
+else:
+    case = lambda: analyse(cfg, modal=True)
+warm = time.perf_counter() + WARM_SECONDS  # caches, page faults, the clock: a few runs are slower at first
+while True:
+    case()
+    if time.perf_counter() > warm:
+        break
+print("ready", flush=True)
+for line in sys.stdin:
+    best = float("inf")
+    for _ in range(int(line)):
+        t0 = time.perf_counter()
+        case()
+        best = min(best, time.perf_counter() - t0)
+    print(f"{best:.9f}", flush=True)
+'''
+
+
+def start(tree: Path, case: tuple) -> subprocess.Popen:
+    """A warmed-up worker of `case` on `tree` (its first line "ready")."""
+    _, kind, config, over, rigid = case
+    proc = subprocess.Popen([sys.executable, "-c", WORKER % WARM_SECONDS, str(tree), kind, config, "1" if rigid else "0", *over],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=tree)
+    if proc.stdout.readline().strip() != "ready":
+        raise SystemExit(f"the worker of {case[0]!r} on {tree} failed")
+    return proc
+
+
+def turn(proc: subprocess.Popen, tries: int) -> float:
+    proc.stdin.write(f"{tries}\n")
+    proc.stdin.flush()
+    return float(proc.stdout.readline())
+
+
+def measure(trees: tuple[Path, Path], rounds: int) -> list[tuple[str, list[float], list[float]]]:
+    """Per case: (name, base times, this tree's times), one time per round, the two trees alternating."""
+    rows = []
+    for case in CASES:
+        workers = [start(tree, case) for tree in trees]
+        times: tuple[list[float], list[float]] = ([], [])
+        try:
+            for r in range(rounds):
+                order = (0, 1) if r % 2 == 0 else (1, 0)  # who goes first alternates too
+                for k in order:
+                    times[k].append(turn(workers[k], TRIES[case[1]]))
+        finally:
+            for w in workers:
+                w.stdin.close()
+                w.wait()
+        rows.append((case[0], *times))
+        print(f"  {case[0]}: done", file=sys.stderr, flush=True)
+    return rows
+
+
+def main() -> None:
+    if len(sys.argv) not in (2, 3):
+        raise SystemExit("usage: python bench/interleave.py BASE_REV [ROUNDS]")
+    base_rev, rounds = sys.argv[1], int(sys.argv[2]) if len(sys.argv) == 3 else 30
+    with tempfile.TemporaryDirectory() as tmp:
+        base = Path(tmp) / "base"
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(base), base_rev], check=True)
+        try:
+            for tree in (base, ROOT):
+                warm_up(tree)  # (the kernels compiled first: a compile just before a case slows its first rounds)
+            rows = measure((base, ROOT), rounds)
+        finally:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base)], check=False)
+    width = max(len(name) for name, _, _ in rows)
+    print(f"{'benchmark (interleaved, ' + str(rounds) + ' rounds)':<{width}}  {'base ' + base_rev[:10]:>22}  "
+          f"{'this tree':>22}  {'ratio':>6}")
+    for name, b, a in rows:
+        b, a = sorted(b), sorted(a)
+        p10 = max(len(b) // 10, 0)
+        cell = lambda t: f"{t[0] * 1e3:9.2f} ms (p10 {t[p10] * 1e3:.2f})"  # noqa: E731
+        print(f"{name:<{width}}  {cell(b):>22}  {cell(a):>22}  {a[0] / b[0]:6.2f}")
+
+
+if __name__ == "__main__":
+    main()
