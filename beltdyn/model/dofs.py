@@ -99,13 +99,16 @@ def number_dofs(cfg: DriveConfig, counts: tuple[int, ...] | None = None) -> DofM
         start = len(labels)
         s = j + 1
         n_e = counts[j]
-        if n_e:  # the first node's gradient, the interior nodes (r, r'), the last node's gradient (a list each:
-            # a span of many elements has thousands of coordinates)
-            span = [(node, c, unit) for node in range(1, n_e + 2)
-                    for c, unit in (comp[2:] if node in (1, n_e + 1) else comp)]
-            labels.extend([f"span {s} node {node} {c}" for node, c, _ in span])
-            units.extend([unit for _, _, unit in span])
-            group.extend([span_group] * len(span))
+        if n_e:  # the first node's gradient, the interior nodes (r, r'), the last node's gradient (a list each,
+            # from each node's prefix: a span of many elements has thousands of coordinates)
+            nodes = [f"span {s} node {node} " for node in range(1, n_e + 2)]
+            names = [c for c, _ in comp]
+            labels.extend([nodes[0] + c for c in names[2:]])
+            labels.extend([node + c for node in nodes[1:-1] for c in names])
+            labels.extend([nodes[-1] + c for c in names[2:]])
+            node_units = [unit for _, unit in comp]
+            units.extend(node_units[2:] + node_units * (n_e - 1) + node_units[2:])
+            group.extend([span_group] * (4 * n_e))
         span_slices.append(slice(start, len(labels)))
     n_q = len(labels)
     for j, (p, sup) in enumerate(zip(cfg.pulleys, supports)):  # dependent DOFs (arm offsets): after q
