@@ -90,8 +90,9 @@ for line in sys.stdin:
 def start(tree: Path, case: tuple) -> subprocess.Popen:
     """A warmed-up worker of `case` on `tree` (its first line "ready")."""
     _, kind, config, over, rigid = case
-    proc = subprocess.Popen([sys.executable, "-c", WORKER % WARM_SECONDS, str(tree), kind, config, "1" if rigid else "0", *over],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, cwd=tree)
+    args = [str(tree), kind, config, "1" if rigid else "0", *over]
+    proc = subprocess.Popen([sys.executable, "-c", WORKER % WARM_SECONDS, *args], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, text=True, cwd=tree)
     if proc.stdout.readline().strip() != "ready":
         raise SystemExit(f"the worker of {case[0]!r} on {tree} failed")
     return proc
@@ -141,7 +142,7 @@ def main() -> None:
           f"{'this tree':>22}  {'ratio':>6}")
     for name, b, a in rows:
         b, a = sorted(b), sorted(a)
-        p10 = max(len(b) // 10, 0)
+        p10 = len(b) // 10
         cell = lambda t: f"{t[0] * 1e3:9.2f} ms (p10 {t[p10] * 1e3:.2f})"  # noqa: E731
         print(f"{name:<{width}}  {cell(b):>22}  {cell(a):>22}  {a[0] / b[0]:6.2f}")
 

@@ -83,7 +83,7 @@ def number_dofs(cfg: DriveConfig, counts: tuple[int, ...] | None = None) -> DofM
         group.append(DOF_GROUPS.index(grp))
         return len(labels) - 1
 
-    comp = (("r1", "m"), ("r2", "m"), ("r1'", "1"), ("r2'", "1"))
+    names, node_units = ["r1", "r2", "r1'", "r2'"], ["m", "m", "1", "1"]  # a node's coordinates (r, r') and units
     span_group = DOF_GROUPS.index("span")
     arm_dof = np.full(len(cfg.pulleys), -1, dtype=int)
     rotor_dof = np.full(len(cfg.pulleys), -1, dtype=int)
@@ -102,11 +102,9 @@ def number_dofs(cfg: DriveConfig, counts: tuple[int, ...] | None = None) -> DofM
         if n_e:  # the first node's gradient, the interior nodes (r, r'), the last node's gradient (a list each,
             # from each node's prefix: a span of many elements has thousands of coordinates)
             nodes = [f"span {s} node {node} " for node in range(1, n_e + 2)]
-            names = [c for c, _ in comp]
             labels.extend([nodes[0] + c for c in names[2:]])
             labels.extend([node + c for node in nodes[1:-1] for c in names])
             labels.extend([nodes[-1] + c for c in names[2:]])
-            node_units = [unit for _, unit in comp]
             units.extend(node_units[2:] + node_units * (n_e - 1) + node_units[2:])
             group.extend([span_group] * (4 * n_e))
         span_slices.append(slice(start, len(labels)))
