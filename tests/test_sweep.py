@@ -658,3 +658,31 @@ def test_modal_rtol_decides_on_its_output_before_the_refinement(tmp_path):
     assert r.returncode == 2 and "holds /transient" in r.stderr and "--force" in r.stderr, r.stderr
     assert "Mesh refinement" not in r.stdout and "Traceback" not in r.stderr
     assert (tmp_path / "t.h5").read_bytes() == before
+
+
+def test_a_chunk_fits_each_geometry_once_and_its_cases_equal_single_runs(monkeypatch):
+    # `run_chunk` keeps the L0 fits of its cases by their inputs (`geometry.fit_inputs`): the cases of one
+    # geometry share one fit, a case of another geometry (the belt's length swept) fits anew, and every
+    # case's results equal the case run alone (`run_case`, its own fit), to the bit.
+    import beltdyn.pipeline
+    from beltdyn.config import resolved_toml
+    from beltdyn.model import geometry
+    from beltdyn.study.cases import run_chunk
+    from beltdyn.study.sweep import run_case
+
+    cfg = load_config(BENCH)
+    base = resolved_toml(cfg)
+    items = [(0, ["tension.target=150.0"]), (1, ["belt.length=1.80"]), (2, ["tension.target=300.0"]),
+             (3, ["belt.length=1.80", "tension.target=250.0"])]
+    alone = [run_case(base, cfg.source, a, "modal", 6) for _, a in items]
+    fits = []
+    real = geometry.layout_from_config
+    monkeypatch.setattr(beltdyn.pipeline, "layout_from_config", lambda c: fits.append(c.belt.length) or real(c))
+    chunk = run_chunk(base, cfg.source, {}, items, "modal", 6)
+    assert fits == [cfg.belt.length, 1.80]  # two geometries: two fits for four cases
+    for (i, got), want in zip(chunk, alone):
+        assert got["failed"] == 0 == want["failed"], got["error"]
+        assert got.keys() == want.keys()
+        for k in got:
+            if k != "wall_time":
+                np.testing.assert_array_equal(got[k], want[k], err_msg=f"case {i}: {k}")

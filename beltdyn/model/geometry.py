@@ -570,6 +570,13 @@ def relay(layout: Layout, center: np.ndarray, *, adjust_offset: float | None = N
                           adjust_offset=layout.adjust_offset if adjust_offset is None else float(adjust_offset))
 
 
+def fit_inputs(cfg: DriveConfig) -> tuple:
+    """What `layout_from_config` reads of a configuration, as a key (hashable, compared by value): the
+    pulleys and the belt's length. Configurations with equal keys have the same L0 fit (`study.cases`
+    fits a chunk's cases of one geometry once)."""
+    return cfg.pulleys, float(cfg.belt.length)
+
+
 def layout_from_config(cfg: DriveConfig) -> Layout:
     """The geometry of a drive: L0 fit when a pulley is adjustable, else the given centres."""
     pulleys = cfg.pulleys

@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from beltdyn.model.geometry import fit_inputs
+
 
 def load_case_modules(analysis: str) -> None:
     """Import what the cases of `analysis` and this process's assembly run, in the sweep's process before
@@ -39,9 +41,11 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
 
 
 def case_of(raw: dict, source: str, assignments: list[str], analysis: str, n_modes: int,
-            tables: dict[str, bytes] | None = None) -> dict:
+            tables: dict[str, bytes] | None = None, fits: dict | None = None) -> dict:
     """`run_case` of the base configuration parsed (`raw`, the TOML's dict; the case's overrides are
-    applied to it: pass a copy)."""
+    applied to it: pass a copy). fits: the L0 fits of earlier cases of the chunk by their inputs
+    (`geometry.fit_inputs` -> `Layout`; a case whose inputs are there takes that fit, one that fits
+    anew adds its own); None: fit each case."""
     from beltdyn.config import apply_override, config_from_dict
     from beltdyn.errors import BeltdynError
 
@@ -59,7 +63,11 @@ def case_of(raw: dict, source: str, assignments: list[str], analysis: str, n_mod
             cfg = replace(cfg, transient=resolve_step(cfg.transient)[0])
         from beltdyn.pipeline import analyse
 
-        run = analyse(cfg, modal=analysis == "modal", n_modes=n_modes + 4)
+        key = None if fits is None else fit_inputs(cfg)
+        run = analyse(cfg, modal=analysis == "modal", n_modes=n_modes + 4,
+                      layout=None if fits is None else fits.get(key))
+        if fits is not None:
+            fits.setdefault(key, run.fit_layout)
         model, st = run.system, run.static
         out["mean_tension"] = st.mean_tension
         out["span_tension"] = st.span_tension
@@ -131,6 +139,9 @@ def _transient_case(run) -> dict:
 def run_chunk(base_toml: str, source: str, tables: dict[str, bytes], items: list[tuple[int, list[str]]],
               analysis: str, n_modes: int) -> list[tuple[int, dict]]:
     """`run_case` of each (case index, overrides) of `items`, the base TOML parsed once for the chunk
-    (each case applies its overrides to a copy: 0.05 ms against the 0.33 ms of a parse of the paper bench)."""
+    (each case applies its overrides to a copy: 0.05 ms against the 0.33 ms of a parse of the paper bench),
+    and the L0 fit once for the cases of one geometry (`case_of`'s fits: a sweep of loads, tensions or
+    speeds fits once a chunk; TODO measured)."""
     raw = tomllib.loads(base_toml)
-    return [(i, case_of(copy.deepcopy(raw), source, a, analysis, n_modes, tables)) for i, a in items]
+    fits: dict = {}
+    return [(i, case_of(copy.deepcopy(raw), source, a, analysis, n_modes, tables, fits)) for i, a in items]
