@@ -7,6 +7,13 @@ round: drift reaches both trees alike. Each turn times `TRIES` runs of the case 
 the table gives, per case, the minimum and the 10th percentile over the rounds and the ratio of the
 minima. The other commit is checked out into a temporary git worktree (its kernels compile once there).
 
+The static rows run the base twice: as it is, and with its module-level memos emptied before each run
+("base, cold": what a process that analyses the configuration once pays). The redesign (issue 24) removed
+those memos (`_DOFMAPS` of the DOF maps, `_PATTERNS` of the sparse patterns, `_no_elements`' cache, the
+configuration's cached properties), which served a loop re-analysing one configuration, as these rows do,
+from the first run's work; this tree has none to empty. A tree without them is unaffected (the names are
+looked up, not required).
+
     python bench/interleave.py BASE_REV [ROUNDS]
 """
 
@@ -45,9 +52,10 @@ WARM_SECONDS = 3.0  # each worker runs its case this long before the first turn 
 # the worker: python -c WORKER tree kind config rigid override...; a line per turn (the runs to time), answered by
 # the fastest run's seconds
 WORKER = r'''
-import sys, time
+import functools, sys, time
 WARM_SECONDS = %r
-tree, kind, config, rigid, over = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4] == "1", sys.argv[5:]
+tree, kind, config, rigid, cold, over = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4] == "1", sys.argv[5] == "1", \
+    sys.argv[6:]
 sys.path.insert(0, tree)
 from pathlib import Path
 from beltdyn.config import load_config
@@ -71,8 +79,28 @@ if kind == "transient":
     case = lambda: run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)
 else:
     case = lambda: analyse(cfg, modal=True)
+
+
+def forget():
+    """The base's module-level memos emptied, and the configuration's cached properties (cold: before each
+    run; the module docstring)."""
+    if not cold:
+        return
+    for name, attr in vars(type(cfg)).items():
+        if isinstance(attr, functools.cached_property):
+            cfg.__dict__.pop(name, None)
+    for mod in list(sys.modules.values()):
+        if getattr(mod, "__name__", "").startswith("beltdyn"):
+            for memo in (getattr(mod, "_DOFMAPS", None), getattr(mod, "_PATTERNS", None)):
+                if isinstance(memo, dict):
+                    memo.clear()
+            if hasattr(getattr(mod, "_no_elements", None), "cache_clear"):
+                mod._no_elements.cache_clear()
+
+
 warm = time.perf_counter() + WARM_SECONDS  # caches, page faults, the clock: a few runs are slower at first
 while True:
+    forget()
     case()
     if time.perf_counter() > warm:
         break
@@ -80,6 +108,7 @@ print("ready", flush=True)
 for line in sys.stdin:
     best = float("inf")
     for _ in range(int(line)):
+        forget()
         t0 = time.perf_counter()
         case()
         best = min(best, time.perf_counter() - t0)
@@ -87,10 +116,11 @@ for line in sys.stdin:
 '''
 
 
-def start(tree: Path, case: tuple) -> subprocess.Popen:
-    """A warmed-up worker of `case` on `tree` (its first line "ready")."""
+def start(tree: Path, case: tuple, cold: bool = False) -> subprocess.Popen:
+    """A warmed-up worker of `case` on `tree` (its first line "ready"); cold: the tree's module-level memos
+    emptied before each run (the module docstring)."""
     _, kind, config, over, rigid = case
-    args = [str(tree), kind, config, "1" if rigid else "0", *over]
+    args = [str(tree), kind, config, "1" if rigid else "0", "1" if cold else "0", *over]
     proc = subprocess.Popen([sys.executable, "-c", WORKER % WARM_SECONDS, *args], stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, text=True, cwd=tree)
     if proc.stdout.readline().strip() != "ready":
@@ -104,22 +134,24 @@ def turn(proc: subprocess.Popen, tries: int) -> float:
     return float(proc.stdout.readline())
 
 
-def measure(trees: tuple[Path, Path], rounds: int) -> list[tuple[str, list[float], list[float]]]:
-    """Per case: (name, base times, this tree's times), one time per round, the two trees alternating."""
+def measure(trees: tuple[Path, Path], rounds: int) -> list[tuple[str, list[float], list[float], list[float]]]:
+    """Per case: (name, base times, the cold base's times (static rows; else empty), this tree's times), one
+    time per round, the workers taking turns."""
     rows = []
     for case in CASES:
-        workers = [start(tree, case) for tree in trees]
-        times: tuple[list[float], list[float]] = ([], [])
+        runs = [(trees[0], False)] + ([(trees[0], True)] if case[1] == "static" else []) + [(trees[1], False)]
+        workers = [start(tree, case, cold) for tree, cold in runs]
+        times: list[list[float]] = [[] for _ in workers]
         try:
             for r in range(rounds):
-                order = (0, 1) if r % 2 == 0 else (1, 0)  # who goes first alternates too
-                for k in order:
+                for i in range(len(workers)):  # who goes first rotates too
+                    k = (r + i) % len(workers)
                     times[k].append(turn(workers[k], TRIES[case[1]]))
         finally:
             for w in workers:
                 w.stdin.close()
                 w.wait()
-        rows.append((case[0], *times))
+        rows.append((case[0], times[0], times[1] if len(times) == 3 else [], times[-1]))
         print(f"  {case[0]}: done", file=sys.stderr, flush=True)
     return rows
 
@@ -137,14 +169,15 @@ def main() -> None:
             rows = measure((base, ROOT), rounds)
         finally:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base)], check=False)
-    width = max(len(name) for name, _, _ in rows)
+    width = max(len(name) for name, *_ in rows)
     print(f"{'benchmark (interleaved, ' + str(rounds) + ' rounds)':<{width}}  {'base ' + base_rev[:10]:>22}  "
-          f"{'this tree':>22}  {'ratio':>6}")
-    for name, b, a in rows:
-        b, a = sorted(b), sorted(a)
+          f"{'base, cold':>22}  {'this tree':>22}  {'ratio':>6}  {'to cold':>7}")
+    for name, b, c, a in rows:
+        b, c, a = sorted(b), sorted(c), sorted(a)
         p10 = len(b) // 10
-        cell = lambda t: f"{t[0] * 1e3:9.2f} ms (p10 {t[p10] * 1e3:.2f})"  # noqa: E731
-        print(f"{name:<{width}}  {cell(b):>22}  {cell(a):>22}  {a[0] / b[0]:6.2f}")
+        cell = lambda t: f"{t[0] * 1e3:9.2f} ms (p10 {t[p10] * 1e3:.2f})" if t else ""  # noqa: E731
+        print(f"{name:<{width}}  {cell(b):>22}  {cell(c):>22}  {cell(a):>22}  {a[0] / b[0]:6.2f}  "
+              + (f"{a[0] / c[0]:7.2f}" if c else ""))
 
 
 if __name__ == "__main__":
