@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 
 from beltdyn.config import DriveConfig
 from beltdyn.errors import SolverError
-from beltdyn.model.geometry import Layout, layout_from_config
+from beltdyn.model.geometry import Layout, fit_inputs, layout_from_config
 
 if TYPE_CHECKING:
     from beltdyn.analysis.response import ResponseResult
@@ -48,13 +48,15 @@ class Analysis:
 
 def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_modes: int | None = None,
             layout: Layout | None = None, compiled: bool = False, belt_speed: float | None = None,
-            facts: "DriveFacts | None" = None) -> Analysis:
+            facts: "DriveFacts | None" = None, fits: dict | None = None) -> Analysis:
     """Geometry, system, and the static equilibrium (on the solved geometry) and modes if asked for
     (modal implies static). `layout`: the L0 fit, if already computed. belt_speed (m/s): the running
     belt's speed instead of [running]'s (`running.belt_speed_of`); the static equilibrium is then the
     running one and the modes the gyroscopic ones. facts: the configuration's `DriveFacts` on `layout`
     (`drive_facts`), if at hand: the analyses of one configuration at several belt speeds share them
-    (`response_of`).
+    (`response_of`). fits: the L0 fits of earlier analyses by their inputs (`geometry.fit_inputs` ->
+    `Layout`), kept by a caller that analyses many configurations of few geometries (a sweep's chunk, the
+    fit to measurements): the analysis takes its fit from there, or adds the one it makes.
 
     compiled: belt forces by the compiled kernel, for a process that evaluates them many times (a
     sweep, a transient follows); the numpy reference otherwise, which spares numba's ~0.3 s start-up
@@ -69,6 +71,11 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
 
     if facts is None:
         check_model_size(cfg)  # before the L0 fit: an impossible mesh is refused at once
+        if layout is None and fits is not None:
+            key = fit_inputs(cfg)
+            if key not in fits:
+                fits[key] = layout_from_config(cfg)
+            layout = fits[key]
         layout = layout or layout_from_config(cfg)
         facts = drive_facts(cfg, layout)  # what every build of this analysis takes from the configuration alone
     elif layout is not facts.layout:

@@ -344,6 +344,7 @@ class Model:
         self.warnings: list[str] = []
         self.analyses = 0
         self.rebuilt: dict[int, bool] = {}  # per case: `system_at_state` reproduces its drive
+        self.fits: dict = {}  # the L0 fits of the analyses so far (`pipeline.analyse`'s: one per geometry)
 
     def config(self, c: int, values: np.ndarray) -> DriveConfig:
         """Case c's configuration at parameter values (n,)."""
@@ -352,7 +353,7 @@ class Model:
     def _analyse(self, cfg: DriveConfig, c: int) -> Analysis:
         self.analyses += 1
         try:
-            return analyse(cfg, modal=True, n_modes=self.n_modes[c])
+            return analyse(cfg, modal=True, n_modes=self.n_modes[c], fits=self.fits)
         except SolverError as exc:
             raise SolverError(f"{exc} (fit, load case '{self.data.case_name(c)}')", analysis="fit") from None
 

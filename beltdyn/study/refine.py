@@ -69,9 +69,10 @@ def refine_mesh(cfg: DriveConfig, *, n_modes: int, rtol: float, max_elements: in
 
     n_el = cfg.mesh.elements_per_span
     runs, elements = [], []
+    fits: dict = {}  # (every mesh of one L0 fit: `pipeline.analyse`'s fits)
     while True:
         c = with_overrides(cfg, [f"mesh.elements_per_span={n_el}"])
-        run = analyse(c, modal=True, n_modes=n_modes + 6)
+        run = analyse(c, modal=True, n_modes=n_modes + 6, fits=fits)
         md = run.modal
         runs.append((c, run.system, run.static, md))
         elements.append(n_el)
