@@ -161,9 +161,9 @@ def compute_layout(
     the arithmetic of the checks themselves (`_path_ok`), and only a layout the screen flags runs the
     checks one by one, in their order, for the error.
     """
-    center = np.ascontiguousarray(center, dtype=float)
-    radius = np.asarray(radius, dtype=float)
-    side_sign = np.asarray(side_sign, dtype=float)
+    center = np.array(center, dtype=float)  # (copies: the layout's arrays are its own, read-only)
+    radius = np.array(radius, dtype=float)
+    side_sign = np.array(side_sign, dtype=float)
     n = len(radius)
     o = loop_orientation(center) if orientation is None else orientation
     ends, _, _, _, _ = _tables(n)
@@ -181,6 +181,8 @@ def compute_layout(
     points[0] = zc
     np.add(z_ends, rho_ends * m, out=points[1:])
     point_xy, normal = points.view(float).reshape(3, n, 2), (np.sign(rho_ends) * m).view(float).reshape(2, n, 2)
+    for a in (center, radius, side_sign, point_xy, normal, alpha, sums, wrap):  # (a layout is shared: its arrays
+        a.setflags(write=False)  # read-only, and the views of them it holds)
     length, arc = sums[0], sums[1]
     total_length, total_arc, total_turn = sums.sum(axis=1).tolist()
     lay = Layout(
@@ -572,8 +574,8 @@ def relay(layout: Layout, center: np.ndarray, *, adjust_offset: float | None = N
 
 def fit_inputs(cfg: DriveConfig) -> tuple:
     """What `layout_from_config` reads of a configuration, as a key (hashable, compared by value): the
-    pulleys and the belt's length. Configurations with equal keys have the same L0 fit (`study.cases`
-    fits a chunk's cases of one geometry once)."""
+    pulleys and the belt's length. Configurations with equal keys have the same L0 fit (`pipeline.analyse`'s
+    fits: a study's analyses of one geometry share it)."""
     return cfg.pulleys, float(cfg.belt.length)
 
 
