@@ -2,10 +2,11 @@
 
 `make bench-compare` runs one tree's `bench/run.py` after the other's; on a shared machine whose wall time
 drifts by 10 % within minutes it cannot tell 10 % apart. Here each (tree, case) is a long-lived worker
-process (that tree first on its import path, warmed up once), and the workers take turns, round after
-round: drift reaches both trees alike. Each turn times `TRIES` runs of the case and reports the fastest;
-the table gives, per case, the minimum and the 10th percentile over the rounds and the ratio of the
-minima. The other commit is checked out into a temporary git worktree (its kernels compile once there).
+process (that tree first on its import path, warmed up once; `PROCESSES` of them per tree), and the
+workers take turns, round after round: drift reaches both trees alike. Each turn times `TRIES` runs of the
+case and reports the fastest; the table gives, per case, the minimum and the 10th percentile over the
+rounds and the ratio of the minima. The other commit is checked out into a temporary git worktree (its
+kernels compile once there).
 
 The static rows run the base twice: as it is, and with its module-level memos emptied before each run
 ("base, cold": what a process that analyses the configuration once pays). The redesign (issue 24) removed
@@ -47,6 +48,8 @@ CASES = (
     ("static + modal, all-spring FEAD, rigid wraps", "static", "configs/examples/fead_4cyl.toml", ("spring",), True),
 )
 
+PROCESSES = 3  # workers per tree and case (measured: one process's minimum of the 160 el/span row lies up to 15 %
+# from another's of the same tree, by where its arrays fall in memory; the row takes the fastest of three)
 WARM_SECONDS = 3.0  # each worker runs its case this long before the first turn (measured: the first second slower)
 
 # the worker: python -c WORKER tree kind config rigid override...; a line per turn (the runs to time), answered by
@@ -135,22 +138,22 @@ def turn(proc: subprocess.Popen, tries: int) -> float:
 
 
 def measure(trees: tuple[Path, Path], rounds: int) -> list[tuple[str, list[float], list[float], list[float]]]:
-    """Per case: (name, base times, the cold base's times (static rows; else empty), this tree's times), one
-    time per round, the workers taking turns."""
+    """Per case: (name, base times, the cold base's times (static rows; else empty), this tree's times): each
+    of PROCESSES workers per tree a time per round, all workers taking turns."""
     rows = []
     for case in CASES:
         runs = [(trees[0], False)] + ([(trees[0], True)] if case[1] == "static" else []) + [(trees[1], False)]
-        workers = [start(tree, case, cold) for tree, cold in runs]
-        times: list[list[float]] = [[] for _ in workers]
+        workers = [(k, start(tree, case, cold)) for _ in range(PROCESSES) for k, (tree, cold) in enumerate(runs)]
+        times: list[list[float]] = [[] for _ in runs]
         try:
             for r in range(rounds):
                 for i in range(len(workers)):  # who goes first rotates too
-                    k = (r + i) % len(workers)
-                    times[k].append(turn(workers[k], TRIES[case[1]]))
+                    k, proc = workers[(r + i) % len(workers)]
+                    times[k].append(turn(proc, TRIES[case[1]]))
         finally:
-            for w in workers:
-                w.stdin.close()
-                w.wait()
+            for _, proc in workers:
+                proc.stdin.close()
+                proc.wait()
         rows.append((case[0], times[0], times[1] if len(times) == 3 else [], times[-1]))
         print(f"  {case[0]}: done", file=sys.stderr, flush=True)
     return rows
