@@ -49,11 +49,11 @@ CASES = (
 )
 
 PROCESSES = 3  # workers per tree and case (measured: one process's minimum of the 160 el/span row lies up to 15 %
-# from another's of the same tree, by where its arrays fall in memory; the row takes the fastest of three)
+# from another's of the same tree, cause not found; the row takes the fastest of three)
 WARM_SECONDS = 3.0  # each worker runs its case this long before the first turn (measured: the first second slower)
 
-# the worker: python -c WORKER tree kind config rigid override...; a line per turn (the runs to time), answered by
-# the fastest run's seconds
+# the worker: python -c WORKER tree kind config rigid cold override...; a line per turn (the runs to time), answered
+# by the fastest run's seconds
 WORKER = r'''
 import functools, sys, time
 WARM_SECONDS = %r
