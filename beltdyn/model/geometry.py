@@ -1,12 +1,12 @@
 """Belt path geometry: tangent lines, spans, wrap angles, belt length, and the L0 fit.
 
-Pure functions on numpy arrays. Conventions: x right, y up, angles counter-clockwise from +x.
-Pulleys are listed in belt order; span i runs from pulley i to pulley (i+1) mod n. The loop runs
-counter-clockwise (orientation o = +1) when the polygon of pulley centres is counter-clockwise or
-degenerate (two pulleys), clockwise (o = -1) otherwise. A pulley wrapped on the inside of the loop
-turns the belt in the loop's sense, a backside pulley in the opposite sense. With the signed radius
-rho = o * sigma * r (sigma = +1 inside, -1 backside) the tangent line of span i has direction
-t = (cos a, sin a) and right normal m = (sin a, -cos a) with
+Pure functions on numpy arrays (the tangent lines on floats: `span_lines`). Conventions: x right,
+y up, angles counter-clockwise from +x. Pulleys are listed in belt order; span i runs from pulley i to
+pulley (i+1) mod n. The loop runs counter-clockwise (orientation o = +1) when the polygon of pulley
+centres is counter-clockwise or degenerate (two pulleys), clockwise (o = -1) otherwise. A pulley
+wrapped on the inside of the loop turns the belt in the loop's sense, a backside pulley in the opposite
+sense. With the signed radius rho = o * sigma * r (sigma = +1 inside, -1 backside) the tangent line of
+span i has direction t = (cos a, sin a) and right normal m = (sin a, -cos a) with
 
     sin(a - b) = (rho_i - rho_{i+1}) / D,   d = c_{i+1} - c_i = D (cos b, sin b),
 
@@ -18,17 +18,18 @@ direction), which drives the Newton fit of the adjustable pulley (paper Eqs. 18-
 
 from __future__ import annotations
 
+import cmath
 import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
 from beltdyn.config import DriveConfig
 from beltdyn.errors import ConfigError
 from beltdyn.model.angles import TWO_PI, pivot_angle, unwrap_near, wrap_angle
-
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -82,8 +83,8 @@ def directions(angle: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True, kw_only=True)
 class BeltPath:
     """The belt path of pulleys at given centres without its tangent points: the spans and wraps an
-    iterate of the L0 fit or of a tensioner arm's balance evaluates (`belt_path`, unchecked; the same
-    numbers as the `Layout` that `compute_layout(check=False)` gives). Shapes: n pulleys, n spans."""
+    iterate of a tensioner arm's balance evaluates (`belt_path`, unchecked; the same numbers as the
+    `Layout` that `compute_layout(check=False)` gives). Shapes: n pulleys, n spans."""
 
     span_angle: np.ndarray  # (n,) direction of travel, rad
     span_length: np.ndarray  # (n,) m
@@ -111,7 +112,7 @@ class GeometryError(ValueError):
 def loop_orientation(center: np.ndarray) -> int:
     """+1 if the polygon of centres is counter-clockwise or degenerate, -1 if clockwise."""
     x, y = center[:, 0], center[:, 1]
-    nxt, _ = _neighbours(len(x))
+    nxt = _next(len(x))
     area2 = float(np.dot(x, y[nxt]) - np.dot(x[nxt], y))
     if area2 >= 0.0:  # counter-clockwise: the size of the drive only decides a negative area
         return 1
@@ -129,12 +130,11 @@ def _pairs(n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 @functools.lru_cache(maxsize=16)
-def _neighbours(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """(next, previous) pulley of each of n pulleys around the loop (read-only, cached)."""
-    nxt, prv = np.roll(np.arange(n), -1), np.roll(np.arange(n), 1)
+def _next(n: int) -> np.ndarray:
+    """(n,) the next pulley of each of n pulleys around the loop (read-only, cached)."""
+    nxt = np.roll(np.arange(n), -1)
     nxt.setflags(write=False)
-    prv.setflags(write=False)
-    return nxt, prv
+    return nxt
 
 
 def compute_layout(
@@ -156,108 +156,107 @@ def compute_layout(
     that cuts through another pulley, a pulley the belt does not touch, or a path that winds wrongly
     (`check_layout`); False for an iterate whose answer is checked later.
 
-    The arrays of the two ends of every span are laid out together (a few numpy calls on arrays of a
-    handful of numbers: the call count is the cost); the checks first screen the path in one pass with
-    the arithmetic of the checks themselves (`_path_ok`), and only a layout the screen flags runs the
-    checks one by one, in their order, for the error.
+    The spans and their ends are laid out on floats (`span_lines`; a drive has a handful of pulleys, on
+    which a numpy call costs more than its arithmetic) and made arrays once; the checks first screen the
+    path in one pass with the arithmetic of the checks themselves (`_path_ok`), and only a layout the
+    screen flags runs the checks one by one, in their order, for the error.
     """
     center = np.array(center, dtype=float)  # (copies: the layout's arrays are its own, read-only)
     radius = np.array(radius, dtype=float)
     side_sign = np.array(side_sign, dtype=float)
     n = len(radius)
     o = loop_orientation(center) if orientation is None else orientation
-    ends, _, _, _, _ = _tables(n)
-    sigma = side_sign if o == 1 else o * side_sign  # o sigma: the turning sense of each pulley
-    zc = center.view(complex)[:, 0]  # points as x + iy (n,): sums and real multiples are exact per component
+    z = center.view(complex).ravel().tolist()  # points as x + iy: sums and real multiples are exact per component
+    r, sigma = radius.tolist(), (o * side_sign).tolist()  # o sigma: the turning sense of each pulley
     apart = (lambda: _check_apart(center, radius, names)) if check else None
-    alpha, q, wrap, sums = span_lines(zc, radius, sigma, coincident=apart)
-    tangents = check and np.abs(q).max() < 1.0  # checked: |q| < 1 for every span
-    z_ends, rho_ends = zc[ends], (sigma * radius)[ends]  # (2, n): pulleys i and i + 1 of span i
-    m = np.empty(n, dtype=complex)  # the right normals sin a - i cos a
-    np.sin(alpha, out=m.real)
-    np.cos(alpha, out=m.imag)
-    np.conjugate(m, out=m)
-    points = np.empty((3, n), dtype=complex)  # the centres, the span starts, the span ends
-    points[0] = zc
-    np.add(z_ends, rho_ends * m, out=points[1:])
-    point_xy, normal = points.view(float).reshape(3, n, 2), (np.sign(rho_ends) * m).view(float).reshape(2, n, 2)
-    for a in (center, radius, side_sign, point_xy, normal, alpha, sums, wrap):  # (a layout is shared: its arrays
-        a.setflags(write=False)  # read-only, and the views of them it holds)
-    length, arc = sums[0], sums[1]
-    total_length, total_arc, total_turn = sums.sum(axis=1).tolist()
+    alpha, q, wrap, sums = span_lines(z, r, sigma, coincident=apart)
+    rows = np.array(alpha + wrap + sums).reshape(5, n)  # the span angles, wraps, span lengths, arcs, turns
+    total_length, total_arc, total_turn = np.add.reduce(rows[2:], axis=1).tolist()
+    rho = [s * x for s, x in zip(sigma, r)]
+    rho1, z1 = rho[1:] + rho[:1], z[1:] + z[:1]  # pulley i + 1 of span i
+    m = [complex(math.sin(a), -math.cos(a)) for a in alpha]  # the right normals sin a - i cos a
+    starts = [c + x * u for c, x, u in zip(z, rho, m)]
+    ends = [c + x * u for c, x, u in zip(z1, rho1, m)]
+    normals = [_sign(x) * u for x, u in zip(rho + rho1, m + m)]  # at the starts, then at the ends
+    points = np.array(z + starts + ends + normals).reshape(5, n)
+    xy = points.view(float).reshape(5, n, 2)  # the centres, span starts, span ends, start and end normals
+    for a in (center, radius, side_sign, rows, xy):  # (a layout is shared: its arrays read-only, and the
+        a.setflags(write=False)  # views of them it holds)
     lay = Layout(
         names=tuple(names), center=center, radius=radius, side_sign=side_sign, orientation=o,
-        span_start=point_xy[1], span_end=point_xy[2], span_length=length, span_angle=alpha, start_normal=normal[0],
-        end_normal=normal[1], wrap_angle=wrap, arc_length=arc, belt_length=total_length + total_arc,
+        span_start=xy[1], span_end=xy[2], span_length=rows[2], span_angle=rows[0], start_normal=xy[3],
+        end_normal=xy[4], wrap_angle=rows[1], arc_length=rows[3], belt_length=total_length + total_arc,
         adjust_offset=adjust_offset, adjust_index=adjust_index, adjust_kind=adjust_kind,
     )
-    if check and not (tangents and _path_ok(radius, wrap, o, total_turn, points)):
+    # checked: |q| < 1 for every span (a NaN q: the turn NaN too, which `_path_ok` fails), then the rest
+    if check and not (max(map(abs, q)) < 1.0 and _path_ok(radius, wrap, o, total_turn, points[:3])):
         _check_apart(center, radius, names)
-        _check_tangents(q, names)
+        _check_tangents(np.array(q), names)
         _check_path(lay)
     return lay
 
 
-def span_lines(zc: np.ndarray, radius: np.ndarray, sigma: np.ndarray, *,
-               coincident: Callable[[], None] | None = None) -> tuple[np.ndarray, ...]:
-    """The tangent lines and wraps of pulleys at zc (n,) (complex x + iy) of radii (n,) turning the belt
-    in the senses sigma (n,) (orientation x side): (span angles a (n,) rad, q (n,) = (rho_i - rho_(i+1)) / D
-    (the module docstring), wrap angles (n,) rad, sums (3, n): rows span lengths, arc lengths, signed
-    turning angles). q is clipped to [-1, 1] where a span has no tangent (an unchecked iterate; the checks
-    then name it). coincident: called, if given, before the division when two neighbouring centres
-    coincide (the checks raise there). The one place of the tangent-line arithmetic: `compute_layout` and
-    `belt_path`."""
-    n = len(radius)
-    ends, prv, _, _, _ = _tables(n)
-    rho = sigma * radius
-    d = zc[ends[1]] - zc
-    dx, dy = d.real, d.imag
-    dist = np.hypot(dx, dy)
-    if coincident is not None and not dist.all():  # coincident centres: their overlap before q divides by zero
-        coincident()
-    drho = rho - rho[ends[1]]
-    q = drho / dist
-    alpha = np.arctan2(dy, dx) + np.arcsin(np.minimum(np.maximum(q, -1.0), 1.0))  # (q itself where |q| <= 1)
-    sums = np.empty((3, n))  # span lengths, arc lengths, turning angles, summed together
-    h2 = dist * dist - drho * drho  # >= +0 where |q| < 1 (|drho| < dist: rounding keeps the order)
-    np.sqrt(np.maximum(h2, 0.0), out=sums[0])
-    wrap = np.mod(sigma * (alpha - alpha[prv]), TWO_PI)
-    np.multiply(radius, wrap, out=sums[1])
-    np.multiply(sigma, wrap, out=sums[2])
-    return alpha, q, wrap, sums
+def _sign(x: float) -> float:
+    """np.sign of a float: -1, 0 or 1 (NaN stays NaN)."""
+    return 1.0 if x > 0.0 else -1.0 if x < 0.0 else x * 0.0
+
+
+def span_lines(z: list[complex], radius: list[float], sigma: list[float], *,
+               coincident: Callable[[], None] | None = None) -> tuple[list[float], ...]:
+    """The tangent lines and wraps of pulleys at z (n) (complex x + iy) of radii (n) turning the belt in
+    the senses sigma (n) (orientation x side), lists of floats in, lists of floats out: (span angles a (n)
+    rad, q (n) = (rho_i - rho_(i+1)) / D (the module docstring), wrap angles (n) rad, sums (3n): the span
+    lengths, arc lengths and signed turning angles, n each, one after the other). A span without a
+    tangent (|q| > 1: an unchecked iterate; the checks then name it) takes its angle at q clipped to
+    [-1, 1]; coincident centres give q = +-inf or NaN (D = 0). coincident: called, if given, before the
+    division when two neighbouring centres coincide (the checks raise there). The one place of the
+    tangent-line arithmetic: `compute_layout` and `belt_path`."""
+    rho = [s * r for s, r in zip(sigma, radius)]
+    alpha, q, length = [], [], []
+    for z0, z1, r0, r1 in zip(z, z[1:] + z[:1], rho, rho[1:] + rho[:1]):
+        d = z1 - z0
+        dist, drho = abs(d), r0 - r1  # abs: the C library's hypot, as np.hypot
+        if dist:
+            qi = drho / dist
+        else:
+            if coincident is not None:  # coincident centres: their overlap before q divides by zero
+                coincident()
+            qi = drho * math.inf if drho else math.nan  # IEEE division by +0
+        alpha.append(cmath.phase(d) + math.asin(1.0 if qi > 1.0 else -1.0 if qi < -1.0 else qi))  # phase: atan2
+        q.append(qi)
+        h2 = dist * dist - drho * drho  # >= +0 where |q| < 1 (|drho| < dist: rounding keeps the order)
+        length.append(0.0 if h2 < 0.0 else math.sqrt(h2))
+    wrap = [(s * (a - b)) % TWO_PI for s, a, b in zip(sigma, alpha, alpha[-1:] + alpha[:-1])]
+    return alpha, q, wrap, length + [r * w for r, w in zip(radius, wrap)] + [s * w for s, w in zip(sigma, wrap)]
 
 
 def belt_path(center: np.ndarray, radius: np.ndarray, side_sign: np.ndarray, orientation: int) -> BeltPath:
     """The `BeltPath` of pulleys at `center` (n, 2) of radii (n,) on sides side_sign (n,) of a loop of
     `orientation`: the spans and wraps of `compute_layout(check=False)` (`span_lines`), without the tangent
     points, normals and checks."""
-    center = np.ascontiguousarray(center, dtype=float)
-    radius = np.asarray(radius, dtype=float)
-    side_sign = np.asarray(side_sign, dtype=float)
-    sigma = side_sign if orientation == 1 else orientation * side_sign
-    alpha, _, _, sums = span_lines(center.view(complex)[:, 0], radius, sigma)
-    total_length, total_arc, _ = sums.sum(axis=1).tolist()
-    return BeltPath(span_angle=alpha, span_length=sums[0], arc_length=sums[1], belt_length=total_length + total_arc)
+    z = np.ascontiguousarray(center, dtype=float).view(complex).ravel().tolist()
+    sigma = (orientation * np.asarray(side_sign, dtype=float)).tolist()
+    alpha, _, _, sums = span_lines(z, np.asarray(radius, dtype=float).tolist(), sigma)
+    rows = np.array(alpha + sums).reshape(4, len(z))  # the span angles, span lengths, arcs, turns
+    total_length, total_arc = np.add.reduce(rows[1:3], axis=1).tolist()
+    return BeltPath(span_angle=rows[0], span_length=rows[1], arc_length=rows[2], belt_length=total_length + total_arc)
 
 
 @functools.lru_cache(maxsize=16)
 def _tables(n: int) -> tuple[np.ndarray, ...]:
-    """Index tables of n pulleys for `compute_layout` (read-only, cached): ends (2, n) the pulleys i and
-    i + 1 of each span; prv (n,) the previous pulley of each; for `_path_ok`, the p pairs that the checks
-    compare: the pulleys (i, k > i) of `_check_apart`, then each span i and the pulleys k not its own of
+    """Index tables of n pulleys for `_path_ok` (read-only, cached): the p pairs that the checks compare:
+    the pulleys (i, k > i) of `_check_apart`, then each span i and the pulleys k not its own of
     `_check_path`: seg (3, p) indices into the points (centres; span starts; span ends) (3n,) of where
-    the segment begins and ends and of pulley k's centre (a pair's segment: pulley i's centre, of zero
-    length); rad (2, p) the radii subtracted from the distance, indices into (radius, 0) (n + 1,): pulley
-    i's (a pair) or none (a span), then pulley k's; limit (p,) the least gap that passes (0 apart,
+    the segment begins, of pulley k's centre and of where the segment ends (a pair's segment: pulley i's
+    centre, of zero length); rad (2, p) the radii subtracted from the distance, indices into (radius, 0)
+    (n + 1,): pulley i's (a pair) or none (a span), then pulley k's; limit (p,) the least gap that passes (0 apart,
     -1e-12 cut)."""
-    nxt, prv = _neighbours(n)
-    ends = np.stack([np.arange(n), nxt])
     i_, k_ = _pairs(n)
     si, sk = np.nonzero(_not_own(n))  # none for two pulleys
-    seg = np.stack([np.concatenate([i_, n + si]), np.concatenate([i_, 2 * n + si]), np.concatenate([k_, sk])])
+    seg = np.stack([np.concatenate([i_, n + si]), np.concatenate([k_, sk]), np.concatenate([i_, 2 * n + si])])
     rad = np.stack([np.concatenate([i_, np.full(len(si), n)]), np.concatenate([k_, sk])])
     limit = np.concatenate([np.zeros(len(i_)), np.full(len(si), -1e-12)])
-    out = (ends, prv, seg, rad, limit)
+    out = (seg, rad, limit)
     for x in out:
         x.setflags(write=False)
     return out
@@ -267,22 +266,23 @@ _ZERO = np.zeros(1)
 _ZERO.setflags(write=False)
 
 
-def _path_ok(radius: np.ndarray, wrap: np.ndarray, o: int, turn: float, points: np.ndarray) -> bool:
+def _path_ok(radius: np.ndarray, wrap: list[float], o: int, turn: float, points: np.ndarray) -> bool:
     """True when none of the checks of `_check_apart` and `_check_path` fails (on a layout whose spans
     all have their tangent: `_check_tangents`), computed with their arithmetic in fewer numpy calls: the
     distance of a pulley's centre from another's and from a span's segment for every pair they compare,
     in one (p,) array (a centre is a segment of zero length; `_tables`). False when one would fail or a
     NaN makes it unsure (the checks then run one by one and raise the first failure as they always did).
-    wrap (n,) the wrap angles, turn their signed sum; points (3, n) complex x + iy: the centres, the span
+    wrap (n) the wrap angles, turn their signed sum; points (3, n) complex x + iy: the centres, the span
     starts and the span ends."""
-    if not (wrap.min() >= 1e-9 and wrap.max() <= TWO_PI - 1e-9 and abs(turn - o * TWO_PI) <= 1e-6):
+    if not (abs(turn - o * TWO_PI) <= 1e-6 and min(wrap) >= 1e-9 and max(wrap) <= TWO_PI - 1e-9):  # (NaN: turn)
         return False
-    _, _, seg, rad, limit = _tables(len(radius))
-    a, b, c = points.ravel()[seg]  # (p,) each: segment start and end, the centre tested
-    r, ab = c - a, b - a
-    rx, ry, ax, ay = r.real, r.imag, ab.real, ab.imag
-    t = np.minimum(np.maximum((rx * ax + ry * ay) / np.maximum(ax * ax + ay * ay, 1e-300), 0.0), 1.0)
-    e = r - t * ab  # a real multiple: exact per component, as (rx - t ax, ry - t ay)
+    seg, rad, limit = _tables(len(radius))
+    x = points.ravel()[seg]  # (3, p): segment start, the centre tested, segment end
+    d = x[1:] - x[0]  # (2, p): r (start -> centre), ab (start -> end)
+    ab = d[1]
+    dots = d.real * ab.real + d.imag * ab.imag  # (2, p): r . ab, ab . ab
+    t = np.minimum(np.maximum(dots[0] / np.maximum(dots[1], 1e-300), 0.0), 1.0)
+    e = d[0] - t * ab  # a real multiple: exact per component, as (rx - t ax, ry - t ay)
     own, other = np.concatenate((radius, _ZERO))[rad]
     return bool((np.hypot(e.real, e.imag) - own - other >= limit).all())
 
@@ -303,7 +303,7 @@ def check_layout(lay: Layout) -> None:
     every span, every pulley wrapped, the path winding once, no span through another pulley."""
     center, radius, names, n = lay.center, lay.radius, lay.names, lay.n
     _check_apart(center, radius, names)
-    nxt, _ = _neighbours(n)
+    nxt = _next(n)
     rho = lay.orientation * lay.side_sign * radius
     d = center[nxt] - center
     _check_tangents((rho - rho[nxt]) / np.hypot(d[:, 0], d[:, 1]), names)
@@ -323,7 +323,6 @@ def _check_tangents(q: np.ndarray, names: tuple[str, ...]) -> None:
 def _check_path(lay: Layout) -> None:
     """Every pulley wrapped, the path winding once, no span through another pulley."""
     center, radius, names, n, o = lay.center, lay.radius, lay.names, lay.n, lay.orientation
-    nxt, _ = _neighbours(n)
     wrap = lay.wrap_angle
     bad = (wrap < 1e-9) | (wrap > TWO_PI - 1e-9)
     if bad.any():
@@ -360,12 +359,6 @@ def _not_own(n: int) -> np.ndarray:
     return out
 
 
-def belt_length_gradient(layout: Layout, j: int) -> np.ndarray:
-    """dL/dc_j (2,): arriving span direction minus departing span direction at pulley j."""
-    t = layout.span_direction
-    return t[(j - 1) % layout.n] - t[j]
-
-
 @dataclass(frozen=True, kw_only=True)
 class Motion:
     """How the adjustable pulley moves with its offset s: along a slide (s in m along the unit
@@ -384,14 +377,16 @@ class Motion:
     def unit(self) -> str:
         return "m" if self.pivot is None else "rad"
 
-    def point(self, s: float) -> tuple[np.ndarray, np.ndarray]:
-        """The pulley's centre (2,) at offset s, and d centre / ds (2,)."""
+    def point(self, s: float) -> tuple[complex, complex]:
+        """The pulley's centre at offset s and d centre / ds, as x + iy."""
+        (cx, cy), (dx, dy) = self.center.tolist(), self.direction.tolist()
         if self.pivot is None:
-            return self.center + s * self.direction, self.direction
-        r = self.center - self.pivot
+            return complex(cx + s * dx, cy + s * dy), complex(dx, dy)
+        px, py = self.pivot.tolist()
+        rx, ry = cx - px, cy - py
         c, sn = math.cos(s), math.sin(s)
-        rot = np.array([c * r[0] - sn * r[1], sn * r[0] + c * r[1]])
-        return self.pivot + rot, np.array([-rot[1], rot[0]])
+        x, y = c * rx - sn * ry, sn * rx + c * ry  # pivot -> centre, turned by s
+        return complex(px + x, py + y), complex(-y, x)
 
     def normalized(self, s: float) -> float:
         """The offset on its one branch: an arm's turn wrapped to [-pi, pi) (the branch nearest the
@@ -400,13 +395,24 @@ class Motion:
 
     def slope_scale(self) -> float:
         """What a slope d length / ds is measured against (m per unit offset)."""
-        return 1.0 if self.pivot is None else float(np.hypot(*(self.center - self.pivot)))
+        return 1.0 if self.pivot is None else abs(complex(*(self.center - self.pivot).tolist()))
+
+
+class _Iterate(NamedTuple):
+    """An iterate of the L0 fit: the fitted length, its slope (d / ds of the belt length: the weighted
+    arcs' change neglected, the iteration then converges linearly for w != 1), and its checked layout
+    (None: an unchecked iterate, its path on floats)."""
+
+    length: float
+    slope: float
+    layout: Layout | None
 
 
 @dataclass(frozen=True, kw_only=True)
 class _FitProblem:
     """The L0 fit of pulley `index` of the pulleys (center (n, 2), radius (n,), side_sign (n,)):
-    fitted length sum(span lengths) + w sum(arc lengths) = target_length."""
+    fitted length sum(span lengths) + w sum(arc lengths) = target_length. z, radii, senses: the
+    centres (x + iy), radii and turning senses (orientation x side) as floats (n), for `at`."""
 
     center: np.ndarray
     radius: np.ndarray
@@ -417,29 +423,48 @@ class _FitProblem:
     motion: Motion
     target_length: float
     arc_weight: float
+    z: list[complex]
+    radii: list[float]
+    senses: list[float]
 
     @property
     def name(self) -> str:
         return self.names[self.index]
 
     def layout_at(self, s: float, check: bool) -> Layout:
-        c = self.center.copy()
-        c[self.index] = self.motion.point(s)[0]
-        return compute_layout(c, self.radius, self.side_sign, self.names, orientation=self.orientation, check=check)
+        """The layout at offset s (its adjust_* fields: s, of this pulley and motion)."""
+        c, p = self.center.copy(), self.motion.point(s)[0]
+        c[self.index] = p.real, p.imag
+        return compute_layout(c, self.radius, self.side_sign, self.names, orientation=self.orientation, check=check,
+                              adjust_offset=s, adjust_index=self.index, adjust_kind=self.motion.kind)
 
-    def path_at(self, s: float) -> BeltPath:
-        """The path at offset s without its tangent points (an unchecked iterate: `belt_path`)."""
-        c = self.center.copy()
-        c[self.index] = self.motion.point(s)[0]
-        return belt_path(c, self.radius, self.side_sign, self.orientation)
+    def at(self, s: float, check: bool) -> _Iterate:
+        """The iterate at offset s: of its checked layout (check), else of the path on floats (`span_lines`,
+        unchecked: the lengths summed in order)."""
+        if check:
+            return self.of_layout(s, self.layout_at(s, True))
+        z, (p, v) = self.z.copy(), self.motion.point(s)
+        z[self.index] = p
+        angle, _, _, sums = span_lines(z, self.radii, self.senses)
+        n = len(z)
+        length, arc = sums[:n], sums[n:2 * n]
+        return self._iterate(v, angle, arc, sum(length) + sum(arc), None)
 
-    def length(self, lay: Layout | BeltPath) -> float:
-        return lay.belt_length + (self.arc_weight - 1.0) * float(lay.arc_length.sum())
+    def of_layout(self, s: float, lay: Layout) -> _Iterate:
+        """The iterate of the layout `lay` at offset s."""
+        return self._iterate(self.motion.point(s)[1], lay.span_angle.tolist(), lay.arc_length.tolist(),
+                             lay.belt_length, lay)
 
-    def slope(self, lay: Layout | BeltPath, s: float) -> float:
-        """d (fitted length) / ds at offset s on its layout (the weighted arcs' change neglected: the
-        iteration then converges linearly for w != 1)."""
-        return float(belt_length_gradient(lay, self.index) @ self.motion.point(s)[1])
+    def _iterate(self, v: complex, angle: list[float], arc: list[float], belt_length: float,
+                 lay: Layout | None) -> _Iterate:
+        """The iterate of a path of span angles and arcs (n) and belt length where the pulley's centre
+        moves at v = d centre / ds: its slope g . v with the belt length's gradient g = t_in - t_out at the
+        pulley (the arriving span's direction minus the departing one's: the module docstring)."""
+        j, w = self.index, self.arc_weight
+        a, b = angle[j - 1], angle[j]
+        gx, gy = math.cos(a) - math.cos(b), math.sin(a) - math.sin(b)
+        return _Iterate(belt_length if w == 1.0 else belt_length + (w - 1.0) * sum(arc), gx * v.real + gy * v.imag,
+                        lay)
 
     def where(self) -> tuple[str, str]:
         if self.motion.pivot is None:
@@ -447,35 +472,34 @@ class _FitProblem:
         return "turning the arm of pulley", "about its pivot"
 
 
-def _fit_newton(fit: _FitProblem, start: Layout | BeltPath, *, check: bool, tol: float,
-                max_iter: int) -> tuple[float, Layout | BeltPath]:
-    """Newton on the offset s from 0 (layout or path `start`) until the fitted length meets the target,
+def _fit_newton(fit: _FitProblem, start: _Iterate, *, check: bool, tol: float,
+                max_iter: int) -> tuple[float, _Iterate]:
+    """Newton on the offset s from 0 (iterate `start`) until the fitted length meets the target,
     backtracking when a step leaves the feasible region (check: the iterates' layouts checked) or does
-    not reduce the misfit. Returns (s, layout at s; unchecked: its `BeltPath`); GeometryError when L0
-    cannot be reached."""
+    not reduce the misfit.
+    Returns (s, the iterate at s); GeometryError when L0 cannot be reached."""
     how, where = fit.where()
     target, motion = fit.target_length, fit.motion
-    s, lay = 0.0, start
-    f, scale = fit.length(lay) - target, motion.slope_scale()  # (f: the misfit of lay, carried with it)
+    s, it, scale = 0.0, start, motion.slope_scale()
     for _ in range(max_iter):
+        f = it.length - target
         if abs(f) <= tol * target:
-            return s, lay
-        slope = fit.slope(lay, s)
-        if not abs(slope) >= 1e-9 * scale:
+            return s, it
+        if not abs(it.slope) >= 1e-9 * scale:
             raise GeometryError(
                 f"{how} '{fit.name}' {where} does not change the belt length "
                 + ("(slide_direction perpendicular to the belt pull)" if motion.pivot is None else
                    "(the arm points along the belt pull)"),
                 f"pulleys[{fit.index}].{'slide_direction' if motion.pivot is None else 'arm_pivot'}")
-        step = -f / slope
+        step = -f / it.slope
         trial = f_trial = None
         for _ in range(60):
             try:
-                trial = fit.layout_at(s + step, True) if check else fit.path_at(s + step)
+                trial = fit.at(s + step, check)
             except GeometryError:
                 step *= 0.5
                 continue
-            f_trial = fit.length(trial) - target
+            f_trial = trial.length - target
             if abs(f_trial) < abs(f) or abs(step) < 1e-15:
                 break
             step *= 0.5
@@ -483,14 +507,14 @@ def _fit_newton(fit: _FitProblem, start: Layout | BeltPath, *, check: bool, tol:
             word = "short" if f > 0 else "long"
             raise GeometryError(
                 f"L0 = {target:.6g} m is too {word}: {how} '{fit.name}' {where} cannot make the belt fit "
-                f"(closest belt length {fit.length(lay):.6g} m at offset {s:.6g} {motion.unit})", "belt.length")
-        s, lay, f = motion.normalized(s + step), trial, f_trial
-    raise GeometryError(f"L0 fit did not converge (belt length {fit.length(lay):.9g} m)", "belt.length")
+                f"(closest belt length {it.length:.6g} m at offset {s:.6g} {motion.unit})", "belt.length")
+        s, it = motion.normalized(s + step), trial
+    raise GeometryError(f"L0 fit did not converge (belt length {it.length:.9g} m)", "belt.length")
 
 
 def _range_error(fit: _FitProblem, s: float, lay: Layout, slide_range: tuple[float, float]) -> GeometryError:
     """The fitted offset s outside slide_range (an arm: its stops about the drawn arm angle)."""
-    word = "short" if s * fit.slope(lay, s) < 0 else "long"
+    word = "short" if s * fit.of_layout(s, lay).slope < 0 else "long"
     if fit.motion.pivot is None:
         return GeometryError(
             f"L0 = {fit.target_length:.6g} m is too {word} to reach along the slide of pulley '{fit.name}': "
@@ -528,8 +552,8 @@ def fit_adjustable(
     angle offset. With arc_weight w != 1 the length fitted is sum(span lengths) + w sum(arc lengths)
     (the path of a belt whose spans are stretched by w and whose wraps are not, times w: see `static`);
     the slope is then that of the belt length, and the iteration converges linearly. Backtracks when a
-    step leaves the feasible region; raises GeometryError (key belt.length) when L0 cannot be reached.
-    base: the layout at `center`, if known.
+    step leaves the feasible region; raises GeometryError (key belt.length) when L0 cannot be reached. base: the layout
+    at `center`, if known.
 
     The iterates are laid out unchecked (the drawn centre is only where the fit starts) and the answer
     laid out and checked; on any failure the fit runs again with every iterate checked, from the checked
@@ -542,11 +566,13 @@ def fit_adjustable(
         orientation = base.orientation
     elif orientation is None:
         orientation = loop_orientation(center)
-    fit = _FitProblem(center=center, radius=np.asarray(radius, dtype=float), side_sign=np.asarray(side_sign, dtype=float),
-                      names=tuple(names), orientation=orientation, index=index, motion=motion,
-                      target_length=float(target_length), arc_weight=float(arc_weight))
+    radius, side_sign = np.asarray(radius, dtype=float), np.asarray(side_sign, dtype=float)
+    fit = _FitProblem(center=center, radius=radius, side_sign=side_sign, names=tuple(names), orientation=orientation,
+                      index=index, motion=motion, target_length=float(target_length), arc_weight=float(arc_weight),
+                      z=center.view(complex).ravel().tolist(), radii=radius.tolist(),
+                      senses=(orientation * side_sign).tolist())
     try:
-        start = base if base is not None else fit.path_at(0.0)
+        start = fit.of_layout(0.0, base) if base is not None else fit.at(0.0, False)
         s, _ = _fit_newton(fit, start, check=False, tol=tol, max_iter=max_iter)
         lay = fit.layout_at(s, check=True)
     except GeometryError:
@@ -555,8 +581,8 @@ def fit_adjustable(
                 base = fit.layout_at(0.0, check=True)
             except GeometryError as exc:
                 raise GeometryError(f"at the given centre of the adjustable pulley: {exc}", exc.key) from None
-        s, lay = _fit_newton(fit, base, check=True, tol=tol, max_iter=max_iter)
-    lay = replace(lay, adjust_offset=s, adjust_index=index, adjust_kind=motion.kind)
+        s, end = _fit_newton(fit, fit.of_layout(0.0, base), check=True, tol=tol, max_iter=max_iter)
+        lay = replace(end.layout, adjust_offset=s, adjust_index=index, adjust_kind=motion.kind)
     if slide_range is not None and not (slide_range[0] <= s <= slide_range[1]):
         raise _range_error(fit, s, lay, slide_range)
     return lay
