@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING
 
 from beltdyn.config import DriveConfig
 from beltdyn.errors import SolverError
-from beltdyn.model.geometry import Layout, fit_inputs, layout_from_config
+from beltdyn.model.geometry import Layout, layout_from_config
+from beltdyn.model.reuse import Reuse
 
 if TYPE_CHECKING:
     from beltdyn.analysis.response import ResponseResult
@@ -48,15 +49,15 @@ class Analysis:
 
 def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_modes: int | None = None,
             layout: Layout | None = None, compiled: bool = False, belt_speed: float | None = None,
-            facts: "DriveFacts | None" = None, fits: dict | None = None) -> Analysis:
+            facts: "DriveFacts | None" = None, reuse: Reuse | None = None) -> Analysis:
     """Geometry, system, and the static equilibrium (on the solved geometry) and modes if asked for
     (modal implies static). `layout`: the L0 fit, if already computed. belt_speed (m/s): the running
     belt's speed instead of [running]'s (`running.belt_speed_of`); the static equilibrium is then the
     running one and the modes the gyroscopic ones. facts: the configuration's `DriveFacts` on `layout`
     (`drive_facts`), if at hand: the analyses of one configuration at several belt speeds share them
-    (`response_of`). fits: the L0 fits of earlier analyses by their inputs (`geometry.fit_inputs` ->
-    `Layout`), kept by a caller that analyses many configurations of few geometries (a sweep's chunk, the
-    fit to measurements): the analysis takes its fit from there, or adds the one it makes.
+    (`response_of`). reuse: the store of a caller that analyses many configurations of few drives (a
+    sweep's chunk, the fit to measurements, the mesh refinement, the speeds of a response: `reuse.Reuse`):
+    the analysis takes its L0 fit, DOF map and assembly patterns from there, or adds the ones it makes.
 
     compiled: belt forces by the compiled kernel, for a process that evaluates them many times (a
     sweep, a transient follows); the numpy reference otherwise, which spares numba's ~0.3 s start-up
@@ -66,18 +67,14 @@ def analyse(cfg: DriveConfig, *, static: bool = True, modal: bool = False, n_mod
 
     def build(lay: Layout, stretch=None, spring_free=None) -> "System":
         system = build_system(cfg, lay, prestrain_stretch=stretch, spring_free=spring_free, belt_speed=belt_speed,
-                              facts=facts)
+                              facts=facts, reuse=reuse)
         return system.with_belt(compiled=True) if compiled else system
 
     if facts is None:
         check_model_size(cfg)  # before the L0 fit: an impossible mesh is refused at once
-        if layout is None and fits is not None:
-            key = fit_inputs(cfg)
-            if key not in fits:
-                fits[key] = layout_from_config(cfg)
-            layout = fits[key]
-        layout = layout or layout_from_config(cfg)
-        facts = drive_facts(cfg, layout)  # what every build of this analysis takes from the configuration alone
+        if layout is None:
+            layout = layout_from_config(cfg) if reuse is None else reuse.fit(cfg)
+        facts = drive_facts(cfg, layout, reuse=reuse)  # what every build of this analysis takes from the configuration alone
     elif layout is not facts.layout:
         raise ValueError("analyse: the facts given are of another layout than `layout`")
     if not (static or modal):
@@ -193,9 +190,10 @@ def response_of(cfg: DriveConfig, run: Analysis) -> "ResponseResult":
     lay = run.fit_layout if run.fit_layout is not None else run.layout
     driver = cfg.driver_index
     per_metre = float(lay.radius[driver]) * travel_sense(lay, driver)
-    facts = drive_facts(cfg, lay)  # the same configuration and L0 fit at every speed: its facts made once
+    reuse = Reuse()  # the same drive at every speed: one assembly pattern
+    facts = drive_facts(cfg, lay, reuse=reuse)  # the same configuration and L0 fit at every speed: its facts made once
 
     def drive_at(omega: float):
-        at = analyse(cfg, belt_speed=omega * per_metre, layout=lay, facts=facts)
+        at = analyse(cfg, belt_speed=omega * per_metre, layout=lay, facts=facts, reuse=reuse)
         return damped(at.system), at.static
     return running_response(drive_at, opts)

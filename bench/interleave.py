@@ -13,7 +13,9 @@ The static rows run the base twice: as it is, and with its module-level memos em
 those memos (`_DOFMAPS` of the DOF maps, `_PATTERNS` of the sparse patterns, `_no_elements`' cache, the
 configuration's cached properties), which served a loop re-analysing one configuration, as these rows do,
 from the first run's work; this tree has none to empty. A tree without them is unaffected (the names are
-looked up, not required).
+looked up, not required). This tree's static rows run twice too: as they are, and "shared": every run of
+the worker handed one `model.reuse.Reuse`, as a study's analyses of one drive are (a sweep's chunk, the fit,
+the refinement): the explicit store that took the memos' place, to set against the base as it is.
 
     python bench/interleave.py BASE_REV [ROUNDS]
 """
@@ -52,13 +54,14 @@ PROCESSES = 3  # workers per tree and case (measured: one process's minimum of t
 # from another's of the same tree, cause not found; the row takes the fastest of three)
 WARM_SECONDS = 3.0  # each worker runs its case this long before the first turn (measured: the first second slower)
 
-# the worker: python -c WORKER tree kind config rigid cold override...; a line per turn (the runs to time), answered
-# by the fastest run's seconds
+# the worker: python -c WORKER tree kind config rigid mode override...; mode: "as-is", "cold" or "shared" (the
+# module docstring); a line per turn (the runs to time), answered by the fastest run's seconds
 WORKER = r'''
 import functools, sys, time
 WARM_SECONDS = %r
-tree, kind, config, rigid, cold, over = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4] == "1", sys.argv[5] == "1", \
+tree, kind, config, rigid, mode, over = sys.argv[1], sys.argv[2], sys.argv[3], sys.argv[4] == "1", sys.argv[5], \
     sys.argv[6:]
+cold = mode == "cold"
 sys.path.insert(0, tree)
 from pathlib import Path
 from beltdyn.config import load_config
@@ -80,6 +83,10 @@ cfg = load_config(path, over)
 if kind == "transient":
     run = analyse(cfg, compiled=True)
     case = lambda: run_transient(run.system, run.static, cfg.transient, sink=lambda t, b: None)
+elif mode == "shared":
+    from beltdyn.model.reuse import Reuse
+    reuse = Reuse()
+    case = lambda: analyse(cfg, modal=True, reuse=reuse)
 else:
     case = lambda: analyse(cfg, modal=True)
 
@@ -119,11 +126,11 @@ for line in sys.stdin:
 '''
 
 
-def start(tree: Path, case: tuple, cold: bool = False) -> subprocess.Popen:
-    """A warmed-up worker of `case` on `tree` (its first line "ready"); cold: the tree's module-level memos
-    emptied before each run (the module docstring)."""
+def start(tree: Path, case: tuple, mode: str = "as-is") -> subprocess.Popen:
+    """A warmed-up worker of `case` on `tree` (its first line "ready"); mode "cold": the tree's module-level
+    memos emptied before each run, "shared": its runs share one `Reuse` (the module docstring)."""
     _, kind, config, over, rigid = case
-    args = [str(tree), kind, config, "1" if rigid else "0", "1" if cold else "0", *over]
+    args = [str(tree), kind, config, "1" if rigid else "0", mode, *over]
     proc = subprocess.Popen([sys.executable, "-c", WORKER % WARM_SECONDS, *args], stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, text=True, cwd=tree)
     if proc.stdout.readline().strip() != "ready":
@@ -137,13 +144,16 @@ def turn(proc: subprocess.Popen, tries: int) -> float:
     return float(proc.stdout.readline())
 
 
-def measure(trees: tuple[Path, Path], rounds: int) -> list[tuple[str, list[float], list[float], list[float]]]:
-    """Per case: (name, base times, the cold base's times (static rows; else empty), this tree's times): each
-    of PROCESSES workers per tree a time per round, all workers taking turns."""
+def measure(trees: tuple[Path, Path], rounds: int) -> list[tuple[str, list[float], ...]]:
+    """Per case: (name, base times, the cold base's times, this tree's times, this tree's shared times; the
+    static rows' only, else empty): each of PROCESSES workers per tree and mode a time per round, all workers
+    taking turns."""
     rows = []
     for case in CASES:
-        runs = [(trees[0], False)] + ([(trees[0], True)] if case[1] == "static" else []) + [(trees[1], False)]
-        workers = [(k, start(tree, case, cold)) for _ in range(PROCESSES) for k, (tree, cold) in enumerate(runs)]
+        static = case[1] == "static"
+        runs = [(trees[0], m) for m in (("as-is", "cold") if static else ("as-is",))] + \
+            [(trees[1], m) for m in (("as-is", "shared") if static else ("as-is",))]
+        workers = [(k, start(tree, case, mode)) for _ in range(PROCESSES) for k, (tree, mode) in enumerate(runs)]
         times: list[list[float]] = [[] for _ in runs]
         try:
             for r in range(rounds):
@@ -154,7 +164,7 @@ def measure(trees: tuple[Path, Path], rounds: int) -> list[tuple[str, list[float
             for _, proc in workers:
                 proc.stdin.close()
                 proc.wait()
-        rows.append((case[0], times[0], times[1] if len(times) == 3 else [], times[-1]))
+        rows.append((case[0], *times) if static else (case[0], times[0], [], times[1], []))
         print(f"  {case[0]}: done", file=sys.stderr, flush=True)
     return rows
 
@@ -174,13 +184,15 @@ def main() -> None:
             subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(base)], check=False)
     width = max(len(name) for name, *_ in rows)
     print(f"{'benchmark (interleaved, ' + str(rounds) + ' rounds)':<{width}}  {'base ' + base_rev[:10]:>22}  "
-          f"{'base, cold':>22}  {'this tree':>22}  {'ratio':>6}  {'to cold':>7}")
-    for name, b, c, a in rows:
-        b, c, a = sorted(b), sorted(c), sorted(a)
+          f"{'base, cold':>22}  {'this tree':>22}  {'this tree, shared':>22}  {'ratio':>6}  {'to cold':>7}  "
+          f"{'shared':>6}")
+    for name, b, c, a, s in rows:
+        b, c, a, s = sorted(b), sorted(c), sorted(a), sorted(s)
         p10 = len(b) // 10
         cell = lambda t: f"{t[0] * 1e3:9.2f} ms (p10 {t[p10] * 1e3:.2f})" if t else ""  # noqa: E731
-        print(f"{name:<{width}}  {cell(b):>22}  {cell(c):>22}  {cell(a):>22}  {a[0] / b[0]:6.2f}  "
-              + (f"{a[0] / c[0]:7.2f}" if c else ""))
+        ratio = lambda x, y: f"{x[0] / y[0]:.2f}" if x and y else ""  # noqa: E731
+        print(f"{name:<{width}}  {cell(b):>22}  {cell(c):>22}  {cell(a):>22}  {cell(s):>22}  {ratio(a, b):>6}  "
+              f"{ratio(a, c):>7}  {ratio(s, b):>6}")
 
 
 if __name__ == "__main__":

@@ -206,3 +206,39 @@ def test_the_deferred_system_gives_the_built_systems_facts():
     assert not deferred.built and not built
     np.testing.assert_array_equal(deferred.gravity_force, system.gravity_force)
     assert deferred.built and deferred.full() is built[0] and len(built) == 1
+
+
+def _arrays(obj) -> dict:
+    """The numpy arrays a frozen dataclass holds, by field name."""
+    return {f.name: getattr(obj, f.name) for f in dataclasses.fields(obj) if isinstance(getattr(obj, f.name), np.ndarray)}
+
+
+def test_a_study_store_gives_what_an_analysis_would_make_and_makes_each_item_once():
+    # Reference: the analyses without a store (each makes its own fit, DOF map and pattern). Three analyses of
+    # the FEAD on a sparse mesh (30 el/span) sharing one `Reuse`: two belt stiffnesses of one drive and a finer mesh.
+    # The store makes one fit (one geometry), two DOF maps and two patterns (two meshes); every static and modal
+    # result equals the analysis without a store to the bit; what it holds is read-only.
+    from beltdyn.model.reuse import Reuse
+    from beltdyn.pipeline import analyse
+
+    cfgs = [load_config(FEAD, [f"mesh.elements_per_span={n}", f"belt.EA={ea}"])
+            for n, ea in ((30, 1.2e5), (30, 1.5e5), (40, 1.2e5))]
+    reuse = Reuse()
+    shared = [analyse(c, modal=True, reuse=reuse) for c in cfgs]
+    alone = [analyse(c, modal=True) for c in cfgs]
+    assert reuse.made == {"fit": 1, "dofs": 2, "pattern": 2}
+    assert shared[0].system.pattern is shared[1].system.pattern is not shared[2].system.pattern
+    assert shared[0].system.dofs is shared[1].system.dofs and shared[0].fit_layout is shared[2].fit_layout
+    for got, want in zip(shared, alone):
+        assert got.system.pattern.sparse and want.system.pattern.sparse
+        for name, a in _arrays(want.system.pattern).items():
+            np.testing.assert_array_equal(getattr(got.system.pattern, name), a, err_msg=name)
+        for f in dataclasses.fields(want.system.dofs):
+            a, b = getattr(got.system.dofs, f.name), getattr(want.system.dofs, f.name)
+            np.testing.assert_equal(a, b, err_msg=f.name)
+        for name in ("q", "span_tension", "pulley_center"):
+            np.testing.assert_array_equal(getattr(got.static, name), getattr(want.static, name), err_msg=name)
+        np.testing.assert_array_equal(got.modal.frequency, want.modal.frequency)
+    for obj in (shared[0].system.pattern, shared[0].system.dofs, shared[0].fit_layout):
+        for name, a in _arrays(obj).items():
+            assert not a.flags.writeable, f"{type(obj).__name__}.{name}"

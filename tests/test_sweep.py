@@ -660,13 +660,13 @@ def test_modal_rtol_decides_on_its_output_before_the_refinement(tmp_path):
     assert (tmp_path / "t.h5").read_bytes() == before
 
 
-def test_a_chunk_fits_each_geometry_once_and_its_cases_equal_single_runs(monkeypatch):
-    # `run_chunk` keeps the L0 fits of its cases by their inputs (`geometry.fit_inputs`): the cases of one
-    # geometry share one fit, a case of another geometry (the belt's length swept) fits anew, and every
-    # case's results equal the case run alone (`run_case`, its own fit), to the bit.
-    import beltdyn.pipeline
+def test_a_chunk_fits_and_numbers_each_drive_once_and_its_cases_equal_single_runs(monkeypatch):
+    # `run_chunk` keeps the L0 fits, DOF maps and assembly patterns of its cases by their inputs (a
+    # `reuse.Reuse`): the cases of one geometry share one fit, a case of another geometry (the belt's length
+    # swept) fits anew, all four (one mesh, one set of pulleys) share one DOF map and one pattern, and every
+    # case's results equal the case run alone (`run_case`, which makes its own), to the bit.
     from beltdyn.config import resolved_toml
-    from beltdyn.model import geometry
+    from beltdyn.model import reuse
     from beltdyn.study.cases import run_chunk
     from beltdyn.study.sweep import run_case
 
@@ -675,11 +675,13 @@ def test_a_chunk_fits_each_geometry_once_and_its_cases_equal_single_runs(monkeyp
     items = [(0, ["tension.target=150.0"]), (1, ["belt.length=1.80"]), (2, ["tension.target=300.0"]),
              (3, ["belt.length=1.80", "tension.target=250.0"])]
     alone = [run_case(base, cfg.source, a, "modal", 6) for _, a in items]
-    fits = []
-    real = geometry.layout_from_config
-    monkeypatch.setattr(beltdyn.pipeline, "layout_from_config", lambda c: fits.append(c.belt.length) or real(c))
+    made = {"fit": [], "dofs": [], "pattern": []}
+    for kind, name in (("fit", "layout_from_config"), ("dofs", "number_dofs"), ("pattern", "make_pattern")):
+        real = getattr(reuse, name)
+        monkeypatch.setattr(reuse, name, lambda *a, _k=kind, _f=real, **kw: made[_k].append(a[0]) or _f(*a, **kw))
     chunk = run_chunk(base, cfg.source, {}, items, "modal", 6)
-    assert fits == [cfg.belt.length, 1.80]  # two geometries: two fits for four cases
+    assert [c.belt.length for c in made["fit"]] == [cfg.belt.length, 1.80]  # two geometries: two fits for four cases
+    assert len(made["dofs"]) == 1 and len(made["pattern"]) == 1
     for (i, got), want in zip(chunk, alone):
         assert got["failed"] == 0 == want["failed"], got["error"]
         assert got.keys() == want.keys()

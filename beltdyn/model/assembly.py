@@ -63,6 +63,7 @@ class Pattern:
         keys = None
         if self.indptr is not None:  # rows in order, columns sorted within a row: ascending
             keys = np.repeat(np.arange(self.n, dtype=np.int64), np.diff(self.indptr)) * (self.n + 1) + self.indices
+            keys.setflags(write=False)
         object.__setattr__(self, "keys", keys)
 
     @property
@@ -95,11 +96,20 @@ def element_pairs(idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.repeat(idx[:, :, None], m, axis=2).ravel(), np.repeat(idx[:, None, :], m, axis=1).ravel())
 
 
+def pattern_key(idx: np.ndarray, n: int, *, sparse: bool, extra: tuple[np.ndarray, np.ndarray] | None = None) -> tuple:
+    """What `make_pattern` reads, as a key (hashable, compared by value: the arrays' shapes and bytes):
+    equal keys make equal patterns (`reuse.Reuse`: a study's analyses of one drive share theirs)."""
+    parts = [idx] if extra is None else [idx, *extra]
+    return (n, sparse, *[(a.dtype.str, a.shape, np.ascontiguousarray(a).tobytes()) for a in parts])
+
+
 def make_pattern(idx: np.ndarray, n: int, *, sparse: bool, extra: tuple[np.ndarray, np.ndarray] | None = None) -> Pattern:
     """The pattern of element blocks on idx (n_elem, m) over n coordinates; sparse: also holding the
-    diagonal and the entries extra (rows, cols) (the components' and the spring spans')."""
+    diagonal and the entries extra (rows, cols) (the components' and the spring spans'). Its arrays are
+    read-only: a study's analyses share a pattern (`reuse.Reuse`)."""
     rows, cols = element_pairs(idx)
     flat = rows * (n + 1) + cols
+    flat.setflags(write=False)
     if not sparse:
         return Pattern(n=n, flat=flat)
     keep = (rows < n) & (cols < n)
@@ -112,8 +122,10 @@ def make_pattern(idx: np.ndarray, n: int, *, sparse: bool, extra: tuple[np.ndarr
     indptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(r, minlength=n), out=indptr[1:])  # (entries per row)
     diag_slot = np.searchsorted(keys, diag_keys)
-    return Pattern(n=n, flat=flat, slot=slot, indices=c.astype(np.int32), indptr=indptr.astype(np.int32),
-                   diag_slot=diag_slot, nnz=len(keys))
+    indices, indptr = c.astype(np.int32), indptr.astype(np.int32)
+    for a in (slot, indices, indptr, diag_slot):
+        a.setflags(write=False)
+    return Pattern(n=n, flat=flat, slot=slot, indices=indices, indptr=indptr, diag_slot=diag_slot, nnz=len(keys))
 
 
 def assemble_blocks(pattern: Pattern, blocks: np.ndarray | None, springs: np.ndarray | None,

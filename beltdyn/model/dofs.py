@@ -64,6 +64,13 @@ class DofMap:
         return len(self.labels) - self.dependent
 
 
+def dof_inputs(cfg: DriveConfig, counts: tuple[int, ...]) -> tuple:
+    """What `number_dofs` reads of a configuration with counts elements per span, as a key (hashable,
+    compared by value): the pulleys (their names, supports, decouplers) and the counts. Equal keys number
+    the DOFs alike (`reuse.Reuse`: a study's analyses of one drive and mesh share the map)."""
+    return cfg.pulleys, tuple(counts)
+
+
 def number_dofs(cfg: DriveConfig, counts: tuple[int, ...] | None = None) -> DofMap:
     """DOF order along the loop: pulley j (its support's DOFs, rotation), then span j (start
     gradients, interior nodes, end gradients; none for a spring span); the supports' dependent DOFs

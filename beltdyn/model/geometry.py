@@ -600,8 +600,8 @@ def relay(layout: Layout, center: np.ndarray, *, adjust_offset: float | None = N
 
 def fit_inputs(cfg: DriveConfig) -> tuple:
     """What `layout_from_config` reads of a configuration, as a key (hashable, compared by value): the
-    pulleys and the belt's length. Configurations with equal keys have the same L0 fit (`pipeline.analyse`'s
-    fits: a study's analyses of one geometry share it)."""
+    pulleys and the belt's length. Configurations with equal keys have the same L0 fit (`reuse.Reuse`: a
+    study's analyses of one geometry share it)."""
     return cfg.pulleys, float(cfg.belt.length)
 
 

@@ -48,6 +48,7 @@ from beltdyn.model.assembly import (DENSE_LIMIT, NO_INDEX, Pattern, assemble_blo
                                     component_nonzeros, component_sums, element_pairs, make_pattern)
 from beltdyn.model.belt import BeltSpans, build_belt, empty_element_set, plus
 from beltdyn.model.dofs import DofMap, number_dofs
+from beltdyn.model.reuse import Reuse
 from beltdyn.model.springs import SpringSpans, build_springs, spring_joints
 from beltdyn.model.wraps import WrapModel
 
@@ -740,10 +741,11 @@ class DriveFacts:
     spans: tuple | None = None  # `config.resolved_spans`: (models, elements) of each span
 
 
-def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
-    """The `DriveFacts` of a configuration (`layout`: its L0 fit, where the arms are taken)."""
+def drive_facts(cfg: DriveConfig, layout: Layout, *, reuse: Reuse | None = None) -> DriveFacts:
+    """The `DriveFacts` of a configuration (`layout`: its L0 fit, where the arms are taken); reuse: the
+    study's store the DOF map is taken from (`reuse.Reuse`), if any."""
     spans = models, counts = resolved_spans(cfg)
-    dofs = number_dofs(cfg, counts)
+    dofs = number_dofs(cfg, counts) if reuse is None else reuse.dof_map(cfg, counts)
     pulleys = cfg.pulleys
     friction = np.array([np.nan if p.friction is None else p.friction for p in pulleys])
     return DriveFacts(layout=layout, dofs=dofs, tension=tension_setting(cfg, dofs), loads=static_loads(cfg, dofs),
@@ -757,7 +759,7 @@ def drive_facts(cfg: DriveConfig, layout: Layout) -> DriveFacts:
 def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
                  prestrain_stretch: float | np.ndarray | None = None, spring_free: np.ndarray | None = None,
                  dense: bool | None = None, extra: tuple[LinearComponent, ...] = (),
-                 belt_speed: float | None = None, facts: DriveFacts | None = None) -> System:
+                 belt_speed: float | None = None, facts: DriveFacts | None = None, reuse: Reuse | None = None) -> System:
     """The one place a system is built from a configuration: geometry, DOFs, belt, pulleys, springs.
 
     layout: the belt path (default: the L0 fit of the configuration); prestrain_stretch: the spans'
@@ -765,11 +767,12 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
     `reference_stretch`); spring_free (n_dof,): where the bearing springs are relaxed (default: the
     layout's centres; see `pulley_components`); belt_speed (m/s): the running belt's speed (default:
     [running] of the configuration, `running.belt_speed_of`); facts: the configuration's `DriveFacts`,
-    if at hand (one analysis's builds share them)."""
+    if at hand (one analysis's builds share them); reuse: the study's store of L0 fits, DOF maps and
+    assembly patterns (`reuse.Reuse`), if any."""
     if facts is None:
         check_model_size(cfg)
-        layout = layout or layout_from_config(cfg)
-        facts = drive_facts(cfg, layout)
+        layout = layout or (layout_from_config(cfg) if reuse is None else reuse.fit(cfg))
+        facts = drive_facts(cfg, layout, reuse=reuse)
     layout = layout or layout_from_config(cfg)
     lam = reference_stretch(cfg, layout) if prestrain_stretch is None else prestrain_stretch
     dofs = facts.dofs
@@ -786,7 +789,7 @@ def build_system(cfg: DriveConfig, layout: Layout | None = None, *,
                                                                    parts=facts.pulleys) + tuple(extra),
                              pulley_names=facts.pulley_names, driver=cfg.driver_index, tension=facts.tension,
                              gravity=facts.gravity, dense=dense, loads=facts.loads, arms=arms, friction=facts.friction,
-                             springs=springs, belt_speed=float(belt_speed), wraps=facts.wraps)
+                             springs=springs, belt_speed=float(belt_speed), wraps=facts.wraps, reuse=reuse)
     return system
 
 
@@ -901,10 +904,11 @@ def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: t
                     pulley_names: tuple[str, ...], driver: int, tension: TensionSetting, gravity: np.ndarray,
                     dense: bool | None, loads: np.ndarray | None = None, arms: ArmJoints | None = None,
                     friction: np.ndarray | None = None, springs: SpringSpans | None = None,
-                    belt_speed: float = 0.0, wraps: WrapModel | None = None) -> System:
+                    belt_speed: float = 0.0, wraps: WrapModel | None = None, reuse: Reuse | None = None) -> System:
     """The system of a belt and components: its pattern, mass, weight and the components' constant
     matrices, one assembly for dense and sparse (`assembly`); belt_speed (m/s): the running belt's speed
-    (the system built at that speed at once, its derived fields computed once)."""
+    (the system built at that speed at once, its derived fields computed once); reuse: the study's store
+    the pattern is taken from (`reuse.Reuse`), if any."""
     n = dofs.n
     use_dense = n <= DENSE_LIMIT if dense is None else dense
     if springs is not None:  # the spring spans' blocks: entries of the pattern like the components'
@@ -917,7 +921,7 @@ def assemble_system(layout: Layout, dofs: DofMap, belt: BeltSpans, components: t
         extra = (np.concatenate([r for r, _ in parts]), np.concatenate([c for _, c in parts])) if parts else None
     # (dense without elements: nothing to scatter but the springs, which bring their own indices)
     pattern = Pattern(n=n, flat=NO_INDEX) if use_dense and not len(belt.idx) else \
-        make_pattern(belt.idx, n, sparse=not use_dense, extra=extra)
+        (make_pattern if reuse is None else reuse.pattern)(belt.idx, n, sparse=not use_dense, extra=extra)
     g = np.asarray(gravity, dtype=float)
     has_elements = belt.elements.n_elem > 0
     weighs = bool(g.any())  # (without gravity the belt's weight is zeros)

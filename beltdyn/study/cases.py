@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from beltdyn.model.reuse import Reuse
+
 
 def load_case_modules(analysis: str) -> None:
     """Import what the cases of `analysis` and this process's assembly run, in the sweep's process before
@@ -39,10 +41,10 @@ def run_case(base_toml: str, source: str, assignments: list[str], analysis: str,
 
 
 def case_of(raw: dict, source: str, assignments: list[str], analysis: str, n_modes: int,
-            tables: dict[str, bytes] | None = None, fits: dict | None = None) -> dict:
+            tables: dict[str, bytes] | None = None, reuse: Reuse | None = None) -> dict:
     """`run_case` of the base configuration parsed (`raw`, the TOML's dict; the case's overrides are
-    applied to it: pass a copy). fits: the L0 fits of the chunk's cases so far (`pipeline.analyse`'s);
-    None: the case fits its own."""
+    applied to it: pass a copy). reuse: the chunk's store of L0 fits, DOF maps and patterns
+    (`pipeline.analyse`'s); None: the case makes its own."""
     from beltdyn.config import apply_override, config_from_dict
     from beltdyn.errors import BeltdynError
 
@@ -60,7 +62,7 @@ def case_of(raw: dict, source: str, assignments: list[str], analysis: str, n_mod
             cfg = replace(cfg, transient=resolve_step(cfg.transient)[0])
         from beltdyn.pipeline import analyse
 
-        run = analyse(cfg, modal=analysis == "modal", n_modes=n_modes + 4, fits=fits)
+        run = analyse(cfg, modal=analysis == "modal", n_modes=n_modes + 4, reuse=reuse)
         model, st = run.system, run.static
         out["mean_tension"] = st.mean_tension
         out["span_tension"] = st.span_tension
@@ -133,8 +135,8 @@ def run_chunk(base_toml: str, source: str, tables: dict[str, bytes], items: list
               analysis: str, n_modes: int) -> list[tuple[int, dict]]:
     """`run_case` of each (case index, overrides) of `items`, the base TOML parsed once for the chunk
     (each case applies its overrides to a copy: 0.05 ms against the 0.33 ms of a parse of the paper bench),
-    and the L0 fit once for the cases of one geometry (`pipeline.analyse`'s fits: a sweep of loads,
-    tensions or speeds fits once a chunk)."""
+    and the L0 fit, DOF map and assembly patterns once for the cases of one drive (a `Reuse`, `pipeline.analyse`'s:
+    a sweep of loads, tensions or speeds fits and numbers once a chunk)."""
     raw = tomllib.loads(base_toml)
-    fits: dict = {}
-    return [(i, case_of(copy.deepcopy(raw), source, a, analysis, n_modes, tables, fits)) for i, a in items]
+    reuse = Reuse()
+    return [(i, case_of(copy.deepcopy(raw), source, a, analysis, n_modes, tables, reuse)) for i, a in items]

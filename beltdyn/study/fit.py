@@ -48,6 +48,7 @@ from beltdyn.analysis.sensitivity import (
 )
 from beltdyn.config import DriveConfig, config_to_dict, with_overrides
 from beltdyn.errors import ConfigError, SolverError
+from beltdyn.model.reuse import Reuse
 from beltdyn.model.system import System, build_system, drive_facts
 from beltdyn.pipeline import Analysis, analyse
 from beltdyn.study.measured import MeasuredData, check_cases
@@ -344,7 +345,7 @@ class Model:
         self.warnings: list[str] = []
         self.analyses = 0
         self.rebuilt: dict[int, bool] = {}  # per case: `system_at_state` reproduces its drive
-        self.fits: dict = {}  # the L0 fits of the analyses so far (`pipeline.analyse`'s: one per geometry)
+        self.reuse = Reuse()  # the L0 fits, DOF maps and patterns of the analyses so far (`pipeline.analyse`'s)
 
     def config(self, c: int, values: np.ndarray) -> DriveConfig:
         """Case c's configuration at parameter values (n,)."""
@@ -353,7 +354,7 @@ class Model:
     def _analyse(self, cfg: DriveConfig, c: int) -> Analysis:
         self.analyses += 1
         try:
-            return analyse(cfg, modal=True, n_modes=self.n_modes[c], fits=self.fits)
+            return analyse(cfg, modal=True, n_modes=self.n_modes[c], reuse=self.reuse)
         except SolverError as exc:
             raise SolverError(f"{exc} (fit, load case '{self.data.case_name(c)}')", analysis="fit") from None
 

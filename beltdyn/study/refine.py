@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from beltdyn.config import DriveConfig
+from beltdyn.model.reuse import Reuse
 
 SAFETY = 1.25  # safety factor of the Richardson error estimate (Roache's grid convergence index)
 
@@ -69,10 +70,10 @@ def refine_mesh(cfg: DriveConfig, *, n_modes: int, rtol: float, max_elements: in
 
     n_el = cfg.mesh.elements_per_span
     runs, elements = [], []
-    fits: dict = {}  # (every mesh of one L0 fit: `pipeline.analyse`'s fits)
+    reuse = Reuse()  # (every mesh of one L0 fit: `pipeline.analyse`'s)
     while True:
         c = with_overrides(cfg, [f"mesh.elements_per_span={n_el}"])
-        run = analyse(c, modal=True, n_modes=n_modes + 6, fits=fits)
+        run = analyse(c, modal=True, n_modes=n_modes + 6, reuse=reuse)
         md = run.modal
         runs.append((c, run.system, run.static, md))
         elements.append(n_el)
