@@ -48,14 +48,21 @@ for _name in command_modules():
     importlib.import_module(f"{commands.__name__}.{_name}").register(app)
 
 
+def _children_alive() -> bool:
+    """Whether a process this one started through `multiprocessing` still runs (finished ones reaped)."""
+    mp = sys.modules.get("multiprocessing")
+    return mp is not None and bool(mp.active_children())
+
+
 def run() -> None:
     """The app, then a quick exit (what the `beltdyn` console script, `beltdyn.cli.run`, runs once it
     has set the garbage collector's threshold). The interpreter's teardown (freeing
     every module numba, scipy and h5py loaded) takes ~0.2 s of a short command; it is skipped once the
     command is over: output flushed, beltdyn's own cleanup list run (`beltdyn.cleanup`: results-file
-    locks released; the results files are closed by then), no other thread alive and no process pool
-    used (`multiprocessing` imported: a sweep; its exit handlers join and clean up, so the normal exit).
-    The exit code is the app's."""
+    locks released; the results files are closed by then), no other thread alive and no child process
+    (`multiprocessing.active_children`: a sweep's workers are joined by `study.pool.run_pool` before it
+    returns; a child still running takes the normal exit, whose handlers join it). Measured: a sweep's
+    normal exit took 0.4-0.6 s after its last output. The exit code is the app's."""
     import threading
 
     code: int | str | None = 0
@@ -63,7 +70,7 @@ def run() -> None:
         app()
     except SystemExit as exc:
         code = exc.code
-    if threading.active_count() > 1 or "multiprocessing" in sys.modules:  # the normal way, every exit handler
+    if threading.active_count() > 1 or _children_alive():  # the normal way, every exit handler
         sys.exit(code)
     if code is not None and not isinstance(code, int):  # sys.exit("message"): printed, exit 1
         print(code, file=sys.stderr)
