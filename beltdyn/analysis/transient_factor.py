@@ -123,10 +123,7 @@ def _iteration_matrix(system: System, setup: TransientSetup, q: np.ndarray, h: f
     if tr is not None and (tr.follow or tr.speed):
         c, cd = (float(x[0]) for x in transport_speed(setup, np.array([t])))
         A, B, _, _ = system.transport_matrices()
-        G = system.__dict__.get("_gyroscopic_unit")
-        if G is None:
-            G = A - A.T
-            object.__setattr__(system, "_gyroscopic_unit", G)
+        G = A - A.T  # (per factor: a few a run; the system is frozen, nothing is cached in it)
         terms += [(c_c * c, G), ((1.0 - af) * cd, A), (-(1.0 - af) * c * c, B)]
     C_belt = _belt_damping_matrix(system, setup, q, p)
     if C_belt is not None:

@@ -21,7 +21,7 @@ from __future__ import annotations
 import cmath
 import functools
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import NamedTuple
 
@@ -201,10 +201,10 @@ def _sign(x: float) -> float:
     return 1.0 if x > 0.0 else -1.0 if x < 0.0 else x * 0.0
 
 
-def span_lines(z: list[complex], radius: list[float], sigma: list[float], *,
+def span_lines(z: Sequence[complex], radius: Sequence[float], sigma: Sequence[float], *,
                coincident: Callable[[], None] | None = None) -> tuple[list[float], ...]:
     """The tangent lines and wraps of pulleys at z (n) (complex x + iy) of radii (n) turning the belt in
-    the senses sigma (n) (orientation x side), lists of floats in, lists of floats out: (span angles a (n)
+    the senses sigma (n) (orientation x side), sequences of floats in, lists of floats out: (span angles a (n)
     rad, q (n) = (rho_i - rho_(i+1)) / D (the module docstring), wrap angles (n) rad, sums (3n): the span
     lengths, arc lengths and signed turning angles, n each, one after the other). A span without a
     tangent (|q| > 1: an unchecked iterate; the checks then name it) takes its angle at q clipped to
@@ -423,9 +423,9 @@ class _FitProblem:
     motion: Motion
     target_length: float
     arc_weight: float
-    z: list[complex]
-    radii: list[float]
-    senses: list[float]
+    z: tuple[complex, ...]
+    radii: tuple[float, ...]
+    senses: tuple[float, ...]
 
     @property
     def name(self) -> str:
@@ -443,7 +443,7 @@ class _FitProblem:
         unchecked: the lengths summed in order)."""
         if check:
             return self.of_layout(s, self.layout_at(s, True))
-        z, (p, v) = self.z.copy(), self.motion.point(s)
+        z, (p, v) = list(self.z), self.motion.point(s)
         z[self.index] = p
         angle, _, _, sums = span_lines(z, self.radii, self.senses)
         n = len(z)
@@ -569,8 +569,8 @@ def fit_adjustable(
     radius, side_sign = np.asarray(radius, dtype=float), np.asarray(side_sign, dtype=float)
     fit = _FitProblem(center=center, radius=radius, side_sign=side_sign, names=tuple(names), orientation=orientation,
                       index=index, motion=motion, target_length=float(target_length), arc_weight=float(arc_weight),
-                      z=center.view(complex).ravel().tolist(), radii=radius.tolist(),
-                      senses=(orientation * side_sign).tolist())
+                      z=tuple(center.view(complex).ravel().tolist()), radii=tuple(radius.tolist()),
+                      senses=tuple((orientation * side_sign).tolist()))
     try:
         start = fit.of_layout(0.0, base) if base is not None else fit.at(0.0, False)
         s, _ = _fit_newton(fit, start, check=False, tol=tol, max_iter=max_iter)
