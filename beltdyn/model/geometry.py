@@ -83,8 +83,8 @@ def directions(angle: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True, kw_only=True)
 class BeltPath:
     """The belt path of pulleys at given centres without its tangent points: the spans and wraps an
-    iterate of a tensioner arm's balance evaluates (`belt_path`, unchecked; the same numbers as the
-    `Layout` that `compute_layout(check=False)` gives). Shapes: n pulleys, n spans."""
+    iterate of the L0 fit or of a tensioner arm's balance evaluates (`belt_path`, unchecked; the same
+    numbers as the `Layout` that `compute_layout(check=False)` gives). Shapes: n pulleys, n spans."""
 
     span_angle: np.ndarray  # (n,) direction of travel, rad
     span_length: np.ndarray  # (n,) m
@@ -400,19 +400,18 @@ class Motion:
 
 class _Iterate(NamedTuple):
     """An iterate of the L0 fit: the fitted length, its slope (d / ds of the belt length: the weighted
-    arcs' change neglected, the iteration then converges linearly for w != 1), and its checked layout
-    (None: an unchecked iterate, its path on floats)."""
+    arcs' change neglected, the iteration then converges linearly for w != 1), and its path (a checked
+    `Layout`, or the unchecked `BeltPath`)."""
 
     length: float
     slope: float
-    layout: Layout | None
+    path: Layout | BeltPath
 
 
 @dataclass(frozen=True, kw_only=True)
 class _FitProblem:
     """The L0 fit of pulley `index` of the pulleys (center (n, 2), radius (n,), side_sign (n,)):
-    fitted length sum(span lengths) + w sum(arc lengths) = target_length. z, radii, senses: the
-    centres (x + iy), radii and turning senses (orientation x side) as floats (n), for `at`."""
+    fitted length sum(span lengths) + w sum(arc lengths) = target_length."""
 
     center: np.ndarray
     radius: np.ndarray
@@ -423,48 +422,42 @@ class _FitProblem:
     motion: Motion
     target_length: float
     arc_weight: float
-    z: tuple[complex, ...]
-    radii: tuple[float, ...]
-    senses: tuple[float, ...]
 
     @property
     def name(self) -> str:
         return self.names[self.index]
 
+    def _centers(self, s: float) -> tuple[np.ndarray, complex]:
+        """The centres (n, 2) with the pulley at offset s, and its d centre / ds (x + iy)."""
+        c, (p, v) = self.center.copy(), self.motion.point(s)
+        c[self.index] = p.real, p.imag
+        return c, v
+
     def layout_at(self, s: float, check: bool) -> Layout:
         """The layout at offset s (its adjust_* fields: s, of this pulley and motion)."""
-        c, p = self.center.copy(), self.motion.point(s)[0]
-        c[self.index] = p.real, p.imag
-        return compute_layout(c, self.radius, self.side_sign, self.names, orientation=self.orientation, check=check,
-                              adjust_offset=s, adjust_index=self.index, adjust_kind=self.motion.kind)
+        return compute_layout(self._centers(s)[0], self.radius, self.side_sign, self.names, orientation=self.orientation,
+                              check=check, adjust_offset=s, adjust_index=self.index, adjust_kind=self.motion.kind)
 
     def at(self, s: float, check: bool) -> _Iterate:
-        """The iterate at offset s: of its checked layout (check), else of the path on floats (`span_lines`,
-        unchecked: the lengths summed in order)."""
+        """The iterate at offset s: of its checked layout (check), else of its unchecked path (`belt_path`)."""
         if check:
-            return self.of_layout(s, self.layout_at(s, True))
-        z, (p, v) = list(self.z), self.motion.point(s)
-        z[self.index] = p
-        angle, _, _, sums = span_lines(z, self.radii, self.senses)
-        n = len(z)
-        length, arc = sums[:n], sums[n:2 * n]
-        return self._iterate(v, angle, arc, sum(length) + sum(arc), None)
+            return self.of_path(s, self.layout_at(s, True))
+        c, v = self._centers(s)
+        return self._iterate(v, belt_path(c, self.radius, self.side_sign, self.orientation))
 
-    def of_layout(self, s: float, lay: Layout) -> _Iterate:
-        """The iterate of the layout `lay` at offset s."""
-        return self._iterate(self.motion.point(s)[1], lay.span_angle.tolist(), lay.arc_length.tolist(),
-                             lay.belt_length, lay)
+    def of_path(self, s: float, path: Layout | BeltPath) -> _Iterate:
+        """The iterate of the layout or path at offset s."""
+        return self._iterate(self.motion.point(s)[1], path)
 
-    def _iterate(self, v: complex, angle: list[float], arc: list[float], belt_length: float,
-                 lay: Layout | None) -> _Iterate:
-        """The iterate of a path of span angles and arcs (n) and belt length where the pulley's centre
-        moves at v = d centre / ds: its slope g . v with the belt length's gradient g = t_in - t_out at the
-        pulley (the arriving span's direction minus the departing one's: the module docstring)."""
+    def _iterate(self, v: complex, path: Layout | BeltPath) -> _Iterate:
+        """The iterate of a path where the pulley's centre moves at v = d centre / ds: its slope g . v with
+        the belt length's gradient g = t_in - t_out at the pulley (the arriving span's direction minus the
+        departing one's: the module docstring)."""
         j, w = self.index, self.arc_weight
-        a, b = angle[j - 1], angle[j]
+        a, b = path.span_angle[j - 1].item(), path.span_angle[j].item()
         gx, gy = math.cos(a) - math.cos(b), math.sin(a) - math.sin(b)
-        return _Iterate(belt_length if w == 1.0 else belt_length + (w - 1.0) * sum(arc), gx * v.real + gy * v.imag,
-                        lay)
+        length = path.belt_length if w == 1.0 else path.belt_length + (w - 1.0) * float(path.arc_length.sum())
+        return _Iterate(length, gx * v.real + gy * v.imag, path)
 
     def where(self) -> tuple[str, str]:
         if self.motion.pivot is None:
@@ -514,7 +507,7 @@ def _fit_newton(fit: _FitProblem, start: _Iterate, *, check: bool, tol: float,
 
 def _range_error(fit: _FitProblem, s: float, lay: Layout, slide_range: tuple[float, float]) -> GeometryError:
     """The fitted offset s outside slide_range (an arm: its stops about the drawn arm angle)."""
-    word = "short" if s * fit.of_layout(s, lay).slope < 0 else "long"
+    word = "short" if s * fit.of_path(s, lay).slope < 0 else "long"
     if fit.motion.pivot is None:
         return GeometryError(
             f"L0 = {fit.target_length:.6g} m is too {word} to reach along the slide of pulley '{fit.name}': "
@@ -568,11 +561,9 @@ def fit_adjustable(
         orientation = loop_orientation(center)
     radius, side_sign = np.asarray(radius, dtype=float), np.asarray(side_sign, dtype=float)
     fit = _FitProblem(center=center, radius=radius, side_sign=side_sign, names=tuple(names), orientation=orientation,
-                      index=index, motion=motion, target_length=float(target_length), arc_weight=float(arc_weight),
-                      z=tuple(center.view(complex).ravel().tolist()), radii=tuple(radius.tolist()),
-                      senses=tuple((orientation * side_sign).tolist()))
+                      index=index, motion=motion, target_length=float(target_length), arc_weight=float(arc_weight))
     try:
-        start = fit.of_layout(0.0, base) if base is not None else fit.at(0.0, False)
+        start = fit.of_path(0.0, base) if base is not None else fit.at(0.0, False)
         s, _ = _fit_newton(fit, start, check=False, tol=tol, max_iter=max_iter)
         lay = fit.layout_at(s, check=True)
     except GeometryError:
@@ -581,8 +572,8 @@ def fit_adjustable(
                 base = fit.layout_at(0.0, check=True)
             except GeometryError as exc:
                 raise GeometryError(f"at the given centre of the adjustable pulley: {exc}", exc.key) from None
-        s, end = _fit_newton(fit, fit.of_layout(0.0, base), check=True, tol=tol, max_iter=max_iter)
-        lay = replace(end.layout, adjust_offset=s, adjust_index=index, adjust_kind=motion.kind)
+        s, end = _fit_newton(fit, fit.of_path(0.0, base), check=True, tol=tol, max_iter=max_iter)
+        lay = replace(end.path, adjust_offset=s, adjust_index=index, adjust_kind=motion.kind)
     if slide_range is not None and not (slide_range[0] <= s <= slide_range[1]):
         raise _range_error(fit, s, lay, slide_range)
     return lay
